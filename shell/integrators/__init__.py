@@ -1,0 +1,43 @@
+"""flexshell's ODE integrators: fixed-step, adaptive embedded and implicit Runge-Kutta methods with dense
+output, zero-crossing location and the hooks the multi-rate simulation loop needs.
+
+>>> from shell.integrators import make_integrator, INTEGRATORS
+>>> integ = make_integrator("rk4", fun, t0, y0, t_bound, step=0.01)
+>>> integ.step(); sol = integ.dense_output()
+
+See :mod:`shell.integrators.base` for the interface, :mod:`shell.integrators.events` for event
+location and :func:`shell.integrators.driver.integrate` for a one-call driver; docs/integrators.md says
+which method to pick for which scene.
+"""
+from .base import DenseOutput, Integrator, quaternion_gauge
+from .driver import IntegrationResult, integrate
+from .events import event, locate_events
+from .fixed import RK4, RK8, ExplicitEuler, FixedStepRungeKutta, Heun
+
+INTEGRATORS = {cls.name: cls for cls in (ExplicitEuler, Heun, RK4, RK8)}
+
+
+def make_integrator(method, fun, t0, y0, t_bound, **options):
+    """Construct the integrator named ``method`` (a key of ``INTEGRATORS``) or given as a class.
+
+    Options: ``step`` (fixed-step methods: the step; adaptive: initial step guess), ``rtol``, ``atol``,
+    ``max_step``, ``normalize``, ``error_exclude``, and ``jac`` for implicit methods.
+    """
+    if isinstance(method, type) and issubclass(method, Integrator):
+        cls = method
+    else:
+        try:
+            cls = INTEGRATORS[str(method).lower()]
+        except KeyError:
+            raise ValueError(f"unknown integrator {method!r}; choose one of {sorted(INTEGRATORS)}") from None
+    if options.get("jac") is not None and not cls.implicit:
+        raise ValueError(f"integrator {cls.name!r} is explicit and does not use a Jacobian; pass jac only "
+                         f"to an implicit method ({sorted(k for k, c in INTEGRATORS.items() if c.implicit)})")
+    if "jac" in options and not cls.implicit:
+        options = {k: v for k, v in options.items() if k != "jac"}
+    return cls(fun, t0, y0, t_bound, **options)
+
+
+__all__ = ["INTEGRATORS", "make_integrator", "Integrator", "DenseOutput", "quaternion_gauge",
+           "locate_events", "event", "integrate", "IntegrationResult",
+           "FixedStepRungeKutta", "ExplicitEuler", "Heun", "RK4", "RK8"]

@@ -1,0 +1,114 @@
+"""Fixed-step explicit Runge-Kutta integrators: Euler (order 1), Heun (2), classical RK4 (4) and the
+12-stage 8th-order Dormand-Prince formula used with a fixed step (RK8).
+
+One step (HNW I Sec. II.1 eq. 1.8): ``k_i = f(t + c_i h, y + h sum_j a_ij k_j)``,
+``y_new = y + h sum_i b_i k_i``; then ``normalize(y_new)`` and ``f_new = f(t + h, y_new)``, which is
+both the end slope of the cubic Hermite dense output and the first stage of the next step (so each step
+costs exactly ``s`` derivative evaluations). The last step before ``t_bound`` is shortened to land on it
+exactly; a remainder within 1e-9 h of a full step is taken as one step, so a discrete sample period that
+is a multiple of the step never produces a sliver step from round-off.
+"""
+import numpy as np
+
+from . import kernels, stability, tableaus
+from .base import HermiteDenseOutput, Integrator
+
+
+class FixedStepRungeKutta(Integrator):
+    """Explicit Runge-Kutta method with a constant step ``step`` (the last step may be shorter)."""
+
+    fixed_step = True
+    tableau = None
+
+    def _setup(self):
+        tb = self.tableau
+        self.h = min(self.step_option, self.max_step)
+        self.K = np.empty((tb.n_stages, self.n))
+        self.y_stage = np.empty(self.n)
+
+    def _step_impl(self):
+        tb = self.tableau
+        t = self.t
+        y = self.y
+        remaining = self.t_bound - t
+        h = self.h
+        last = remaining <= h * (1.0 + 1e-9)
+        if last:
+            h = remaining
+        K = self.K
+        K[0] = self.f
+        fun = self.fun
+        for i in range(1, tb.n_stages):
+            kernels.stage_state(y, K, tb.A[i], i, h, self.y_stage)
+            K[i] = fun(t + tb.c[i] * h, self.y_stage)
+        self.nfev += tb.n_stages - 1
+        y_new = np.empty(self.n)
+        t_new = self.t_bound if last else t + h
+        if not kernels.propagate(y, K, tb.b, tb.n_stages, h, y_new):
+            return self._fail(self._nonfinite_reason("the new state", t_new, y_new), t_new, y_new,
+                              self._stability_suggestion(h))
+        if self.normalize is not None:
+            self.normalize(y_new)
+        f_new = np.array(fun(t_new, y_new), dtype=np.float64)
+        self.nfev += 1
+        if not kernels.all_finite(f_new):
+            return self._fail(self._nonfinite_reason("the derivative fun(t, y)", t_new, f_new), t_new, y_new,
+                              "Check the model for a division by zero or an invalid state at that time; "
+                              + self._stability_suggestion(h))
+        self.t_old = t
+        self.y_old = y
+        self.f_old = self.f
+        self.t = t_new
+        self.y = y_new
+        self.f = f_new
+        return True
+
+    def _dense_output_impl(self):
+        return HermiteDenseOutput(self.t_old, self.t, self.y_old, self.f_old, self.y, self.f)
+
+    def _stability_suggestion(self, h):
+        # the last good state of a diverging run is huge; the eigenvalues of a structural model hardly
+        # depend on the state, so linearize at the start of the run instead
+        rho = self.estimate_spectral_radius(self.t_start, self.y_start)
+        if not np.isfinite(rho) or rho == 0.0:
+            return ("If the state grew without bound, the step may exceed the explicit stability limit: "
+                    "reduce step or use method 'radau5'.")
+        r_osc = stability.stability_radius(self.tableau, np.pi / 2)
+        r_real = stability.stability_radius(self.tableau, np.pi)
+        return (f"The fastest eigenvalue of the model at the start of the run has |lambda| ~ {rho:.3g} rad/s "
+                f"({rho / (2 * np.pi):.3g} Hz); {self.name} with step {h:.3g} s gives h|lambda| = {h * rho:.3g}, "
+                f"while it is stable only up to h|lambda| = {r_osc:.3g} for an undamped oscillation and "
+                f"{r_real:.3g} for a decaying mode (step < {r_osc / rho:.3g} s resp. {r_real / rho:.3g} s). "
+                f"Reduce the step, remove the mode if it is not needed, or use the implicit method 'radau5'.")
+
+
+class ExplicitEuler(FixedStepRungeKutta):
+    """Forward Euler, order 1."""
+
+    name = "euler"
+    order = 1
+    tableau = tableaus.EULER
+
+
+class Heun(FixedStepRungeKutta):
+    """Heun's method (explicit trapezoidal rule), order 2."""
+
+    name = "heun"
+    order = 2
+    tableau = tableaus.HEUN
+
+
+class RK4(FixedStepRungeKutta):
+    """Classical 4-stage Runge-Kutta, order 4."""
+
+    name = "rk4"
+    order = 4
+    tableau = tableaus.RK4
+
+
+class RK8(FixedStepRungeKutta):
+    """Dormand-Prince 12-stage 8th-order formula (the propagator of DOP853) with a fixed step."""
+
+    name = "rk8"
+    order = 8
+    tableau = tableaus.RK8

@@ -1,0 +1,96 @@
+"""Event location: analytic roots, close root pairs inside one step, direction, ties, terminal stop."""
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from shell.integrators import event, integrate, locate_events
+from shell.integrators.base import DenseOutput
+
+from .problems import oscillator
+
+
+class ExactSolution(DenseOutput):
+    """Dense output returning a known function, to test the root finder without interpolation error."""
+
+    def __init__(self, t_min, t_max, fn):
+        super().__init__(t_min, t_max)
+        self.fn = fn
+
+    def _evaluate(self, t):
+        return np.atleast_1d(self.fn(t)) if t.ndim == 0 else np.atleast_2d(self.fn(t))
+
+
+def _g(fn, terminal=False, direction=0):
+    def g(t, y):
+        return fn(t, y)
+
+    return event(terminal, direction)(g)
+
+
+def test_two_roots_in_one_step_both_found_and_ordered():
+    sol = ExactSolution(0.0, 1.0, lambda t: t)
+    g = _g(lambda t, y: (y[0] - 0.3) * (y[0] - 0.62))
+    roots = locate_events([g], sol, 0.0, 1.0, [g(0.0, [0.0])], [g(1.0, [1.0])], xtol=1e-14)
+    assert [i for _, i in roots] == [0, 0]
+    assert_allclose([t for t, _ in roots], [0.3, 0.62], atol=1e-13)
+
+
+def test_close_root_pair_inside_one_subinterval_found():
+    # roots 0.51 and 0.53 lie in the same eighth [0.5, 0.625] of the step: g has the same sign at
+    # every uniform sample; the parabolic-extremum check must find the dip
+    sol = ExactSolution(0.0, 1.0, lambda t: t)
+    g = _g(lambda t, y: (y[0] - 0.51) * (y[0] - 0.53))
+    roots = locate_events([g], sol, 0.0, 1.0, [g(0.0, [0.0])], [g(1.0, [1.0])], xtol=1e-14)
+    assert_allclose([t for t, _ in roots], [0.51, 0.53], atol=1e-13)
+
+
+def test_direction_filter_and_simultaneous_events_ordered_by_index():
+    sol = ExactSolution(0.0, 1.0, lambda t: t)
+    rising = _g(lambda t, y: y[0] - 0.5, direction=+1)
+    falling = _g(lambda t, y: 0.5 - y[0], direction=-1)
+    falling_only = _g(lambda t, y: y[0] - 0.25, direction=-1)  # rises through 0.25: not reported
+    fns = [falling, rising, falling_only]
+    g0 = [f(0.0, [0.0]) for f in fns]
+    g1 = [f(1.0, [1.0]) for f in fns]
+    roots = locate_events(fns, sol, 0.0, 1.0, g0, g1)
+    assert [i for _, i in roots] == [0, 1]
+    assert roots[0][0] == roots[1][0] == pytest.approx(0.5, abs=1e-12)
+
+
+def test_zero_at_step_end_reported_once():
+    sol = ExactSolution(0.0, 1.0, lambda t: t)
+    g = _g(lambda t, y: y[0] - 1.0)
+    assert locate_events([g], sol, 0.0, 1.0, [-1.0], [0.0]) == [(1.0, 0)]
+    sol2 = ExactSolution(1.0, 2.0, lambda t: t)
+    assert locate_events([g], sol2, 1.0, 2.0, [0.0], [1.0]) == []  # the zero at t_old was already reported
+
+
+@pytest.mark.parametrize("method, step", [("rk4", 0.002)])
+def test_oscillator_zero_crossings_located_to_1e10_seconds(method, step):
+    # x = cos(t) crosses zero at pi/2 + k pi; rising at odd k (x goes from - to +). The step makes the
+    # solution (phase) error ~1e-12 over 10 s, so the located times measure the event finder itself.
+    fun, _ = oscillator(1.0)
+    r = integrate(method, fun, 0.0, [1.0, 0.0], 10.0, step=step,
+                  events=[_g(lambda t, y: y[0]), _g(lambda t, y: y[0], direction=+1)])
+    expected = np.pi / 2 + np.pi * np.arange(3)
+    assert_allclose(r.t_events[0], expected, rtol=0, atol=1e-10)
+    assert_allclose(r.t_events[1], expected[1::2], rtol=0, atol=1e-10)
+
+
+def test_terminal_event_stops_at_root_with_state_from_dense_output():
+    fun, exact = oscillator(1.0)
+    stop = _g(lambda t, y: y[0] + 0.5, terminal=True, direction=-1)  # cos t = -1/2 at t = 2 pi / 3
+    r = integrate("rk4", fun, 0.0, [1.0, 0.0], 10.0, step=0.002, events=[stop])
+    assert r.status == "terminated"
+    assert r.t[-1] == pytest.approx(2 * np.pi / 3, abs=1e-10)
+    assert_allclose(r.y[:, -1], exact(2 * np.pi / 3), atol=1e-10)
+    assert_allclose(r.y_events[0][0], exact(2 * np.pi / 3), atol=1e-10)
+
+
+def test_bad_arguments_refused():
+    sol = ExactSolution(0.0, 1.0, lambda t: t)
+    g = _g(lambda t, y: y[0])
+    with pytest.raises(ValueError, match="one per event function"):
+        locate_events([g], sol, 0.0, 1.0, [0.0, 1.0], [1.0])
+    with pytest.raises(ValueError, match="direction must be"):
+        event(direction=2)
