@@ -1,0 +1,370 @@
+"""Component models: declarations of parameters, ports, states, rate and zero crossings.
+
+A :class:`Model` is the Dshell/Drake "leaf system" of flexshell (TM-2020-5008164 App. D.1;
+Drake ``LeafSystem``): it *declares* what it has, once, and holds its parameter values (converted to
+the declared units at construction). It never holds state: continuous states, discrete states and
+signals live in the :class:`shell.simulation.Simulation`'s flat float64 buffers, and the model's
+math is written as kernels with one uniform signature over views into those buffers::
+
+    kernel(t, x, z, u, p, out)
+
+``x`` continuous states, ``z`` discrete states, ``u`` all input ports (concatenated in declaration
+order, each flattened), ``p`` all parameters (concatenated, flattened, in declared units), ``out`` the
+array the kernel fills. The kernels a model may provide:
+
+``state_outputs(t, x, z, u, p, y)``         outputs not marked ``feedthrough`` (must not read ``u``)
+``feedthrough_outputs(t, x, z, u, p, y)``   outputs marked ``feedthrough`` (may read feedthrough inputs)
+``derivatives(t, x, z, u, p, xdot)``        continuous-state derivatives
+``update(t, x, z, u, p)``                   periodic discrete update, in place on ``z``
+``zero_crossing_values(t, x, z, u, p, g)``  zero-crossing functions (one per declared ZeroCrossing)
+
+Kernels are normally ``numba.njit(cache=True)`` functions set as ``staticmethod`` class attributes,
+so the simulation can call them without Python-level indirection today and fuse them into one
+compiled derivative later. Output kernels write the whole output block; the ones not written by
+``state_outputs`` are written by ``feedthrough_outputs``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from shell.units import UnitError, format_unit, parse_unit, to_magnitude, ureg
+
+
+class ModelError(ValueError):
+    """A model declaration or configuration a user must fix; the message names the model path."""
+
+
+def _shape(shape) -> tuple[int, ...]:
+    if isinstance(shape, int):
+        return (shape,)
+    return tuple(int(n) for n in shape)
+
+
+def _size(shape: tuple[int, ...]) -> int:
+    return int(np.prod(shape, dtype=np.int64)) if shape else 1
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A model parameter: value converted to ``unit`` at construction, checked against ``bounds``."""
+
+    name: str
+    unit: str = ""
+    default: object = None
+    shape: tuple = ()
+    bounds: tuple | None = None  # (low, high) in ``unit``, either may be None
+    description: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "shape", _shape(self.shape))
+
+    @property
+    def size(self) -> int:
+        return _size(self.shape)
+
+
+@dataclass(frozen=True)
+class InputPort:
+    """An input signal. ``feedthrough``: the model's feedthrough outputs read it at the same instant.
+
+    An input that is not ``required`` takes ``default`` (in ``unit``; zeros if None) when unconnected.
+    """
+
+    name: str
+    unit: str = ""
+    shape: tuple = ()
+    description: str = ""
+    feedthrough: bool = False
+    required: bool = True
+    default: object = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "shape", _shape(self.shape))
+
+    @property
+    def size(self) -> int:
+        return _size(self.shape)
+
+
+@dataclass(frozen=True)
+class OutputPort:
+    """An output signal; ``feedthrough`` outputs are computed by ``feedthrough_outputs``."""
+
+    name: str
+    unit: str = ""
+    shape: tuple = ()
+    description: str = ""
+    feedthrough: bool = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "shape", _shape(self.shape))
+
+    @property
+    def size(self) -> int:
+        return _size(self.shape)
+
+
+@dataclass(frozen=True)
+class State:
+    """A continuous or discrete state with its initial value (in ``unit``)."""
+
+    name: str
+    unit: str = ""
+    shape: tuple = ()
+    initial: object = None
+    description: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "shape", _shape(self.shape))
+
+    @property
+    def size(self) -> int:
+        return _size(self.shape)
+
+
+@dataclass(frozen=True)
+class ZeroCrossing:
+    """A zero-crossing function g(t, x, z, u) of a model.
+
+    ``direction``: +1 only rising crossings count, -1 only falling, 0 both. ``terminal``: the run
+    stops at the crossing (after the model's ``on_event`` handler ran). A scenario may make any
+    crossing terminal (``stop: events:``).
+    """
+
+    name: str
+    direction: int = 0
+    terminal: bool = False
+    description: str = ""
+
+
+@dataclass
+class Layout:
+    """Offsets of named blocks inside one flat array (parameters, ports or states of a model)."""
+
+    names: list[str] = field(default_factory=list)
+    offsets: dict[str, int] = field(default_factory=dict)
+    shapes: dict[str, tuple] = field(default_factory=dict)
+    size: int = 0
+
+    @classmethod
+    def of(cls, declarations) -> "Layout":
+        layout = cls()
+        for d in declarations:
+            layout.names.append(d.name)
+            layout.offsets[d.name] = layout.size
+            layout.shapes[d.name] = d.shape
+            layout.size += d.size
+        return layout
+
+    def slice(self, name: str) -> slice:
+        start = self.offsets[name]
+        return slice(start, start + _size(self.shapes[name]))
+
+
+def parse_period(value, where: str) -> Fraction:
+    """Sample period as an exact fraction of a second, from "10 Hz", "0.1 s", 0.1 or a Fraction.
+
+    Sample instants are ``offset + k * period`` computed from these fractions, so rates like 1, 10
+    and 100 Hz coincide exactly at shared instants (0.3 s from 3 x 0.1 s and from 30 x 0.01 s).
+    """
+    if isinstance(value, Fraction):
+        period = value
+    else:
+        try:
+            if _is_frequency(value):
+                frequency = float(to_magnitude(value, "Hz", (), where))
+                period = 1 / Fraction(frequency).limit_denominator(10**9) if frequency > 0 else Fraction(0)
+            else:
+                period = Fraction(float(to_magnitude(value, "s", (), where))).limit_denominator(10**9)
+        except UnitError as exc:
+            raise ModelError(f"{exc} (a period in s or a rate in Hz)") from None
+    if period <= 0:
+        raise ModelError(f"{where}: a sample period must be positive, given {value!r}")
+    return period
+
+
+def _is_frequency(value) -> bool:
+    if not isinstance(value, str):
+        return False
+    try:
+        return ureg.Quantity(value).dimensionality == ureg.Hz.dimensionality
+    except Exception:  # not parseable as a quantity: to_magnitude reports it with context
+        return False
+
+
+def parse_offset(value, where: str) -> Fraction:
+    seconds = float(to_magnitude(value, "s", (), where))
+    if seconds < 0:
+        raise ModelError(f"{where}: a sample offset must be >= 0 s, given {value!r}")
+    return Fraction(seconds).limit_denominator(10**9)
+
+
+def convert_parameters(declarations, given: dict, where: str, type_name: str) -> dict[str, np.ndarray]:
+    """Check ``given`` against parameter declarations; values converted to the declared units."""
+    known = {p.name: p for p in declarations}
+    unknown = sorted(set(given) - set(known))
+    if unknown:
+        raise ModelError(f"{where}: unknown parameter(s) {unknown} for {type_name}; "
+                         f"known: {sorted(known) or 'none'}")
+    values = {}
+    for p in declarations:
+        raw = given.get(p.name, p.default)
+        here = f"{where}: parameter {p.name}"
+        if raw is None:
+            raise ModelError(f"{here}: required ({p.description or 'no default'}; unit "
+                             f"{format_unit(p.unit)}, shape {p.shape})")
+        try:
+            value = to_magnitude(raw, p.unit, p.shape, here)
+        except UnitError as exc:
+            raise ModelError(str(exc)) from None
+        if not np.all(np.isfinite(value)):
+            raise ModelError(f"{here}: must be finite, given {raw!r}")
+        if p.bounds is not None:
+            low, high = p.bounds
+            if (low is not None and np.any(value < low)) or (high is not None and np.any(value > high)):
+                raise ModelError(f"{here}: expected within [{low}, {high}] {format_unit(p.unit)}, given {raw!r}")
+        values[p.name] = value
+    return values
+
+
+class Model:
+    """Base class of component models (see the module docstring for the kernel contract).
+
+    Subclasses declare ``parameters``, ``inputs``, ``outputs``, ``continuous_states``,
+    ``discrete_states`` and ``zero_crossings`` as class attributes (or build them per instance in
+    :meth:`configure`, e.g. when port shapes depend on parameters), and set the kernels they need.
+    A model with an ``update`` kernel is *sampled*: it runs at ``period`` (+ ``offset``) seconds,
+    given at construction or by ``default_period``; its outputs are held between samples.
+    """
+
+    parameters: tuple[Parameter, ...] = ()
+    inputs: tuple[InputPort, ...] = ()
+    outputs: tuple[OutputPort, ...] = ()
+    continuous_states: tuple[State, ...] = ()
+    discrete_states: tuple[State, ...] = ()
+    zero_crossings: tuple[ZeroCrossing, ...] = ()
+    default_period: object = None
+    #: one line shown by ``flexshell models``
+    summary: str = ""
+
+    state_outputs = None
+    feedthrough_outputs = None
+    derivatives = None
+    update = None
+    zero_crossing_values = None
+
+    def __init__(self, name: str, *, period=None, offset=0.0, **parameter_values):
+        if not name or "." in name or not name.replace("_", "a").isalnum():
+            raise ModelError(f"model name {name!r}: use letters, digits and underscores (no dots)")
+        self.name = name
+        self.path = name
+        self.rng: np.random.Generator | None = None
+        self.initial_overrides: dict[str, object] = {}
+        self.declare()
+        self._set_parameters(parameter_values)
+        self.configure()
+        self._check_declarations()
+        self.period: Fraction | None = None
+        self.offset = Fraction(0)
+        if self.update is not None:
+            given = period if period is not None else self.default_period
+            if given is None:
+                raise ModelError(f"model {self.path}: {type(self).__name__} is sampled; give its period "
+                                 "(e.g. period: 0.1 s or rate: 10 Hz)")
+            self.period = parse_period(given, f"model {self.path}: period")
+            self.offset = parse_offset(offset, f"model {self.path}: offset")
+        elif period is not None:
+            raise ModelError(f"model {self.path}: {type(self).__name__} is continuous-time and takes no period "
+                             f"(given {period!r})")
+        self.p_layout = Layout.of(self.parameters)
+        self.u_layout = Layout.of(self.inputs)
+        self.y_layout = Layout.of(self.outputs)
+        self.x_layout = Layout.of(self.continuous_states)
+        self.z_layout = Layout.of(self.discrete_states)
+
+    # -- parameters -------------------------------------------------------------------------------
+    def _set_parameters(self, given: dict) -> None:
+        self.parameter_values = convert_parameters(self.parameters, given, f"model {self.path}",
+                                                   type(self).__name__)
+        parts = [self.parameter_values[p.name].reshape(-1) for p in self.parameters]
+        self.p = np.concatenate(parts) if parts else np.zeros(0)
+        offset = 0
+        for p in self.parameters:  # views into the flat vector the kernels receive
+            self.parameter_values[p.name] = self.p[offset:offset + p.size].reshape(p.shape)
+            offset += p.size
+
+    def parameter(self, name: str) -> np.ndarray:
+        """The value of parameter ``name`` in its declared unit (a view into ``self.p``)."""
+        return self.parameter_values[name]
+
+    def declare(self) -> None:
+        """Hook run first: instance-level declarations that depend on construction options."""
+
+    def configure(self) -> None:
+        """Hook run after parameters are set: declarations or data that depend on parameter values."""
+
+    def _check_declarations(self) -> None:
+        for kind, decls in (("input", self.inputs), ("output", self.outputs)):
+            names = [d.name for d in decls]
+            if len(set(names)) != len(names):
+                raise ModelError(f"model {self.path}: duplicate {kind} port names in {names}")
+            for d in decls:
+                parse_unit(d.unit, f"model {self.path}: {kind} {d.name}")
+        if any(o.feedthrough for o in self.outputs) and self.feedthrough_outputs is None:
+            raise ModelError(f"{type(self).__name__}: feedthrough outputs declared without a feedthrough_outputs kernel")
+        if self.zero_crossings and self.zero_crossing_values is None:
+            raise ModelError(f"{type(self).__name__}: zero crossings declared without zero_crossing_values")
+
+    # -- events -----------------------------------------------------------------------------------
+    def on_event(self, index: int, t: float, x: np.ndarray, z: np.ndarray, p: np.ndarray) -> None:
+        """Handle zero crossing ``index`` at time ``t``: reset ``x`` and/or switch modes in ``z``
+        (both writable views). Called outside the integration loop; may be plain Python."""
+
+    # -- initial values ----------------------------------------------------------------------------
+    def initial_continuous_state(self) -> np.ndarray:
+        return self._initial(self.continuous_states)
+
+    def initial_discrete_state(self) -> np.ndarray:
+        return self._initial(self.discrete_states)
+
+    def set_initial(self, state_name: str, value) -> None:
+        """Override the declared initial value of a continuous or discrete state (checked at build)."""
+        names = [s.name for s in self.continuous_states + self.discrete_states]
+        if state_name not in names:
+            raise ModelError(f"model {self.path}: no state {state_name!r} to initialize; states: {names}")
+        self.initial_overrides[state_name] = value
+
+    def _initial(self, states) -> np.ndarray:
+        parts = []
+        for s in states:
+            raw = self.initial_overrides.get(s.name, s.initial)
+            raw = raw if raw is not None else np.zeros(s.shape)
+            parts.append(to_magnitude(raw, s.unit, s.shape, f"model {self.path}: initial {s.name}").reshape(-1))
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    # -- random stream -----------------------------------------------------------------------------
+    def seed_random_stream(self, scenario_seed) -> None:
+        """Give the model its own generator, derived from (scenario seed, model path) only.
+
+        ``numpy.random.SeedSequence(entropy=scenario_seed, spawn_key=words(path))``: the stream does
+        not depend on which other models exist or in which order they draw; Monte Carlo run i uses
+        ``scenario_seed = [master_seed, i]``.
+        """
+        digest = hashlib.sha256(self.path.encode()).digest()
+        spawn_key = tuple(int.from_bytes(digest[i:i + 4], "little") for i in range(0, 16, 4))
+        sequence = np.random.SeedSequence(entropy=scenario_seed, spawn_key=spawn_key)
+        self.rng = np.random.Generator(np.random.PCG64(sequence))
+
+    # -- attachment to multibody nodes/hinges ----------------------------------------------------------
+    def attachment_ports(self, kind: str, target: str) -> tuple[dict[str, str], dict[str, str]]:
+        """For engine-like models: (outputs, inputs) maps from generic signal names ("attitude",
+        "force", ...) to this model's port names for node/hinge ``target``. Others refuse."""
+        raise ModelError(f"model {self.path}: {type(self).__name__} has no nodes or hinges to attach to")
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.path!r})"

@@ -1,0 +1,140 @@
+"""Physical units at the boundary of the framework: one pint registry for the whole package.
+
+Values enter flexshell with units (YAML strings such as ``"5 deg/s"``, ``"20 kg*m^2"``, Python
+``Quantity`` objects, or bare numbers meaning "in the declared unit"). They are converted once, at
+build time, into the unit a parameter or port declares; kernels only ever see float64 magnitudes
+(CONVENTIONS.md: SI inside every kernel). Wiring two ports computes one multiplicative conversion
+factor here; nothing in this module is called inside the integration loop.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pint
+
+#: The package's single unit registry (pint recommends one per application).
+ureg = pint.UnitRegistry()
+Quantity = ureg.Quantity
+
+_VECTOR_WITH_UNIT = re.compile(r"^\s*(\[.*\])\s*(.*?)\s*$", re.DOTALL)
+
+
+class UnitError(ValueError):
+    """A value or a connection whose units cannot be reconciled; the message names both sides."""
+
+
+def parse_unit(unit: str | pint.Unit, where: str = "") -> pint.Unit:
+    """The pint unit for ``unit`` ("" or "1" is dimensionless); refuses unknown unit names."""
+    if isinstance(unit, pint.Unit):
+        return unit
+    text = (unit or "").strip()
+    if text in ("", "1", "-", "dimensionless"):
+        return ureg.dimensionless
+    try:
+        return ureg.Unit(text)
+    except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError, AttributeError,
+            TypeError) as exc:
+        raise UnitError(f"{where}: unknown unit {text!r} ({exc})") from None
+
+
+def is_offset_unit(unit: pint.Unit) -> bool:
+    """True for units whose conversion is not a pure scale (degC, degF): refused on ports."""
+    return not ureg.Quantity(1.0, unit)._is_multiplicative
+
+
+def conversion_factor(from_unit: str | pint.Unit, to_unit: str | pint.Unit, where: str = "") -> float:
+    """Scale such that ``value_in_to_unit = factor * value_in_from_unit``.
+
+    Raises :class:`UnitError` naming ``where`` and both units if their dimensions differ.
+    """
+    src = parse_unit(from_unit, where)
+    dst = parse_unit(to_unit, where)
+    if src.dimensionality != dst.dimensionality:
+        raise UnitError(
+            f"{where}: unit dimensions differ: {format_unit(src)} [{src.dimensionality}] cannot become "
+            f"{format_unit(dst)} [{dst.dimensionality}]"
+        )
+    if is_offset_unit(src) or is_offset_unit(dst):
+        raise UnitError(f"{where}: offset units ({format_unit(src)} -> {format_unit(dst)}) are not allowed "
+                        "on ports or parameters; use kelvin")
+    return float(ureg.Quantity(1.0, src).to(dst).magnitude)
+
+
+def format_unit(unit: str | pint.Unit) -> str:
+    """Compact human-readable unit string ("" for dimensionless)."""
+    u = parse_unit(unit)
+    if u == ureg.dimensionless:
+        return "1"
+    return f"{u:~}"
+
+
+def _split_string_value(text: str) -> tuple[object, str]:
+    """Split "3.5 deg", "[1, 2, 3] deg/s" or "1e-3" into (number or nested list, unit text)."""
+    match = _VECTOR_WITH_UNIT.match(text)
+    if match:
+        import yaml  # the bracketed part is a YAML/JSON flow sequence
+
+        try:
+            numbers = yaml.safe_load(match.group(1))
+        except yaml.YAMLError as exc:
+            raise UnitError(f"cannot read the list {match.group(1)!r}: {exc}") from None
+        return numbers, match.group(2)
+    quantity = ureg.Quantity(text)
+    if isinstance(quantity, (int, float)):
+        return float(quantity), ""
+    return quantity.magnitude, f"{quantity.units}"
+
+
+def to_magnitude(value, unit: str | pint.Unit, shape: tuple[int, ...] | None = None,
+                 where: str = "") -> np.ndarray:
+    """Convert a user value to a float64 array expressed in ``unit``.
+
+    Accepted forms: a number or nested list of numbers (already in ``unit``); a string with a unit
+    ("5 deg/s", "[1, 2, 3] deg/s"); a list of such strings; a mapping ``{value: ..., unit: ...}``;
+    a pint Quantity. ``shape`` (if given) is enforced; a scalar is never broadcast silently.
+    """
+    target = parse_unit(unit, where)
+    try:
+        magnitude = _magnitude_in(value, target, where)
+    except pint.errors.DimensionalityError as exc:
+        raise UnitError(f"{where}: expected a value in {format_unit(target)} "
+                        f"[{target.dimensionality}], given {value!r} ({exc})") from None
+    except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, TypeError, ValueError,
+            AttributeError, AssertionError) as exc:
+        if isinstance(exc, UnitError):
+            raise
+        raise UnitError(f"{where}: expected a value in {format_unit(target)}, given {value!r} ({exc})") from None
+    array = np.asarray(magnitude, dtype=np.float64)
+    if shape is not None and tuple(array.shape) != tuple(shape):
+        raise UnitError(f"{where}: expected shape {tuple(shape)}, given shape {tuple(array.shape)} ({value!r})")
+    return array
+
+
+def _magnitude_in(value, target: pint.Unit, where: str):
+    if isinstance(value, pint.Quantity):
+        return np.asarray(value.to(target).magnitude, dtype=np.float64)
+    if isinstance(value, dict):
+        if set(value) != {"value", "unit"}:
+            raise UnitError(f"{where}: a value mapping needs exactly the keys 'value' and 'unit', given {sorted(value)}")
+        factor = conversion_factor(value["unit"], target, where)
+        return np.asarray(_plain_numbers(value["value"], where), dtype=np.float64) * factor
+    if isinstance(value, str):
+        numbers, unit_text = _split_string_value(value)
+        if isinstance(numbers, str):
+            raise UnitError(f"{where}: {value!r} is not a number with a unit")
+        factor = conversion_factor(unit_text, target, where) if unit_text else 1.0
+        return np.asarray(_plain_numbers(numbers, where), dtype=np.float64) * factor
+    if isinstance(value, (list, tuple)) and any(isinstance(v, (str, list, tuple, dict)) for v in value):
+        return np.array([_magnitude_in(v, target, where) for v in value], dtype=np.float64)
+    if isinstance(value, bool):
+        raise UnitError(f"{where}: expected a number, given the boolean {value!r}")
+    return np.asarray(_plain_numbers(value, where), dtype=np.float64)
+
+
+def _plain_numbers(value, where: str):
+    array = np.asarray(value)
+    if array.dtype.kind not in "iuf":
+        raise UnitError(f"{where}: expected numbers, given {value!r}")
+    return array
