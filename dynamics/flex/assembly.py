@@ -1,0 +1,456 @@
+"""Sparse structural matrices from bulk data: g-set assembly, RBE2 elimination, SPCs.
+
+Set names follow NASTRAN: the g-set holds 6 DOFs per grid (``[T1 T2 T3 R1 R2 R3]`` in the
+grid's displacement frame CD, grids in ascending ID order); eliminating RBE2 dependent DOFs
+gives the n-set; removing single-point constraints (SPC/SPC1, plus AUTOSPC of DOFs that carry
+neither stiffness nor mass) gives the f-set on which the eigen-problems are solved. One sparse
+matrix ``T_gf`` (g x f) carries all of it: ``u_g = T_gf u_f``, ``K_ff = T_gf' K_gg T_gf``.
+
+Elements are assembled in the basic frame and rotated to the CD frames afterwards
+(``K_gg = R' K_basic R`` with R block-diagonal per grid); CELAS springs act on CD components
+and are added after that rotation. Every matrix stays scipy.sparse (CSR) here.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from dynamics.flex import elements as el
+from dynamics.flex.bulk_data import (BulkData, BulkDataError, displacement_frame_rotation,
+                                      vector_to_basic)
+
+
+@dataclass
+class LumpedMass:
+    """A CONM2 as a rigid body: grid, mass [kg], CG in basic [m], inertia about CG (basic)."""
+
+    element_id: int
+    grid_id: int
+    mass: float
+    cg_basic: np.ndarray
+    inertia_cg: np.ndarray
+
+
+@dataclass
+class StructuralModel:
+    """Assembled g-set matrices and the constraint transformation to the f-set.
+
+    stiffness_g, mass_g : (6n, 6n) CSR in CD frames [N/m, N, N m/rad; kg, kg m, kg m^2].
+    mass_lumped_basic : (6n, 6n) CSR, lumped (block-diagonal per grid) in the basic frame;
+        the node masses of the modal integrals come from its 6 x 6 blocks.
+    T_gf : (6n, n_f) CSR, u_g = T_gf @ u_f.
+    f_dofs : (n_f,) g-set index of each f-set DOF (RBE2 independent, unconstrained).
+    """
+
+    bulk: BulkData
+    stiffness_g: sp.csr_matrix
+    mass_g: sp.csr_matrix
+    mass_lumped_basic: sp.csr_matrix
+    T_gf: sp.csr_matrix
+    f_dofs: np.ndarray
+    deck_aset: list = field(default_factory=list)
+    lumped_masses: list = field(default_factory=list)
+    autospc_count: int = 0
+    spc_count: int = 0
+    rbe2_dependent_count: int = 0
+
+    @property
+    def grid_ids(self) -> np.ndarray:
+        return self.bulk.grid_ids
+
+    @property
+    def n_grids(self) -> int:
+        return len(self.bulk.grid_ids)
+
+    def stiffness_f(self) -> sp.csr_matrix:
+        T = self.T_gf
+        return (T.T @ self.stiffness_g @ T).tocsr()
+
+    def mass_f(self) -> sp.csr_matrix:
+        T = self.T_gf
+        return (T.T @ self.mass_g @ T).tocsr()
+
+    def cd_to_basic(self) -> sp.csr_matrix:
+        """Block-diagonal R (6n x 6n): u_basic = R @ u_g for g-set vectors."""
+        return _block_rotation(self.bulk.displacement_rotation)
+
+    def dof_index(self, grid_id: int, component: int, context: str) -> int:
+        """g-set index of (grid, component 1..6)."""
+        if component < 1 or component > 6:
+            raise BulkDataError(f"{context}: component {component} of grid {grid_id} "
+                                "is not in 1..6")
+        return 6 * self.bulk.grid_index(grid_id, context) + component - 1
+
+    def f_index(self, grid_id: int, component: int, context: str) -> int:
+        """f-set index of (grid, component); error if the DOF is constrained or dependent."""
+        g = self.dof_index(grid_id, component, context)
+        pos = np.searchsorted(self.f_dofs, g)
+        if pos >= len(self.f_dofs) or self.f_dofs[pos] != g:
+            raise BulkDataError(f"{context}: DOF {component} of grid {grid_id} is constrained "
+                                "(SPC/AUTOSPC) or an RBE2 dependent DOF, so it is not free")
+        return int(pos)
+
+
+def _block_rotation(R: np.ndarray) -> sp.csr_matrix:
+    n = R.shape[0]
+    blocks = np.zeros((n, 2, 3, 3))
+    blocks[:, 0] = R
+    blocks[:, 1] = R
+    rows = (np.arange(n)[:, None, None, None] * 6 + np.arange(2)[None, :, None, None] * 3
+            + np.arange(3)[None, None, :, None]) + np.zeros((1, 1, 1, 3), dtype=int)
+    cols = (np.arange(n)[:, None, None, None] * 6 + np.arange(2)[None, :, None, None] * 3
+            + np.arange(3)[None, None, None, :]) + np.zeros((1, 1, 3, 1), dtype=int)
+    return sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())), shape=(6 * n, 6 * n))
+
+
+def _components(value) -> list[int]:
+    s = str(value).strip()
+    if s in ("", "0", "None"):
+        return []
+    return sorted({int(c) for c in s})
+
+
+class _Triplets:
+    def __init__(self):
+        self.rows, self.cols, self.vals = [], [], []
+
+    def add(self, dofs: np.ndarray, block: np.ndarray):
+        self.rows.append(np.repeat(dofs, len(dofs)))
+        self.cols.append(np.tile(dofs, len(dofs)))
+        self.vals.append(block.ravel())
+
+    def matrix(self, n: int) -> sp.csr_matrix:
+        if not self.rows:
+            return sp.csr_matrix((n, n))
+        return sp.csr_matrix((np.concatenate(self.vals),
+                              (np.concatenate(self.rows), np.concatenate(self.cols))),
+                             shape=(n, n))
+
+
+def _material(model, mid: int, context: str):
+    mat = model.materials.get(mid)
+    if mat is None:
+        raise BulkDataError(f"{context}: material {mid} is not defined")
+    if mat.type != "MAT1":
+        raise BulkDataError(f"{context}: material {mid} is a {mat.type}; only MAT1 is supported")
+    E = float(mat.e or 0.0)
+    G = float(mat.g or 0.0)
+    rho = float(mat.rho or 0.0)
+    return E, G, rho
+
+
+def _property(model, pid: int, kinds: tuple, context: str):
+    prop = model.properties.get(pid)
+    if prop is None:
+        raise BulkDataError(f"{context}: property {pid} is not defined")
+    if prop.type not in kinds:
+        raise BulkDataError(f"{context}: property {pid} is a {prop.type}, expected "
+                            + " or ".join(kinds))
+    return prop
+
+
+def _beam_section(prop, context: str):
+    if prop.type == "PBAR":
+        A, I1, I2, I12, J, nsm = (float(prop.A), float(prop.i1), float(prop.i2),
+                                  float(prop.i12), float(prop.j), float(prop.nsm))
+        k1, k2 = float(prop.k1 if prop.k1 is not None else 1e8), float(
+            prop.k2 if prop.k2 is not None else 1e8)
+    else:
+        arrays = [np.atleast_1d(np.asarray(getattr(prop, n), dtype=float))
+                  for n in ("A", "i1", "i2", "i12", "j", "nsm")]
+        if any(np.ptp(a) > 1e-12 * max(np.max(np.abs(a)), 1e-300) for a in arrays):
+            raise BulkDataError(f"{context}: PBEAM {prop.pid} is tapered (section varies "
+                                "between stations); only prismatic PBEAMs are supported")
+        A, I1, I2, I12, J, nsm = (float(a[0]) for a in arrays)
+        k1 = float(prop.k1 if prop.k1 is not None else 1.0)
+        k2 = float(prop.k2 if prop.k2 is not None else 1.0)
+    if I12 != 0.0:
+        raise BulkDataError(f"{context}: {prop.type} {prop.pid} has I12 = {I12}; unsymmetric "
+                            "sections are not supported")
+    if A <= 0.0:
+        raise BulkDataError(f"{context}: {prop.type} {prop.pid} has area A = {A} (must be > 0)")
+    return A, I1, I2, J, nsm, k1, k2
+
+
+def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> StructuralModel:
+    """Assemble g-set K and M (and the lumped M in basic), build T_gf.
+
+    ``separate_lumped`` leaves CONM2 masses out of M (FModal's separateLumpedRigidBodies) and
+    returns them as :class:`LumpedMass` records.
+    """
+    model = bulk.model
+    n = len(bulk.grid_ids)
+    ng = 6 * n
+    K_b, M_b, ML_b = _Triplets(), _Triplets(), _Triplets()
+    k_cd = _Triplets()
+    wt = bulk.wtmass
+    pos = bulk.positions
+    Rcd = bulk.displacement_rotation
+
+    def idx(gid, ctx):
+        return bulk.grid_index(int(gid), ctx)
+
+    elems = model.elements
+    n_elem = len(elems)
+    for count, (eid, elem) in enumerate(sorted(elems.items())):
+        if progress is not None and count % 5000 == 0:
+            progress(f"assembling elements {count}/{n_elem}")
+        ctx = f"{elem.type} {eid}"
+        if elem.type in ("CBAR", "CBEAM"):
+            _add_beam(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
+        elif elem.type == "CROD":
+            _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
+        elif elem.type in ("CELAS1", "CELAS2"):
+            if elem.type == "CELAS1":
+                prop = _property(model, int(elem.pid), ("PELAS",), ctx)
+                k = float(prop.k)
+            else:
+                k = float(elem.k)
+            ends = []
+            for gid, comp in zip(elem.nodes, (elem.c1, elem.c2)):
+                if gid is None or gid == 0:
+                    continue
+                c = int(comp or 0)
+                if c < 1 or c > 6:
+                    raise BulkDataError(f"{ctx}: component {comp} of grid {gid} is not in 1..6")
+                ends.append(6 * idx(gid, ctx) + c - 1)
+            if len(ends) == 2:
+                k_cd.add(np.array(ends), k * np.array([[1.0, -1.0], [-1.0, 1.0]]))
+            elif len(ends) == 1:
+                k_cd.add(np.array(ends), np.array([[k]]))
+            else:
+                raise BulkDataError(f"{ctx}: no grid connected")
+        else:
+            raise BulkDataError(f"{ctx}: element type not supported")
+
+    lumped: list[LumpedMass] = []
+    for eid, mass in sorted(model.masses.items()):
+        ctx = f"{mass.type} {eid}"
+        gid = int(mass.nid)
+        i = idx(gid, ctx)
+        dofs = 6 * i + np.arange(6)
+        if mass.type == "CONM2":
+            cid = int(mass.cid)
+            m = float(mass.mass) * wt
+            if cid == -1:
+                cg = np.asarray(mass.X, float)
+                rot = np.eye(3)
+            else:
+                cg = pos[i] + vector_to_basic(model, cid, mass.X, pos[i], ctx)
+                rot = displacement_frame_rotation(model, cid, pos[i], ctx)
+            inertia = rot @ el.conm2_inertia(mass.I) @ rot.T * wt
+            if separate_lumped:
+                lumped.append(LumpedMass(int(eid), gid, m, cg, inertia))
+                continue
+            block = el.point_mass_block(m, cg - pos[i], inertia)
+        elif mass.type == "CONM1":
+            L = np.asarray(mass.mass_matrix, float)
+            B = L + L.T - np.diag(np.diag(L))
+            rot = displacement_frame_rotation(model, int(mass.cid), pos[i], ctx)
+            R6 = np.kron(np.eye(2), rot)
+            block = R6 @ B @ R6.T * wt
+        else:
+            raise BulkDataError(f"{ctx}: mass element type not supported")
+        M_b.add(dofs, block)
+        ML_b.add(dofs, block)
+
+    R = _block_rotation(Rcd)
+    K_basic = K_b.matrix(ng)
+    K_g = (R.T @ K_basic @ R + k_cd.matrix(ng)).tocsr()
+    M_basic = M_b.matrix(ng)
+    M_g = (R.T @ M_basic @ R).tocsr()
+    ML_basic = ML_b.matrix(ng)
+    K_g.sum_duplicates()
+    M_g.sum_duplicates()
+    if M_g.nnz == 0 or not np.any(M_g.diagonal() > 0.0):
+        raise BulkDataError(f"{bulk.path}: zero-mass model (no element density, CONM1/CONM2 "
+                            "or non-structural mass); modes and mass properties need mass")
+
+    structural = StructuralModel(bulk=bulk, stiffness_g=K_g, mass_g=M_g,
+                                 mass_lumped_basic=ML_basic.tocsr(), T_gf=sp.identity(ng, format="csr"),
+                                 f_dofs=np.arange(ng), lumped_masses=lumped)
+    _apply_constraints(structural)
+    structural.deck_aset = _deck_aset(bulk)
+    return structural
+
+
+def _orientation(bulk: BulkData, elem, ia: int, ctx: str) -> np.ndarray:
+    if elem.g0 is not None and int(elem.g0) > 0:
+        i0 = bulk.grid_index(int(elem.g0), ctx + " G0")
+        return bulk.positions[i0] - bulk.positions[ia]
+    if elem.x is None:
+        raise BulkDataError(f"{ctx}: no orientation vector (X1-X3 or G0)")
+    return bulk.displacement_rotation[ia] @ np.asarray(elem.x, float)
+
+
+def _add_beam(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
+    model = bulk.model
+    offt = getattr(elem, "offt", "GGG")
+    if elem.type == "CBEAM" and getattr(elem, "bit", None) is not None:
+        raise BulkDataError(f"{ctx}: BIT field (warping) is not supported")
+    if offt not in (None, "GGG"):
+        raise BulkDataError(f"{ctx}: OFFT = {offt}; only GGG (offsets and orientation vector "
+                            "in the grids' displacement frames) is supported")
+    if int(elem.pa or 0) or int(elem.pb or 0):
+        raise BulkDataError(f"{ctx}: pin flags PA/PB are not supported")
+    ga, gb = (int(g) for g in elem.nodes)
+    ia, ib = idx(ga, ctx), idx(gb, ctx)
+    Ra, Rb = bulk.displacement_rotation[ia], bulk.displacement_rotation[ib]
+    wa = Ra @ np.asarray(elem.wa if elem.wa is not None else np.zeros(3), float)
+    wb = Rb @ np.asarray(elem.wb if elem.wb is not None else np.zeros(3), float)
+    axis = bulk.positions[ib] + wb - bulk.positions[ia] - wa
+    Lam = el.beam_frame(axis, _orientation(bulk, elem, ia, ctx), ctx)
+    L = float(np.linalg.norm(axis))
+    prop = _property(model, int(elem.pid), ("PBAR",) if elem.type == "CBAR" else ("PBEAM",), ctx)
+    A, I1, I2, J, nsm, k1, k2 = _beam_section(prop, f"{ctx} -> {prop.type} {prop.pid}")
+    E, G, rho = _material(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
+    mu = (rho * A + nsm) * wt
+    torsion = elem.type == "CBEAM"
+    Kl, Ml = el.beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, bulk.coupled_mass,
+                                    torsion)
+    T = el.local_to_grids(Lam, wa, wb)
+    dofs = np.concatenate([6 * ia + np.arange(6), 6 * ib + np.arange(6)])
+    K_b.add(dofs, T.T @ Kl @ T)
+    M_b.add(dofs, T.T @ Ml @ T)
+    _, Mlump = el.beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, False, torsion)
+    ML_b.add(dofs, T.T @ Mlump @ T)
+
+
+def _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
+    model = bulk.model
+    ga, gb = (int(g) for g in elem.nodes)
+    ia, ib = idx(ga, ctx), idx(gb, ctx)
+    axis = bulk.positions[ib] - bulk.positions[ia]
+    trial = np.eye(3)[np.argmin(np.abs(axis))]
+    Lam = el.beam_frame(axis, trial, ctx)
+    L = float(np.linalg.norm(axis))
+    prop = _property(model, int(elem.pid), ("PROD",), ctx)
+    E, G, rho = _material(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
+    A, J, nsm = float(prop.A), float(prop.j or 0.0), float(prop.nsm or 0.0)
+    mu = (rho * A + nsm) * wt
+    Kl, Ml = el.rod_local_matrices(L, E, G, A, J, mu, bulk.coupled_mass)
+    T = el.local_to_grids(Lam, np.zeros(3), np.zeros(3))
+    dofs = np.concatenate([6 * ia + np.arange(6), 6 * ib + np.arange(6)])
+    K_b.add(dofs, T.T @ Kl @ T)
+    M_b.add(dofs, T.T @ Ml @ T)
+    _, Mlump = el.rod_local_matrices(L, E, G, A, J, mu, False)
+    ML_b.add(dofs, T.T @ Mlump @ T)
+
+
+def _selected_set(model, kind: str):
+    """Set id selected by the first subcase (or the global case control), else None = all."""
+    cc = getattr(model, "case_control_deck", None)
+    if cc is None:
+        return None
+    for isub in sorted(cc.subcases):
+        try:
+            return int(cc.subcases[isub].get_parameter(kind)[0])
+        except KeyError:
+            continue
+    return None
+
+
+def _apply_constraints(sm: StructuralModel) -> None:
+    bulk = sm.bulk
+    model = bulk.model
+    ng = 6 * sm.n_grids
+    pos = bulk.positions
+    Rcd = bulk.displacement_rotation
+
+    # RBE2: dependent rows of S (g x g) expressed on all g DOFs; chains resolved by S @ S.
+    dependent: dict[int, str] = {}
+    rows, cols, vals = [], [], []
+    for eid, rig in sorted(model.rigid_elements.items()):
+        ctx = f"{rig.type} {eid}"
+        if rig.type != "RBE2":
+            raise BulkDataError(f"{ctx}: rigid element type not supported (RBE2 only)")
+        ni = bulk.grid_index(int(rig.gn), ctx)
+        comps = _components(rig.cm)
+        for gm in rig.Gmi:
+            mi = bulk.grid_index(int(gm), ctx)
+            d = pos[mi] - pos[ni]
+            rigid = np.eye(6)
+            rigid[:3, 3:] = -el.skew(d)
+            Rm6 = np.kron(np.eye(2), Rcd[mi])
+            Rn6 = np.kron(np.eye(2), Rcd[ni])
+            C = Rm6.T @ rigid @ Rn6
+            for c in comps:
+                g = 6 * mi + c - 1
+                if g in dependent:
+                    raise BulkDataError(f"{ctx}: DOF {c} of grid {gm} is already dependent "
+                                        f"in {dependent[g]}")
+                dependent[g] = ctx
+                rows.extend([g] * 6)
+                cols.extend(6 * ni + np.arange(6))
+                vals.extend(C[c - 1])
+    dep = np.array(sorted(dependent), dtype=np.int64)
+    T = sp.identity(ng, format="csr")
+    if len(dep):
+        keep_rows = np.setdiff1d(np.arange(ng), dep)
+        S = sp.csr_matrix((np.ones(len(keep_rows)), (keep_rows, keep_rows)), shape=(ng, ng)) + \
+            sp.csr_matrix((vals, (rows, cols)), shape=(ng, ng))
+        for _ in range(len(model.rigid_elements) + 1):
+            if not np.any(S[:, dep].getnnz(axis=0)):
+                break
+            S = (S @ S).tocsr()
+        else:
+            raise BulkDataError(f"{bulk.path}: RBE2 elements form a closed loop of dependencies")
+        T = S
+    sm.rbe2_dependent_count = len(dep)
+
+    # SPC / SPC1 (zero enforced values only)
+    sid = _selected_set(model, "SPC")
+    spc_dofs = set()
+    for set_id, cards in sorted(model.spcs.items()):
+        if sid is not None and set_id != sid:
+            continue
+        for card in cards:
+            ctx = f"{card.type} set {set_id}"
+            if card.type == "SPC1":
+                pairs = [(int(g), card.components) for g in card.nodes]
+            elif card.type == "SPC":
+                if any(float(v or 0.0) != 0.0 for v in card.enforced):
+                    raise BulkDataError(f"{ctx}: enforced displacements are not supported")
+                pairs = list(zip(card.nodes, card.components))
+            else:
+                raise BulkDataError(f"{ctx}: constraint card not supported")
+            for g, comps in pairs:
+                for c in _components(comps):
+                    gi = 6 * bulk.grid_index(int(g), ctx) + c - 1
+                    if gi in dependent:
+                        raise BulkDataError(f"{ctx}: DOF {c} of grid {g} is an RBE2 dependent "
+                                            f"DOF ({dependent[gi]}) and cannot also be an SPC")
+                    spc_dofs.add(gi)
+    if sid is None and len(model.spcs) > 1:
+        warnings.warn(f"{bulk.path}: no SPC selected in case control; applying all SPC sets "
+                      f"{sorted(model.spcs)}", stacklevel=3)
+    sm.spc_count = len(spc_dofs)
+
+    independent = np.setdiff1d(np.arange(ng), np.concatenate([dep, np.array(sorted(spc_dofs),
+                                                                             dtype=np.int64)]))
+    T_gn = T[:, independent].tocsr()
+    # DOFs with neither stiffness nor mass (unconnected grids, rotations of rod-only grids)
+    # would make K - sigma M singular; they are removed whatever PARAM AUTOSPC says.
+    Kd = np.abs((T_gn.T @ sm.stiffness_g @ T_gn).diagonal())
+    Md = np.abs((T_gn.T @ sm.mass_g @ T_gn).diagonal())
+    null = (Kd <= 1e-14 * max(Kd.max(initial=0.0), 1e-300)) & \
+        (Md <= 1e-14 * max(Md.max(initial=0.0), 1e-300))
+    sm.autospc_count = int(null.sum())
+    sm.f_dofs = independent[~null]
+    sm.T_gf = T_gn[:, ~null].tocsr()
+    if len(sm.f_dofs) == 0:
+        raise BulkDataError(f"{bulk.path}: every DOF is constrained; nothing can move")
+
+
+def _deck_aset(bulk: BulkData) -> list:
+    out = []
+    for card in bulk.model.asets:
+        if card.type == "ASET1":
+            out.extend((int(g), _components(card.components)) for g in card.ids)
+        else:
+            out.extend((int(g), _components(c)) for g, c in zip(card.ids, card.components))
+    return out

@@ -1,0 +1,266 @@
+"""NASTRAN bulk data in: read a deck with pyNastran and keep what the modal pipeline models.
+
+The deck (free, small or large field, INCLUDE files, with or without executive and case control)
+is parsed with pyNastran's BDF reader. Every card type is then sorted into one of three bins and
+reported by name and count, so nothing is silently dropped:
+
+* supported: modelled by :mod:`dynamics.flex.elements` / :mod:`dynamics.flex.assembly`
+  (GRID, CORD2R, CORD2C, CORD1R, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
+  CONM1, CONM2, MAT1, RBE2, SPC, SPC1, ASET, ASET1, PARAM WTMASS/COUPMASS/GRDPNT);
+* ignored: cards that carry no mass, stiffness or constraint (solution controls, output and
+  load cards, SPOINTs without elements, other PARAMs): reported as a warning;
+* unsupported structural cards (other elements, properties, materials, rigid elements, MPCs,
+  coordinate systems): an :class:`UnsupportedCardError` naming the cards, because leaving them
+  out would change the structure. ``allow_unsupported=True`` downgrades this to a warning.
+
+Grid geometry is resolved here: positions in the basic frame (CP frames) and, per grid, the
+rotation from its displacement frame (CD) to basic, including the position-dependent axes of a
+cylindrical CD frame (MSC Nastran Quick Reference Guide, GRID / CORD2C).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import logging
+import os
+import warnings
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+SUPPORTED_CARDS = frozenset({
+    "GRID", "CORD2R", "CORD2C", "CORD1R",
+    "CBAR", "PBAR", "CBEAM", "PBEAM", "CROD", "PROD",
+    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1",
+    "RBE2", "SPC", "SPC1", "ASET", "ASET1", "PARAM", "ENDDATA",
+})
+# PARAMs that change the structural matrices or the products; all others are reported as ignored.
+USED_PARAMS = frozenset({"WTMASS", "COUPMASS", "GRDPNT"})
+# Containers of the pyNastran model whose unsupported members would change M or K.
+STRUCTURAL_CONTAINERS = ("elements", "properties", "materials", "masses", "rigid_elements",
+                         "coords", "mpcs", "plotels", "properties_mass", "dmig", "dmiji", "dmik")
+
+
+class BulkDataError(ValueError):
+    """A deck the pipeline cannot turn into structural matrices; the message names the card."""
+
+
+class UnsupportedCardError(BulkDataError):
+    """The deck holds structural cards the pipeline does not model."""
+
+
+@dataclass
+class CardReport:
+    """What happened to every card type of a deck (name -> count)."""
+
+    supported: dict[str, int] = field(default_factory=dict)
+    ignored: dict[str, int] = field(default_factory=dict)
+    unsupported: dict[str, int] = field(default_factory=dict)
+    parse_errors: dict[str, list[str]] = field(default_factory=dict)
+    ignored_params: list[str] = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        out = ["supported cards: " + _fmt(self.supported)]
+        if self.ignored:
+            out.append("ignored cards (no mass, stiffness or constraint): " + _fmt(self.ignored))
+        if self.ignored_params:
+            out.append("ignored PARAMs: " + ", ".join(sorted(self.ignored_params)))
+        if self.unsupported:
+            out.append("UNSUPPORTED structural cards: " + _fmt(self.unsupported))
+        for name, errs in sorted(self.parse_errors.items()):
+            out.append(f"unreadable {name} card(s) ({len(errs)}): {errs[0].splitlines()[0]}")
+        return out
+
+
+def _fmt(counts: dict[str, int]) -> str:
+    return ", ".join(f"{k} x{v}" for k, v in sorted(counts.items())) or "none"
+
+
+@dataclass
+class BulkData:
+    """A parsed deck: pyNastran model plus resolved grid geometry and the card report.
+
+    Attributes
+    ----------
+    grid_ids : (n,) int64, sorted ascending; the g-set order is 6 DOFs per grid in this order.
+    positions : (n, 3) grid locations in the basic frame [m].
+    displacement_rotation : (n, 3, 3) R with v_basic = R @ v_cd for each grid's CD frame.
+    wtmass : PARAM WTMASS (mass-unit scale applied to every mass term).
+    coupled_mass : True when PARAM COUPMASS > 0 (consistent element mass matrices).
+    grdpnt : PARAM GRDPNT grid (0 / None = basic origin).
+    """
+
+    path: str
+    model: object
+    grid_ids: np.ndarray
+    positions: np.ndarray
+    displacement_rotation: np.ndarray
+    wtmass: float
+    coupled_mass: bool
+    grdpnt: int | None
+    report: CardReport
+
+    def grid_index(self, grid_id: int, context: str) -> int:
+        """Row of ``grid_id`` in :attr:`grid_ids`; a :class:`BulkDataError` naming ``context``."""
+        i = int(np.searchsorted(self.grid_ids, grid_id))
+        if i >= len(self.grid_ids) or self.grid_ids[i] != grid_id:
+            raise BulkDataError(f"{context}: grid {grid_id} does not exist in {self.path}")
+        return i
+
+
+def _param_value(model, name: str, default):
+    p = model.params.get(name)
+    if p is None:
+        return default
+    return p.values[0]
+
+
+def _has_bulk_marker(path: str) -> bool:
+    with open(path, errors="replace") as fh:
+        for line in fh:
+            if line.strip().upper().startswith("BEGIN") and "BULK" in line.upper():
+                return True
+    return False
+
+
+def read_bulk_data(path: str | os.PathLike, allow_unsupported: bool = False) -> BulkData:
+    """Parse ``path`` and resolve grid geometry. Raises :class:`BulkDataError` on bad decks."""
+    from pyNastran.bdf.bdf import BDF
+
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise BulkDataError(f"bulk data file not found: {path}")
+    log = logging.getLogger("pyNastran.flexshell")
+    log.setLevel(logging.ERROR)
+    model = BDF(debug=None, log=log)
+    model.set_error_storage(nparse_errors=100000, stop_on_parsing_error=False,
+                            nxref_errors=0, stop_on_xref_error=True)
+    punch = not _has_bulk_marker(path)
+    stdout = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(stdout):
+            model.read_bdf(path, xref=False, punch=punch, validate=False)
+    except Exception as exc:  # pyNastran raises a variety of types; name the file and pass it on
+        raise BulkDataError(f"{path}: pyNastran could not read the deck: {exc}") from exc
+
+    report = _classify_cards(model)
+    structural_parse_errors = {k: v for k, v in report.parse_errors.items()
+                               if k in SUPPORTED_CARDS or _is_structural_name(k)}
+    if structural_parse_errors:
+        name, errs = next(iter(sorted(structural_parse_errors.items())))
+        raise BulkDataError(f"{path}: {name} card could not be read: {errs[0].strip()}")
+    if report.unsupported:
+        msg = (f"{path}: structural cards not modelled by fem2modal: {_fmt(report.unsupported)}; "
+               "leaving them out would change the structure")
+        if not allow_unsupported:
+            raise UnsupportedCardError(msg + " (pass allow_unsupported to proceed without them)")
+        warnings.warn(msg, stacklevel=2)
+    if report.ignored or report.ignored_params or report.parse_errors:
+        warnings.warn(f"{path}: " + "; ".join(report.lines()[1:]), stacklevel=2)
+
+    try:
+        model.cross_reference(xref=True, xref_nodes=True, xref_elements=False,
+                              xref_nodes_with_elements=False, xref_properties=False,
+                              xref_masses=False, xref_materials=False, xref_loads=False,
+                              xref_constraints=False, xref_aero=False, xref_sets=False,
+                              xref_optimization=False)
+    except Exception as exc:
+        raise BulkDataError(f"{path}: inconsistent grid/coordinate-system cards: {exc}") from exc
+
+    if not model.nodes:
+        raise BulkDataError(f"{path}: the deck defines no GRID cards")
+    grid_ids = np.array(sorted(model.nodes), dtype=np.int64)
+    positions = np.empty((len(grid_ids), 3))
+    rotations = np.empty((len(grid_ids), 3, 3))
+    for i, nid in enumerate(grid_ids):
+        node = model.nodes[int(nid)]
+        positions[i] = node.get_position()
+        rotations[i] = displacement_frame_rotation(model, int(node.cd), positions[i],
+                                                   f"GRID {nid}")
+    coupmass = _param_value(model, "COUPMASS", -1)
+    grdpnt = _param_value(model, "GRDPNT", -1)
+    return BulkData(path=path, model=model, grid_ids=grid_ids, positions=positions,
+                    displacement_rotation=rotations,
+                    wtmass=float(_param_value(model, "WTMASS", 1.0)),
+                    coupled_mass=int(coupmass) > 0,
+                    grdpnt=int(grdpnt) if int(grdpnt) > 0 else None, report=report)
+
+
+def _is_structural_name(name: str) -> bool:
+    return name.startswith(("C", "P", "MAT", "RB", "MPC", "CORD", "CONM", "DMI")) and \
+        name not in ("PARAM",)
+
+
+def _classify_cards(model) -> CardReport:
+    report = CardReport()
+    counts = Counter({k: v for k, v in model.card_count.items()})
+    structural_types: set[str] = set()
+    for container in STRUCTURAL_CONTAINERS:
+        obj = getattr(model, container, None)
+        if not obj:
+            continue
+        values = obj.values()
+        for item in values:
+            items = item if isinstance(item, list) else [item]
+            for card in items:
+                structural_types.add(getattr(card, "type", ""))
+    rejected = Counter()
+    for card in getattr(model, "reject_cards", []):
+        rejected[str(card[0]).upper().rstrip("*")] += 1
+    counts.update(rejected)
+    for name, count in counts.items():
+        if name in SUPPORTED_CARDS:
+            report.supported[name] = count
+        elif name in structural_types or (name in rejected and _is_structural_name(name)):
+            report.unsupported[name] = count
+        else:
+            report.ignored[name] = count
+    for name, errs in getattr(model, "_stored_parse_errors", []):
+        report.parse_errors.setdefault(name, []).extend(errs)
+    report.ignored_params = sorted(k for k in model.params if k not in USED_PARAMS)
+    return report
+
+
+def coordinate_axes(model, cid: int, context: str):
+    """Origin (3,) and axes matrix B (3x3, columns = local x, y, z in basic) of system ``cid``."""
+    if cid == 0:
+        return np.zeros(3), np.eye(3), "R"
+    coord = model.coords.get(cid)
+    if coord is None:
+        raise BulkDataError(f"{context}: coordinate system {cid} is not defined")
+    if coord.type not in ("CORD2R", "CORD2C", "CORD1R"):
+        raise UnsupportedCardError(f"{context}: coordinate system {cid} is a {coord.type}; "
+                                   "supported are CORD2R, CORD2C, CORD1R")
+    axes = np.asarray(coord.beta(), dtype=float).T
+    kind = "C" if coord.type == "CORD2C" else "R"
+    return np.asarray(coord.origin, dtype=float), axes, kind
+
+
+def displacement_frame_rotation(model, cid: int, position_basic: np.ndarray,
+                                context: str) -> np.ndarray:
+    """R (3x3) with v_basic = R v_cd for a grid at ``position_basic`` whose CD is ``cid``."""
+    origin, axes, kind = coordinate_axes(model, cid, context)
+    if kind == "R":
+        return axes
+    local = axes.T @ (position_basic - origin)
+    theta = np.arctan2(local[1], local[0])
+    c, s = np.cos(theta), np.sin(theta)
+    return axes @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def vector_to_basic(model, cid: int, vector: np.ndarray, at_basic: np.ndarray,
+                    context: str) -> np.ndarray:
+    """Components ``vector`` given in system ``cid`` (at point ``at_basic``) rotated to basic."""
+    return displacement_frame_rotation(model, cid, at_basic, context) @ np.asarray(vector, float)
+
+
+def point_to_basic(model, cid: int, point: np.ndarray, context: str) -> np.ndarray:
+    """Location ``point`` given in system ``cid`` (rectangular or cylindrical r, theta deg, z)."""
+    origin, axes, kind = coordinate_axes(model, cid, context)
+    p = np.asarray(point, dtype=float)
+    if kind == "C":
+        th = np.deg2rad(p[1])
+        p = np.array([p[0] * np.cos(th), p[0] * np.sin(th), p[2]])
+    return origin + axes @ p

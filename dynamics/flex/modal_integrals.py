@@ -1,0 +1,171 @@
+"""Modal integrals of a flexible body (TM-2020-5008164 Appendix E).
+
+Inputs per node j (all in the body frame, basic axes, origin at the reference point): mass
+m_j, centre-of-mass offset p_j and inertia J_j about the node (eq. E.1.2), undeformed position
+l0_j, and the mode-shape blocks Pi_j = [lambda_j; gamma_j] (rotation rows first, eq. E.1.19).
+
+The node inertia in the body frame is deformation dependent (eq. E.1.3) with the first-order
+attitude delta_r = I + theta~ (eq. E.1.17), theta = lambda eta, and l = l0 + gamma eta
+(eq. E.1.1). Expanding M_fl = Y' M_nd Y (eq. E.1.34) in powers of eta gives the integrals
+below, which reproduce that product exactly (see tests/flex/test_modal_integrals.py):
+
+  m, p0, J0, p1(r), J1(r), J2(r,s)           eqs. E.2.3-E.2.4   rigid/rigid block
+  F0(r), F1(r,s), F2(r,s,l), E0(r), E1(r,s)   eq. E.2.5          rigid/modal block
+  G0(r,s), G1(r,s,l), G2(r,s,l,m)             eq. E.2.2          modal/modal block
+
+Notes on the printed equations. F1 is written here as
+  sum_j [lambda_s~ J - J lambda_s~] lambda_r + m { gamma_s~ gamma_r - gamma_s~ p~ lambda_r
+        + [lambda_s~ p]x gamma_r - l0~ [lambda_s~ p]x lambda_r },
+algebraically identical to the TM's form (a x b = -b x a). G2 uses lambda~ where the TM prints
+gamma~ (only the rotation of the node changes its inertia, eq. E.1.3). J2 is stored in its
+symmetrized form (J2(r,s) + J2(s,r))/2: the sum sum_rs J2(r,s) eta_r eta_s is unchanged and the
+stored array satisfies J2(r,s) = J2(s,r)' (the symmetry the TM states), which the unsymmetrized
+expression does not when nodes have CG offsets. G1 keeps the TM's (r, s, l) definition, used
+as G1(r,s,l) + G1(s,r,l) in eq. E.2.2.
+
+The point-mass specialisation (eq. E.3.1: J_j = 0, p_j = 0) is :func:`point_mass_integrals`.
+The FEM pipeline takes m_j, p_j, J_j from the 6 x 6 grid blocks of the lumped mass matrix.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+
+def skew_batch(v: np.ndarray) -> np.ndarray:
+    """(..., 3) -> (..., 3, 3) cross-product matrices."""
+    S = np.zeros(v.shape + (3,))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
+
+
+@dataclass
+class ModalIntegrals:
+    """Modal integrals (SI: kg, m; mode shapes carry the units of mass-normalized modes).
+
+    Shapes with n = number of modes: mass (), p0 (3,), J0 (3,3), p1 (n,3), J1 (n,3,3),
+    J2 (n,n,3,3), F0 (n,3), F1 (n,n,3) [index (r,s)], F2 (n,n,n,3) [(r,s,l)], E0 (n,3),
+    E1 (n,n,3) [(r,s)], G0 (n,n), G1 (n,n,n) [(r,s,l)], G2 (n,n,n,n) [(r,s,l,m)].
+    """
+
+    mass: float
+    p0: np.ndarray
+    J0: np.ndarray
+    p1: np.ndarray
+    J1: np.ndarray
+    J2: np.ndarray
+    F0: np.ndarray
+    F1: np.ndarray
+    F2: np.ndarray
+    E0: np.ndarray
+    E1: np.ndarray
+    G0: np.ndarray
+    G1: np.ndarray
+    G2: np.ndarray
+
+    def arrays(self) -> dict:
+        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
+
+
+def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np.ndarray,
+                    positions: np.ndarray, rotation_shapes: np.ndarray,
+                    translation_shapes: np.ndarray) -> ModalIntegrals:
+    """All integrals of eqs. E.2.2-E.2.5.
+
+    node_mass (N,), node_cm (N,3) = p_j, node_inertia (N,3,3) = J_j about the node,
+    positions (N,3) = l0_j from the body-frame origin, rotation_shapes (N,3,n) = lambda_j,
+    translation_shapes (N,3,n) = gamma_j.
+    """
+    m = np.asarray(node_mass, float)
+    p = np.asarray(node_cm, float)
+    J = np.asarray(node_inertia, float)
+    l0 = np.asarray(positions, float)
+    lam = np.asarray(rotation_shapes, float)
+    gam = np.asarray(translation_shapes, float)
+    n = lam.shape[2]
+    mass = float(m.sum())
+    if mass <= 0.0:
+        raise ValueError("modal integrals of a zero-mass body")
+    P = skew_batch(p)                                   # (N,3,3)
+    L0 = skew_batch(l0)
+    Lr = skew_batch(np.moveaxis(lam, 2, 1))             # (N,n,3,3) lambda_r~
+    Gr = skew_batch(np.moveaxis(gam, 2, 1))             # (N,n,3,3) gamma_r~
+    lxp = np.cross(np.moveaxis(lam, 2, 1), p[:, None, :])   # (N,n,3) lambda_r~ p
+    LXP = skew_batch(lxp)                               # (N,n,3,3) [lambda_r~ p]x
+
+    p0 = (m[:, None] * (p + l0)).sum(0) / mass
+    J0 = (J - m[:, None, None] * (L0 @ L0 + P @ L0 + L0 @ P)).sum(0)
+    p1 = np.einsum("j,jri->ri", m, np.moveaxis(gam, 2, 1) + lxp) / mass
+    J1 = (np.einsum("jrab,jbc->rac", Lr, J)
+          - np.einsum("j,jrab,jbc->rac", m, Gr, L0 + P)
+          - np.einsum("j,jab,jrbc->rac", m, L0, LXP))
+    J2 = -(np.einsum("jrab,jbc,jscd->rsad", Lr, J, Lr)
+           + np.einsum("j,jrab,jsbc->rsac", m, Gr, Gr)
+           + np.einsum("j,jrab,jsbc->rsac", m, Gr, LXP)
+           + np.einsum("j,jsab,jrbc->rsac", m, LXP, Gr))
+    J2 = 0.5 * (J2 + J2.transpose(1, 0, 2, 3))
+    A0 = J - m[:, None, None] * (L0 @ P)
+    F0 = (np.einsum("jab,jbr->ra", A0, lam)
+          + np.einsum("j,jab,jbr->ra", m, L0 + P, gam))
+    LJ = np.einsum("jsab,jbc->jsac", Lr, J)
+    JL = np.einsum("jab,jsbc->jsac", J, Lr)
+    F1 = (np.einsum("jsab,jbr->rsa", LJ - JL, lam)
+          + np.einsum("j,jsab,jbr->rsa", m, Gr, gam)
+          - np.einsum("j,jsab,jbc,jcr->rsa", m, Gr, P, lam)
+          + np.einsum("j,jsab,jbr->rsa", m, LXP, gam)
+          - np.einsum("j,jab,jsbc,jcr->rsa", m, L0, LXP, lam))
+    F2 = -(np.einsum("jsab,jbc,jlcd,jdr->rsla", Lr, J, Lr, lam)
+           + np.einsum("j,jsab,jlbc,jcr->rsla", m, Gr, LXP, lam))
+    E0 = np.einsum("j,jar->ra", m, gam) - np.einsum("j,jab,jbr->ra", m, P, lam)
+    E1 = -np.einsum("j,jsab,jbr->rsa", m, LXP, lam)
+    G0 = (np.einsum("jar,jab,jbs->rs", lam, J, lam)
+          + np.einsum("j,jar,jab,jbs->rs", m, lam, P, gam)
+          + np.einsum("j,jas,jab,jbr->rs", m, lam, P, gam)
+          + np.einsum("j,jar,jas->rs", m, gam, gam))
+    G1 = (np.einsum("jar,jlab,jbc,jcs->rsl", lam, Lr, J, lam)
+          + np.einsum("j,jar,jlab,jbs->rsl", m, lam, LXP, gam))
+    has_J = np.abs(J).reshape(len(m), -1).max(axis=1) > 0.0
+    if np.any(has_J):
+        LJl = np.einsum("jlab,jbc,jmcd->jlmad", Lr[has_J], J[has_J], Lr[has_J])
+        G2 = -np.einsum("jar,jlmab,jbs->rslm", lam[has_J], LJl, lam[has_J])
+    else:
+        G2 = np.zeros((n, n, n, n))
+    return ModalIntegrals(mass=mass, p0=p0, J0=J0, p1=p1, J1=J1, J2=J2, F0=F0, F1=F1, F2=F2,
+                          E0=E0, E1=E1, G0=G0, G1=G1, G2=G2)
+
+
+def point_mass_integrals(node_mass, positions, translation_shapes) -> ModalIntegrals:
+    """Eq. E.3.1: nodes as point masses (J_j = 0, p_j = 0); F2 = E1 = G1 = G2 = 0."""
+    N, _, n = np.shape(translation_shapes)
+    return modal_integrals(node_mass, np.zeros((N, 3)), np.zeros((N, 3, 3)), positions,
+                           np.zeros((N, 3, n)), translation_shapes)
+
+
+def flexible_body_mass_matrix(mi: ModalIntegrals, eta: np.ndarray) -> np.ndarray:
+    """M_fl(eta) of eq. E.2.6, ordered [eta_dot; omega; v] (n + 6 square)."""
+    eta = np.asarray(eta, float)
+    n = len(eta)
+    G = (mi.G0 + np.einsum("rsl,l->rs", mi.G1 + mi.G1.transpose(1, 0, 2), eta)
+         + np.einsum("rslm,l,m->rs", mi.G2, eta, eta))
+    F = (mi.F0 + np.einsum("rsa,s->ra", mi.F1, eta)
+         + np.einsum("rsla,s,l->ra", mi.F2, eta, eta))          # (n,3)
+    E = mi.E0 + np.einsum("rsa,s->ra", mi.E1, eta)               # (n,3)
+    p = mi.p0 + mi.p1.T @ eta
+    Jk = (mi.J0 + np.einsum("rab,r->ab", mi.J1 + mi.J1.transpose(0, 2, 1), eta)
+          + np.einsum("rsab,r,s->ab", mi.J2, eta, eta))
+    P = skew_batch(p)
+    M = np.zeros((n + 6, n + 6))
+    M[:n, :n] = G
+    M[n:n + 3, :n] = F.T
+    M[:n, n:n + 3] = F
+    M[n + 3:, :n] = E.T
+    M[:n, n + 3:] = E
+    M[n:n + 3, n:n + 3] = Jk
+    M[n:n + 3, n + 3:] = mi.mass * P
+    M[n + 3:, n:n + 3] = -mi.mass * P
+    M[n + 3:, n + 3:] = mi.mass * np.eye(3)
+    return M

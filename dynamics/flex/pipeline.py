@@ -1,0 +1,271 @@
+"""fem2modal: NASTRAN bulk data (or OP4 matrices plus a geometry deck) to a :class:`ModalBody`.
+
+Steps (FModal workflow, TM-2020-5008164 Appendix C; FModal paper Sections 2-4):
+1. read the deck and report every card (:mod:`dynamics.flex.bulk_data`);
+2. assemble sparse K, M and the g -> f constraint transformation (:mod:`dynamics.flex.assembly`),
+   or take K_gg, M_gg from an OP4 file (:mod:`dynamics.flex.op4`);
+3. mode set: free-free normal modes (no a-set), or Craig-Bampton plus normalized component modes
+   for the a-set (the default when an a-set is given, as in FModal)
+   (:mod:`dynamics.flex.modes`, :mod:`dynamics.flex.component_modes`);
+4. residual vectors for chosen load DOFs (:mod:`dynamics.flex.residual_vectors`);
+5. rigid-body mass properties about GRDPNT (:mod:`dynamics.flex.mass_properties`);
+6. per-grid mode shapes in the basic frame, node masses from the lumped mass matrix, modal
+   integrals (:mod:`dynamics.flex.modal_integrals`), modal damping;
+7. the result is a :class:`~dynamics.flex.body_file.ModalBody` for
+   :func:`~dynamics.flex.body_file.write_body_file`.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from dynamics.flex.assembly import StructuralModel, assemble, _apply_constraints, _deck_aset
+from dynamics.flex.body_file import (ChildRigidBody, CraigBamptonData, ModalBody, SparseModel)
+from dynamics.flex.bulk_data import BulkData, BulkDataError, read_bulk_data
+from dynamics.flex.component_modes import craig_bampton, normalized_component_modes
+from dynamics.flex.mass_properties import rigid_body_mass_properties
+from dynamics.flex.modal_integrals import modal_integrals, point_mass_integrals
+from dynamics.flex.modes import EigenSolution, free_free_modes
+from dynamics.flex.residual_vectors import append_residual_vectors, residual_vectors
+
+
+@dataclass
+class Fem2ModalOptions:
+    """What to compute. Exactly one of ``n_modes`` / ``cutoff_hz``.
+
+    n_modes / cutoff_hz: flexible free-free modes, or fixed-interface modes when an a-set is
+        given (the normalized component set then has n_modes + n_b - n_rigid modes).
+    aset / residual: lists of (grid id, [components 1..6]); the deck's ASET/ASET1 are added.
+    grdpnt: reference grid for mass properties and the body frame (None: deck PARAM GRDPNT,
+        else the basic origin).
+    damping: modal damping ratio, one value for all modes or one per mode.
+    """
+
+    n_modes: int | None = None
+    cutoff_hz: float | None = None
+    aset: list = field(default_factory=list)
+    residual: list = field(default_factory=list)
+    grdpnt: int | None = None
+    modal_integrals: bool = False
+    separate_lumped: bool = False
+    damping: float | list = 0.0
+    rigid_threshold_hz: float = 1e-4
+    write_gset: bool = False
+    write_fset: bool = False
+    write_modal_matrix: bool = False
+    allow_unsupported: bool = False
+    op4: str | None = None
+
+
+def parse_grid_dofs(text: str) -> tuple[int, list[int]]:
+    """"GRID:DOFS" (e.g. "101:123456") -> (101, [1, 2, 3, 4, 5, 6])."""
+    try:
+        grid, dofs = text.split(":")
+        comps = sorted({int(c) for c in dofs.strip()})
+        gid = int(grid)
+    except ValueError as exc:
+        raise ValueError(f"expected GRID:DOFS such as 101:123456, got {text!r}") from exc
+    if not comps or any(c < 1 or c > 6 for c in comps):
+        raise ValueError(f"{text!r}: components must be digits 1..6")
+    return gid, comps
+
+
+def _grid_blocks(M: sp.csr_matrix, n: int) -> tuple[np.ndarray, float]:
+    """6 x 6 diagonal blocks (n,6,6) of M and the largest |entry| outside them."""
+    i = np.arange(n)[:, None, None] * 6
+    rows = (i + np.arange(6)[None, :, None]) + np.zeros((1, 1, 6), dtype=int)
+    cols = (i + np.arange(6)[None, None, :]) + np.zeros((1, 6, 1), dtype=int)
+    blocks = np.asarray(M[rows.ravel(), cols.ravel()]).reshape(n, 6, 6)
+    C = M.tocoo()
+    off = (C.row // 6) != (C.col // 6)
+    return blocks, float(np.abs(C.data[off]).max(initial=0.0))
+
+
+def node_masses(mass_lumped_basic: sp.csr_matrix, n_grids: int, context: str):
+    """(m, p, J) per grid from the lumped mass matrix (basic frame, [T; R] order)."""
+    B, off = _grid_blocks(mass_lumped_basic, n_grids)
+    if off > 1e-12 * max(np.abs(B).max(initial=0.0), 1e-300):
+        warnings.warn(f"{context}: mass matrix couples grids (largest off-block entry {off:.3e});"
+                      " node masses for the modal integrals use its grid-diagonal blocks",
+                      stacklevel=3)
+    m = np.trace(B[:, :3, :3], axis1=1, axis2=2) / 3.0
+    mp = B[:, 3:, :3]
+    vee = np.stack([mp[:, 2, 1] - mp[:, 1, 2], mp[:, 0, 2] - mp[:, 2, 0],
+                    mp[:, 1, 0] - mp[:, 0, 1]], axis=1) / 2.0
+    p = np.divide(vee, m[:, None], out=np.zeros_like(vee), where=m[:, None] > 0)
+    J = 0.5 * (B[:, 3:, 3:] + B[:, 3:, 3:].transpose(0, 2, 1))
+    return m, p, J
+
+
+def structural_model_from_matrices(bulk: BulkData, stiffness_g, mass_g) -> StructuralModel:
+    """A :class:`StructuralModel` from given g-set K and M (e.g. OP4 KGG, MGG)."""
+    ng = 6 * len(bulk.grid_ids)
+    for name, M in (("stiffness", stiffness_g), ("mass", mass_g)):
+        if M.shape != (ng, ng):
+            raise BulkDataError(f"{bulk.path}: OP4 {name} matrix is {M.shape[0]} x {M.shape[1]}"
+                                f", expected {ng} x {ng} (6 DOFs for each of the "
+                                f"{len(bulk.grid_ids)} grids)")
+    K = sp.csr_matrix(stiffness_g)
+    M = sp.csr_matrix(mass_g)
+    if not np.any(M.diagonal() > 0):
+        raise BulkDataError(f"{bulk.path}: zero-mass model (OP4 mass matrix has no positive "
+                            "diagonal)")
+    from dynamics.flex.assembly import _block_rotation
+    R = _block_rotation(bulk.displacement_rotation)
+    sm = StructuralModel(bulk=bulk, stiffness_g=K, mass_g=M, mass_lumped_basic=(R @ M @ R.T)
+                         .tocsr(), T_gf=sp.identity(ng, format="csr"), f_dofs=np.arange(ng))
+    _apply_constraints(sm)
+    sm.deck_aset = _deck_aset(bulk)
+    return sm
+
+
+def _f_indices(sm: StructuralModel, pairs, what: str) -> tuple[np.ndarray, np.ndarray]:
+    idx, uset = [], []
+    for gid, comps in pairs:
+        for c in comps:
+            idx.append(sm.f_index(gid, c, f"{what} {gid}:{c}"))
+            uset.append((gid, c))
+    order = np.argsort(idx, kind="stable")
+    idx = np.asarray(idx, dtype=np.int64)[order]
+    uset = np.asarray(uset, dtype=np.int64).reshape(-1, 2)[order]
+    if len(np.unique(idx)) != len(idx):
+        idx, first = np.unique(idx, return_index=True)
+        uset = uset[first]
+    return idx, uset
+
+
+def _uset(sm: StructuralModel, g_dofs: np.ndarray) -> np.ndarray:
+    return np.stack([sm.grid_ids[g_dofs // 6], g_dofs % 6 + 1], axis=1).astype(np.int64)
+
+
+def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
+    """Run the pipeline on ``deck``; ``progress(message)`` receives step messages."""
+    t0 = time.perf_counter()
+
+    def say(msg):
+        if progress is not None:
+            progress(f"[{time.perf_counter() - t0:7.2f} s] {msg}")
+
+    if (options.n_modes is None) == (options.cutoff_hz is None):
+        raise ValueError("give exactly one of n_modes (--modes) or cutoff_hz (--cutoff)")
+    if options.n_modes is not None and options.n_modes < 0:
+        raise ValueError(f"n_modes must be >= 0, got {options.n_modes}")
+    say(f"reading {deck}")
+    bulk = read_bulk_data(deck, allow_unsupported=options.allow_unsupported)
+    say(f"{len(bulk.grid_ids)} grids; " + "; ".join(bulk.report.lines()))
+    if options.op4:
+        from dynamics.flex.op4 import read_op4_matrices
+        mats = read_op4_matrices(options.op4)
+        missing = [n for n in ("KGG", "MGG") if n not in mats]
+        if missing:
+            raise BulkDataError(f"{options.op4}: matrices {missing} not found (has "
+                                f"{sorted(mats)})")
+        if options.separate_lumped:
+            raise ValueError("separate_lumped needs the deck's CONM2 cards, not OP4 matrices")
+        sm = structural_model_from_matrices(bulk, mats["KGG"], mats["MGG"])
+        say(f"OP4 matrices KGG, MGG from {options.op4}")
+    else:
+        sm = assemble(bulk, separate_lumped=options.separate_lumped, progress=say)
+    say(f"g-set {sm.stiffness_g.shape[0]} DOFs, f-set {len(sm.f_dofs)} DOFs "
+        f"(RBE2 dependent {sm.rbe2_dependent_count}, SPC {sm.spc_count}, "
+        f"AUTOSPC {sm.autospc_count})")
+    K = sm.stiffness_f()
+    M = sm.mass_f()
+
+    aset_pairs = list(sm.deck_aset) + list(options.aset)
+    cb_data = None
+    n_rigid = 0
+    rigid_vectors = None
+    if aset_pairs:
+        b_idx, b_uset = _f_indices(sm, aset_pairs, "a-set grid")
+
+        def describe(f):
+            g = sm.f_dofs[f]
+            return f"grid {sm.grid_ids[g // 6]} component {g % 6 + 1}"
+        say(f"Craig-Bampton reduction, a-set {len(b_idx)} DOFs")
+        cb = craig_bampton(K, M, b_idx, n_modes=options.n_modes, cutoff_hz=options.cutoff_hz,
+                           describe=describe)
+        cb_data = CraigBamptonData(frequencies_hz=cb.fixed_interface.frequencies_hz,
+                                   mass=cb.mass, stiffness=cb.stiffness, uset=b_uset)
+        rigid, flex = normalized_component_modes(cb, options.rigid_threshold_hz)
+        mode_set = "normalized-component"
+    else:
+        say("free-free normal modes (shift-invert Lanczos)")
+        b_uset = np.zeros((0, 2), dtype=np.int64)
+        rigid, flex = free_free_modes(K, M, n_modes=options.n_modes,
+                                      cutoff_hz=options.cutoff_hz,
+                                      rigid_threshold_hz=options.rigid_threshold_hz)
+        mode_set = "free-free"
+    n_rigid = len(rigid.eigenvalues)
+    rigid_vectors = rigid.vectors if n_rigid else None
+    say(f"{len(flex.eigenvalues)} flexible modes, {n_rigid} rigid-body modes removed")
+
+    n_residual = 0
+    res_uset = np.zeros((0, 2), dtype=np.int64)
+    if options.residual:
+        r_idx, res_uset = _f_indices(sm, options.residual, "residual-vector grid")
+        say(f"residual vectors for {len(r_idx)} load DOFs")
+        res = residual_vectors(K, M, flex.vectors, r_idx, rigid_vectors)
+        n_residual = len(res.eigenvalues)
+        flex = append_residual_vectors(K, M, flex, res)
+
+    n = len(flex.eigenvalues)
+    damping = np.broadcast_to(np.asarray(options.damping, dtype=float), (n,)).copy() \
+        if np.ndim(options.damping) == 0 else np.asarray(options.damping, dtype=float)
+    if damping.shape != (n,):
+        raise ValueError(f"damping: {len(damping)} ratios given for {n} modes")
+    omega = np.sqrt(np.maximum(flex.eigenvalues, 0.0))
+
+    # physical shapes: f -> g (CD frames) -> basic, rows [rotation; translation] per grid
+    say("mode shapes per grid")
+    phi_g = sm.T_gf @ flex.vectors
+    N = sm.n_grids
+    Rcd = bulk.displacement_rotation
+    blocks = phi_g.reshape(N, 6, n)
+    trans = np.einsum("nab,nbk->nak", Rcd, blocks[:, :3])
+    rot = np.einsum("nab,nbk->nak", Rcd, blocks[:, 3:])
+
+    grdpnt = options.grdpnt if options.grdpnt is not None else bulk.grdpnt
+    if grdpnt:
+        ref_point = bulk.positions[bulk.grid_index(int(grdpnt), "GRDPNT")]
+    else:
+        grdpnt, ref_point = 0, np.zeros(3)
+    say("rigid-body mass properties")
+    rbp = rigid_body_mass_properties(sm.mass_g, bulk.positions, Rcd, ref_point, grdpnt)
+    nm, npos, nJ = node_masses(sm.mass_lumped_basic, N, bulk.path)
+    l0 = bulk.positions - ref_point
+
+    mi = pmi = None
+    if options.modal_integrals:
+        say("modal integrals (TM App. E)")
+        mi = modal_integrals(nm, npos, nJ, l0, rot, trans)
+        pmi = point_mass_integrals(nm, l0, trans)
+
+    Mr = flex.vectors.T @ (M @ flex.vectors)
+    Kr = flex.vectors.T @ (K @ flex.vectors)
+    body = ModalBody(
+        source=str(deck), mode_set=mode_set, reference_grid=int(grdpnt),
+        reference_point=ref_point, mass=rbp.mass, cm_offset=rbp.cm_offset,
+        inertia=rbp.inertia, frequencies_hz=flex.frequencies_hz, n_rigid_modes_removed=n_rigid,
+        n_residual_vectors=n_residual, grid_ids=bulk.grid_ids.copy(), grid_positions=l0,
+        rotation_shapes=rot, translation_shapes=trans, node_mass=nm, node_cm_offset=npos,
+        node_inertia=nJ, modal_mass=0.5 * (Mr + Mr.T), modal_stiffness=0.5 * (Kr + Kr.T),
+        modal_damping=np.diag(2.0 * damping * omega), damping_ratios=damping,
+        modal_integrals=mi, point_mass_integrals=pmi, craig_bampton=cb_data,
+        gset=SparseModel(sm.mass_g, sm.stiffness_g, _uset(sm, np.arange(6 * N)))
+        if options.write_gset else None,
+        fset=SparseModel(M, K, _uset(sm, sm.f_dofs)) if options.write_fset else None,
+        modal_matrix=phi_g if options.write_modal_matrix else None,
+        aset=b_uset, residual_dofs=res_uset,
+        child_bodies=[ChildRigidBody(lm.element_id, lm.grid_id, lm.mass,
+                                     lm.cg_basic - bulk.positions[bulk.grid_index(lm.grid_id,
+                                                                                  "CONM2")],
+                                     lm.inertia_cg) for lm in sm.lumped_masses],
+        card_report=bulk.report.lines())
+    say("done")
+    return body

@@ -1,0 +1,87 @@
+"""``flexshell fem2modal``: NASTRAN bulk data (or OP4 + geometry deck) to an HDF5 body file."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "fem2modal",
+        help="turn a NASTRAN bulk-data deck into an HDF5 flexible-body file",
+        description="FEM-to-modal pipeline (FModal equivalent): free-free normal modes, or "
+                    "Craig-Bampton and normalized component modes for an a-set; residual "
+                    "vectors, rigid-body mass properties, modal integrals. See docs/fem2modal.md.")
+    p.add_argument("deck", help="bulk data deck (.dat/.bdf; INCLUDE files are followed)")
+    count = p.add_mutually_exclusive_group(required=True)
+    count.add_argument("--modes", type=int, metavar="N",
+                       help="number of flexible modes (fixed-interface modes with --aset)")
+    count.add_argument("--cutoff", type=float, metavar="HZ",
+                       help="keep every mode up to this frequency [Hz]")
+    p.add_argument("--aset", action="append", default=[], metavar="GRID:DOFS",
+                   help="interface DOFs (e.g. 1:123456); repeatable. Gives normalized "
+                        "component modes and a Craig-Bampton model")
+    p.add_argument("--residual", action="append", default=[], metavar="GRID:DOFS",
+                   help="load DOFs for residual vectors; repeatable")
+    p.add_argument("--grdpnt", type=int, metavar="G",
+                   help="reference grid for mass properties and the body frame "
+                        "(default: PARAM GRDPNT, else the basic origin)")
+    p.add_argument("--modal-integrals", action="store_true",
+                   help="compute the modal integrals of TM-2020-5008164 App. E")
+    p.add_argument("--separate-lumped", action="store_true",
+                   help="take CONM2 masses out of the body and store them as child rigid bodies")
+    p.add_argument("--damping", type=float, default=0.0, metavar="ZETA",
+                   help="uniform modal damping ratio (default 0)")
+    p.add_argument("--rigid-threshold", type=float, default=1e-4, metavar="HZ",
+                   help="modes below this frequency are rigid-body modes (default 1e-4 Hz)")
+    p.add_argument("--op4", metavar="FILE",
+                   help="take KGG and MGG from this OP4 file; the deck supplies grids and "
+                        "constraints")
+    p.add_argument("--gset", action="store_true", help="store the G-set sparse K and M")
+    p.add_argument("--fset", action="store_true", help="store the F-set sparse K and M")
+    p.add_argument("--modal-matrix", action="store_true",
+                   help="store the full g-set modal matrix")
+    p.add_argument("--allow-unsupported", action="store_true",
+                   help="proceed (with a warning) when the deck has structural cards that are "
+                        "not modelled")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    p.add_argument("-o", "--output", required=True, metavar="BODY.h5", help="body file to write")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from dynamics.flex.body_file import write_body_file
+    from dynamics.flex.bulk_data import BulkDataError
+    from dynamics.flex.component_modes import CraigBamptonError
+    from dynamics.flex.modes import EigenSolutionError
+    from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal, parse_grid_dofs
+
+    def progress(msg):
+        if not args.quiet:
+            print(msg, file=sys.stderr, flush=True)
+
+    try:
+        options = Fem2ModalOptions(
+            n_modes=args.modes, cutoff_hz=args.cutoff,
+            aset=[parse_grid_dofs(s) for s in args.aset],
+            residual=[parse_grid_dofs(s) for s in args.residual],
+            grdpnt=args.grdpnt, modal_integrals=args.modal_integrals,
+            separate_lumped=args.separate_lumped, damping=args.damping,
+            rigid_threshold_hz=args.rigid_threshold, write_gset=args.gset,
+            write_fset=args.fset, write_modal_matrix=args.modal_matrix,
+            allow_unsupported=args.allow_unsupported, op4=args.op4)
+        with warnings.catch_warnings():
+            warnings.simplefilter("always")
+            warnings.showwarning = lambda m, *a, **k: progress(f"warning: {m}")
+            body = fem2modal(args.deck, options, progress=progress)
+        write_body_file(args.output, body)
+    except (BulkDataError, CraigBamptonError, EigenSolutionError, ValueError,
+            FileNotFoundError) as exc:
+        print(f"flexshell fem2modal: error: {exc}", file=sys.stderr)
+        return 1
+    progress(f"wrote {args.output}: {body.n_modes} modes ({body.mode_set}), "
+             f"mass {body.mass:.6g} kg, first frequencies [Hz] "
+             + ", ".join(f"{f:.6g}" for f in body.frequencies_hz[:6]))
+    return 0
