@@ -48,7 +48,7 @@ class Assembly:
         self.name = name
         self.path = name
         self.children: dict[str, Model | Assembly] = {}
-        self.connections: list[tuple[str, str]] = []
+        self.connections: list[tuple[str, str, str | None]] = []
         self.exposed_inputs: dict[str, list[str]] = {}
         self.exposed_outputs: dict[str, str] = {}
         self.attachments: list[_Attachment] = []
@@ -84,9 +84,10 @@ class Assembly:
         self.children[child.name] = child
         return child
 
-    def connect(self, source: str, destination: str) -> None:
-        """Connect output ``source`` to input ``destination`` (dotted paths relative to this assembly)."""
-        self.connections.append((source, destination))
+    def connect(self, source: str, destination: str, origin: str | None = None) -> None:
+        """Connect output ``source`` to input ``destination`` (dotted paths relative to this assembly);
+        ``origin`` (e.g. "scene.yaml:12") is quoted in error messages."""
+        self.connections.append((source, destination, origin))
 
     def expose_input(self, name: str, *inner_inputs: str) -> None:
         """Make inner input(s) reachable as ``<assembly>.<name>`` (fan-out to every inner input)."""
@@ -188,11 +189,15 @@ def flatten(root: Assembly) -> tuple[list[Model], list[Connection]]:
             else:
                 visit(child, child.path + ".")
         where = assembly.path if prefix else "scenario"
-        for source, destination in assembly.connections:
-            src_model, src_port = resolve_output(assembly, source)
-            for dst_model, dst_port in resolve_inputs(assembly, destination):
-                connections.append(Connection(src_model, src_port, dst_model, dst_port,
-                                              f"{where}: {source} -> {destination}"))
+        for source, destination, origin in assembly.connections:
+            label = f"{origin or where}: {source} -> {destination}"
+            try:
+                src_model, src_port = resolve_output(assembly, source)
+                destinations = resolve_inputs(assembly, destination)
+            except ModelError as exc:
+                raise ModelError(f"{label}: {exc}") from None
+            for dst_model, dst_port in destinations:
+                connections.append(Connection(src_model, src_port, dst_model, dst_port, label))
         for attachment in assembly.attachments:
             connections.extend(_bind_attachment(assembly, attachment, connections, where))
 

@@ -267,7 +267,7 @@ class Simulation:
                 f"algebraic loop through models {' -> '.join(models)} -> {models[0]}: each output feeds "
                 f"through to the next without a state in between ({ports}). Break it with a state "
                 f"(a filter, a sampled model) or remove a direct feedthrough.") from None
-        consumed = {(c.source_model.path, c.source_port) for c in self.connections}
+        needed = self._stages_needed_by_derivatives()
         self._output_plan_full, self._output_plan = [], []
         for path, stage in order:
             i = self.model_index[path]
@@ -277,8 +277,7 @@ class Simulation:
             entry = (m, fn, self.x[self._x_block[i]], self.z[self._z_block[i]],
                      self.signals[self._u_block[i]], m.p, self.signals[self._y_block[i]], k0, k1)
             self._output_plan_full.append(entry)
-            wanted = any((path, o.name) in consumed for o in m.outputs if o.feedthrough == (stage == "feedthrough"))
-            if wanted:
+            if (path, stage) in needed:
                 self._output_plan.append(entry)
         self._derivative_plan = []
         for i, m in enumerate(self.models):
@@ -287,6 +286,30 @@ class Simulation:
                     raise ModelError(f"model {m.path}: has continuous states but no derivatives kernel")
                 self._derivative_plan.append((m, m.derivatives, self.x[self._x_block[i]], self.z[self._z_block[i]],
                                               self.signals[self._u_block[i]], m.p, self.xdot[self._x_block[i]]))
+
+    def _stages_needed_by_derivatives(self) -> set:
+        """Output stages a derivative evaluation must run: those feeding, directly or through
+        feedthrough stages, an input of a model with continuous states or zero crossings. Inputs of
+        purely sampled models are read only at their sample instants (full evaluation there)."""
+        feeding: dict[str, list] = {}
+        for c in self.connections:
+            out_port = self.port_info[(c.source_model.path, c.source_port)]
+            in_port = self.port_info[(c.destination_model.path, c.destination_port)]
+            stage = (c.source_model.path, "feedthrough" if out_port.feedthrough else "state")
+            feeding.setdefault(c.destination_model.path, []).append((stage, in_port.feedthrough))
+        needed: set = set()
+        pending = []
+        for m in self.models:
+            if m.x_layout.size or m.zero_crossings:
+                pending.extend(stage for stage, _ in feeding.get(m.path, []))
+        while pending:
+            stage = pending.pop()
+            if stage in needed:
+                continue
+            needed.add(stage)
+            if stage[1] == "feedthrough":
+                pending.extend(s for s, through in feeding.get(stage[0], []) if through)
+        return needed
 
     def _order_updates(self) -> None:
         graph = nx.DiGraph()

@@ -1,0 +1,436 @@
+"""The multibody engine as one shell model: hinge/node inputs in, kinematics out, states (q, u).
+
+The compiled :class:`dynamics.MultibodySystem` enters the component framework as a single model
+(ARCHITECTURE.md, TM-2020-5008164 App. D.1: the DARTS engine inside Dshell). Its continuous states are
+the generalized coordinates ``q`` and velocities ``u`` (CONVENTIONS.md ordering); the derivative is
+``[q_dot(q, u); forward_dynamics(q, u, tau, node forces, prescribed accelerations)]`` and hinge
+quaternions are renormalized by the integrator's ``normalize`` hook after every step.
+
+Ports (``<body>`` a body name, i.e. its inboard hinge; ``<node>`` a node name):
+
+inputs (all optional, zero when unconnected; they feed through to the accelerations)
+  ``<body>.torque``            (nu_hinge,) generalized force of the hinge's free DOFs
+  ``<body>.prescribed_accel``  (nu_hinge,) acceleration of a hinge with prescribed DOFs
+  ``<node>.torque``            (3,) N m, about the node origin, node axes
+  ``<node>.force``             (3,) N, at the node origin, node axes
+outputs
+  ``q``, ``u``                 all coordinates and velocities
+  ``<body>.q``, ``<body>.u``   the hinge's coordinates and velocities; ``<body>.u_dot`` (feedthrough)
+  ``<node>.attitude``          (4,) quaternion [w, x, y, z] node -> world; ``<node>.rotation`` (3, 3)
+  ``<node>.position``          (3,) m, world; ``<node>.angular_velocity`` (3,) rad/s and
+  ``<node>.linear_velocity``   (3,) m/s, node axes
+  ``<node>.angular_acceleration``, ``<node>.linear_acceleration`` node axes (feedthrough: they need
+                               the forward dynamics of the current inputs)
+
+Attaching a model to node N binds its inputs named attitude, rotation, position, angular_velocity,
+linear_velocity, angular_acceleration, linear_acceleration to N's outputs, and its outputs named torque
+and force to N's inputs; attaching to hinge B binds q, u, u_dot, and torque/prescribed_accel outputs.
+
+Hinge ports of mixed dimension (free: [rad, m] coordinates, [rad/s, m/s] velocities) are declared
+without a unit and carry SI values; single-kind hinges declare rad, m, rad/s, N m or N.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from shell.model import InputPort, Model, ModelError, OutputPort, State
+from shell.registry import register_model
+from shell.units import UnitError, to_magnitude
+
+NODE_OUTPUTS = {  # signal -> (unit, shape, description, feedthrough)
+    "attitude": ("", (4,), "quaternion [w, x, y, z] rotating node axes into world axes", False),
+    "rotation": ("", (3, 3), "rotation matrix node -> world", False),
+    "position": ("m", (3,), "node origin in the world frame", False),
+    "angular_velocity": ("rad/s", (3,), "inertial angular velocity, node axes", False),
+    "linear_velocity": ("m/s", (3,), "inertial velocity of the node origin, node axes", False),
+    "angular_acceleration": ("rad/s^2", (3,), "inertial angular acceleration, node axes", True),
+    "linear_acceleration": ("m/s^2", (3,), "classical acceleration of the node origin, node axes", True),
+}
+NODE_INPUTS = {
+    "torque": ("N*m", (3,), "external torque about the node origin, node axes"),
+    "force": ("N", (3,), "external force at the node origin, node axes"),
+}
+# unit of (q, u, u_dot, generalized force) per hinge type; "" = mixed or dimensionless (SI values)
+HINGE_UNITS = {
+    "locked": ("", "", "", ""),
+    "revolute": ("rad", "rad/s", "rad/s^2", "N*m"),
+    "prismatic": ("m", "m/s", "m/s^2", "N"),
+    "ujoint": ("rad", "rad/s", "rad/s^2", "N*m"),
+    "spherical": ("", "rad/s", "rad/s^2", "N*m"),
+    "free": ("", "", "", ""),
+}
+BODY_KEYS = {
+    "name": "body name", "parent": "parent body name or world", "hinge": "locked, revolute, prismatic, "
+    "ujoint, spherical or free", "mass": "mass (kg)", "com": "center of mass in the body frame (m)",
+    "inertia": "inertia about the center of mass, 3x3 or 3 principal moments (kg m^2)",
+    "axis": "hinge axis (unit vector)", "axes": "two U-joint axes", "inboard_position": "m",
+    "inboard_rotation": "3x3 or quaternion", "outboard_position": "m", "outboard_rotation": "3x3 or quaternion",
+    "prescribed": "bool or one bool per hinge DOF", "initial": "initial hinge state",
+    "body_file": "flexible body file (HDF5)",
+}
+INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
+    "q": ("", "all"), "u": ("", "all"),
+    "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
+    "displacement": ("m", "prismatic"), "displacement_rate": ("m/s", "prismatic"),
+    "attitude": ("", "spherical free"), "angular_velocity": ("rad/s", "spherical free"),
+    "position": ("m", "free"), "velocity": ("m/s", "free"),
+}
+
+
+@njit(cache=True)
+def rotation_to_quaternion_into(R, out):
+    """Scalar-first unit quaternion (w >= 0) of rotation matrix R, Shepperd's method (as
+    dynamics.spatial.rotation_to_quaternion, compiled and allocation-free for the output port)."""
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    if tr > 0.0:
+        s = 2.0 * np.sqrt(1.0 + tr)
+        out[0] = 0.25 * s
+        out[1] = (R[2, 1] - R[1, 2]) / s
+        out[2] = (R[0, 2] - R[2, 0]) / s
+        out[3] = (R[1, 0] - R[0, 1]) / s
+    else:
+        k = 0
+        if R[1, 1] > R[k, k]:
+            k = 1
+        if R[2, 2] > R[k, k]:
+            k = 2
+        i = (k + 1) % 3
+        j = (k + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + R[k, k] - R[i, i] - R[j, j])
+        out[0] = (R[j, i] - R[i, j]) / s
+        out[1 + k] = 0.25 * s
+        out[1 + i] = (R[i, k] + R[k, i]) / s
+        out[1 + j] = (R[j, k] + R[k, j]) / s
+    if out[0] < 0.0:
+        for m in range(4):
+            out[m] = -out[m]
+    norm = np.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2 + out[3] ** 2)
+    for m in range(4):
+        out[m] /= norm
+
+
+@njit(cache=True)
+def _scatter(source, source_index, destination, destination_index):
+    for k in range(source_index.shape[0]):
+        destination[destination_index[k]] = source[source_index[k]]
+
+
+@njit(cache=True)
+def _node_outputs(rotation, position, angular_velocity, linear_velocity, y, offsets):
+    """Write node kinematics into the output block; offsets[n] = (attitude, rotation, position,
+    angular_velocity, linear_velocity) start indices in y (-1: not declared)."""
+    for n in range(offsets.shape[0]):
+        o = offsets[n]
+        rotation_to_quaternion_into(rotation[n], y[o[0]:o[0] + 4])
+        for a in range(3):
+            for b in range(3):
+                y[o[1] + 3 * a + b] = rotation[n, a, b]
+            y[o[2] + a] = position[n, a]
+            y[o[3] + a] = angular_velocity[n, a]
+            y[o[4] + a] = linear_velocity[n, a]
+
+
+@register_model
+class MultibodyModel(Model):
+    """The multibody engine (dynamics.MultibodySystem) as a model; see the module docstring."""
+
+    summary = "multibody engine: hinge/node forces in, node/hinge kinematics out (from the multibody: section)"
+    scenario_section = "multibody"
+
+    def __init__(self, name: str, system, *, initial_q=None, initial_u=None):
+        self.system = system
+        self._initial_q = system.neutral_configuration() if initial_q is None else np.asarray(initial_q, float)
+        self._initial_u = np.zeros(system.nu) if initial_u is None else np.asarray(initial_u, float)
+        super().__init__(name)
+
+    # -- declarations ----------------------------------------------------------------------------------
+    def declare(self):
+        s = self.system
+        inputs, outputs = [], []
+        outputs.append(OutputPort("q", "", (s.nq,), "generalized coordinates (SI)"))
+        outputs.append(OutputPort("u", "", (s.nu,), "generalized velocities (SI)"))
+        self._hinge_torque_ports, self._hinge_accel_ports = [], []
+        for b, body in enumerate(s.body_names):
+            hinge = s.hinge_names[b]
+            uq, uu, uud, uf = HINGE_UNITS[hinge]
+            nq = s.q_slices[b].stop - s.q_slices[b].start
+            nu = s.u_slices[b].stop - s.u_slices[b].start
+            if nq:
+                outputs.append(OutputPort(f"{body}.q", uq, (nq,), f"{hinge} hinge coordinates of {body}"))
+            if nu:
+                outputs.append(OutputPort(f"{body}.u", uu, (nu,), f"{hinge} hinge velocities of {body}"))
+                outputs.append(OutputPort(f"{body}.u_dot", uud, (nu,), f"{hinge} hinge accelerations of {body}",
+                                          feedthrough=True))
+                prescribed = s.prescribed_dofs[s.u_slices[b]]
+                if np.any(~prescribed):
+                    inputs.append(InputPort(f"{body}.torque", uf, (nu,), f"generalized force on the free DOFs of "
+                                            f"the {hinge} hinge of {body}", feedthrough=True, required=False))
+                    self._hinge_torque_ports.append((f"{body}.torque", s.u_slices[b]))
+                if np.any(prescribed):
+                    inputs.append(InputPort(f"{body}.prescribed_accel", uud, (nu,), f"accelerations of the "
+                                            f"prescribed DOFs of {body}", feedthrough=True, required=False))
+                    self._hinge_accel_ports.append((f"{body}.prescribed_accel", s.u_slices[b]))
+        for node in s.node_names:
+            for signal, (unit, shape, description, feedthrough) in NODE_OUTPUTS.items():
+                outputs.append(OutputPort(f"{node}.{signal}", unit, shape, description, feedthrough))
+            for signal, (unit, shape, description) in NODE_INPUTS.items():
+                inputs.append(InputPort(f"{node}.{signal}", unit, shape, description, feedthrough=True,
+                                        required=False))
+        self.inputs = tuple(inputs)
+        self.outputs = tuple(outputs)
+        self.continuous_states = (State("q", "", (s.nq,), self._initial_q, "generalized coordinates"),
+                                  State("u", "", (s.nu,), self._initial_u, "generalized velocities"))
+
+    def configure(self):
+        from shell.model import Layout
+
+        s = self.system
+        u_layout, y_layout = Layout.of(self.inputs), Layout.of(self.outputs)
+        self._tau = np.zeros(s.nu)
+        self._prescribed = np.zeros(s.nu)
+        self._node_forces = np.zeros((s.nnodes, 6))
+        tau_src, tau_dst, acc_src, acc_dst, f_src, f_dst = [], [], [], [], [], []
+        for port, sl in self._hinge_torque_ports:
+            tau_src.extend(range(u_layout.slice(port).start, u_layout.slice(port).stop))
+            tau_dst.extend(range(sl.start, sl.stop))
+        for port, sl in self._hinge_accel_ports:
+            acc_src.extend(range(u_layout.slice(port).start, u_layout.slice(port).stop))
+            acc_dst.extend(range(sl.start, sl.stop))
+        for n, node in enumerate(s.node_names):
+            for signal, column in (("torque", 0), ("force", 3)):
+                start = u_layout.offsets[f"{node}.{signal}"]
+                f_src.extend(range(start, start + 3))
+                f_dst.extend(range(6 * n + column, 6 * n + column + 3))
+        as_index = lambda values: np.asarray(values, dtype=np.int64)  # noqa: E731
+        self._tau_src, self._tau_dst = as_index(tau_src), as_index(tau_dst)
+        self._acc_src, self._acc_dst = as_index(acc_src), as_index(acc_dst)
+        self._force_src, self._force_dst = as_index(f_src), as_index(f_dst)
+        self._has_prescribed = bool(acc_src)
+        self._node_offsets = np.array([[y_layout.offsets[f"{node}.{k}"] for k in
+                                        ("attitude", "rotation", "position", "angular_velocity", "linear_velocity")]
+                                       for node in s.node_names], dtype=np.int64).reshape(-1, 5)
+        self._node_accel_offsets = np.array([[y_layout.offsets[f"{node}.angular_acceleration"],
+                                              y_layout.offsets[f"{node}.linear_acceleration"]]
+                                             for node in s.node_names], dtype=np.int64).reshape(-1, 2)
+        self._hinge_q_out = [(y_layout.slice(f"{b}.q"), s.q_slices[i]) for i, b in enumerate(s.body_names)
+                             if f"{b}.q" in y_layout.offsets]
+        self._hinge_u_out = [(y_layout.slice(f"{b}.u"), s.u_slices[i]) for i, b in enumerate(s.body_names)
+                             if f"{b}.u" in y_layout.offsets]
+        self._hinge_udot_out = [(y_layout.slice(f"{b}.u_dot"), s.u_slices[i]) for i, b in enumerate(s.body_names)
+                                if f"{b}.u_dot" in y_layout.offsets]
+        self._q_out, self._u_out = y_layout.slice("q"), y_layout.slice("u")
+
+    def attachment_ports(self, kind: str, target: str):
+        s = self.system
+        if kind == "node":
+            if target not in s.node_names:
+                raise ModelError(f"model {self.path}: no node {target!r}; nodes: {list(s.node_names)}")
+            return ({k: f"{target}.{k}" for k in NODE_OUTPUTS}, {k: f"{target}.{k}" for k in NODE_INPUTS})
+        if target not in s.body_names:
+            raise ModelError(f"model {self.path}: no hinge of body {target!r}; bodies: {list(s.body_names)}")
+        names = {p.name for p in self.inputs + self.outputs}
+        outputs = {k: f"{target}.{k}" for k in ("q", "u", "u_dot") if f"{target}.{k}" in names}
+        inputs = {k: f"{target}.{k}" for k in ("torque", "prescribed_accel") if f"{target}.{k}" in names}
+        return outputs, inputs
+
+    # -- kernels -----------------------------------------------------------------------------------------
+    def _inputs_to_engine(self, u) -> None:
+        _scatter(u, self._tau_src, self._tau, self._tau_dst)
+        _scatter(u, self._force_src, self._node_forces.reshape(-1), self._force_dst)
+        if self._has_prescribed:
+            _scatter(u, self._acc_src, self._prescribed, self._acc_dst)
+
+    def _accelerations(self, x, u):
+        s = self.system
+        self._inputs_to_engine(u)
+        q, v = x[:s.nq], x[s.nq:]
+        return s.forward_dynamics(q, v, self._tau, self._node_forces if s.nnodes else None,
+                                  self._prescribed if self._has_prescribed else None)
+
+    def state_outputs(self, t, x, z, u, p, y):
+        s = self.system
+        q, v = x[:s.nq], x[s.nq:]
+        y[self._q_out] = q
+        y[self._u_out] = v
+        for out, sl in self._hinge_q_out:
+            y[out] = q[sl]
+        for out, sl in self._hinge_u_out:
+            y[out] = v[sl]
+        if s.nnodes:
+            kin = s.node_kinematics(q, v)
+            _node_outputs(kin.rotation, kin.position, kin.angular_velocity, kin.linear_velocity, y,
+                          self._node_offsets)
+
+    def feedthrough_outputs(self, t, x, z, u, p, y):
+        s = self.system
+        udot = self._accelerations(x, u)
+        for out, sl in self._hinge_udot_out:
+            y[out] = udot[sl]
+        if s.nnodes:
+            kin = s.node_kinematics(x[:s.nq], x[s.nq:], udot)
+            for n in range(s.nnodes):
+                a, b = self._node_accel_offsets[n]
+                y[a:a + 3] = kin.angular_acceleration[n]
+                y[b:b + 3] = kin.linear_acceleration[n]
+
+    def derivatives(self, t, x, z, u, p, xdot):
+        s = self.system
+        xdot[s.nq:] = self._accelerations(x, u)
+        xdot[:s.nq] = s.q_dot(x[:s.nq], x[s.nq:])
+
+    def normalize_state(self, x) -> None:
+        """Renormalize hinge quaternions in place (the integrator's normalize hook)."""
+        self.system.normalize_quaternions(x[:self.system.nq])
+
+    # -- construction from a scenario -------------------------------------------------------------------
+    @classmethod
+    def from_description(cls, description, where) -> "MultibodyModel":
+        """Build from the scenario's ``multibody:`` mapping; ``where`` locates errors (file, line, key)."""
+        from dynamics import ModelDefinitionError, Multibody
+
+        from shell.scenario import _expect_list, _expect_mapping, _expect_name
+
+        _expect_mapping(description, where, {"name": "engine model name (default multibody)",
+                                             "gravity": "uniform gravity, world axes (m/s^2)",
+                                             "bodies": "list of bodies", "nodes": "list of nodes"},
+                        required=("bodies",))
+        name = description.get("name", "multibody")
+        gravity = _vector(description, "gravity", "m/s^2", (3,), where, (0.0, 0.0, 0.0))
+        builder = Multibody(gravity=tuple(gravity))
+        bodies = _expect_list(description["bodies"], where.child(description, "bodies"), "bodies")
+        initial = []
+        for k, body in enumerate(bodies):
+            here = where.child(description, "bodies").child(bodies, k)
+            _expect_mapping(body, here, BODY_KEYS, required=("name", "hinge", "mass", "inertia"))
+            body_name = _expect_name(body["name"], here.child(body, "name"), "a body name")
+            here = _rename(here, body_name)
+            if "body_file" in body:
+                raise here.child(body, "body_file").error(
+                    "flexible bodies from body files are not supported by the engine yet; use a rigid body")
+            parent = body.get("parent", "world")
+            kwargs = dict(
+                mass=float(_vector(body, "mass", "kg", (), here)),
+                inertia=_matrix_or_diagonal(body, here),
+                com=_vector(body, "com", "m", (3,), here, (0, 0, 0)),
+                hinge=_expect_name(body["hinge"], here.child(body, "hinge"), "a hinge type"),
+                inboard_position=_vector(body, "inboard_position", "m", (3,), here, (0, 0, 0)),
+                outboard_position=_vector(body, "outboard_position", "m", (3,), here, (0, 0, 0)),
+                inboard_rotation=_rotation(body, "inboard_rotation", here),
+                outboard_rotation=_rotation(body, "outboard_rotation", here),
+            )
+            if "axis" in body:
+                kwargs["axis"] = _vector(body, "axis", "", (3,), here)
+            if "axes" in body:
+                kwargs["axes"] = _vector(body, "axes", "", (2, 3), here)
+            if "prescribed" in body:
+                kwargs["prescribed"] = body["prescribed"]
+            try:
+                builder.add_body(body_name, None if parent in (None, "world") else parent, **kwargs)
+            except ModelDefinitionError as exc:
+                raise here.error(str(exc)) from None
+            initial.append((body_name, body.get("initial"), here, body))
+        nodes = _expect_list(description.get("nodes", []), where.child(description, "nodes"), "nodes")
+        for k, node in enumerate(nodes):
+            here = where.child(description, "nodes").child(nodes, k)
+            _expect_mapping(node, here, {"name": "node name", "body": "body it is fixed on",
+                                         "position": "in the body frame (m)", "rotation": "node -> body"},
+                            required=("name", "body"))
+            try:
+                builder.add_node(_expect_name(node["name"], here.child(node, "name"), "a node name"),
+                                 _expect_name(node["body"], here.child(node, "body"), "a body name"),
+                                 position=_vector(node, "position", "m", (3,), here, (0, 0, 0)),
+                                 rotation=_rotation(node, "rotation", here))
+            except ModelDefinitionError as exc:
+                raise here.error(str(exc)) from None
+        try:
+            system = builder.compile()
+        except ModelDefinitionError as exc:
+            raise where.error(str(exc)) from None
+        q0, u0 = system.neutral_configuration(), np.zeros(system.nu)
+        for b, (body_name, spec, here, body) in enumerate(initial):
+            if spec is not None:
+                _apply_initial(system, b, spec, here.child(body, "initial"), q0, u0)
+        system.normalize_quaternions(q0)
+        return cls(name, system, initial_q=q0, initial_u=u0)
+
+
+def _rename(where, body_name):
+    from shell.scenario import _Where
+
+    return _Where(where.file, where.line, f"{where.key}({body_name})")
+
+
+def _vector(mapping, key, unit, shape, where, default=None):
+    if key not in mapping:
+        if default is None:
+            raise where.error(f"missing required key {key!r}")
+        return np.asarray(default, dtype=float).reshape(shape)
+    try:
+        return to_magnitude(mapping[key], unit, shape, key)
+    except UnitError as exc:
+        raise where.child(mapping, key).error(str(exc)) from None
+
+
+def _matrix_or_diagonal(body, where):
+    try:
+        inertia = to_magnitude(body["inertia"], "kg*m^2", None, "inertia")
+    except UnitError as exc:
+        raise where.child(body, "inertia").error(str(exc)) from None
+    if inertia.shape == (3,):
+        inertia = np.diag(inertia)
+    if inertia.shape != (3, 3):
+        raise where.child(body, "inertia").error(f"expected a 3x3 matrix or 3 principal moments, given shape "
+                                                 f"{inertia.shape}")
+    return inertia
+
+
+def _rotation(mapping, key, where):
+    if key not in mapping:
+        return None
+    value = to_magnitude(mapping[key], "", None, key)
+    if value.shape == (4,):
+        from dynamics.spatial import quaternion_to_rotation
+
+        norm = np.linalg.norm(value)
+        if abs(norm - 1.0) > 1e-9:
+            raise where.child(mapping, key).error(f"expected a unit quaternion [w, x, y, z], given norm {norm:.12g}")
+        rotation = np.empty((3, 3))
+        quaternion_to_rotation(value[0], value[1], value[2], value[3], rotation)
+        return rotation
+    if value.shape != (3, 3):
+        raise where.child(mapping, key).error(f"expected a 3x3 rotation matrix or a quaternion [w, x, y, z], "
+                                              f"given shape {value.shape}")
+    return value
+
+
+def _apply_initial(system, b, spec, where, q0, u0) -> None:
+    from shell.scenario import _expect_mapping
+
+    hinge = system.hinge_names[b]
+    _expect_mapping(spec, where, {k: f"{unit or 'SI'} ({applies})" for k, (unit, applies) in INITIAL_KEYS.items()})
+    qs, us = system.q_slices[b], system.u_slices[b]
+    nq, nu = qs.stop - qs.start, us.stop - us.start
+    for key, value in spec.items():
+        unit, applies = INITIAL_KEYS[key]
+        if applies != "all" and hinge not in applies.split():
+            raise where.child(spec, key).error(f"{key!r} does not apply to a {hinge} hinge; use "
+                                               f"{[k for k, (_, a) in INITIAL_KEYS.items() if a == 'all' or hinge in a.split()]}")
+        target, sl, shape = {
+            "q": (q0, slice(0, nq), (nq,)), "u": (u0, slice(0, nu), (nu,)),
+            "angle": (q0, slice(0, nq), (nq,)), "angle_rate": (u0, slice(0, nu), (nu,)),
+            "displacement": (q0, slice(0, 1), (1,)), "displacement_rate": (u0, slice(0, 1), (1,)),
+            "attitude": (q0, slice(0, 4), (4,)), "angular_velocity": (u0, slice(0, 3), (3,)),
+            "position": (q0, slice(4, 7), (3,)), "velocity": (u0, slice(3, 6), (3,)),
+        }[key]
+        value_si = _vector(spec, key, unit, None, where)
+        if value_si.shape == () and shape == (1,):
+            value_si = value_si.reshape(1)
+        if value_si.shape != shape:
+            raise where.child(spec, key).error(f"expected shape {shape} for a {hinge} hinge, given {value_si.shape}")
+        if key == "attitude" and abs(np.linalg.norm(value_si) - 1.0) > 1e-9:
+            raise where.child(spec, key).error(f"expected a unit quaternion [w, x, y, z], given norm "
+                                               f"{np.linalg.norm(value_si):.12g}")
+        base = qs.start if target is q0 else us.start
+        target[base + sl.start:base + sl.stop] = value_si
