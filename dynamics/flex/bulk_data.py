@@ -117,11 +117,19 @@ def _param_value(model, name: str, default):
     return p.values[0]
 
 
-def _has_bulk_marker(path: str) -> bool:
+def _has_case_control(path: str) -> bool:
+    """True if the main file has an executive/case control section (a CEND line)."""
+    begin_bulk = False
     with open(path, errors="replace") as fh:
         for line in fh:
-            if line.strip().upper().startswith("BEGIN") and "BULK" in line.upper():
+            text = line.split("$")[0].strip().upper()
+            if text == "CEND":
                 return True
+            begin_bulk |= text.replace(" ", "") == "BEGINBULK"
+    if begin_bulk:
+        raise BulkDataError(f"{path}: BEGIN BULK without executive and case control (no CEND "
+                            "line); delete the BEGIN BULK line for a bulk-only deck, or put "
+                            "'SOL 103' and 'CEND' above it")
     return False
 
 
@@ -137,7 +145,7 @@ def read_bulk_data(path: str | os.PathLike, allow_unsupported: bool = False) -> 
     model = BDF(debug=None, log=log)
     model.set_error_storage(nparse_errors=100000, stop_on_parsing_error=False,
                             nxref_errors=0, stop_on_xref_error=True)
-    punch = not _has_bulk_marker(path)
+    punch = not _has_case_control(path)
     stdout = io.StringIO()
     try:
         with contextlib.redirect_stdout(stdout):

@@ -76,23 +76,24 @@ def solve_dense(K: np.ndarray, M: np.ndarray, n_modes: int | None = None,
     M = np.asarray(M.toarray() if sp.issparse(M) else M, dtype=float)
     try:
         lam, vec = sla.eigh(K, M)
+        # Rayleigh quotients: LAPACK's eigenvalues of rigid-body modes carry round-off of order
+        # eps ||M^-1 K||, the quotients of the (accurate) vectors of order eps^2 ||M^-1 K||.
+        lam = np.einsum("ij,ij->j", vec, K @ vec) / np.einsum("ij,ij->j", vec, M @ vec)
     except np.linalg.LinAlgError:
-        # M not positive definite: solve M x = mu (K - sigma M) x, lambda = sigma + 1/mu.
+        # M singular (massless DOFs): M x = mu (K - sigma M) x, lambda = sigma + 1/mu.
         sigma = default_shift(sp.csr_matrix(K), sp.csr_matrix(M)) if shift is None else shift
         A = K - sigma * M
         try:
-            mu, vec = sla.eigh(M, A)
+            mu, vec = sla.eigh(M, 0.5 * (A + A.T))
         except np.linalg.LinAlgError as exc:
             raise EigenSolutionError(
                 "K - sigma M is not positive definite: the structure has a mechanism without "
                 "mass (e.g. free rotation about a CBAR/CROD axis with lumped mass: use PARAM "
                 "COUPMASS 1, CBEAM, or constrain it) or K is indefinite") from exc
-        keep = mu > 1e-12 * np.max(np.abs(mu))
+        keep = mu > 1e-13 * np.max(np.abs(mu))
         lam = sigma + 1.0 / mu[keep]
-        vec = vec[:, keep]
         order = np.argsort(lam)
-        lam, vec = lam[order], vec[:, order]
-        vec = _mass_normalize(vec, M)
+        lam, vec = lam[order], _mass_normalize(vec[:, keep][:, order], M)
     if n_modes is not None:
         lam, vec = lam[:n_modes], vec[:, :n_modes]
     return EigenSolution(lam, _sign_convention(vec))
@@ -148,12 +149,12 @@ def lowest_modes(K, M, n_modes: int | None = None, cutoff_hz: float | None = Non
                 break
             k *= 2
     if n_modes is not None:
-        count = n_modes + extra
+        if n_modes > len(sol.eigenvalues):
+            raise EigenSolutionError(f"asked for {n_modes} modes but the model has only "
+                                     f"{len(sol.eigenvalues)} DOFs with mass")
+        count = min(n_modes + extra, len(sol.eigenvalues))
     else:
-        count = int(np.sum(sol.frequencies_hz <= cutoff_hz)) + extra
-    if count > len(sol.eigenvalues):
-        raise EigenSolutionError(f"asked for {count} modes but the model has only "
-                                 f"{len(sol.eigenvalues)} with mass")
+        count = min(int(np.sum(sol.frequencies_hz <= cutoff_hz)) + extra, len(sol.eigenvalues))
     return EigenSolution(sol.eigenvalues[:count], sol.vectors[:, :count])
 
 

@@ -1,0 +1,22 @@
+import os
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+
+DATA = os.path.join(os.path.dirname(__file__), "data")
+
+
+@pytest.fixture
+def data_dir():
+    return DATA
+
+
+@pytest.fixture
+def write_deck(tmp_path):
+    def _write(text, name="model.dat"):
+        path = tmp_path / name
+        path.write_text(text)
+        return str(path)
+    return _write

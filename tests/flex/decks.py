@@ -1,0 +1,87 @@
+"""Bulk-data text generators shared by the fem2modal tests and benchmarks (free-field cards)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Steel-like prismatic section used by the generated beams (SI units).
+E, NU, RHO = 2.0e11, 0.3, 7800.0
+A, I1, I2, J = 4.0e-4, 2.0e-8, 1.0e-8, 2.5e-8
+
+
+def beam_deck(n_elements: int, length: float = 2.0, card: str = "CBAR", coupled: bool = True,
+              clamp_root: bool = False, grdpnt: int | None = 1, extra: str = "",
+              rho: float = RHO, wtmass: float | None = None, shear_k: float | None = None,
+              with_header: bool = False) -> str:
+    """A straight beam along basic x, grids 1..n+1, elements 101.., PBAR/PBEAM 10, MAT1 1."""
+    lines = []
+    if with_header:
+        lines += ["SOL 103", "CEND", "SPC = 1", "BEGIN BULK"]
+    if coupled:
+        lines.append("PARAM,COUPMASS,1")
+    if grdpnt:
+        lines.append(f"PARAM,GRDPNT,{grdpnt}")
+    if wtmass is not None:
+        lines.append(f"PARAM,WTMASS,{wtmass!r}")
+    x = np.linspace(0.0, length, n_elements + 1)
+    for i, xi in enumerate(x):
+        lines.append(f"GRID,{i + 1},,{float(xi)!r},0.0,0.0")
+    lines.append(f"MAT1,1,{E!r},,{NU!r},{rho!r}")
+    if card == "CBAR":
+        lines.append(f"PBAR,10,1,{A!r},{I1!r},{I2!r},{J!r}")
+    else:
+        k = "" if shear_k is None else repr(shear_k)
+        lines.append(f"PBEAM,10,1,{A!r},{I1!r},{I2!r},0.0,{J!r}")
+        lines.append(",,,,,,,,")
+        lines.append(f",{k if k else '0.0'},{k if k else '0.0'}")
+    for i in range(n_elements):
+        lines.append(f"{card},{101 + i},10,{i + 1},{i + 2},0.0,1.0,0.0")
+    if clamp_root:
+        lines.append("SPC1,1,123456,1")
+    lines.append(extra)
+    lines.append("ENDDATA")
+    return "\n".join(lines) + "\n"
+
+
+def five_particle_deck() -> str:
+    """TM-2020-5008164 App. A.3: five 2 kg masses, four 1 N/m springs along x, other DOFs held."""
+    lines = ["$ Five-particle spring-mass system, NASA/TM-2020-5008164 Appendix A.3 (Table A1)",
+             "$ m = 2 (CONM2 on each grid), k = 1 (CELAS springs on component 1);",
+             "$ the five unused DOFs of every grid are held by SPC1.",
+             "SOL 103", "CEND", "SPC = 1", "BEGIN BULK"]
+    for g in range(1, 6):
+        lines.append(f"GRID,{g},,{float(g - 1)!r},0.0,0.0")
+        lines.append(f"CONM2,{100 + g},{g},,2.0")
+    lines.append("PELAS,7,1.0")
+    lines.append("CELAS1,201,7,1,1,2,1")
+    lines.append("CELAS1,202,7,2,1,3,1")
+    lines.append("CELAS2,203,1.0,3,1,4,1")
+    lines.append("CELAS2,204,1.0,4,1,5,1")
+    lines.append("SPC1,1,23456,1,THRU,5")
+    lines.append("ENDDATA")
+    return "\n".join(lines) + "\n"
+
+
+def single_length_beam_deck() -> str:
+    """FModal paper App. C: 101 grids from 0 to 9 m on x, CBEAM 11.., PBEAM 50002, MAT1 1."""
+    lines = ["$ Single-length beam, FModal paper (IEEE Aerospace 2023) Appendix C:",
+             "$ 101 equally spaced grids on x from 0 to 9 m, identical CBEAMs, PBEAM 50002."]
+    for i, xi in enumerate(np.linspace(0.0, 9.0, 101)):
+        lines.append(f"GRID, {i + 1}, 0, {xi:.8e}, 0.0000000e+00, 0.0000000e+00, 0")
+    for i in range(100):
+        lines.append(f"CBEAM, {11 + i}, 50002, {i + 1}, {i + 2}, 0.0000E+00, 1.0000E+00, "
+                     "0.0000E+00")
+        lines.append(", , , 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00")
+    lines += ["$*", "$*  MATERIAL CARD", "$*",
+              "MAT1, 1, 2.000+9, 775193798.449612, , 8000.0, 12.000-6, 21.85000, 0.0",
+              "$*", "$*  PROPERTY CARD", "$*",
+              "PBEAM, 50002, 1, 2.000E-02, 6.66666667E-05, 1.66666667E-05, 0.0000E+00, "
+              "8.33333333E-05, 0.0000E+00",
+              ", 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00, "
+              "0.0000E+00, 0.0000E+00",
+              ", 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00, "
+              "0.0000E+00, 0.0000E+00",
+              ", 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00, 0.0000E+00, "
+              "0.0000E+00, 0.0000E+00",
+              "ENDDATA"]
+    return "\n".join(lines) + "\n"
