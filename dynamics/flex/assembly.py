@@ -200,6 +200,8 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
         if progress is not None and count % 5000 == 0:
             progress(f"assembling elements {count}/{n_elem}")
         ctx = f"{elem.type} {eid}"
+        if elem.type in bulk.report.unsupported:
+            continue    # reported by read_bulk_data and accepted with allow_unsupported
         if elem.type in ("CBAR", "CBEAM"):
             _add_beam(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
         elif elem.type == "CROD":
@@ -230,6 +232,8 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
     lumped: list[LumpedMass] = []
     for eid, mass in sorted(model.masses.items()):
         ctx = f"{mass.type} {eid}"
+        if mass.type in bulk.report.unsupported:
+            continue
         gid = int(mass.nid)
         i = idx(gid, ctx)
         dofs = 6 * i + np.arange(6)
@@ -366,6 +370,8 @@ def _apply_constraints(sm: StructuralModel) -> None:
     rows, cols, vals = [], [], []
     for eid, rig in sorted(model.rigid_elements.items()):
         ctx = f"{rig.type} {eid}"
+        if rig.type in bulk.report.unsupported:
+            continue
         if rig.type != "RBE2":
             raise BulkDataError(f"{ctx}: rigid element type not supported (RBE2 only)")
         ni = bulk.grid_index(int(rig.gn), ctx)

@@ -1,0 +1,107 @@
+"""Bad input is refused with messages that name the card, grid or file."""
+
+import os
+
+import numpy as np
+import pytest
+
+import decks
+from dynamics.flex.bulk_data import BulkDataError, UnsupportedCardError
+from dynamics.flex.component_modes import CraigBamptonError
+from dynamics.flex.op4 import write_op4_matrices
+from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal, parse_grid_dofs
+from shell.cli import main
+
+OPT = Fem2ModalOptions(n_modes=3)
+
+
+def test_unsupported_structural_cards_are_named_and_counted(write_deck):
+    extra = ("GRID,90,,0.0,1.0,0.0\nGRID,91,,1.0,1.0,0.0\nPSHELL,20,1,0.01\n"
+             "CQUAD4,500,20,1,2,91,90\nCQUAD4,501,20,2,3,91,90")
+    deck = write_deck(decks.beam_deck(4, 2.0, extra=extra))
+    with pytest.raises(UnsupportedCardError, match=r"CQUAD4 x2.*PSHELL x1"):
+        fem2modal(deck, OPT)
+    with pytest.warns(UserWarning, match="CQUAD4 x2"):
+        body = fem2modal(deck, Fem2ModalOptions(n_modes=3, allow_unsupported=True))
+    assert any("UNSUPPORTED" in line and "CQUAD4 x2" in line for line in body.card_report)
+
+
+def test_missing_property_material_and_grid(write_deck):
+    text = decks.beam_deck(4, 2.0).replace("CBAR,102,10,", "CBAR,102,99,")
+    with pytest.raises(BulkDataError, match=r"CBAR 102: property 99 is not defined"):
+        fem2modal(write_deck(text, "p.dat"), OPT)
+    text = decks.beam_deck(4, 2.0).replace("PBAR,10,1,", "PBAR,10,7,")
+    with pytest.raises(BulkDataError, match=r"CBAR 101 -> PBAR 10: material 7 is not defined"):
+        fem2modal(write_deck(text, "m.dat"), OPT)
+    text = decks.beam_deck(4, 2.0).replace("CBAR,104,10,4,5", "CBAR,104,10,4,55")
+    with pytest.raises(BulkDataError, match=r"CBAR 104: grid 55 does not exist"):
+        fem2modal(write_deck(text, "g.dat"), OPT)
+
+
+def test_inconsistent_cards(write_deck):
+    text = decks.beam_deck(4, 2.0).replace("CBAR,101,10,1,2,0.0,1.0,0.0",
+                                           "CBAR,101,10,1,2,1.0,0.0,0.0")
+    with pytest.raises(ValueError, match=r"CBAR 101: orientation vector is parallel"):
+        fem2modal(write_deck(text, "v.dat"), OPT)
+    text = decks.beam_deck(4, 2.0, extra="RBE2,7,1,123,2\nRBE2,8,3,1,2")
+    with pytest.raises(BulkDataError, match=r"RBE2 8: DOF 1 of grid 2 is already dependent"):
+        fem2modal(write_deck(text, "r.dat"), OPT)
+    text = decks.beam_deck(4, 2.0, extra="SPC,1,2,3,0.01")
+    with pytest.raises(BulkDataError, match=r"enforced displacements"):
+        fem2modal(write_deck(text, "s.dat"), OPT)
+
+
+def test_zero_mass_model(write_deck):
+    with pytest.raises(BulkDataError, match="zero-mass model"):
+        fem2modal(write_deck(decks.beam_deck(4, 2.0, rho=0.0)), OPT)
+
+
+def test_singular_interior_stiffness_in_craig_bampton(write_deck):
+    deck = write_deck(decks.beam_deck(4, 2.0))
+    # translations of one grid do not stop the beam rotating about it
+    with pytest.raises(CraigBamptonError, match=r"K_ee is .*singular.*a-set"):
+        fem2modal(deck, Fem2ModalOptions(n_modes=2, aset=[(1, [1, 2, 3])]))
+
+
+def test_aset_and_residual_grids_must_exist_and_be_free(write_deck):
+    deck = write_deck(decks.beam_deck(4, 2.0, clamp_root=True, with_header=True))
+    with pytest.raises(BulkDataError, match=r"a-set grid 999:1: grid 999 does not exist"):
+        fem2modal(deck, Fem2ModalOptions(n_modes=2, aset=[(999, [1])]))
+    with pytest.raises(BulkDataError, match=r"DOF 3 of grid 1 is constrained"):
+        fem2modal(deck, Fem2ModalOptions(n_modes=2, residual=[(1, [3])]))
+    with pytest.raises(ValueError, match="GRID:DOFS"):
+        parse_grid_dofs("12-123")
+    with pytest.raises(ValueError, match="digits 1..6"):
+        parse_grid_dofs("12:789")
+
+
+def test_files_and_deck_sections(write_deck, tmp_path):
+    with pytest.raises(BulkDataError, match="not found"):
+        fem2modal(str(tmp_path / "nope.dat"), OPT)
+    with pytest.raises(BulkDataError, match="BEGIN BULK without executive"):
+        fem2modal(write_deck("BEGIN BULK\n" + decks.beam_deck(4, 2.0)), OPT)
+    deck = write_deck(decks.beam_deck(4, 2.0), "b.dat")
+    op4 = tmp_path / "small.op4"
+    write_op4_matrices(op4, {"KGG": np.eye(12), "MGG": np.eye(12)})
+    with pytest.raises(BulkDataError, match=r"12 x 12, expected 30 x 30"):
+        fem2modal(deck, Fem2ModalOptions(n_modes=2, op4=str(op4)))
+    with pytest.raises(ValueError, match="exactly one of"):
+        fem2modal(deck, Fem2ModalOptions())
+
+
+def test_cli_writes_a_body_file_and_reports_errors(write_deck, tmp_path, capsys, data_dir):
+    out = tmp_path / "beam.h5"
+    rc = main(["fem2modal", os.path.join(data_dir, "SimpleBeam.dat"), "--modes", "4",
+               "--aset", "1:123456", "--residual", "10:3", "--grdpnt", "11",
+               "--modal-integrals", "--damping", "0.01", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 0 and out.exists()
+    assert "Craig-Bampton reduction" in err and "wrote" in err and "EIGRL" in err
+    from dynamics.flex.body_file import read_body_file
+    body = read_body_file(out)
+    assert body.mode_set == "normalized-component" and body.n_residual_vectors == 1
+    rc = main(["fem2modal", os.path.join(data_dir, "SimpleBeam.dat"), "--modes", "4",
+               "--aset", "77:123456", "-o", str(tmp_path / "x.h5")])
+    err = capsys.readouterr().err
+    assert rc == 1 and "grid 77 does not exist" in err
+    assert not (tmp_path / "x.h5").exists()
