@@ -9,12 +9,15 @@ See :mod:`shell.integrators.base` for the interface, :mod:`shell.integrators.eve
 location and :func:`shell.integrators.driver.integrate` for a one-call driver; docs/integrators.md says
 which method to pick for which scene.
 """
+from .adaptive import DOP853, BogackiShampine32, DormandPrince54, EmbeddedRungeKutta, StiffnessWarning
 from .base import DenseOutput, Integrator, quaternion_gauge
 from .driver import IntegrationResult, integrate
 from .events import event, locate_events
+from .implicit import Radau5
 from .fixed import RK4, RK8, ExplicitEuler, FixedStepRungeKutta, Heun
 
-INTEGRATORS = {cls.name: cls for cls in (ExplicitEuler, Heun, RK4, RK8)}
+INTEGRATORS = {cls.name: cls for cls in (ExplicitEuler, Heun, RK4, RK8, BogackiShampine32, DormandPrince54,
+                                         DOP853, Radau5)}
 
 
 def make_integrator(method, fun, t0, y0, t_bound, **options):
@@ -40,4 +43,5 @@ def make_integrator(method, fun, t0, y0, t_bound, **options):
 
 __all__ = ["INTEGRATORS", "make_integrator", "Integrator", "DenseOutput", "quaternion_gauge",
            "locate_events", "event", "integrate", "IntegrationResult",
-           "FixedStepRungeKutta", "ExplicitEuler", "Heun", "RK4", "RK8"]
+           "FixedStepRungeKutta", "ExplicitEuler", "Heun", "RK4", "RK8",
+           "EmbeddedRungeKutta", "BogackiShampine32", "DormandPrince54", "DOP853", "StiffnessWarning", "Radau5"]

@@ -107,8 +107,23 @@ class RK4(FixedStepRungeKutta):
 
 
 class RK8(FixedStepRungeKutta):
-    """Dormand-Prince 12-stage 8th-order formula (the propagator of DOP853) with a fixed step."""
+    """Dormand-Prince 12-stage 8th-order formula (the propagator of DOP853) with a fixed step.
+
+    Dense output is DOP853's 7th-order interpolant (three extra stages per step, evaluated only when
+    dense output is requested), so events are located with the accuracy of the step itself.
+    """
 
     name = "rk8"
     order = 8
     tableau = tableaus.RK8
+
+    def _setup(self):
+        super()._setup()
+        self.K_extended = np.empty((16, self.n))
+        self.K = self.K_extended[:12]
+
+    def _dense_output_impl(self):
+        from .adaptive import dop853_dense_output
+
+        self.K_extended[12] = self.f
+        return dop853_dense_output(self, self.K_extended, self.t - self.t_old)

@@ -109,3 +109,109 @@ def hermite_cubic(x, h, y0, f0, y1, f1, out):
     h11 = x * x * (x - 1)
     for i in range(y0.shape[0]):
         out[i] = h00 * y0[i] + h * h10 * f0[i] + h01 * y1[i] + h * h11 * f1[i]
+
+
+@njit(cache=True)
+def stiffness_ratio(k_a, k_b, y_a, y_b):
+    """||k_b - k_a|| / ||y_b - y_a||: a Rayleigh-quotient estimate of the dominant |eigenvalue| from two
+    stages taken at the same time (HNW I Sec. IV.2); 0 when the two states coincide."""
+    num = 0.0
+    den = 0.0
+    for i in range(k_a.shape[0]):
+        dk = k_b[i] - k_a[i]
+        dy = y_b[i] - y_a[i]
+        num += dk * dk
+        den += dy * dy
+    if den == 0.0:
+        return 0.0
+    return np.sqrt(num / den)
+
+
+@njit(cache=True)
+def lu_factor_inplace(A, piv):
+    """LU factorization with partial pivoting, in place (Doolittle; Golub & Van Loan Alg. 3.4.1).
+
+    Works for float64 and complex128 matrices; ``piv[k]`` is the row swapped with row k. Returns False if
+    a pivot is exactly zero (singular Newton matrix).
+    """
+    n = A.shape[0]
+    for k in range(n):
+        p = k
+        best = abs(A[k, k])
+        for i in range(k + 1, n):
+            v = abs(A[i, k])
+            if v > best:
+                best = v
+                p = i
+        piv[k] = p
+        if best == 0.0:
+            return False
+        if p != k:
+            for j in range(n):
+                tmp = A[k, j]
+                A[k, j] = A[p, j]
+                A[p, j] = tmp
+        inv = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            A[i, k] *= inv
+            lik = A[i, k]
+            if lik != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= lik * A[k, j]
+    return True
+
+
+@njit(cache=True)
+def lu_solve_inplace(LU, piv, b):
+    """Solve LU x = P b in place in b (factors from :func:`lu_factor_inplace`)."""
+    n = LU.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc / LU[i, i]
+
+
+@njit(cache=True)
+def radau_newton_update(F, W, Z, LU_real, piv_real, LU_complex, piv_complex, TI, T, M_real, M_complex,
+                        scale, rhs_real, rhs_complex):
+    """One simplified-Newton update of the transformed Radau IIA stages (HW II eq. IV.8.16).
+
+    rhs_real = (T^-1 F)_0 - M_real W_0, rhs_complex = (T^-1 F)_1 + i (T^-1 F)_2 - M_complex (W_1 + i W_2);
+    solves with the real and complex LU factors, adds dW to W, sets Z = T W and returns the RMS norm of
+    dW / scale.
+    """
+    n = F.shape[1]
+    for i in range(n):
+        g0 = TI[0, 0] * F[0, i] + TI[0, 1] * F[1, i] + TI[0, 2] * F[2, i]
+        g1 = TI[1, 0] * F[0, i] + TI[1, 1] * F[1, i] + TI[1, 2] * F[2, i]
+        g2 = TI[2, 0] * F[0, i] + TI[2, 1] * F[1, i] + TI[2, 2] * F[2, i]
+        rhs_real[i] = g0 - M_real * W[0, i]
+        rhs_complex[i] = (g1 + 1j * g2) - M_complex * (W[1, i] + 1j * W[2, i])
+    lu_solve_inplace(LU_real, piv_real, rhs_real)
+    lu_solve_inplace(LU_complex, piv_complex, rhs_complex)
+    acc = 0.0
+    for i in range(n):
+        d0 = rhs_real[i]
+        d1 = rhs_complex[i].real
+        d2 = rhs_complex[i].imag
+        s = scale[i]
+        acc += (d0 / s) ** 2 + (d1 / s) ** 2 + (d2 / s) ** 2
+        W[0, i] += d0
+        W[1, i] += d1
+        W[2, i] += d2
+        Z[0, i] = T[0, 0] * W[0, i] + T[0, 1] * W[1, i] + T[0, 2] * W[2, i]
+        Z[1, i] = T[1, 0] * W[0, i] + T[1, 1] * W[1, i] + T[1, 2] * W[2, i]
+        Z[2, i] = T[2, 0] * W[0, i] + T[2, 1] * W[1, i] + T[2, 2] * W[2, i]
+    return np.sqrt(acc / (3 * n))

@@ -39,15 +39,17 @@ class ButcherTableau:
         self.dense_weights = None if dense_weights is None else np.ascontiguousarray(dense_weights, dtype=np.float64)
 
     def stability_function(self, z):
-        """Linear stability function R(z) = 1 + z b^T (I - z A)^-1 1 for complex z (scalar or array)."""
+        """Linear stability function R(z) = 1 + z b^T (I - z A)^-1 1 for complex z (scalar or array).
+
+        A is strictly lower triangular (nilpotent), so R is the polynomial 1 + sum_k (b^T A^(k-1) 1) z^k.
+        """
+        coefficients = [1.0]
+        v = np.ones(self.n_stages)
+        for _ in range(self.n_stages):
+            coefficients.append(self.b @ v)
+            v = self.A @ v
         z = np.atleast_1d(np.asarray(z, dtype=np.complex128))
-        s = self.n_stages
-        eye = np.eye(s)
-        ones = np.ones(s)
-        out = np.empty(z.shape, dtype=np.complex128)
-        for i, zi in enumerate(z.ravel()):
-            out.ravel()[i] = 1.0 + zi * self.b @ np.linalg.solve(eye - zi * self.A, ones)
-        return out
+        return np.polyval(coefficients[::-1], z)
 
 
 EULER = ButcherTableau("euler", 1, [[0.0]], [1.0], [0.0])
