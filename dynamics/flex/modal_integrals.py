@@ -90,50 +90,58 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
     mass = float(m.sum())
     if mass <= 0.0:
         raise ValueError("modal integrals of a zero-mass body")
-    P = skew_batch(p)                                   # (N,3,3)
+    es = dict(optimize=True)
+    # point-mass part (every node): terms in m, l0 and gamma only
     L0 = skew_batch(l0)
-    Lr = skew_batch(np.moveaxis(lam, 2, 1))             # (N,n,3,3) lambda_r~
     Gr = skew_batch(np.moveaxis(gam, 2, 1))             # (N,n,3,3) gamma_r~
-    lxp = np.cross(np.moveaxis(lam, 2, 1), p[:, None, :])   # (N,n,3) lambda_r~ p
-    LXP = skew_batch(lxp)                               # (N,n,3,3) [lambda_r~ p]x
-
     p0 = (m[:, None] * (p + l0)).sum(0) / mass
-    J0 = (J - m[:, None, None] * (L0 @ L0 + P @ L0 + L0 @ P)).sum(0)
-    p1 = np.einsum("j,jri->ri", m, np.moveaxis(gam, 2, 1) + lxp) / mass
-    J1 = (np.einsum("jrab,jbc->rac", Lr, J)
-          - np.einsum("j,jrab,jbc->rac", m, Gr, L0 + P)
-          - np.einsum("j,jab,jrbc->rac", m, L0, LXP))
-    J2 = -(np.einsum("jrab,jbc,jscd->rsad", Lr, J, Lr)
-           + np.einsum("j,jrab,jsbc->rsac", m, Gr, Gr)
-           + np.einsum("j,jrab,jsbc->rsac", m, Gr, LXP)
-           + np.einsum("j,jsab,jrbc->rsac", m, LXP, Gr))
+    J0 = (J - m[:, None, None] * (L0 @ L0 + skew_batch(p) @ L0 + L0 @ skew_batch(p))).sum(0)
+    E0 = np.einsum("j,jar->ra", m, gam, **es)
+    p1 = E0 / mass
+    J1 = -np.einsum("j,jrab,jbc->rac", m, Gr, L0, **es)
+    J2 = -np.einsum("j,jrab,jsbc->rsac", m, Gr, Gr, **es)
+    F0 = np.einsum("j,jab,jbr->ra", m, L0, gam, **es)
+    F1 = np.einsum("j,jsab,jbr->rsa", m, Gr, gam, **es)
+    F2 = np.zeros((n, n, n, 3))
+    E1 = np.zeros((n, n, 3))
+    G0 = np.einsum("j,jar,jas->rs", m, gam, gam, **es)
+    G1 = np.zeros((n, n, n))
+    G2 = np.zeros((n, n, n, n))
+    # terms in the node inertia J and CG offset p: only nodes that have them
+    sel = (np.abs(J).reshape(len(m), -1).max(axis=1) > 0.0) | (np.abs(p).max(axis=1) > 0.0)
+    if np.any(sel):
+        m, p, J, L0 = m[sel], p[sel], J[sel], L0[sel]
+        lam, gam, Gr = lam[sel], gam[sel], Gr[sel]
+        P = skew_batch(p)
+        Lr = skew_batch(np.moveaxis(lam, 2, 1))         # (N,n,3,3) lambda_r~
+        lxp = np.cross(np.moveaxis(lam, 2, 1), p[:, None, :])   # (N,n,3) lambda_r~ p
+        LXP = skew_batch(lxp)                           # [lambda_r~ p]x
+        E0 = E0 - np.einsum("j,jab,jbr->ra", m, P, lam, **es)     # eq. E.2.5
+        p1 = p1 + np.einsum("j,jri->ri", m, lxp, **es) / mass     # eq. E.2.4
+        J1 = J1 + (np.einsum("jrab,jbc->rac", Lr, J, **es)
+                   - np.einsum("j,jrab,jbc->rac", m, Gr, P, **es)
+                   - np.einsum("j,jab,jrbc->rac", m, L0, LXP, **es))
+        J2 = J2 - (np.einsum("jrab,jbc,jscd->rsad", Lr, J, Lr, **es)
+                   + np.einsum("j,jrab,jsbc->rsac", m, Gr, LXP, **es)
+                   + np.einsum("j,jsab,jrbc->rsac", m, LXP, Gr, **es))
+        F0 = F0 + (np.einsum("jab,jbr->ra", J - m[:, None, None] * (L0 @ P), lam, **es)
+                   + np.einsum("j,jab,jbr->ra", m, P, gam, **es))
+        LJ = np.einsum("jsab,jbc->jsac", Lr, J, **es)
+        JL = np.einsum("jab,jsbc->jsac", J, Lr, **es)
+        F1 = F1 + (np.einsum("jsab,jbr->rsa", LJ - JL, lam, **es)
+                   - np.einsum("j,jsab,jbc,jcr->rsa", m, Gr, P, lam, **es)
+                   + np.einsum("j,jsab,jbr->rsa", m, LXP, gam, **es)
+                   - np.einsum("j,jab,jsbc,jcr->rsa", m, L0, LXP, lam, **es))
+        F2 = -(np.einsum("jsab,jbc,jlcd,jdr->rsla", Lr, J, Lr, lam, **es)
+               + np.einsum("j,jsab,jlbc,jcr->rsla", m, Gr, LXP, lam, **es))
+        E1 = -np.einsum("j,jsab,jbr->rsa", m, LXP, lam, **es)
+        G0 = G0 + (np.einsum("jar,jab,jbs->rs", lam, J, lam, **es)
+                   + np.einsum("j,jar,jab,jbs->rs", m, lam, P, gam, **es)
+                   + np.einsum("j,jas,jab,jbr->rs", m, lam, P, gam, **es))
+        G1 = (np.einsum("jar,jlab,jbc,jcs->rsl", lam, Lr, J, lam, **es)
+              + np.einsum("j,jar,jlab,jbs->rsl", m, lam, LXP, gam, **es))
+        G2 = -np.einsum("jar,jlab,jbc,jmcd,jds->rslm", lam, Lr, J, Lr, lam, **es)
     J2 = 0.5 * (J2 + J2.transpose(1, 0, 2, 3))
-    A0 = J - m[:, None, None] * (L0 @ P)
-    F0 = (np.einsum("jab,jbr->ra", A0, lam)
-          + np.einsum("j,jab,jbr->ra", m, L0 + P, gam))
-    LJ = np.einsum("jsab,jbc->jsac", Lr, J)
-    JL = np.einsum("jab,jsbc->jsac", J, Lr)
-    F1 = (np.einsum("jsab,jbr->rsa", LJ - JL, lam)
-          + np.einsum("j,jsab,jbr->rsa", m, Gr, gam)
-          - np.einsum("j,jsab,jbc,jcr->rsa", m, Gr, P, lam)
-          + np.einsum("j,jsab,jbr->rsa", m, LXP, gam)
-          - np.einsum("j,jab,jsbc,jcr->rsa", m, L0, LXP, lam))
-    F2 = -(np.einsum("jsab,jbc,jlcd,jdr->rsla", Lr, J, Lr, lam)
-           + np.einsum("j,jsab,jlbc,jcr->rsla", m, Gr, LXP, lam))
-    E0 = np.einsum("j,jar->ra", m, gam) - np.einsum("j,jab,jbr->ra", m, P, lam)
-    E1 = -np.einsum("j,jsab,jbr->rsa", m, LXP, lam)
-    G0 = (np.einsum("jar,jab,jbs->rs", lam, J, lam)
-          + np.einsum("j,jar,jab,jbs->rs", m, lam, P, gam)
-          + np.einsum("j,jas,jab,jbr->rs", m, lam, P, gam)
-          + np.einsum("j,jar,jas->rs", m, gam, gam))
-    G1 = (np.einsum("jar,jlab,jbc,jcs->rsl", lam, Lr, J, lam)
-          + np.einsum("j,jar,jlab,jbs->rsl", m, lam, LXP, gam))
-    has_J = np.abs(J).reshape(len(m), -1).max(axis=1) > 0.0
-    if np.any(has_J):
-        LJl = np.einsum("jlab,jbc,jmcd->jlmad", Lr[has_J], J[has_J], Lr[has_J])
-        G2 = -np.einsum("jar,jlmab,jbs->rslm", lam[has_J], LJl, lam[has_J])
-    else:
-        G2 = np.zeros((n, n, n, n))
     return ModalIntegrals(mass=mass, p0=p0, J0=J0, p1=p1, J1=J1, J2=J2, F0=F0, F1=F1, F2=F2,
                           E0=E0, E1=E1, G0=G0, G1=G1, G2=G2)
 
