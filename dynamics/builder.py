@@ -1,0 +1,267 @@
+"""The multibody builder: collect bodies, hinges and nodes, validate them, compile to arrays.
+
+``Multibody`` is the only mutable description; ``compile()`` checks everything a user can get wrong
+(names, parents, masses, inertias, axes, frames, prescribed flags) and returns an immutable
+:class:`dynamics.system.MultibodySystem` of numpy arrays (model/data separation as in Pinocchio's
+``Model``/``Data``). Bodies are numbered in the order they are added, which must put every parent before
+its children; that is also the coordinate order of ``q`` and ``u`` (CONVENTIONS.md).
+"""
+
+from __future__ import annotations
+
+import difflib
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from dynamics.hinges import HINGE_NAMES, HINGE_NAXES, HINGE_NQ, HINGE_NU, HINGE_TYPES
+from dynamics.spatial import quaternion_to_rotation
+
+GROUND = None
+"""Parent name meaning the inertial ground (world) frame."""
+
+_UNIT_TOLERANCE = 1e-9
+_ROTATION_TOLERANCE = 1e-9
+
+
+class ModelDefinitionError(ValueError):
+    """A body, hinge or node definition that cannot describe a physical system."""
+
+
+@dataclass
+class BodyDefinition:
+    name: str
+    parent: str | None
+    mass: float
+    com: np.ndarray
+    inertia: np.ndarray
+    hinge: str
+    axes: np.ndarray
+    inboard_position: np.ndarray
+    inboard_rotation: np.ndarray
+    outboard_position: np.ndarray
+    outboard_rotation: np.ndarray
+    prescribed: np.ndarray
+    joint_name: str
+
+
+@dataclass
+class NodeDefinition:
+    name: str
+    body: str
+    position: np.ndarray
+    rotation: np.ndarray
+
+
+def _suggest(name, candidates):
+    close = difflib.get_close_matches(str(name), [str(c) for c in candidates], n=1)
+    return f" Did you mean '{close[0]}'?" if close else ""
+
+
+def _vector3(value, what):
+    try:
+        v = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ModelDefinitionError(f"{what}: expected 3 numbers, got {value!r}") from exc
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ModelDefinitionError(f"{what}: expected 3 finite numbers, got {value!r}")
+    return v
+
+
+def _rotation(value, what):
+    """A 3x3 proper rotation matrix, or a unit quaternion [w, x, y, z]; None means identity."""
+    if value is None:
+        return np.eye(3)
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ModelDefinitionError(f"{what}: expected a 3x3 rotation matrix or a quaternion [w, x, y, z], "
+                                   f"got {value!r}") from exc
+    if a.shape == (4,):
+        norm = np.linalg.norm(a)
+        if not np.isfinite(norm) or abs(norm - 1.0) > _UNIT_TOLERANCE:
+            raise ModelDefinitionError(f"{what}: quaternion {a.tolist()} has norm {norm:.12g}, expected 1")
+        R = np.empty((3, 3))
+        quaternion_to_rotation(a[0], a[1], a[2], a[3], R)
+        return R
+    if a.shape != (3, 3) or not np.all(np.isfinite(a)):
+        raise ModelDefinitionError(f"{what}: expected a 3x3 rotation matrix or a quaternion [w, x, y, z], "
+                                   f"got shape {a.shape}")
+    orth = np.abs(a @ a.T - np.eye(3)).max()
+    if orth > _ROTATION_TOLERANCE or np.linalg.det(a) < 0.0:
+        raise ModelDefinitionError(f"{what}: not a proper rotation matrix (|R R^T - I| = {orth:.3g}, "
+                                   f"det = {np.linalg.det(a):.6g})")
+    return a
+
+
+class Multibody:
+    """Builder of a tree of bodies connected by hinges, with nodes (frames fixed on bodies).
+
+    Example::
+
+        mb = Multibody(gravity=(0, 0, -9.81))
+        mb.add_body("link1", parent=None, mass=1.0, com=(0.5, 0, 0), inertia=np.diag([1e-3, 0.1, 0.1]),
+                    hinge="revolute", axis=(0, 0, 1))
+        mb.add_node("tip", body="link1", position=(1, 0, 0))
+        system = mb.compile()
+    """
+
+    def __init__(self, gravity=(0.0, 0.0, 0.0)):
+        self.gravity = _vector3(gravity, "gravity")
+        self.bodies: list[BodyDefinition] = []
+        self.nodes: list[NodeDefinition] = []
+        self._body_index: dict[str, int] = {}
+        self._node_names: set[str] = set()
+
+    def add_body(self, name, parent=GROUND, *, mass, inertia, com=(0.0, 0.0, 0.0), hinge, axis=None,
+                 axes=None, inboard_position=(0.0, 0.0, 0.0), inboard_rotation=None,
+                 outboard_position=(0.0, 0.0, 0.0), outboard_rotation=None, prescribed=None,
+                 joint_name=None):
+        """Add a rigid body connected to ``parent`` (a body name, or None for the ground) by a hinge.
+
+        ``inertia`` is about the center of mass ``com``, in the body frame. The hinge's inboard frame F
+        is placed on the parent by ``inboard_position``/``inboard_rotation``; its outboard frame M on
+        this body by ``outboard_position``/``outboard_rotation`` (pose of M in the body frame).
+        ``axis`` (revolute, prismatic) or ``axes`` (two, U-joint) are unit vectors in the hinge frames.
+        ``prescribed`` is a bool or one bool per hinge DOF. Returns the body name.
+        """
+        where = f"body '{name}'"
+        if not isinstance(name, str) or not name:
+            raise ModelDefinitionError(f"body name must be a non-empty string, got {name!r}")
+        if name in self._body_index:
+            raise ModelDefinitionError(f"{where}: duplicate body name (already defined as body "
+                                       f"#{self._body_index[name]})")
+        if parent is not GROUND and parent not in self._body_index:
+            known = list(self._body_index)
+            raise ModelDefinitionError(
+                f"{where}: unknown parent '{parent}'; parents must be added before their children "
+                f"(bodies defined so far: {known or 'none'}; use parent=None for the ground)."
+                + _suggest(parent, known))
+        if hinge not in HINGE_TYPES:
+            raise ModelDefinitionError(f"{where}: unknown hinge type {hinge!r}; expected one of "
+                                       f"{sorted(HINGE_TYPES)}" + _suggest(hinge, HINGE_TYPES))
+        try:
+            mass = float(mass)
+        except (TypeError, ValueError) as exc:
+            raise ModelDefinitionError(f"{where}: mass must be a number, got {mass!r}") from exc
+        if not np.isfinite(mass) or mass <= 0.0:
+            raise ModelDefinitionError(f"{where}: mass must be positive and finite, got {mass!r} kg")
+        com = _vector3(com, f"{where}: center of mass")
+        inertia = self._check_inertia(inertia, where)
+        code = HINGE_TYPES[hinge]
+        hinge_axes = self._check_axes(code, axis, axes, where)
+        prescribed_flags = self._check_prescribed(code, prescribed, where)
+        self.bodies.append(BodyDefinition(
+            name=name, parent=parent, mass=mass, com=com, inertia=inertia, hinge=hinge, axes=hinge_axes,
+            inboard_position=_vector3(inboard_position, f"{where}: inboard_position"),
+            inboard_rotation=_rotation(inboard_rotation, f"{where}: inboard_rotation"),
+            outboard_position=_vector3(outboard_position, f"{where}: outboard_position"),
+            outboard_rotation=_rotation(outboard_rotation, f"{where}: outboard_rotation"),
+            prescribed=prescribed_flags, joint_name=joint_name or name))
+        self._body_index[name] = len(self.bodies) - 1
+        return name
+
+    def add_node(self, name, body, position=(0.0, 0.0, 0.0), rotation=None):
+        """Add a node: a frame fixed on ``body`` at ``position`` with ``rotation`` (node -> body)."""
+        if not isinstance(name, str) or not name:
+            raise ModelDefinitionError(f"node name must be a non-empty string, got {name!r}")
+        if name in self._node_names:
+            raise ModelDefinitionError(f"node '{name}': duplicate node name")
+        if body not in self._body_index:
+            raise ModelDefinitionError(f"node '{name}': unknown body '{body}' (bodies: "
+                                       f"{list(self._body_index) or 'none'})" + _suggest(body, self._body_index))
+        self.nodes.append(NodeDefinition(name, body, _vector3(position, f"node '{name}': position"),
+                                         _rotation(rotation, f"node '{name}': rotation")))
+        self._node_names.add(name)
+        return name
+
+    @staticmethod
+    def _check_inertia(inertia, where):
+        try:
+            J = np.asarray(inertia, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ModelDefinitionError(f"{where}: inertia must be a 3x3 matrix, got {inertia!r}") from exc
+        if J.shape == (3,):
+            J = np.diag(J)
+        if J.shape != (3, 3) or not np.all(np.isfinite(J)):
+            raise ModelDefinitionError(f"{where}: inertia must be a finite 3x3 matrix (or 3 principal "
+                                       f"moments), got shape {J.shape}")
+        scale = max(np.abs(J).max(), 1e-300)
+        if np.abs(J - J.T).max() > 1e-12 * scale:
+            raise ModelDefinitionError(f"{where}: inertia matrix is not symmetric: {J.tolist()}")
+        J = 0.5 * (J + J.T)
+        eig = np.linalg.eigvalsh(J)
+        if eig[0] <= 0.0:
+            raise ModelDefinitionError(
+                f"{where}: inertia about the center of mass must be symmetric positive definite; "
+                f"principal moments are {eig.tolist()} kg m^2")
+        if eig[0] + eig[1] < eig[2] * (1.0 - 1e-9):
+            warnings.warn(f"{where}: principal moments {eig.tolist()} violate the triangle inequality "
+                          f"(I1 + I2 >= I3) that every physical mass distribution satisfies", stacklevel=3)
+        return J
+
+    @staticmethod
+    def _check_axes(code, axis, axes, where):
+        naxes = HINGE_NAXES[code]
+        result = np.zeros((2, 3))
+        if naxes == 0:
+            if axis is not None or axes is not None:
+                raise ModelDefinitionError(f"{where}: a {HINGE_NAMES[code]} hinge takes no axis")
+            return result
+        if naxes == 1:
+            if axes is not None:
+                raise ModelDefinitionError(f"{where}: a {HINGE_NAMES[code]} hinge takes one 'axis', not 'axes'")
+            if axis is None:
+                raise ModelDefinitionError(f"{where}: a {HINGE_NAMES[code]} hinge needs an 'axis'")
+            given = [axis]
+        else:
+            if axes is None or len(axes) != 2:
+                raise ModelDefinitionError(f"{where}: a U-joint needs 'axes' = [axis1, axis2], got {axes!r}")
+            given = list(axes)
+        for k, a in enumerate(given):
+            v = _vector3(a, f"{where}: hinge axis {k + 1}")
+            norm = np.linalg.norm(v)
+            if abs(norm - 1.0) > _UNIT_TOLERANCE:
+                raise ModelDefinitionError(f"{where}: hinge axis {k + 1} {v.tolist()} is not a unit vector "
+                                           f"(norm {norm:.12g}); normalize it explicitly")
+            result[k] = v
+        if naxes == 2 and np.linalg.norm(np.cross(result[0], result[1])) < 1e-6:
+            raise ModelDefinitionError(f"{where}: U-joint axes {result.tolist()} are parallel")
+        return result
+
+    @staticmethod
+    def _check_prescribed(code, prescribed, where):
+        nu = int(HINGE_NU[code])
+        if prescribed is None or prescribed is False:
+            return np.zeros(nu, dtype=bool)
+        if prescribed is True:
+            return np.ones(nu, dtype=bool)
+        flags = np.asarray(prescribed, dtype=bool).reshape(-1)
+        if flags.shape != (nu,):
+            raise ModelDefinitionError(f"{where}: 'prescribed' needs one flag per hinge DOF ({nu} for a "
+                                       f"{HINGE_NAMES[code]} hinge), got {prescribed!r}")
+        return flags
+
+    def compile(self):
+        """Freeze the description into a :class:`~dynamics.system.MultibodySystem`."""
+        from dynamics.system import MultibodySystem
+
+        if not self.bodies:
+            raise ModelDefinitionError("the multibody has no bodies")
+        return MultibodySystem.from_definitions(self.bodies, self.nodes, self.gravity)
+
+    # ------------------------------------------------------------------ URDF
+    @classmethod
+    def from_urdf(cls, path, floating_base=False, gravity=(0.0, 0.0, -9.81)):
+        """Build from a URDF file; see :mod:`dynamics.urdf` for the mapping of links and joints."""
+        from dynamics.urdf import multibody_from_urdf
+
+        return multibody_from_urdf(path, floating_base=floating_base, gravity=gravity)
+
+
+def hinge_sizes(hinge):
+    """(nq, nu) of a hinge type name."""
+    code = HINGE_TYPES[hinge]
+    return int(HINGE_NQ[code]), int(HINGE_NU[code])
+
