@@ -123,6 +123,13 @@ class _Triplets:
         self.cols.append(np.tile(dofs, len(dofs)))
         self.vals.append(block.ravel())
 
+    def add_batch(self, dofs: np.ndarray, blocks: np.ndarray):
+        """dofs (ne, k), blocks (ne, k, k)."""
+        k = dofs.shape[1]
+        self.rows.append(np.repeat(dofs, k, axis=1).ravel())
+        self.cols.append(np.tile(dofs, (1, k)).ravel())
+        self.vals.append(blocks.ravel())
+
     def matrix(self, n: int) -> sp.csr_matrix:
         if not self.rows:
             return sp.csr_matrix((n, n))
@@ -196,6 +203,8 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
 
     elems = model.elements
     n_elem = len(elems)
+    beams: list = []
+    sections: dict = {}
     for count, (eid, elem) in enumerate(sorted(elems.items())):
         if progress is not None and count % 5000 == 0:
             progress(f"assembling elements {count}/{n_elem}")
@@ -203,7 +212,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
         if elem.type in bulk.report.unsupported:
             continue    # reported by read_bulk_data and accepted with allow_unsupported
         if elem.type in ("CBAR", "CBEAM"):
-            _add_beam(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
+            beams.append(_beam_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type == "CROD":
             _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
         elif elem.type in ("CELAS1", "CELAS2"):
@@ -228,6 +237,20 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
                 raise BulkDataError(f"{ctx}: no grid connected")
         else:
             raise BulkDataError(f"{ctx}: element type not supported")
+
+    if beams:
+        if progress is not None:
+            progress(f"element matrices for {len(beams)} beams")
+        dofs = np.array([b[0] for b in beams])
+        props = np.array([b[1] for b in beams])
+        frames = np.array([b[2] for b in beams])
+        wa = np.array([b[3] for b in beams])
+        wb = np.array([b[4] for b in beams])
+        torsion = np.array([b[5] for b in beams])
+        Kg, Mg, MLg = el.beam_element_batch(props, frames, wa, wb, bulk.coupled_mass, torsion)
+        K_b.add_batch(dofs, Kg)
+        M_b.add_batch(dofs, Mg)
+        ML_b.add_batch(dofs, MLg)
 
     lumped: list[LumpedMass] = []
     for eid, mass in sorted(model.masses.items()):
@@ -291,7 +314,8 @@ def _orientation(bulk: BulkData, elem, ia: int, ctx: str) -> np.ndarray:
     return bulk.displacement_rotation[ia] @ np.asarray(elem.x, float)
 
 
-def _add_beam(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
+def _beam_data(bulk, elem, ctx, wt, idx, sections):
+    """(dofs, props, frame, wa, wb, lumped_torsion) of one CBAR/CBEAM for the batch kernel."""
     model = bulk.model
     offt = getattr(elem, "offt", "GGG")
     if elem.type == "CBEAM" and getattr(elem, "bit", None) is not None:
@@ -309,19 +333,16 @@ def _add_beam(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
     axis = bulk.positions[ib] + wb - bulk.positions[ia] - wa
     Lam = el.beam_frame(axis, _orientation(bulk, elem, ia, ctx), ctx)
     L = float(np.linalg.norm(axis))
-    prop = _property(model, int(elem.pid), ("PBAR",) if elem.type == "CBAR" else ("PBEAM",), ctx)
-    A, I1, I2, J, nsm, k1, k2 = _beam_section(prop, f"{ctx} -> {prop.type} {prop.pid}")
-    E, G, rho = _material(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
-    mu = (rho * A + nsm) * wt
-    torsion = elem.type == "CBEAM"
-    Kl, Ml = el.beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, bulk.coupled_mass,
-                                    torsion)
-    T = el.local_to_grids(Lam, wa, wb)
+    key = (elem.type, int(elem.pid))
+    if key not in sections:
+        prop = _property(model, int(elem.pid), ("PBAR",) if elem.type == "CBAR"
+                         else ("PBEAM",), ctx)
+        A, I1, I2, J, nsm, k1, k2 = _beam_section(prop, f"{ctx} -> {prop.type} {prop.pid}")
+        E, G, rho = _material(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
+        sections[key] = (E, G, A, I1, I2, J, (rho * A + nsm) * wt, k1, k2)
+    E, G, A, I1, I2, J, mu, k1, k2 = sections[key]
     dofs = np.concatenate([6 * ia + np.arange(6), 6 * ib + np.arange(6)])
-    K_b.add(dofs, T.T @ Kl @ T)
-    M_b.add(dofs, T.T @ Ml @ T)
-    _, Mlump = el.beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, False, torsion)
-    ML_b.add(dofs, T.T @ Mlump @ T)
+    return (dofs, (L, E, G, A, I1, I2, J, mu, k1, k2), Lam, wa, wb, elem.type == "CBEAM")
 
 
 def _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):

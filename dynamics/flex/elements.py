@@ -26,11 +26,17 @@ z = x cross y. Plane 1 bending (v, theta_z) uses I1, plane 2 bending (w, theta_y
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 
+@njit(cache=True)
 def skew(v: np.ndarray) -> np.ndarray:
     """Cross-product matrix: skew(a) @ b = a x b."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    S = np.zeros((3, 3))
+    S[0, 1], S[0, 2] = -v[2], v[1]
+    S[1, 0], S[1, 2] = v[2], -v[0]
+    S[2, 0], S[2, 1] = -v[1], v[0]
+    return S
 
 
 def beam_frame(axis: np.ndarray, orientation: np.ndarray, context: str) -> np.ndarray:
@@ -48,6 +54,7 @@ def beam_frame(axis: np.ndarray, orientation: np.ndarray, context: str) -> np.nd
     return np.vstack([x, y, np.cross(x, y)])
 
 
+@njit(cache=True)
 def shear_parameter(E: float, I: float, k: float, G: float, A: float, L: float) -> float:
     """phi = 12 E I / (k G A L^2); zero for no shear flexibility (k = 0 or blank/1e8, G = 0)."""
     if k == 0.0 or k >= 1e8 or G == 0.0 or A == 0.0:
@@ -55,16 +62,15 @@ def shear_parameter(E: float, I: float, k: float, G: float, A: float, L: float) 
     return 12.0 * E * I / (k * G * A * L * L)
 
 
-def _bending_stiffness(EI: float, L: float, phi: float) -> np.ndarray:
+@njit(cache=True)
+def _bending_into(K, M, idx, flip, EI, mu, L, phi, coupled):
+    """Add plane bending stiffness/consistent mass (v, theta) at local indices ``idx``."""
     c = EI / (L**3 * (1.0 + phi))
-    return c * np.array([
-        [12.0, 6.0 * L, -12.0, 6.0 * L],
-        [6.0 * L, (4.0 + phi) * L * L, -6.0 * L, (2.0 - phi) * L * L],
-        [-12.0, -6.0 * L, 12.0, -6.0 * L],
-        [6.0 * L, (2.0 - phi) * L * L, -6.0 * L, (4.0 + phi) * L * L]])
-
-
-def _bending_mass(mu: float, L: float, phi: float) -> np.ndarray:
+    kb = np.empty((4, 4))
+    kb[0, 0], kb[0, 1], kb[0, 2], kb[0, 3] = 12.0, 6.0 * L, -12.0, 6.0 * L
+    kb[1, 1], kb[1, 2], kb[1, 3] = (4.0 + phi) * L * L, -6.0 * L, (2.0 - phi) * L * L
+    kb[2, 2], kb[2, 3] = 12.0, -6.0 * L
+    kb[3, 3] = (4.0 + phi) * L * L
     d = (1.0 + phi) ** 2
     m11 = (13.0 / 35 + 7.0 / 10 * phi + phi * phi / 3) / d
     m12 = (11.0 / 210 + 11.0 / 120 * phi + phi * phi / 24) * L / d
@@ -72,46 +78,80 @@ def _bending_mass(mu: float, L: float, phi: float) -> np.ndarray:
     m14 = (13.0 / 420 + 3.0 / 40 * phi + phi * phi / 24) * L / d
     m22 = (1.0 / 105 + phi / 60 + phi * phi / 120) * L * L / d
     m24 = (1.0 / 140 + phi / 60 + phi * phi / 120) * L * L / d
-    return mu * L * np.array([
-        [m11, m12, m13, -m14],
-        [m12, m22, m14, -m24],
-        [m13, m14, m11, -m12],
-        [-m14, -m24, -m12, m22]])
+    mb = np.empty((4, 4))
+    mb[0, 0], mb[0, 1], mb[0, 2], mb[0, 3] = m11, m12, m13, -m14
+    mb[1, 1], mb[1, 2], mb[1, 3] = m22, m14, -m24
+    mb[2, 2], mb[2, 3] = m11, -m12
+    mb[3, 3] = m22
+    for a in range(4):
+        for b in range(a, 4):
+            sab = flip[a] * flip[b]
+            K[idx[a], idx[b]] += sab * c * kb[a, b]
+            if coupled:
+                M[idx[a], idx[b]] += sab * mu * L * mb[a, b]
+            if b != a:
+                K[idx[b], idx[a]] = K[idx[a], idx[b]]
+                M[idx[b], idx[a]] = M[idx[a], idx[b]]
 
 
-_PLANE1 = np.array([1, 5, 7, 11])   # v1, theta_z1, v2, theta_z2
-_PLANE2 = np.array([2, 4, 8, 10])   # w1, theta_y1, w2, theta_y2
-_FLIP2 = np.array([1.0, -1.0, 1.0, -1.0])  # theta_y = -dw/dx
-
-
-def beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, coupled: bool,
-                        lumped_torsion: bool = False):
+@njit(cache=True)
+def beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, coupled, lumped_torsion):
     """Local 12 x 12 stiffness and mass of a prismatic beam (mu = mass per length).
 
     ``lumped_torsion`` puts half the torsional mass moment rho (I1 + I2) L on each end in the
     lumped mass (CBEAM, as NASTRAN does); CBAR's lumped mass has no rotational inertia.
     """
     K = np.zeros((12, 12))
-    ax = E * A / L * np.array([[1.0, -1.0], [-1.0, 1.0]])
-    K[np.ix_([0, 6], [0, 6])] = ax
-    K[np.ix_([3, 9], [3, 9])] = G * J / L * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    M = np.zeros((12, 12))
+    ea, gj = E * A / L, G * J / L
+    K[0, 0] = K[6, 6] = ea
+    K[0, 6] = K[6, 0] = -ea
+    K[3, 3] = K[9, 9] = gj
+    K[3, 9] = K[9, 3] = -gj
+    rho_ip = 0.0 if A == 0.0 else mu / A * (I1 + I2)
     phi1 = shear_parameter(E, I1, k1, G, A, L)
     phi2 = shear_parameter(E, I2, k2, G, A, L)
-    K[np.ix_(_PLANE1, _PLANE1)] = _bending_stiffness(E * I1, L, phi1)
-    K[np.ix_(_PLANE2, _PLANE2)] = _FLIP2[:, None] * _bending_stiffness(E * I2, L, phi2) * _FLIP2
-    M = np.zeros((12, 12))
-    rho_ip = 0.0 if A == 0.0 else mu / A * (I1 + I2)
+    _bending_into(K, M, np.array([1, 5, 7, 11]), np.array([1.0, 1.0, 1.0, 1.0]),
+                  E * I1, mu, L, phi1, coupled)
+    _bending_into(K, M, np.array([2, 4, 8, 10]), np.array([1.0, -1.0, 1.0, -1.0]),
+                  E * I2, mu, L, phi2, coupled)   # theta_y = -dw/dx
     if coupled:
-        lin = L / 6.0 * np.array([[2.0, 1.0], [1.0, 2.0]])
-        M[np.ix_([0, 6], [0, 6])] = mu * lin
-        M[np.ix_([3, 9], [3, 9])] = rho_ip * lin
-        M[np.ix_(_PLANE1, _PLANE1)] = _bending_mass(mu, L, phi1)
-        M[np.ix_(_PLANE2, _PLANE2)] = _FLIP2[:, None] * _bending_mass(mu, L, phi2) * _FLIP2
+        for a, b, w in ((0, 6, mu), (3, 9, rho_ip)):
+            M[a, a] = M[b, b] = w * L / 3.0
+            M[a, b] = M[b, a] = w * L / 6.0
     else:
-        M[[0, 1, 2, 6, 7, 8], [0, 1, 2, 6, 7, 8]] = mu * L / 2.0
+        for i in (0, 1, 2, 6, 7, 8):
+            M[i, i] = mu * L / 2.0
         if lumped_torsion:
-            M[[3, 9], [3, 9]] = rho_ip * L / 2.0
+            M[3, 3] = M[9, 9] = rho_ip * L / 2.0
     return K, M
+
+
+@njit(cache=True)
+def beam_element_batch(props, frames, offsets_a, offsets_b, coupled, lumped_torsion):
+    """Grid-level (basic, [T; R] per grid) K, M and lumped M for many beams at once.
+
+    props (ne, 10): L, E, G, A, I1, I2, J, mu, k1, k2; frames (ne, 3, 3) element axes (rows);
+    offsets (ne, 3) in basic; lumped_torsion (ne,) bool. Returns three (ne, 12, 12) arrays.
+    """
+    ne = props.shape[0]
+    Kg = np.empty((ne, 12, 12))
+    Mg = np.empty((ne, 12, 12))
+    MLg = np.empty((ne, 12, 12))
+    for e in range(ne):
+        L, E, G, A, I1, I2, J, mu, k1, k2 = props[e]
+        Kl, Ml = beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, coupled,
+                                     lumped_torsion[e])
+        T = local_to_grids(frames[e], offsets_a[e], offsets_b[e])
+        Kg[e] = T.T @ Kl @ T
+        Mg[e] = T.T @ Ml @ T
+        if coupled:
+            _, Mlump = beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, False,
+                                           lumped_torsion[e])
+            MLg[e] = T.T @ Mlump @ T
+        else:
+            MLg[e] = Mg[e]
+    return Kg, Mg, MLg
 
 
 def rod_local_matrices(L, E, G, A, J, mu, coupled: bool):
@@ -129,6 +169,7 @@ def rod_local_matrices(L, E, G, A, J, mu, coupled: bool):
     return K, M
 
 
+@njit(cache=True)
 def local_to_grids(Lambda: np.ndarray, offset_a: np.ndarray, offset_b: np.ndarray) -> np.ndarray:
     """T (12 x 12): local end DOFs = T @ grid DOFs (basic, [T; R] per grid), offsets included."""
     T = np.zeros((12, 12))

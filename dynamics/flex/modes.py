@@ -41,8 +41,13 @@ class EigenSolution:
         return np.sqrt(np.abs(self.eigenvalues)) * np.sign(self.eigenvalues) / TWO_PI
 
 
-def default_shift(K, M) -> float:
-    """A negative shift of the order of the stiffness-to-mass scale (1e-3 of the mean ratio)."""
+def default_shift(K, M, fraction: float = 1e-6) -> float:
+    """A negative shift: ``fraction`` of the median diagonal stiffness-to-mass ratio.
+
+    For Lanczos (1e-6) close enough to zero that the lowest modes dominate the inverted
+    spectrum (fast convergence), far enough that K - sigma M is safely non-singular for
+    free-free bodies; the dense inverted solve uses 1e-3 for a better conditioned K - sigma M.
+    """
     kd = np.abs(K.diagonal())
     md = np.abs(M.diagonal())
     mask = md > 0
@@ -51,7 +56,7 @@ def default_shift(K, M) -> float:
     scale = np.median(kd[mask] / md[mask])
     if not np.isfinite(scale) or scale <= 0.0:
         scale = 1.0
-    return -1e-3 * scale
+    return -fraction * scale
 
 
 def _mass_normalize(vectors: np.ndarray, M) -> np.ndarray:
@@ -81,7 +86,8 @@ def solve_dense(K: np.ndarray, M: np.ndarray, n_modes: int | None = None,
         lam = np.einsum("ij,ij->j", vec, K @ vec) / np.einsum("ij,ij->j", vec, M @ vec)
     except np.linalg.LinAlgError:
         # M singular (massless DOFs): M x = mu (K - sigma M) x, lambda = sigma + 1/mu.
-        sigma = default_shift(sp.csr_matrix(K), sp.csr_matrix(M)) if shift is None else shift
+        sigma = default_shift(sp.csr_matrix(K), sp.csr_matrix(M), 1e-3) if shift is None \
+            else shift
         A = K - sigma * M
         try:
             mu, vec = sla.eigh(M, 0.5 * (A + A.T))
