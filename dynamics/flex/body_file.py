@@ -142,6 +142,9 @@ def _write_integrals(group: h5py.Group, mi: ModalIntegrals) -> None:
 def _read_integrals(g: h5py.Group) -> ModalIntegrals:
     kw = {}
     for f in fields(ModalIntegrals):
+        if f.name not in g:             # G2 absent: identically zero or not computed
+            kw[f.name] = None
+            continue
         v = g[f.name][()]
         kw[f.name] = float(v) if f.name == "mass" else v
     return ModalIntegrals(**kw)

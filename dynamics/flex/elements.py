@@ -99,7 +99,7 @@ def beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, coupled, lumped_torsi
     """Local 12 x 12 stiffness and mass of a prismatic beam (mu = mass per length).
 
     ``lumped_torsion`` puts half the torsional mass moment rho (I1 + I2) L on each end in the
-    lumped mass (CBEAM, as NASTRAN does); CBAR's lumped mass has no rotational inertia.
+    lumped mass (used for CBEAM); CBAR's lumped mass has no rotational inertia.
     """
     K = np.zeros((12, 12))
     M = np.zeros((12, 12))

@@ -29,6 +29,7 @@ The FEM pipeline takes m_j, p_j, J_j from the 6 x 6 grid blocks of the lumped ma
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -49,7 +50,9 @@ class ModalIntegrals:
 
     Shapes with n = number of modes: mass (), p0 (3,), J0 (3,3), p1 (n,3), J1 (n,3,3),
     J2 (n,n,3,3), F0 (n,3), F1 (n,n,3) [index (r,s)], F2 (n,n,n,3) [(r,s,l)], E0 (n,3),
-    E1 (n,n,3) [(r,s)], G0 (n,n), G1 (n,n,n) [(r,s,l)], G2 (n,n,n,n) [(r,s,l,m)].
+    E1 (n,n,3) [(r,s)], G0 (n,n), G1 (n,n,n) [(r,s,l)], G2 (n,n,n,n) [(r,s,l,m)] or None
+    (identically zero: no node has rotational inertia, or not computed, see
+    :func:`modal_integrals`).
     """
 
     mass: float
@@ -65,16 +68,21 @@ class ModalIntegrals:
     E1: np.ndarray
     G0: np.ndarray
     G1: np.ndarray
-    G2: np.ndarray
+    G2: np.ndarray | None
 
     def arrays(self) -> dict:
-        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
+        """Name -> array of every integral that is present (G2 may be absent)."""
+        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)
+                if getattr(self, f.name) is not None}
 
 
 def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np.ndarray,
                     positions: np.ndarray, rotation_shapes: np.ndarray,
-                    translation_shapes: np.ndarray) -> ModalIntegrals:
+                    translation_shapes: np.ndarray, max_g2_modes: int = 40) -> ModalIntegrals:
     """All integrals of eqs. E.2.2-E.2.5.
+
+    G2 is ``None`` when it is identically zero (no node has rotational inertia) or when
+    n > ``max_g2_modes`` (n^4 numbers; a warning says so).
 
     node_mass (N,), node_cm (N,3) = p_j, node_inertia (N,3,3) = J_j about the node,
     positions (N,3) = l0_j from the body-frame origin, rotation_shapes (N,3,n) = lambda_j,
@@ -91,27 +99,37 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
     if mass <= 0.0:
         raise ValueError("modal integrals of a zero-mass body")
     es = dict(optimize=True)
-    # point-mass part (every node): terms in m, l0 and gamma only
+    # point-mass part (every node): terms in m, l0 and gamma only, as two GEMMs with
+    # C[(a,s),(c,r)] = sum_j m gamma_as gamma_cr and D[a,(c,r)] = sum_j m l0_a gamma_cr, using
+    # a~ b~ = b a' - (a.b) I and a~ b = a x b.
     L0 = skew_batch(l0)
-    Gr = skew_batch(np.moveaxis(gam, 2, 1))             # (N,n,3,3) gamma_r~
+    N = len(m)
+    Z = gam.reshape(N, 3 * n)
+    C = (Z.T @ (m[:, None] * Z)).reshape(3, n, 3, n)             # [a, s, c, r]
+    D = ((m[:, None] * l0).T @ Z).reshape(3, 3, n)                # [a, c, r]
+    eps = np.zeros((3, 3, 3))
+    eps[0, 1, 2] = eps[1, 2, 0] = eps[2, 0, 1] = 1.0
+    eps[0, 2, 1] = eps[2, 1, 0] = eps[1, 0, 2] = -1.0
+    I3 = np.eye(3)
     p0 = (m[:, None] * (p + l0)).sum(0) / mass
     J0 = (J - m[:, None, None] * (L0 @ L0 + skew_batch(p) @ L0 + L0 @ skew_batch(p))).sum(0)
-    E0 = np.einsum("j,jar->ra", m, gam, **es)
+    E0 = np.einsum("j,jar->ra", m, gam)
     p1 = E0 / mass
-    J1 = -np.einsum("j,jrab,jbc->rac", m, Gr, L0, **es)
-    J2 = -np.einsum("j,jrab,jsbc->rsac", m, Gr, Gr, **es)
-    F0 = np.einsum("j,jab,jbr->ra", m, L0, gam, **es)
-    F1 = np.einsum("j,jsab,jbr->rsa", m, Gr, gam, **es)
+    G0 = np.einsum("asar->rs", C)
+    J1 = -D.transpose(2, 0, 1) + np.einsum("bbr,ac->rac", D, I3)
+    J2 = -C.transpose(3, 1, 0, 2) + G0[:, :, None, None] * I3
+    F0 = np.einsum("abc,bcr->ra", eps, D)
+    F1 = np.einsum("abc,bscr->rsa", eps, C)
     F2 = np.zeros((n, n, n, 3))
     E1 = np.zeros((n, n, 3))
-    G0 = np.einsum("j,jar,jas->rs", m, gam, gam, **es)
     G1 = np.zeros((n, n, n))
-    G2 = np.zeros((n, n, n, n))
+    G2 = None
     # terms in the node inertia J and CG offset p: only nodes that have them
     sel = (np.abs(J).reshape(len(m), -1).max(axis=1) > 0.0) | (np.abs(p).max(axis=1) > 0.0)
     if np.any(sel):
         m, p, J, L0 = m[sel], p[sel], J[sel], L0[sel]
-        lam, gam, Gr = lam[sel], gam[sel], Gr[sel]
+        lam, gam = lam[sel], gam[sel]
+        Gr = skew_batch(np.moveaxis(gam, 2, 1))         # (N,n,3,3) gamma_r~
         P = skew_batch(p)
         Lr = skew_batch(np.moveaxis(lam, 2, 1))         # (N,n,3,3) lambda_r~
         lxp = np.cross(np.moveaxis(lam, 2, 1), p[:, None, :])   # (N,n,3) lambda_r~ p
@@ -140,7 +158,15 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
                    + np.einsum("j,jas,jab,jbr->rs", m, lam, P, gam, **es))
         G1 = (np.einsum("jar,jlab,jbc,jcs->rsl", lam, Lr, J, lam, **es)
               + np.einsum("j,jar,jlab,jbs->rsl", m, lam, LXP, gam, **es))
-        G2 = -np.einsum("jar,jlab,jbc,jmcd,jds->rslm", lam, Lr, J, Lr, lam, **es)
+        hasJ = np.abs(J).reshape(len(m), -1).max(axis=1) > 0.0
+        if np.any(hasJ) and n <= max_g2_modes:
+            G2 = -np.einsum("jar,jlab,jbc,jmcd,jds->rslm", lam[hasJ], Lr[hasJ], J[hasJ],
+                            Lr[hasJ], lam[hasJ], **es)
+        elif np.any(hasJ):
+            warnings.warn(f"modal integral G2 (n^4 = {n**4} numbers) not computed for {n} "
+                          f"modes (limit max_g2_modes = {max_g2_modes}); the O(eta^2) "
+                          "rotational-inertia term of the modal mass block is omitted",
+                          stacklevel=2)
     J2 = 0.5 * (J2 + J2.transpose(1, 0, 2, 3))
     return ModalIntegrals(mass=mass, p0=p0, J0=J0, p1=p1, J1=J1, J2=J2, F0=F0, F1=F1, F2=F2,
                           E0=E0, E1=E1, G0=G0, G1=G1, G2=G2)
@@ -157,8 +183,9 @@ def flexible_body_mass_matrix(mi: ModalIntegrals, eta: np.ndarray) -> np.ndarray
     """M_fl(eta) of eq. E.2.6, ordered [eta_dot; omega; v] (n + 6 square)."""
     eta = np.asarray(eta, float)
     n = len(eta)
-    G = (mi.G0 + np.einsum("rsl,l->rs", mi.G1 + mi.G1.transpose(1, 0, 2), eta)
-         + np.einsum("rslm,l,m->rs", mi.G2, eta, eta))
+    G = mi.G0 + np.einsum("rsl,l->rs", mi.G1 + mi.G1.transpose(1, 0, 2), eta)
+    if mi.G2 is not None:
+        G = G + np.einsum("rslm,l,m->rs", mi.G2, eta, eta)
     F = (mi.F0 + np.einsum("rsa,s->ra", mi.F1, eta)
          + np.einsum("rsla,s,l->ra", mi.F2, eta, eta))          # (n,3)
     E = mi.E0 + np.einsum("rsa,s->ra", mi.E1, eta)               # (n,3)

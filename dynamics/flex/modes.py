@@ -97,9 +97,10 @@ def solve_dense(K: np.ndarray, M: np.ndarray, n_modes: int | None = None,
                 "mass (e.g. free rotation about a CBAR/CROD axis with lumped mass: use PARAM "
                 "COUPMASS 1, CBEAM, or constrain it) or K is indefinite") from exc
         keep = mu > 1e-13 * np.max(np.abs(mu))
-        lam = sigma + 1.0 / mu[keep]
+        vec = _mass_normalize(vec[:, keep], M)
+        lam = np.einsum("ij,ij->j", vec, K @ vec)      # Rayleigh quotients (M-normalized)
         order = np.argsort(lam)
-        lam, vec = lam[order], _mass_normalize(vec[:, keep][:, order], M)
+        lam, vec = lam[order], vec[:, order]
     if n_modes is not None:
         lam, vec = lam[:n_modes], vec[:, :n_modes]
     return EigenSolution(lam, _sign_convention(vec))

@@ -130,6 +130,7 @@ def _assert_bodies_equal(a, b):
     for f in fields(a):
         va, vb = getattr(a, f.name), getattr(b, f.name)
         if f.name in ("modal_integrals", "point_mass_integrals"):
+            assert va.arrays().keys() == vb.arrays().keys()
             for k, arr in va.arrays().items():
                 assert_array_equal(arr, vb.arrays()[k], err_msg=k)
         elif f.name == "craig_bampton":
