@@ -189,13 +189,14 @@ def _body_velocity_kinematics(i, topology, joint_vec, u, ws_rot, ws_vec, ws_mat)
 
 
 @njit(cache=True, inline="always")
-def _spd_inverse(D, n, L, out):
+def _spd_inverse(D, n, tol, L, out):
     """Inverse of the leading n x n block of a symmetric positive definite matrix, into ``out``.
 
     Cholesky ``D = L L^T`` (``L`` a scratch matrix), then one forward and one back substitution per
-    column. Returns False when D is not positive definite (a singular articulated inertia)."""
+    column. Returns False when a pivot is not above ``tol`` (a numerically singular articulated
+    inertia: D is assembled from the entries of IA, so a pivot below ~eps * trace(IA) is round-off)."""
     if n == 1:
-        if not D[0, 0] > 0.0:
+        if not D[0, 0] > tol:
             return False
         out[0, 0] = 1.0 / D[0, 0]
         return True
@@ -203,7 +204,7 @@ def _spd_inverse(D, n, L, out):
         s = D[j, j]
         for k in range(j):
             s -= L[j, k] * L[j, k]
-        if not s > 0.0:
+        if not s > tol:
             return False
         L[j, j] = np.sqrt(s)
         for i in range(j + 1, n):
@@ -291,8 +292,10 @@ def forward_dynamics(topology, hinge_dofs, joint_rot, joint_vec, spatial_inertia
             for a in range(6):
                 s -= S[a, k] * pA[a]
             d[kk] = s
-        if nf > 0 and not _spd_inverse(D, nf, ws_mat[i, MAT_IAP], Dinv):
-            return 1 + i
+        if nf > 0:
+            tol = 1e-14 * (IA[0, 0] + IA[1, 1] + IA[2, 2] + IA[3, 3] + IA[4, 4] + IA[5, 5])
+            if not _spd_inverse(D, nf, tol, ws_mat[i, MAT_IAP], Dinv):
+                return 1 + i
         # Ia = IA - U Dinv U^T ; pa = pA + Ia c + U Dinv d
         for a in range(6):
             for b in range(a, 6):
@@ -447,11 +450,12 @@ def mass_matrix(topology, joint_rot, joint_vec, spatial_inertia, q, M, ws_rot, w
                     s += Ic[a, b] * S[b, k]
                 F[a, k] = s
         for k in range(nu_i):
-            for l in range(nu_i):
+            for l in range(k, nu_i):  # symmetric by construction, not by round-off
                 s = 0.0
                 for a in range(6):
                     s += S[a, k] * F[a, l]
                 M[ui + k, ui + l] = s
+                M[ui + l, ui + k] = s
         j = i
         while topology[j, PARENT] >= 0:
             for k in range(nu_i):
