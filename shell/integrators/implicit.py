@@ -78,6 +78,7 @@ class Radau5(Integrator):
         self.piv_complex = np.empty(self.n, dtype=np.int64)
         self.rhs_real = np.empty(self.n)
         self.rhs_complex = np.empty(self.n, dtype=np.complex128)
+        self.J = None
         self.h_abs = self._initial_step() if self.step_option is None else min(self.step_option, self.max_step)
         self._on_reset()
 
@@ -86,9 +87,14 @@ class Radau5(Integrator):
         self.error_norm_old = None
         self.sol = None
         self.Z = None
-        self.J = self._jacobian(self.t, self.y, self.f)
-        self.current_jac = True
-        self.LU_h = None
+        if getattr(self, "J", None) is None:
+            self.J = self._jacobian(self.t, self.y, self.f)
+            self.current_jac = True
+            self.LU_h = None
+        else:
+            # a discrete update (held control input, mode switch) rarely changes df/dy much: keep J and its
+            # LU, marked stale, so that a Newton failure refreshes it instead of paying n evaluations per sample
+            self.current_jac = False
 
     def _initial_step(self):
         """HNW I Sec. II.4 with the order of the error estimator (3)."""
