@@ -190,13 +190,17 @@ def flatten(root: Assembly) -> tuple[list[Model], list[Connection]]:
                 visit(child, child.path + ".")
         where = assembly.path if prefix else "scenario"
         for source, destination, origin in assembly.connections:
-            label = f"{origin or where}: {source} -> {destination}"
             try:
                 src_model, src_port = resolve_output(assembly, source)
                 destinations = resolve_inputs(assembly, destination)
             except ModelError as exc:
-                raise ModelError(f"{label}: {exc}") from None
+                raise ModelError(f"{origin or where}: connection {source} -> {destination}: {exc}") from None
             for dst_model, dst_port in destinations:
+                resolved = f"{src_model.path}.{src_port} -> {dst_model.path}.{dst_port}"
+                written = f"{prefix}{source} -> {prefix}{destination}"
+                label = origin or where
+                if written != resolved:
+                    label += f", written {source} -> {destination}"
                 connections.append(Connection(src_model, src_port, dst_model, dst_port, label))
         for attachment in assembly.attachments:
             connections.extend(_bind_attachment(assembly, attachment, connections, where))

@@ -501,8 +501,9 @@ def _locate_error(here: _Where, entry: dict, exc: Exception) -> ScenarioError:
     """Point an error from a model constructor at the parameter line it concerns, if any."""
     message = str(exc)
     params = entry.get("parameters", {}) or {}
+    unknown_part = message.split("known:")[0] if "unknown parameter" in message else ""
     for key in params:
-        if f"parameter {key}:" in message or f"parameter(s) ['{key}']" in message or f"'{key}'" in message:
+        if f"parameter {key}:" in message or f"'{key}'" in unknown_part:
             return here.child(entry, "parameters").child(params, key).error(message)
     return here.error(message)
 
@@ -518,7 +519,8 @@ def build_simulation(scenario: Scenario):
                                 integrator_options=scenario.integrator_options, seed=scenario.seed,
                                 stop_events=scenario.stop_events)
     except (ModelError, UnitError) as exc:
-        raise ScenarioError(f"{scenario.file}: {exc}") from None
+        message = str(exc)
+        raise ScenarioError(message if message.startswith(scenario.file) else f"{scenario.file}: {message}") from None
     for name, rate, here in scenario.log_signals:
         try:
             simulation.log([name], rate)

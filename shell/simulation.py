@@ -134,6 +134,8 @@ class Simulation:
         self._log_groups: dict[str, dict] = {}
         self._initialized = False
         self.counters = {"steps": 0, "nfev": 0, "events": 0, "updates": 0}
+        #: (time, "model.zero_crossing") of every handled event, in order
+        self.events: list[tuple[float, str]] = []
 
     # ------------------------------------------------------------------------------------------------
     # build
@@ -182,7 +184,7 @@ class Simulation:
             dst_key = (c.destination_model.path, c.destination_port)
             out_port = self.port_info[src_key]
             in_port = self.port_info[dst_key]
-            ends = f"{src_key[0]}.{src_key[1]} -> {dst_key[0]}.{dst_key[1]} ({c.origin})"
+            ends = f"{c.origin}: connection {src_key[0]}.{src_key[1]} -> {dst_key[0]}.{dst_key[1]}"
             if dst_key in driver:
                 first = driver[dst_key]
                 raise WiringError(f"input {dst_key[0]}.{dst_key[1]} is driven twice: by "
@@ -190,10 +192,10 @@ class Simulation:
                                   f"{src_key[0]}.{src_key[1]} ({c.origin})")
             driver[dst_key] = c
             if tuple(out_port.shape) != tuple(in_port.shape):
-                raise WiringError(f"shape mismatch {ends}: output has shape {out_port.shape}, input expects "
+                raise WiringError(f"{ends}: shape mismatch: output has shape {out_port.shape}, input expects "
                                   f"{in_port.shape}")
             try:
-                factor = conversion_factor(out_port.unit, in_port.unit, f"connection {ends}")
+                factor = conversion_factor(out_port.unit, in_port.unit, ends)
             except UnitError as exc:
                 raise WiringError(f"{exc}; output unit {format_unit(out_port.unit)}, input unit "
                                   f"{format_unit(in_port.unit)}") from None
@@ -500,7 +502,7 @@ class Simulation:
                 self._sample_logs(writer, instant)
                 if progress is not None:
                     progress(self.t)
-                if self.t >= t_final:
+                if instant >= end:
                     break
         except Exception as exc:
             message = str(exc) if isinstance(exc, SimulationError) else \
@@ -512,6 +514,7 @@ class Simulation:
             raise SimulationError(message) from exc
         if writer is not None:
             writer.close(status, reason)
+        self.evaluate()  # outputs consistent with the final state for signal() queries
         wall = _time.perf_counter() - wall_start
         return RunSummary(status, reason, t_start, self.t, wall, self.counters["steps"] - start_counters["steps"],
                           self.counters["nfev"] - start_counters["nfev"],
@@ -586,9 +589,11 @@ class Simulation:
                 raise SimulationError(f"model {model.path} failed handling event {zc.name} at t = {t_event:.12g} s: "
                                       f"{type(exc).__name__}: {exc}") from exc
             self.counters["events"] += 1
+            self.events.append((t_event, f"{model.path}.{zc.name}"))
             if self._event_functions[j].terminal:
                 stop = f"event {model.path}.{zc.name} at t = {t_event:.12g} s"
         self._check_finite_state(f"after the event at t = {t_event:.12g} s")
+        self.evaluate(t_event)  # outputs reflect the state after the handlers
         if stop is not None:
             self._integrator_stale = True
             return stop

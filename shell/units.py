@@ -67,7 +67,7 @@ def format_unit(unit: str | pint.Unit) -> str:
     u = parse_unit(unit)
     if u == ureg.dimensionless:
         return "1"
-    return f"{u:~}"
+    return f"{u:~C}"
 
 
 def _split_string_value(text: str) -> tuple[object, str]:

@@ -81,15 +81,20 @@ class Constant(_Block):
 
 @register_model
 class Gain(_Block):
-    """y = k u, direct feedthrough."""
+    """y = k u, direct feedthrough; k has the unit output_unit / unit."""
 
-    summary = "static gain y = k u (direct feedthrough)"
-    parameters = (Parameter("k", "", 1.0, description="gain"),)
+    summary = "static gain y = k u (direct feedthrough; config: unit, output_unit, shape)"
     feedthrough_outputs = staticmethod(_gain)
 
+    def __init__(self, name: str, *, unit: str = "", output_unit: str | None = None, shape=(), **kwargs):
+        self.output_unit = unit if output_unit is None else output_unit
+        super().__init__(name, unit=unit, shape=shape, **kwargs)
+
     def declare(self):
+        gain_unit = f"({self.output_unit or '1'})/({self.unit or '1'})"
+        self.parameters = (Parameter("k", gain_unit, 1.0, description="gain"),)
         self.inputs = (InputPort("u", self.unit, self.shape, "input", feedthrough=True),)
-        self.outputs = (OutputPort("y", self.unit, self.shape, "k u", feedthrough=True),)
+        self.outputs = (OutputPort("y", self.output_unit, self.shape, "k u", feedthrough=True),)
 
 
 @register_model

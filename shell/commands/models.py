@@ -1,0 +1,86 @@
+"""``flexshell models [NAME]``: list registered models and assemblies with parameters, ports and units."""
+
+from __future__ import annotations
+
+import sys
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("models", help="list model and assembly types usable in scenarios",
+                                   description="List registered models and assemblies; with NAME, show its "
+                                               "parameters, ports, states and units.")
+    parser.add_argument("name", nargs="?", help="one model type to describe in full")
+    parser.set_defaults(func=list_models)
+
+
+def _example(cls):
+    """An instance with default configuration (to show ports that depend on construction options)."""
+    for options in ({}, {"period": 1.0}):
+        try:
+            return cls("example", **options)
+        except Exception:  # types needing construction data (the engine) show their class declarations
+            continue
+    return None
+
+
+def _unit(unit: str) -> str:
+    from shell.units import format_unit
+
+    return format_unit(unit) if unit else "1"
+
+
+def describe(name: str, cls) -> str:
+    from shell.model import Model
+
+    lines = [f"{name}: {cls.summary or (cls.__doc__ or '').strip().splitlines()[0]}"]
+    example = _example(cls)
+    source = example if example is not None else cls
+    period = getattr(example, "period", None)
+    if period is not None:
+        lines.append("  sampled: set rate: or period:"
+                     + (f" (default period {float(period):g} s)" if cls.default_period is not None else ""))
+    for title, items in (("parameters", source.parameters),):
+        if items:
+            lines.append(f"  {title}:")
+            for p in items:
+                lines.append(f"    {p.name:28s} [{_unit(p.unit)}] shape {p.shape} default {p.default!r}"
+                             f"{' bounds ' + str(p.bounds) if p.bounds else ''}  {p.description}")
+    if isinstance(source, Model) or (isinstance(source, type) and issubclass(source, Model)):
+        for title, items in (("inputs", source.inputs), ("outputs", source.outputs)):
+            if items:
+                lines.append(f"  {title}:")
+                for port in items:
+                    flags = " feedthrough" if port.feedthrough else ""
+                    flags += " optional" if title == "inputs" and not port.required else ""
+                    lines.append(f"    {port.name:28s} [{_unit(port.unit)}] shape {port.shape}{flags}  "
+                                 f"{port.description}")
+        for title, items in (("continuous states", source.continuous_states),
+                             ("discrete states", source.discrete_states)):
+            if items:
+                lines.append(f"  {title}: " + ", ".join(f"{s.name} [{_unit(s.unit)}] {s.shape}" for s in items))
+        if source.zero_crossings:
+            lines.append("  zero crossings: " + ", ".join(z.name for z in source.zero_crossings))
+    else:
+        lines.append(f"  exposed inputs: {source.input_names() if example else '(built from parameters)'}")
+        lines.append(f"  exposed outputs: {source.output_names() if example else '(built from parameters)'}")
+    if example is None and getattr(cls, "scenario_section", None):
+        lines.append(f"  declared in the scenario's {cls.scenario_section}: section; ports per body and node "
+                     f"(see `python -c 'help(\"{cls.__module__}\")'`)")
+    return "\n".join(lines)
+
+
+def list_models(args) -> int:
+    from shell.registry import RegistryError, lookup, registered
+
+    if args.name:
+        try:
+            cls = lookup(args.name)
+        except RegistryError as exc:
+            print(f"flexshell models: {exc}", file=sys.stderr)
+            return 1
+        print(describe(args.name, cls))
+        return 0
+    for name, cls in registered().items():
+        print(describe(name, cls))
+        print()
+    return 0

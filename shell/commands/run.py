@@ -1,0 +1,92 @@
+"""``flexshell run SCENARIO.yaml``: build a scenario, run it with a progress bar, log to HDF5, summarize."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("run", help="run a YAML scenario and log it to HDF5",
+                                   description="Run a YAML scenario; logs the scenario's log: signals.")
+    parser.add_argument("scenario", help="scenario file (YAML)")
+    parser.add_argument("-o", "--output", help="log file (HDF5); default: the scenario's log.file, "
+                                               "else <scenario name>.h5")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a scenario value, e.g. --set controller.kp='[5, 5, 5] N*m/rad' "
+                             "or --set integrator.step='5 ms' (repeatable)")
+    parser.add_argument("--t-final", help="stop time (overrides stop.time), e.g. 30 or '30 s'")
+    parser.add_argument("--restore", metavar="RESTART.h5", help="continue from a saved state")
+    parser.add_argument("--save-state", metavar="RESTART.h5", help="save the final state for a restart")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(func=run)
+
+
+class ProgressBar:
+    """A one-line text progress bar on stderr, redrawn at most every 0.2 s."""
+
+    def __init__(self, t_start: float, t_final: float, enabled: bool):
+        self.t_start, self.t_final = t_start, t_final
+        self.enabled = enabled
+        self.wall_start = time.perf_counter()
+        self.last_draw = 0.0
+
+    def __call__(self, t: float) -> None:
+        now = time.perf_counter()
+        if not self.enabled or (now - self.last_draw < 0.2 and t < self.t_final):
+            return
+        self.last_draw = now
+        span = max(self.t_final - self.t_start, 1e-300)
+        fraction = min(max((t - self.t_start) / span, 0.0), 1.0)
+        width = 30
+        filled = int(round(width * fraction))
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] t = {t:10.4f} s / {self.t_final:g} s "
+                         f"({now - self.wall_start:6.1f} s wall)")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def run(args) -> int:
+    from shell.scenario import ScenarioError, build_simulation, load_scenario
+    from shell.simulation import SimulationError
+    from shell.units import UnitError, to_magnitude
+
+    try:
+        scenario = load_scenario(args.scenario, args.overrides)
+        t_final = scenario.t_final
+        if args.t_final is not None:
+            t_final = float(to_magnitude(args.t_final, "s", (), "--t-final"))
+        if t_final is None:
+            raise ScenarioError(f"{args.scenario}: no stop time; add stop: {{time: ...}} or pass --t-final")
+        simulation = build_simulation(scenario)
+        if args.restore:
+            simulation.load_state(args.restore)
+    except (ScenarioError, UnitError, ValueError, OSError) as exc:
+        print(f"flexshell run: {exc}", file=sys.stderr)
+        return 1
+    output = args.output or scenario.log_file or f"{Path(args.scenario).stem}.h5"
+    if not scenario.log_signals:
+        output = None
+    progress = ProgressBar(simulation.t, t_final, enabled=not args.quiet and sys.stderr.isatty())
+    try:
+        summary = simulation.run(t_final, log_path=output, progress=progress,
+                                 log_attributes={"scenario": scenario.text, "scenario_file": str(args.scenario)})
+    except SimulationError as exc:
+        progress.close()
+        print(f"flexshell run: {exc}", file=sys.stderr)
+        if output:
+            print(f"flexshell run: the log {output} keeps every sample up to the failure", file=sys.stderr)
+        return 1
+    progress.close()
+    if args.save_state:
+        simulation.save_state(args.save_state)
+    print(f"{scenario.name}: {summary}")
+    if output:
+        print(f"log: {output}")
+    if args.save_state:
+        print(f"restart state: {args.save_state}")
+    return 0

@@ -1,0 +1,59 @@
+"""Zero crossings located before the event is handled: a bouncing ball against its analytic contacts."""
+
+import numpy as np
+import pytest
+
+from shell.assembly import Assembly
+from shell.models.test_plants import BouncingBall
+from shell.simulation import Simulation
+
+H0, G, E = 10.0, 9.81, 0.8
+
+
+def analytic_contact_times(n):
+    """t_1 = sqrt(2 h0 / g); each later flight lasts 2 e^k v_1 / g with v_1 = sqrt(2 g h0)."""
+    v1 = np.sqrt(2 * G * H0)
+    times = [np.sqrt(2 * H0 / G)]
+    for k in range(1, n):
+        times.append(times[-1] + 2 * E**k * v1 / G)
+    return np.array(times)
+
+
+def ball_scene(step, stop_events=()):
+    root = Assembly("root")
+    ball = root.add(BouncingBall("ball", gravity=G, restitution=E))
+    ball.set_initial("height", H0)
+    return Simulation(root, step=step, stop_events=stop_events, event_tol=1e-12)
+
+
+@pytest.mark.parametrize("step", [0.01, 0.037])
+def test_contact_times_match_the_analytic_ones(step):
+    sim = ball_scene(step)
+    sim.run(12.0)
+    times = np.array([t for t, name in sim.events])
+    assert [name for _, name in sim.events] == ["ball.ground_contact"] * len(times)
+    all_contacts = analytic_contact_times(40)
+    assert len(times) == np.count_nonzero(all_contacts < 12.0)  # 12 contacts (they accumulate at 12.85 s)
+    expected = all_contacts[:len(times)]
+    # free fall is quadratic: RK4 and its cubic Hermite dense output are exact, so the error is the
+    # root-finder tolerance (1e-12 s) plus round-off accumulated through the restarts
+    np.testing.assert_allclose(times, expected, atol=1e-9)
+    assert sim.signal("ball.bounces") == len(times)
+
+
+def test_terminal_event_stops_the_run_at_the_contact():
+    sim = ball_scene(0.01, stop_events=["ball.ground_contact"])
+    summary = sim.run(10.0)
+    assert summary.status == "stopped"
+    assert "ball.ground_contact" in summary.reason
+    assert sim.t == pytest.approx(np.sqrt(2 * H0 / G), abs=1e-10)
+    # the handler ran before stopping: the ball leaves the ground at e v_1
+    assert sim.signal("ball.velocity") == pytest.approx(E * np.sqrt(2 * G * H0), rel=1e-10)
+
+
+def test_unknown_stop_event_is_refused():
+    from shell.model import ModelError
+
+    with pytest.raises(ModelError, match=r"stop event 'ball.contact': no such zero crossing; declared: "
+                                         r"\['ball.ground_contact'\]"):
+        ball_scene(0.01, stop_events=["ball.contact"])

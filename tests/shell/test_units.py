@@ -1,0 +1,42 @@
+"""Units at the boundary: parsing user values, conversion factors, refusals."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from shell.units import UnitError, conversion_factor, to_magnitude
+
+
+def test_value_forms_convert_to_declared_unit():
+    # reference: 1 deg = pi/180 rad exactly (definition)
+    assert_allclose(to_magnitude("5 deg/s", "rad/s"), 5 * np.pi / 180, rtol=1e-15)
+    assert_allclose(to_magnitude("[1, 2, 3] deg", "rad", (3,)), np.radians([1, 2, 3]), rtol=1e-15)
+    assert_allclose(to_magnitude(["1 deg", "2 deg"], "rad"), np.radians([1, 2]), rtol=1e-15)
+    assert_allclose(to_magnitude({"value": [1, 2], "unit": "mm"}, "m"), [1e-3, 2e-3], rtol=1e-15)
+    assert to_magnitude("20 kg*m^2", "kg*m**2") == 20.0
+    assert to_magnitude(3, "N*m") == 3.0  # bare numbers are in the declared unit
+    assert to_magnitude("100 ms", "s") == pytest.approx(0.1, rel=1e-15)
+
+
+def test_conversion_factor_between_ports():
+    assert conversion_factor("deg/s", "rad/s") == pytest.approx(np.pi / 180, rel=1e-15)
+    assert conversion_factor("N*m", "N*m") == 1.0
+    assert conversion_factor("km", "m") == pytest.approx(1000.0, rel=1e-15)
+
+
+@pytest.mark.parametrize("value, unit, shape, fragment", [
+    ("5 kg", "m", None, "unit dimensions differ: kg"),
+    ("5 furlongz", "m", None, "furlongz"),
+    (True, "m", None, "boolean"),
+    ("[1, 2] m", "m", (3,), "expected shape (3,), given shape (2,)"),
+    ({"value": 1}, "m", None, "exactly the keys 'value' and 'unit'"),
+])
+def test_refusals_name_the_place_and_the_mismatch(value, unit, shape, fragment):
+    with pytest.raises(UnitError, match="where.key") as info:
+        to_magnitude(value, unit, shape, "where.key")
+    assert fragment in str(info.value)
+
+
+def test_offset_units_are_refused_on_ports():
+    with pytest.raises(UnitError, match="offset units"):
+        conversion_factor("degC", "kelvin", "port")
