@@ -34,6 +34,7 @@ class _Attachment:
     engine: str
     kind: str  # "node" | "hinge"
     target: str
+    origin: str | None = None
 
 
 class Assembly:
@@ -97,14 +98,14 @@ class Assembly:
         self.exposed_outputs[name] = inner_output
 
     def attach(self, child: str, *, engine: str = "multibody", node: str | None = None,
-               hinge: str | None = None) -> None:
+               hinge: str | None = None, origin: str | None = None) -> None:
         """Bind ``child``'s ports to a node or hinge of ``engine``: child inputs named like the
         engine's node/hinge signals (attitude, angular_velocity, ...) are fed from it, and child outputs
         named like its inputs (force, torque, ...) drive it."""
         if (node is None) == (hinge is None):
             raise ModelError(f"assembly {self.path}: attach {child!r} to exactly one of node= or hinge=")
         kind, target = ("node", node) if node is not None else ("hinge", hinge)
-        self.attachments.append(_Attachment(child, engine, kind, target))
+        self.attachments.append(_Attachment(child, engine, kind, target, origin))
 
     # -- queries ------------------------------------------------------------------------------------
     def input_names(self) -> list[str]:
@@ -212,6 +213,7 @@ def flatten(root: Assembly) -> tuple[list[Model], list[Connection]]:
 
 def _bind_attachment(assembly: Assembly, attachment: _Attachment, existing: list[Connection],
                      where: str) -> list[Connection]:
+    where = attachment.origin or where
     if attachment.child not in assembly.children:
         raise ModelError(f"{where}: cannot attach {attachment.child!r}: no such member; members: "
                          f"{sorted(assembly.children)}")
@@ -220,7 +222,10 @@ def _bind_attachment(assembly: Assembly, attachment: _Attachment, existing: list
                          f"no engine model named {attachment.engine!r} here")
     engine = assembly.children[attachment.engine]
     child = assembly.children[attachment.child]
-    engine_outputs, engine_inputs = engine.attachment_ports(attachment.kind, attachment.target)
+    try:
+        engine_outputs, engine_inputs = engine.attachment_ports(attachment.kind, attachment.target)
+    except ModelError as exc:
+        raise ModelError(f"{where}: attach {attachment.child} to {attachment.kind} {attachment.target}: {exc}") from None
     child_inputs, child_outputs = _member_names(child)
     driven = {(c.destination_model.path, c.destination_port) for c in existing}
     origin = f"{where}: attach {attachment.child} to {attachment.engine} {attachment.kind} {attachment.target}"

@@ -209,7 +209,7 @@ def parse_scenario(text: str, filename: str = "<string>", overrides: list[str] |
         raise root.error(f"expected a mapping at the top level (keys {sorted(TOP_LEVEL)}), given {_type_name(document)}")
     for override in overrides or []:
         apply_override(document, override, filename)
-    _expect_mapping(document, _Where(filename, document.line or 1, "(top level)"), TOP_LEVEL)
+    _expect_mapping(document, _Where(filename, document.line or 1, ""), TOP_LEVEL)
     scenario = Scenario(file=filename, document=document, text=text)
     _validate_seed(document, root, scenario)
     _validate_models(document, root)
@@ -390,7 +390,10 @@ def apply_override(document: dict, assignment: str, filename: str) -> None:
     parts = [p for p in key.strip().split(".") if p]
     if not parts:
         raise where.error("expected key.path=value")
-    value = yaml.safe_load(raw) if raw.strip() else ""
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else ""
+    except yaml.YAMLError:  # "[1, 2] N*m/rad": a list with a unit, read by the unit parser later
+        value = raw.strip()
     models = document.get("models") or {}
     if parts[0] in ("seed", "name", "description") and len(parts) == 1:
         document[parts[0]] = value
@@ -484,8 +487,9 @@ def build_root(scenario: Scenario) -> Assembly:
         if "attach" in entry:
             attach = entry["attach"]
             try:
+                attach_where = here.child(entry, "attach")
                 root.attach(name, engine=attach.get("engine", "multibody"), node=attach.get("node"),
-                            hinge=attach.get("hinge"))
+                            hinge=attach.get("hinge"), origin=f"{attach_where.file}:{attach_where.line}")
             except ModelError as exc:
                 raise here.child(entry, "attach").error(str(exc)) from None
     connections = document.get("connections", []) or []

@@ -81,6 +81,10 @@ def _split_string_value(text: str) -> tuple[object, str]:
         except yaml.YAMLError as exc:
             raise UnitError(f"cannot read the list {match.group(1)!r}: {exc}") from None
         return numbers, match.group(2)
+    try:
+        return float(text), ""  # a bare number is in the declared unit
+    except ValueError:
+        pass
     quantity = ureg.Quantity(text)
     if isinstance(quantity, (int, float)):
         return float(quantity), ""
