@@ -102,7 +102,7 @@ class Simulation:
 
     def __init__(self, root: Assembly, *, integrator: str = "rk4", step: float | None = 0.01,
                  integrator_options: dict | None = None, seed=0, stop_events=(), event_tol: float = 1e-10,
-                 t_start: float = 0.0):
+                 t_start: float = 0.0, fuse: bool = False):
         self.root = root
         self.seed = seed
         self.event_tol = float(event_tol)
@@ -128,6 +128,13 @@ class Simulation:
         self.integrator_options = dict(integrator_options or {})
         if step is not None:
             self.integrator_options["step"] = step
+        #: the integrator's right-hand side: the interpreted plan, or one compiled function (fuse=True;
+        #: ~10x cheaper per call for trivial models, seconds of compilation per scene: shell.fused)
+        self.rhs = self.derivative
+        if fuse:
+            from shell.fused import fuse_derivative
+
+            self.rhs = fuse_derivative(self)
         self._integrator = None
         self._integrator_stale = True
         self._normalizers = [m for m in self.models if hasattr(m, "normalize_state")]
@@ -454,7 +461,7 @@ class Simulation:
             def normalize(y):
                 for model, block in views:
                     model.normalize_state(y[block])
-        return make_integrator(self.integrator_name, self.derivative, self.t, self.x.copy(), t_bound,
+        return make_integrator(self.integrator_name, self.rhs, self.t, self.x.copy(), t_bound,
                                normalize=normalize, **self.integrator_options)
 
     def _initialize(self) -> None:
