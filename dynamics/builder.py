@@ -44,6 +44,8 @@ class BodyDefinition:
     outboard_rotation: np.ndarray
     prescribed: np.ndarray
     joint_name: str
+    parent_node: str | None = None
+    flexible: object | None = None  # dynamics.flexible_body.FlexibleBodyData
 
 
 @dataclass
@@ -52,6 +54,8 @@ class NodeDefinition:
     body: str
     position: np.ndarray
     rotation: np.ndarray
+    shape: np.ndarray | None = None  # (6, n) mode shapes Pi = [lambda; gamma] on a flexible body
+    grid: int | None = None
 
 
 def _suggest(name, candidates):
@@ -117,14 +121,16 @@ class Multibody:
     def add_body(self, name, parent=GROUND, *, mass, inertia, com=(0.0, 0.0, 0.0), hinge, axis=None,
                  axes=None, inboard_position=(0.0, 0.0, 0.0), inboard_rotation=None,
                  outboard_position=(0.0, 0.0, 0.0), outboard_rotation=None, prescribed=None,
-                 joint_name=None):
+                 joint_name=None, parent_node=None):
         """Add a rigid body connected to ``parent`` (a body name, or None for the ground) by a hinge.
 
         ``inertia`` is about the center of mass ``com``, in the body frame. The hinge's inboard frame F
         is placed on the parent by ``inboard_position``/``inboard_rotation``; its outboard frame M on
         this body by ``outboard_position``/``outboard_rotation`` (pose of M in the body frame).
         ``axis`` (revolute, prismatic) or ``axes`` (two, U-joint) are unit vectors in the hinge frames.
-        ``prescribed`` is a bool or one bool per hinge DOF. Returns the body name.
+        ``prescribed`` is a bool or one bool per hinge DOF. ``parent_node`` attaches the hinge to a node
+        of the parent (required on a flexible parent, whose nodes move with its deformation): the
+        inboard pose is then relative to that node's frame. Returns the body name.
         """
         where = f"body '{name}'"
         if not isinstance(name, str) or not name:
@@ -152,18 +158,66 @@ class Multibody:
         code = HINGE_TYPES[hinge]
         hinge_axes = self._check_axes(code, axis, axes, where)
         prescribed_flags = self._check_prescribed(code, prescribed, where)
+        if parent_node is not None:
+            node = next((nd for nd in self.nodes if nd.name == parent_node), None)
+            if node is None or node.body != parent:
+                raise ModelDefinitionError(
+                    f"{where}: parent_node '{parent_node}' is not a node of parent '{parent}' (its nodes: "
+                    f"{[nd.name for nd in self.nodes if nd.body == parent]})")
+        elif parent is not GROUND and self.bodies[self._body_index[parent]].flexible is not None:
+            raise ModelDefinitionError(
+                f"{where}: parent '{parent}' is flexible; attach the hinge to one of its nodes with "
+                f"parent_node=... (a node at a grid of the body file)")
         self.bodies.append(BodyDefinition(
             name=name, parent=parent, mass=mass, com=com, inertia=inertia, hinge=hinge, axes=hinge_axes,
             inboard_position=_vector3(inboard_position, f"{where}: inboard_position"),
             inboard_rotation=_rotation(inboard_rotation, f"{where}: inboard_rotation"),
             outboard_position=_vector3(outboard_position, f"{where}: outboard_position"),
             outboard_rotation=_rotation(outboard_rotation, f"{where}: outboard_rotation"),
-            prescribed=prescribed_flags, joint_name=joint_name or name))
+            prescribed=prescribed_flags, joint_name=joint_name or name, parent_node=parent_node))
         self._body_index[name] = len(self.bodies) - 1
         return name
 
-    def add_node(self, name, body, position=(0.0, 0.0, 0.0), rotation=None):
-        """Add a node: a frame fixed on ``body`` at ``position`` with ``rotation`` (node -> body)."""
+    def add_flexible_body(self, name, parent=GROUND, *, modal, hinge, modes=None, order=2, damping_ratio=None,
+                          integrals="general", **hinge_kwargs):
+        """Add a flexible body whose reference frame is connected to ``parent`` by a hinge.
+
+        ``modal``: a body file path (``flexshell fem2modal ... --modal-integrals``), a
+        ``dynamics.flex.body_file.ModalBody`` or a :class:`dynamics.flexible_body.FlexibleBodyData`.
+        The body frame is the FE model's reference frame (basic axes at the reference grid). ``modes``
+        selects mode indices, ``order`` the modal-integral order (0, 1, 2), ``damping_ratio`` overrides
+        the file's modal damping, ``integrals`` picks ``"general"`` or ``"point_mass"`` integrals. Other
+        keywords are those of :meth:`add_body` (hinge axes, frames, prescribed, parent_node, joint_name).
+        Modal coordinates are appended to the hinge coordinates in ``q`` and ``u``.
+        """
+        from dynamics.flexible_body import FlexibleBodyData, flexible_body_from_modal_body
+
+        if isinstance(modal, FlexibleBodyData):
+            data = modal
+            if modes is not None or damping_ratio is not None:
+                raise ModelDefinitionError(f"body '{name}': modes/damping_ratio apply to body files; "
+                                           f"FlexibleBodyData is used as given")
+        else:
+            if not hasattr(modal, "modal_integrals"):
+                from dynamics.flex.body_file import read_body_file
+
+                modal = read_body_file(modal)
+            data = flexible_body_from_modal_body(modal, modes=modes, order=order, damping_ratio=damping_ratio,
+                                                 integrals=integrals)
+        M0 = data.M0
+        mass = M0[3, 3]
+        com = np.array([M0[2, 4], M0[0, 5], M0[1, 3]]) / mass
+        J0 = M0[:3, :3]
+        J_com = J0 - mass * (com @ com * np.eye(3) - np.outer(com, com))
+        self.add_body(name, parent, mass=mass, com=com, inertia=J_com, hinge=hinge, **hinge_kwargs)
+        self.bodies[-1].flexible = data
+        return name
+
+    def add_node(self, name, body, position=None, rotation=None, grid=None):
+        """Add a node: a frame fixed on ``body`` at ``position`` with ``rotation`` (node -> body).
+
+        On a flexible body the node sits at FE grid ``grid`` (its position comes from the body file) and
+        moves with the deformation ``Pi(grid) eta``."""
         if not isinstance(name, str) or not name:
             raise ModelDefinitionError(f"node name must be a non-empty string, got {name!r}")
         if name in self._node_names:
@@ -171,8 +225,20 @@ class Multibody:
         if body not in self._body_index:
             raise ModelDefinitionError(f"node '{name}': unknown body '{body}' (bodies: "
                                        f"{list(self._body_index) or 'none'})" + _suggest(body, self._body_index))
+        flexible = self.bodies[self._body_index[body]].flexible
+        shape = None
+        if flexible is not None:
+            if grid is None or position is not None:
+                raise ModelDefinitionError(f"node '{name}': a node on flexible body '{body}' is placed by "
+                                           f"grid=<FE grid id>, not by position")
+            j = flexible.grid_index(grid)
+            position = flexible.grid_positions[j]
+            shape = flexible.grid_shapes[j]
+        elif grid is not None:
+            raise ModelDefinitionError(f"node '{name}': grid= applies to flexible bodies; '{body}' is rigid")
+        position = (0.0, 0.0, 0.0) if position is None else position
         self.nodes.append(NodeDefinition(name, body, _vector3(position, f"node '{name}': position"),
-                                         _rotation(rotation, f"node '{name}': rotation")))
+                                         _rotation(rotation, f"node '{name}': rotation"), shape, grid))
         self._node_names.add(name)
         return name
 

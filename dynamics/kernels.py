@@ -48,7 +48,8 @@ N_MODES = 6
 N_FREE = 7
 N_PRESCRIBED = 8
 OUTBOARD_IDENTITY = 9  # 1 when the hinge outboard frame is the body frame (saves a frame product)
-TOPOLOGY_COLUMNS = 10
+# column 10: PARENT_NODE, used by dynamics.flexible_kernels (the rigid kernels fold node offsets in)
+TOPOLOGY_COLUMNS = 11
 
 # joint_rot slots: (nb, 2, 3, 3) and joint_vec slots: (nb, 4, 3)
 INBOARD = 0  # rotation R_PF / position of F in the parent frame

@@ -18,6 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from dynamics import flexible_kernels as FK
 from dynamics import kernels as K
 from dynamics.hinges import FREE, HINGE_NQ, HINGE_NU, HINGE_TYPES, SPHERICAL
 from dynamics.spatial import spatial_inertia as _spatial_inertia
@@ -49,7 +50,7 @@ class MultibodySystem:
 
     def __init__(self, *, body_names, joint_names, hinge_names, node_names, node_bodies, topology,
                  hinge_dofs, joint_rot, joint_vec, spatial_inertia, gravity, node_body, node_rot,
-                 node_pos, masses):
+                 node_pos, masses, flex_index=None, flex_data=None, node_shape=None):
         self.body_names = tuple(body_names)
         self.joint_names = tuple(joint_names)
         self.hinge_names = tuple(hinge_names)
@@ -67,6 +68,12 @@ class MultibodySystem:
         self.node_pos = _frozen(node_pos)
         self.masses = _frozen(masses)
         nb = self.topology.shape[0]
+        self.n_modes = tuple(int(t[K.N_MODES]) for t in self.topology)
+        self.is_flexible = any(self.n_modes)
+        if self.is_flexible:
+            self.flex_index = _frozen(flex_index, np.int64)
+            self.flex_data = _frozen(flex_data)
+            self.node_shape = _frozen(node_shape)
         last = self.topology[-1]
         self.nbodies = nb
         self.nnodes = len(self.node_names)
@@ -89,6 +96,7 @@ class MultibodySystem:
     @classmethod
     def from_definitions(cls, bodies, nodes, gravity):
         index = {b.name: i for i, b in enumerate(bodies)}
+        node_index = {n.name: k for k, n in enumerate(nodes)}
         nb = len(bodies)
         topology = np.zeros((nb, K.TOPOLOGY_COLUMNS), dtype=np.int64)
         hinge_dofs = np.zeros((nb, 2, 6), dtype=np.int64)
@@ -103,28 +111,73 @@ class MultibodySystem:
             pres = np.flatnonzero(b.prescribed)
             outboard_identity = (np.array_equal(b.outboard_rotation, np.eye(3))
                                  and not np.any(b.outboard_position))
-            topology[i] = [-1 if b.parent is None else index[b.parent], code, q0, nq, u0, nu, 0,
-                           len(free), len(pres), outboard_identity]
+            n_modes = 0 if b.flexible is None else b.flexible.n_modes
+            parent_flexible = b.parent is not None and bodies[index[b.parent]].flexible is not None
+            parent_node = node_index[b.parent_node] if (b.parent_node and parent_flexible) else -1
+            topology[i] = [-1 if b.parent is None else index[b.parent], code, q0, nq, u0, nu, n_modes,
+                           len(free), len(pres), outboard_identity, parent_node]
             hinge_dofs[i, 0, :len(free)] = free
             hinge_dofs[i, 1, :len(pres)] = pres
-            joint_rot[i, K.INBOARD] = b.inboard_rotation
+            R_in, p_in = b.inboard_rotation, b.inboard_position
+            if b.parent_node and not parent_flexible:  # a node of a rigid parent: fold its fixed pose in
+                node = nodes[node_index[b.parent_node]]
+                R_in, p_in = node.rotation @ R_in, node.position + node.rotation @ p_in
+            joint_rot[i, K.INBOARD] = R_in
             joint_rot[i, K.OUTBOARD] = b.outboard_rotation
-            joint_vec[i, K.INBOARD] = b.inboard_position
+            joint_vec[i, K.INBOARD] = p_in
             joint_vec[i, K.OUTBOARD] = b.outboard_position
             joint_vec[i, K.AXIS1:K.AXIS2 + 1] = b.axes
             inertia[i] = _spatial_inertia(b.mass, b.com, b.inertia)
-            q0 += nq
-            u0 += nu
+            q0 += nq + n_modes
+            u0 += nu + n_modes
         nn = len(nodes)
         node_body = np.array([index[n.body] for n in nodes], dtype=np.int64)
         node_rot = np.array([n.rotation for n in nodes]).reshape(nn, 3, 3)
         node_pos = np.array([n.position for n in nodes]).reshape(nn, 3)
+        flex = {}
+        if any(b.flexible is not None for b in bodies):
+            flex = cls._flexible_arrays(bodies, nodes, inertia)
         return cls(body_names=[b.name for b in bodies], joint_names=[b.joint_name for b in bodies],
                    hinge_names=[b.hinge for b in bodies], node_names=[n.name for n in nodes],
                    node_bodies=[n.body for n in nodes], topology=topology, hinge_dofs=hinge_dofs,
                    joint_rot=joint_rot, joint_vec=joint_vec, spatial_inertia=inertia, gravity=gravity,
                    node_body=node_body, node_rot=node_rot, node_pos=node_pos,
-                   masses=[b.mass for b in bodies])
+                   masses=[b.mass for b in bodies], **flex)
+
+    @staticmethod
+    def _flexible_arrays(bodies, nodes, inertia):
+        """flex_index, flex_data (M0, M1, M2, K, C per body, flattened) and padded node mode shapes."""
+        nb = len(bodies)
+        flex_index = np.zeros((nb, 6), dtype=np.int64)
+        chunks, offset = [], 0
+
+        def push(a):
+            nonlocal offset
+            a = np.ascontiguousarray(a, dtype=np.float64).ravel()
+            chunks.append(a)
+            start = offset
+            offset += a.size
+            return start
+
+        for i, b in enumerate(bodies):
+            data = b.flexible
+            if data is None:
+                flex_index[i] = [0, push(inertia[i]), 0, 0, 0, 0]
+                continue
+            n = data.n_modes
+            flex_index[i, FK.FX_N] = n
+            flex_index[i, FK.FX_M0] = push(data.M0)
+            flex_index[i, FK.FX_M1] = push(data.M1)
+            flex_index[i, FK.FX_M2] = push(data.M2 if data.order == 2 else np.zeros(0))
+            flex_index[i, FK.FX_K] = push(data.stiffness)
+            push(data.damping)
+            flex_index[i, FK.FX_ORDER] = data.order
+        nmax = max(1, max((b.flexible.n_modes for b in bodies if b.flexible is not None), default=1))
+        node_shape = np.zeros((len(nodes), 6, nmax))
+        for k, nd in enumerate(nodes):
+            if nd.shape is not None:
+                node_shape[k, :, :nd.shape.shape[1]] = nd.shape
+        return {"flex_index": flex_index, "flex_data": np.concatenate(chunks), "node_shape": node_shape}
 
     def _allocate_workspace(self):
         nb = self.nbodies
@@ -134,9 +187,19 @@ class MultibodySystem:
         K.initialize_workspace(self.topology, self.joint_rot, self.joint_vec, self.ws_rot, self.ws_mat)
         self._zero_body_forces = np.zeros((nb, 6))
         self._zero_body_forces.setflags(write=False)
+        self._zero_node_forces = np.zeros((self.nnodes, 6))
+        self._zero_node_forces.setflags(write=False)
         self._body_forces = np.zeros((nb, 6))
         self._zero_u = np.zeros(self.nu)
         self._zero_u.setflags(write=False)
+        if self.is_flexible:
+            nmax = self.node_shape.shape[2]
+            nm = max(6 + max(self.n_modes), 12)
+            self.fw_psi = np.zeros((nb + 1, 6, nmax))
+            self.fw_vec = np.zeros((nb, FK.N_FV, nm))
+            self.fw_mat = np.zeros((nb, FK.N_FM, nm, nm))
+            self.fw_tmp = np.zeros((8, 3))
+            self.fw_scratch = np.zeros((4, 6, 6))
 
     def copy(self):
         """A system sharing the immutable arrays with its own workspace (one per thread)."""
@@ -195,6 +258,19 @@ class MultibodySystem:
             out += body_forces
         return out
 
+    def _flex_forces(self, node_forces, body_forces):
+        nf = self._zero_node_forces if node_forces is None else np.asarray(node_forces, dtype=np.float64)
+        if nf.shape != (self.nnodes, 6):
+            raise ValueError(f"node_forces: expected shape ({self.nnodes}, 6) (one [torque; force] per "
+                             f"node, node axes), got {nf.shape}")
+        bf = self._zero_body_forces if body_forces is None else np.asarray(body_forces, dtype=np.float64)
+        if bf.shape != (self.nbodies, 6):
+            raise ValueError(f"body_forces: expected shape ({self.nbodies}, 6), got {bf.shape}")
+        return nf, bf
+
+    def _flex_workspace(self):
+        return self.ws_rot, self.ws_vec, self.ws_mat, self.fw_psi, self.fw_vec, self.fw_mat, self.fw_tmp
+
     # ------------------------------------------------------------------ algorithms
     def q_dot(self, q, u):
         """Coordinate rates ``q_dot = f(q, u)``."""
@@ -218,10 +294,17 @@ class MultibodySystem:
         udot = np.zeros(self.nu) if prescribed_accel is None else \
             np.array(self._vector(prescribed_accel, self.nu, "prescribed_accel"))
         tau_out = np.empty(self.nu)
-        status = K.forward_dynamics(self.topology, self.hinge_dofs, self.joint_rot, self.joint_vec,
-                                    self.spatial_inertia, self.ground_accel, q, u, tau,
-                                    self._body_forces_from(node_forces, body_forces), udot, tau_out,
-                                    self.ws_rot, self.ws_vec, self.ws_mat)
+        if self.is_flexible:
+            nf, bf = self._flex_forces(node_forces, body_forces)
+            status = FK.flex_forward_dynamics(
+                self.topology, self.hinge_dofs, self.joint_rot, self.joint_vec, self.flex_index, self.flex_data,
+                self.node_body, self.node_shape, self.node_rot, self.node_pos, self.ground_accel, q, u, tau, nf,
+                bf, udot, tau_out, *self._flex_workspace(), self.fw_scratch)
+        else:
+            status = K.forward_dynamics(self.topology, self.hinge_dofs, self.joint_rot, self.joint_vec,
+                                        self.spatial_inertia, self.ground_accel, q, u, tau,
+                                        self._body_forces_from(node_forces, body_forces), udot, tau_out,
+                                        self.ws_rot, self.ws_vec, self.ws_mat)
         if status:
             name = self.body_names[status - 1]
             raise SingularConfigurationError(
@@ -233,18 +316,32 @@ class MultibodySystem:
     def inverse_dynamics(self, q, u, u_dot, node_forces=None, body_forces=None):
         """Generalized forces realizing ``u_dot`` (recursive Newton-Euler), external forces included."""
         tau = np.empty(self.nu)
-        K.inverse_dynamics(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia,
-                           self.ground_accel, self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"),
-                           self._vector(u_dot, self.nu, "u_dot"),
-                           self._body_forces_from(node_forces, body_forces), tau,
-                           self.ws_rot, self.ws_vec, self.ws_mat)
+        q = self._vector(q, self.nq, "q")
+        u = self._vector(u, self.nu, "u")
+        u_dot = self._vector(u_dot, self.nu, "u_dot")
+        if self.is_flexible:
+            nf, bf = self._flex_forces(node_forces, body_forces)
+            FK.flex_inverse_dynamics(self.topology, self.joint_rot, self.joint_vec, self.flex_index,
+                                     self.flex_data, self.node_body, self.node_shape, self.node_rot, self.node_pos,
+                                     self.ground_accel, q, u, u_dot, nf, bf, tau, *self._flex_workspace(),
+                                     self.fw_scratch)
+        else:
+            K.inverse_dynamics(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia,
+                               self.ground_accel, q, u, u_dot, self._body_forces_from(node_forces, body_forces),
+                               tau, self.ws_rot, self.ws_vec, self.ws_mat)
         return tau
 
     def mass_matrix(self, q):
         """Joint-space mass matrix (composite-rigid-body algorithm), symmetric (nu, nu)."""
         M = np.empty((self.nu, self.nu))
-        K.mass_matrix(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia,
-                      self._vector(q, self.nq, "q"), M, self.ws_rot, self.ws_vec, self.ws_mat)
+        q = self._vector(q, self.nq, "q")
+        if self.is_flexible:
+            FK.flex_mass_matrix(self.topology, self.joint_rot, self.joint_vec, self.flex_index, self.flex_data,
+                                self.node_shape, self.node_rot, self.node_pos, q, self._zero_u, M,
+                                *self._flex_workspace())
+        else:
+            K.mass_matrix(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia, q, M,
+                          self.ws_rot, self.ws_vec, self.ws_mat)
         return M
 
     def bias_forces(self, q, u, node_forces=None, body_forces=None):
@@ -259,37 +356,51 @@ class MultibodySystem:
         velocity = np.empty((n, 6))
         acceleration = np.empty((n, 6))
         u_dot = self._zero_u if u_dot is None else self._vector(u_dot, self.nu, "u_dot")
-        K.node_kinematics(self.topology, self.joint_rot, self.joint_vec, self.node_body, self.node_rot,
-                          self.node_pos, self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), u_dot,
-                          rotation, position, velocity, acceleration, self.ws_rot, self.ws_vec, self.ws_mat)
+        q = self._vector(q, self.nq, "q")
+        u = self._vector(u, self.nu, "u")
+        if self.is_flexible:
+            FK.flex_node_kinematics(self.topology, self.joint_rot, self.joint_vec, self.flex_index,
+                                    self.flex_data, self.node_body, self.node_shape, self.node_rot, self.node_pos,
+                                    q, u, u_dot, rotation, position, velocity, acceleration,
+                                    *self._flex_workspace(), self.fw_scratch)
+        else:
+            K.node_kinematics(self.topology, self.joint_rot, self.joint_vec, self.node_body, self.node_rot,
+                              self.node_pos, q, u, u_dot, rotation, position, velocity, acceleration,
+                              self.ws_rot, self.ws_vec, self.ws_mat)
         return NodeKinematics(rotation, position, velocity[:, :3], velocity[:, 3:], acceleration[:, :3],
                               acceleration[:, 3:])
 
     def body_poses(self, q):
         """(rotations (nb, 3, 3) body -> world, origins (nb, 3) in the world)."""
-        K.world_poses(self.topology, self.joint_rot, self.joint_vec, self._vector(q, self.nq, "q"),
-                      self.ws_rot, self.ws_vec, self.ws_mat)
+        self._energy_momentum(q, self._zero_u)
         return self.ws_rot[:, K.ROT_WB].copy(), self.ws_vec[:, K.VEC_WPOS, :3].copy()
 
     def body_velocities(self, q, u):
-        """Spatial velocities ``[omega; v]`` of every body, body axes, at the body origin (nb, 6)."""
-        K.energy_momentum(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia,
-                          self.ground_accel, self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"),
-                          np.empty(8), self.ws_rot, self.ws_vec, self.ws_mat)
+        """Spatial velocities ``[omega; v]`` of every body reference frame, body axes, at its origin."""
+        self._energy_momentum(q, u)
+        if self.is_flexible:
+            return self.fw_vec[:, FK.FV_X, :6].copy()
         return self.ws_vec[:, K.VEC_V].copy()
 
     def _energy_momentum(self, q, u):
         out = np.empty(8)
-        K.energy_momentum(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia,
-                          self.ground_accel, self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"),
-                          out, self.ws_rot, self.ws_vec, self.ws_mat)
+        q = self._vector(q, self.nq, "q")
+        u = self._vector(u, self.nu, "u")
+        if self.is_flexible:
+            FK.flex_energy_momentum(self.topology, self.joint_rot, self.joint_vec, self.flex_index,
+                                    self.flex_data, self.node_shape, self.node_rot, self.node_pos,
+                                    self.ground_accel, q, u, out, *self._flex_workspace())
+        else:
+            K.energy_momentum(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia,
+                              self.ground_accel, q, u, out, self.ws_rot, self.ws_vec, self.ws_mat)
         return out
 
     def kinetic_energy(self, q, u):
         return float(self._energy_momentum(q, u)[0])
 
     def potential_energy(self, q):
-        """Potential energy in the uniform gravity field, ``-sum m g . r_com`` (zero at the world origin)."""
+        """Potential energy: uniform gravity ``-sum m g . r_com`` (zero at the world origin) plus the
+        elastic energy ``1/2 eta' K eta`` of flexible bodies."""
         return float(self._energy_momentum(q, self._zero_u)[1])
 
     def linear_momentum(self, q, u):
