@@ -40,7 +40,9 @@ def random_node_model(n_nodes, n_modes, seed, point_masses=False, scale=0.3):
             Jc = 0.01 * (A @ A.T + 0.5 * np.eye(3))
             c = cg[j]
             inertia[j] = Jc + mass[j] * (c @ c * np.eye(3) - np.outer(c, c))
-    position = np.column_stack([np.linspace(0.0, 2.0, n_nodes), rng.uniform(-0.1, 0.1, (n_nodes, 2))])
+    # lateral spread keeps the undeformed inertia well conditioned, so that the first-order truncation
+    # of M(eta) stays positive definite at the deformations used (it need not for slender bodies)
+    position = np.column_stack([np.linspace(0.0, 2.0, n_nodes), rng.uniform(-0.4, 0.4, (n_nodes, 2))])
     shapes = scale * rng.standard_normal((n_nodes, 6, n_modes))
     omega = 2 * np.pi * np.sort(rng.uniform(0.5, 5.0, n_modes))
     K = np.diag(omega**2)
