@@ -119,10 +119,10 @@ class Simulation:
             m.seed_random_stream(seed)
         self.t = float(t_start)
         self._next_sample = [m.offset if m.period is not None else None for m in self.models]
-        while_start = Fraction(self.t).limit_denominator(10**9)
+        start = Fraction(self.t).limit_denominator(10**9)
         for i, m in enumerate(self.models):  # first sample at or after t_start
-            if m.period is not None and self._next_sample[i] < while_start:
-                k = -(-(while_start - m.offset) // m.period)
+            if m.period is not None and self._next_sample[i] < start:
+                k = -(-(start - m.offset) // m.period)
                 self._next_sample[i] = m.offset + k * m.period
         self.integrator_name = integrator
         self.integrator_options = dict(integrator_options or {})
@@ -352,6 +352,9 @@ class Simulation:
             if name not in declared:
                 raise ModelError(f"stop event {name!r}: no such zero crossing; declared: {sorted(declared) or 'none'}")
             terminal[declared[name]] = True
+        if n and self.x.size == 0:
+            raise ModelError(f"zero crossings {sorted(declared)} need continuous states to be located on; "
+                             "the scene has none")
         self._g = np.zeros(n)
         self._event_functions = [_EventFunction(self, j, zc.direction, terminal[j])
                                  for j, (_, _, zc) in enumerate(self._zc_owner)]
@@ -502,7 +505,7 @@ class Simulation:
                     stopped = self._advance(target)
                     if stopped is not None:
                         status, reason = "stopped", stopped
-                        self._sample_logs(writer, only_now=True, force=True)
+                        self._sample_logs(writer, force=True)
                         break
                 self.t = target
                 self._discrete_updates(instant)
@@ -536,7 +539,6 @@ class Simulation:
     def _advance(self, target: float) -> str | None:
         """Integrate the continuous states from self.t to target; returns a stop reason or None."""
         if self.x.size == 0:
-            self._check_zero_crossings_without_states(target)
             return None
         integ = self._restart_integrator(target)
         have_events = bool(self._event_functions)
@@ -628,10 +630,6 @@ class Simulation:
         self._integrator_stale = False
         return integ
 
-    def _check_zero_crossings_without_states(self, target: float) -> None:
-        if self._event_functions:
-            raise ModelError("zero crossings need at least one continuous state to locate them on")
-
     def _raise_integration_failure(self, integ) -> None:
         bad_y = integ.failed_y if integ.failed_y is not None else integ.y
         culprit = self._name_nonfinite(bad_y, self.x_states())
@@ -677,19 +675,22 @@ class Simulation:
         self._check_finite_state(f"the discrete updates at t = {t:.9g} s")
         self._integrator_stale = True  # derivatives may depend on the new discrete states
 
-    def _sample_logs(self, writer, instant=None, only_now=False, force=False) -> None:
-        if writer is None and not self._log_groups:
+    def _sample_logs(self, writer, instant: Fraction | None = None, force: bool = False) -> None:
+        """Log the groups due at ``instant`` (all groups, off-schedule, with ``force``: a stop event)."""
+        if writer is None:
+            for group in self._log_groups.values():  # keep the schedule moving without a file
+                if not force and self._next_log_time(group) == instant:
+                    group["next"] += group["period"]
             return
         evaluated = False
         for name, group in self._log_groups.items():
-            due = force or (not only_now and self._next_log_time(group) == instant)
+            due = force or self._next_log_time(group) == instant
             if not due:
                 continue
             if not evaluated:
                 self.evaluate(self.t)
                 evaluated = True
-            if writer is not None:
-                writer.append(name, self.t, self._log_row(group))
+            writer.append(name, self.t, self._log_row(group))
             if not force:
                 group["next"] += group["period"]
 
