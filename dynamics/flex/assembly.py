@@ -74,10 +74,6 @@ class StructuralModel:
         T = self.T_gf
         return (T.T @ self.mass_g @ T).tocsr()
 
-    def cd_to_basic(self) -> sp.csr_matrix:
-        """Block-diagonal R (6n x 6n): u_basic = R @ u_g for g-set vectors."""
-        return _block_rotation(self.bulk.displacement_rotation)
-
     def dof_index(self, grid_id: int, component: int, context: str) -> int:
         """g-set index of (grid, component 1..6)."""
         if component < 1 or component > 6:
@@ -95,7 +91,8 @@ class StructuralModel:
         return int(pos)
 
 
-def _block_rotation(R: np.ndarray) -> sp.csr_matrix:
+def block_rotation(R: np.ndarray) -> sp.csr_matrix:
+    """Block-diagonal (6n x 6n) rotation, u_basic = B @ u_g, from per-grid R (n, 3, 3)."""
     n = R.shape[0]
     blocks = np.zeros((n, 2, 3, 3))
     blocks[:, 0] = R
@@ -285,7 +282,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
         M_b.add(dofs, block)
         ML_b.add(dofs, block)
 
-    R = _block_rotation(Rcd)
+    R = block_rotation(Rcd)
     K_basic = K_b.matrix(ng)
     K_g = (R.T @ K_basic @ R + k_cd.matrix(ng)).tocsr()
     M_basic = M_b.matrix(ng)
@@ -300,8 +297,8 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
     structural = StructuralModel(bulk=bulk, stiffness_g=K_g, mass_g=M_g,
                                  mass_lumped_basic=ML_basic.tocsr(), T_gf=sp.identity(ng, format="csr"),
                                  f_dofs=np.arange(ng), lumped_masses=lumped)
-    _apply_constraints(structural)
-    structural.deck_aset = _deck_aset(bulk)
+    apply_constraints(structural)
+    structural.deck_aset = deck_aset(bulk)
     return structural
 
 
@@ -379,7 +376,7 @@ def _selected_set(model, kind: str):
     return None
 
 
-def _apply_constraints(sm: StructuralModel) -> None:
+def apply_constraints(sm: StructuralModel) -> None:
     bulk = sm.bulk
     model = bulk.model
     ng = 6 * sm.n_grids
@@ -473,7 +470,7 @@ def _apply_constraints(sm: StructuralModel) -> None:
         raise BulkDataError(f"{bulk.path}: every DOF is constrained; nothing can move")
 
 
-def _deck_aset(bulk: BulkData) -> list:
+def deck_aset(bulk: BulkData) -> list:
     out = []
     for card in bulk.model.asets:
         if card.type == "ASET1":

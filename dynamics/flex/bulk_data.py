@@ -262,13 +262,3 @@ def vector_to_basic(model, cid: int, vector: np.ndarray, at_basic: np.ndarray,
                     context: str) -> np.ndarray:
     """Components ``vector`` given in system ``cid`` (at point ``at_basic``) rotated to basic."""
     return displacement_frame_rotation(model, cid, at_basic, context) @ np.asarray(vector, float)
-
-
-def point_to_basic(model, cid: int, point: np.ndarray, context: str) -> np.ndarray:
-    """Location ``point`` given in system ``cid`` (rectangular or cylindrical r, theta deg, z)."""
-    origin, axes, kind = coordinate_axes(model, cid, context)
-    p = np.asarray(point, dtype=float)
-    if kind == "C":
-        th = np.deg2rad(p[1])
-        p = np.array([p[0] * np.cos(th), p[0] * np.sin(th), p[2]])
-    return origin + axes @ p

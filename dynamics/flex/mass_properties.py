@@ -15,7 +15,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from dynamics.flex.elements import skew
 
 
 @dataclass
@@ -27,11 +26,6 @@ class RigidBodyProperties:
     inertia: np.ndarray
     reference_point: np.ndarray
     reference_grid: int
-
-    @property
-    def inertia_about_cm(self) -> np.ndarray:
-        P = skew(self.cm_offset)
-        return self.inertia + self.mass * P @ P
 
 
 def rigid_body_displacements(positions: np.ndarray, reference: np.ndarray,

@@ -24,13 +24,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from dynamics.flex.assembly import StructuralModel, assemble, _apply_constraints, _deck_aset
+from dynamics.flex.assembly import (StructuralModel, apply_constraints, assemble,
+                                     block_rotation, deck_aset)
 from dynamics.flex.body_file import (ChildRigidBody, CraigBamptonData, ModalBody, SparseModel)
 from dynamics.flex.bulk_data import BulkData, BulkDataError, read_bulk_data
 from dynamics.flex.component_modes import craig_bampton, normalized_component_modes
 from dynamics.flex.mass_properties import rigid_body_mass_properties
 from dynamics.flex.modal_integrals import modal_integrals, point_mass_integrals
-from dynamics.flex.modes import EigenSolution, free_free_modes
+from dynamics.flex.modes import free_free_modes
 from dynamics.flex.residual_vectors import append_residual_vectors, residual_vectors
 
 
@@ -115,12 +116,11 @@ def structural_model_from_matrices(bulk: BulkData, stiffness_g, mass_g) -> Struc
     if not np.any(M.diagonal() > 0):
         raise BulkDataError(f"{bulk.path}: zero-mass model (OP4 mass matrix has no positive "
                             "diagonal)")
-    from dynamics.flex.assembly import _block_rotation
-    R = _block_rotation(bulk.displacement_rotation)
+    R = block_rotation(bulk.displacement_rotation)
     sm = StructuralModel(bulk=bulk, stiffness_g=K, mass_g=M, mass_lumped_basic=(R @ M @ R.T)
                          .tocsr(), T_gf=sp.identity(ng, format="csr"), f_dofs=np.arange(ng))
-    _apply_constraints(sm)
-    sm.deck_aset = _deck_aset(bulk)
+    apply_constraints(sm)
+    sm.deck_aset = deck_aset(bulk)
     return sm
 
 

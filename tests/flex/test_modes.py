@@ -29,8 +29,11 @@ def test_sparse_shift_invert_matches_dense_lapack(beam101):
     sparse = solve_sparse(K, M, 16)
     dense = solve_dense(K, M, 16)
     flex = slice(6, 16)
-    # both converge to machine precision on well separated eigenvalues: 1e-10 relative
-    assert_allclose(sparse.eigenvalues[flex], dense.eigenvalues[flex], rtol=1e-10)
+    # The lowest flexible eigenvalue (15.9 rad^2/s^2) sits ~1e9 below the largest stiffness-to-
+    # mass ratio of this lumped model, so eps * 1e9 * |lambda| ~ 1e-7 absolute is the round-off
+    # floor: ARPACK, the LAPACK inverted solve and a Guyan-condensed LAPACK solve of the
+    # massless rotations agree to 5e-10 relative. Bound 2e-9.
+    assert_allclose(sparse.eigenvalues[flex], dense.eigenvalues[flex], rtol=2e-9)
     assert np.abs(sparse.eigenvalues[:6]).max() < 1e-8 * sparse.eigenvalues[6]
     Mx = sparse.vectors.T @ (M @ sparse.vectors)
     assert_allclose(Mx, np.eye(16), atol=1e-10)
