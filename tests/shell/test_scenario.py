@@ -51,6 +51,19 @@ def test_overrides_reach_parameters_rates_and_sections(scene):
         scene(text, overrides=["nothere.k=1"])
 
 
+def test_overrides_reach_the_multibody_section():
+    from shell.scenario import build_simulation, load_scenario
+
+    scenario = load_scenario(DEMO, ["multibody.bus.mass=600 kg", "multibody.acs.position=[1, 0, 0] m",
+                                    "controller.rate=20 Hz", "log.rate=1 Hz"])
+    sim = build_simulation(scenario)
+    engine, controller = sim.models
+    assert engine.system.masses[0] == 600.0
+    np.testing.assert_array_equal(engine.system.node_pos, [[1.0, 0.0, 0.0]])
+    assert float(controller.period) == 0.05
+    assert list(sim._log_groups) == ["every_1s"]
+
+
 def test_demo_runs_from_the_command_line_and_holds_attitude(tmp_path, capsys):
     log_path = tmp_path / "demo.h5"
     assert main(["run", str(DEMO), "-o", str(log_path), "--quiet"]) == 0
