@@ -97,7 +97,7 @@ class OdeScene:
 
 CLOSED_LOOP_SCENE = """\
 name: wp_bus_with_panels
-description: rigid bus with two hinged solar panels (torsional springs, ~5 Hz) under a 10 Hz PD attitude controller
+description: rigid bus with two hinged solar panels (torsional springs, ~3.5 Hz) under a 10 Hz PD attitude controller
 multibody:
   gravity: "[0, 0, 0] m/s^2"
   bodies:
