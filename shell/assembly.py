@@ -124,15 +124,19 @@ def _member_names(member) -> tuple[list[str], list[str]]:
     return member.input_names(), member.output_names()
 
 
+def _label(assembly: Assembly) -> str:
+    return f"assembly {assembly.path}" if assembly.path else "the scene"
+
+
 def _split(assembly: Assembly, endpoint: str, what: str) -> tuple[object, str]:
     head, _, rest = endpoint.partition(".")
     if head not in assembly.children:
         if not rest and what == "output" and head in assembly.exposed_outputs:
             return assembly, head
-        raise ModelError(f"assembly {assembly.path}: {what} {endpoint!r}: no member {head!r}; "
+        raise ModelError(f"{what} {endpoint!r}: {_label(assembly)} has no member {head!r}; "
                          f"members: {sorted(assembly.children)}")
     if not rest:
-        raise ModelError(f"assembly {assembly.path}: {what} {endpoint!r} names a member, not a port "
+        raise ModelError(f"{what} {endpoint!r} in {_label(assembly)} names a member, not a port "
                          f"(write {head}.<port>)")
     return assembly.children[head], rest
 
