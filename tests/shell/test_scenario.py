@@ -122,3 +122,18 @@ def test_failed_run_returns_error_and_keeps_log(tmp_path, capsys):
     with h5py.File(tmp_path / "e.h5") as f:
         assert f.attrs["status"] == "failed"
         assert f["every_0.01s/time"].shape[0] > 90
+
+
+def test_stop_event_from_yaml_ends_the_run_at_the_contact(tmp_path, capsys):
+    scenario = tmp_path / "drop.yaml"
+    scenario.write_text(
+        "models:\n"
+        "  ball: {type: BouncingBall, parameters: {gravity: 9.81 m/s^2}, initial: {height: 5 m}}\n"
+        "stop: {time: 10 s, events: [ball.ground_contact]}\n"
+        "log: {rate: 10 Hz, signals: [ball.height, ball.velocity]}\n")
+    assert main(["run", str(scenario), "-o", str(tmp_path / "drop.h5"), "--quiet"]) == 0
+    assert "stopped at t = 1.00964 s (event ball.ground_contact" in capsys.readouterr().out
+    log = read_log(tmp_path / "drop.h5")
+    # the last row is the contact itself, sqrt(2 * 5 / 9.81) = 1.009637...
+    assert log["time"][-1] == pytest.approx(np.sqrt(2 * 5 / 9.81), abs=1e-10)
+    assert log["ball.height"][-1] == 0.0
