@@ -67,7 +67,7 @@ def _insert_extremum_samples(g, sol, ts, gs):
         k += 1
 
 
-def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, subdivisions=8):
+def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, subdivisions=8, all_values=None):
     """All zero crossings of the event functions inside (t_old, t_new].
 
     Parameters
@@ -77,6 +77,10 @@ def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, 
     g_old, g_new : event values at t_old and t_new (length ``len(event_functions)``).
     xtol : absolute time tolerance of each located root (s).
     subdivisions : number of equal sub-intervals sampled before bracketing (>= 1).
+    all_values : optional callable ``(t, y) -> array`` returning every event function's value at once; used
+        for the uniform sampling pass when one evaluation of all functions costs about as much as one of
+        them (a simulation that evaluates the whole scene per call). The individual functions are still
+        used for the extremum check and the root refinement.
 
     Returns
     -------
@@ -98,6 +102,15 @@ def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, 
                          f"got shapes {g_old.shape} and {g_new.shape}")
     t_samples = np.linspace(t_old, t_new, subdivisions + 1)
     y_inner = sol(t_samples[1:-1]) if subdivisions > 1 else None
+    inner_values = None
+    if all_values is not None and subdivisions > 1:
+        inner_values = np.empty((m, subdivisions - 1))
+        for j in range(subdivisions - 1):
+            values = np.asarray(all_values(t_samples[j + 1], y_inner[:, j]), dtype=np.float64).reshape(-1)
+            if values.shape != (m,):
+                raise ValueError(f"all_values must return {m} values (one per event function), got shape "
+                                 f"{values.shape}")
+            inner_values[:, j] = values
 
     found = []
     for i, g in enumerate(event_functions):
@@ -105,7 +118,10 @@ def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, 
         ts = [float(t) for t in t_samples]
         gs = [float(g_old[i])]
         for j in range(1, subdivisions):
-            gs.append(float(g(ts[j], y_inner[:, j - 1])))
+            if inner_values is not None:
+                gs.append(float(inner_values[i, j - 1]))
+            else:
+                gs.append(float(g(ts[j], y_inner[:, j - 1])))
         gs.append(float(g_new[i]))
         if subdivisions > 1:
             _insert_extremum_samples(g, sol, ts, gs)

@@ -94,3 +94,32 @@ def test_bad_arguments_refused():
         locate_events([g], sol, 0.0, 1.0, [0.0, 1.0], [1.0])
     with pytest.raises(ValueError, match="direction must be"):
         event(direction=2)
+
+
+def test_vectorized_sampling_gives_the_same_roots_with_fewer_calls():
+    calls = {"single": 0, "all": 0}
+    sol = ExactSolution(0.0, 1.0, lambda t: t)
+
+    def make(center):
+        def g(t, y):
+            calls["single"] += 1
+            return (y[0] - center) * (y[0] - center - 0.1)
+        return g
+
+    fns = [make(0.2), make(0.6)]
+
+    def all_values(t, y):
+        calls["all"] += 1
+        return [(y[0] - 0.2) * (y[0] - 0.3), (y[0] - 0.6) * (y[0] - 0.7)]
+
+    g0 = [f(0.0, [0.0]) for f in fns]
+    g1 = [f(1.0, [1.0]) for f in fns]
+    calls["single"] = 0
+    expected = locate_events(fns, sol, 0.0, 1.0, g0, g1, xtol=1e-14)
+    single_calls = calls["single"]
+    calls["single"] = 0
+    roots = locate_events(fns, sol, 0.0, 1.0, g0, g1, xtol=1e-14, all_values=all_values)
+    assert roots == expected
+    assert_allclose([t for t, _ in roots], [0.2, 0.3, 0.6, 0.7], atol=1e-13)
+    assert calls["all"] == 7  # one call per interior sample instead of one per function and sample
+    assert calls["single"] == single_calls - 2 * 7
