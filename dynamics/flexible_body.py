@@ -115,7 +115,7 @@ def flexible_body_from_modal_body(body, modes=None, order=2, damping_ratio=None,
     keep = np.arange(n_all) if modes is None else np.asarray(modes, dtype=np.int64)
     if keep.size == 0 or keep.min() < 0 or keep.max() >= n_all:
         raise ModelDefinitionError(f"{body.source}: modes {keep.tolist()} out of range 0..{n_all - 1}")
-    if order == 2 and mi.G2 is None and np.any(body.node_inertia):
+    if order == 2 and mi.G2 is None and integrals == "general" and np.any(body.node_inertia):
         raise ModelDefinitionError(
             f"{body.source}: order-2 modal integrals need G2, which the body file omits (too many modes "
             f"for the n^4 table); select fewer modes when generating it, or use order 1")
