@@ -60,10 +60,12 @@ def _check_factor(lu, K_ee, interior, describe) -> None:
 
 
 def craig_bampton(K, M, boundary: np.ndarray, n_modes: int | None = None,
-                  cutoff_hz: float | None = None, describe=str) -> CraigBamptonModel:
+                  cutoff_hz: float | None = None, describe=str,
+                  groups: np.ndarray | None = None) -> CraigBamptonModel:
     """Craig-Bampton model for boundary DOFs ``boundary`` (f-set indices).
 
-    ``describe(f_index)`` names a DOF in error messages (e.g. "grid 12 component 3").
+    ``describe(f_index)`` names a DOF in error messages (e.g. "grid 12 component 3");
+    ``groups`` (grid of each f-set DOF) orders the sparse factorizations.
     """
     K = sp.csr_matrix(K)
     M = sp.csr_matrix(M)
@@ -88,7 +90,8 @@ def craig_bampton(K, M, boundary: np.ndarray, n_modes: int | None = None,
     if n_modes == 0:
         fixed = EigenSolution(np.zeros(0), np.zeros((len(interior), 0)))
     else:
-        fixed = lowest_modes(K_ee, M_ee, n_modes=n_modes, cutoff_hz=cutoff_hz)
+        fixed = lowest_modes(K_ee, M_ee, n_modes=n_modes, cutoff_hz=cutoff_hz,
+                             groups=None if groups is None else groups[interior])
     nm, nb = fixed.vectors.shape[1], len(boundary)
     basis = np.zeros((n, nm + nb))
     basis[interior, :nm] = fixed.vectors

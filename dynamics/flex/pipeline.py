@@ -189,7 +189,7 @@ def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
             return f"grid {sm.grid_ids[g // 6]} component {g % 6 + 1}"
         say(f"Craig-Bampton reduction, a-set {len(b_idx)} DOFs")
         cb = craig_bampton(K, M, b_idx, n_modes=options.n_modes, cutoff_hz=options.cutoff_hz,
-                           describe=describe)
+                           describe=describe, groups=sm.f_dofs // 6)
         cb_data = CraigBamptonData(frequencies_hz=cb.fixed_interface.frequencies_hz,
                                    mass=cb.mass, stiffness=cb.stiffness, uset=b_uset)
         rigid, flex = normalized_component_modes(cb, options.rigid_threshold_hz)
@@ -199,7 +199,8 @@ def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
         b_uset = np.zeros((0, 2), dtype=np.int64)
         rigid, flex = free_free_modes(K, M, n_modes=options.n_modes,
                                       cutoff_hz=options.cutoff_hz,
-                                      rigid_threshold_hz=options.rigid_threshold_hz)
+                                      rigid_threshold_hz=options.rigid_threshold_hz,
+                                      groups=sm.f_dofs // 6)
         mode_set = "free-free"
     n_rigid = len(rigid.eigenvalues)
     rigid_vectors = rigid.vectors if n_rigid else None
