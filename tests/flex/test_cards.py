@@ -176,3 +176,32 @@ def test_timoshenko_cbeam_static_tip_deflection(write_deck):
         u = spla.spsolve(K, f)[tip]
         exact = L**3 / (3 * decks.E * decks.I1) + L / (k * G * decks.A)
         assert_allclose(u, exact, rtol=1e-10)
+
+
+def test_orientation_by_g0_grid_equals_vector(write_deck):
+    ref = fem2modal(write_deck(decks.beam_deck(6, 2.0), "x.dat"), OPT)
+    text = decks.beam_deck(6, 2.0, extra="GRID,99,,0.3,5.0,0.0\nSPC1,1,123456,99")
+    lines = []
+    for ln in text.splitlines():
+        if ln.startswith("CBAR"):
+            f = ln.split(",")
+            ln = ",".join(f[:5] + ["99"])        # G0 = 99: v = x(99) - x(GA), in the xy plane
+        lines.append(ln)
+    body = fem2modal(write_deck("\n".join(lines) + "\n", "g0.dat"), OPT)
+    assert_allclose(body.frequencies_hz, ref.frequencies_hz, rtol=RTOL)
+
+
+def test_deck_aset_and_spc_cards(write_deck):
+    """ASET1/ASET in the deck act like --aset; SPC with zero values like SPC1."""
+    opt_cli = Fem2ModalOptions(n_modes=3, aset=[(1, [1, 2, 3, 4, 5, 6])])
+    a = fem2modal(write_deck(decks.beam_deck(6, 2.0), "a.dat"), opt_cli)
+    b = fem2modal(write_deck(decks.beam_deck(6, 2.0, extra="ASET1,123,1\nASET,1,456"),
+                             "b.dat"), Fem2ModalOptions(n_modes=3))
+    assert_allclose(b.frequencies_hz, a.frequencies_hz, rtol=RTOL)
+    assert b.aset.tolist() == a.aset.tolist()
+    c1 = fem2modal(write_deck(decks.beam_deck(6, 2.0, clamp_root=True, with_header=True),
+                              "c1.dat"), OPT)
+    spc = decks.beam_deck(6, 2.0, with_header=True, extra="SPC,1,1,123456,0.0")
+    c2 = fem2modal(write_deck(spc, "c2.dat"), OPT)
+    assert_allclose(c2.frequencies_hz, c1.frequencies_hz, rtol=RTOL)
+    assert c1.n_rigid_modes_removed == 0
