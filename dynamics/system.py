@@ -348,6 +348,29 @@ class MultibodySystem:
         """Coriolis, gyroscopic, gravity and external-force terms: ``M u_dot + bias = tau``."""
         return self.inverse_dynamics(q, u, self._zero_u, node_forces=node_forces, body_forces=body_forces)
 
+    def _modal_matrix(self, which):
+        out = np.zeros((self.nu, self.nu))
+        if not self.is_flexible:
+            return out
+        for i, n in enumerate(self.n_modes):
+            if n == 0:
+                continue
+            start = int(self.flex_index[i, FK.FX_K]) + (n * n if which == "damping" else 0)
+            k = self.u_slices[i].stop - n
+            out[k:k + n, k:k + n] = self.flex_data[start:start + n * n].reshape(n, n)
+        return out
+
+    def stiffness_matrix(self):
+        """Generalized stiffness (nu, nu): the modal stiffness blocks of flexible bodies, zero elsewhere.
+
+        At rest without gravity this is the exact linearization of the generalized forces, so
+        ``K phi = omega^2 M(q0) phi`` gives the system modes."""
+        return self._modal_matrix("stiffness")
+
+    def damping_matrix(self):
+        """Generalized damping (nu, nu): the modal damping blocks of flexible bodies, zero elsewhere."""
+        return self._modal_matrix("damping")
+
     def node_kinematics(self, q, u, u_dot=None):
         """Pose, velocity and (classical) acceleration of every node; see :class:`NodeKinematics`."""
         n = self.nnodes
