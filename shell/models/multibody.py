@@ -35,6 +35,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
+
 from shell.model import InputPort, Model, ModelError, OutputPort, State
 from shell.registry import register_model
 from shell.units import UnitError, to_magnitude
@@ -68,14 +70,21 @@ BODY_KEYS = {
     "axis": "hinge axis (unit vector)", "axes": "two U-joint axes", "inboard_position": "m",
     "inboard_rotation": "3x3 or quaternion", "outboard_position": "m", "outboard_rotation": "3x3 or quaternion",
     "prescribed": "bool or one bool per hinge DOF", "initial": "initial hinge state",
-    "body_file": "flexible body file (HDF5)",
+    "parent_node": "node of a flexible parent the hinge attaches at",
+    "body_file": "flexible body file (HDF5, from flexshell fem2modal), relative to the scenario",
+    "modes": "indices of the body file's modes to keep (default all)",
+    "modal_integrals_order": "0, 1 or 2: order of the deformation-dependent modal integrals (default 2)",
+    "damping_ratio": "modal damping ratio overriding the body file's",
+    "integrals": "general or point_mass modal integrals (default general)",
 }
+FLEXIBLE_ONLY = ("modes", "modal_integrals_order", "damping_ratio", "integrals")
 INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
     "q": ("", "all"), "u": ("", "all"),
     "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
     "displacement": ("m", "prismatic"), "displacement_rate": ("m/s", "prismatic"),
     "attitude": ("", "spherical free"), "angular_velocity": ("rad/s", "spherical free"),
     "position": ("m", "free"), "velocity": ("m/s", "free"),
+    "modal": ("", "flexible"), "modal_rate": ("1/s", "flexible"),
 }
 
 
@@ -154,9 +163,11 @@ class MultibodyModel(Model):
         self._hinge_torque_ports, self._hinge_accel_ports = [], []
         for b, body in enumerate(s.body_names):
             hinge = s.hinge_names[b]
-            uq, uu, uud, uf = HINGE_UNITS[hinge]
             nq = s.q_slices[b].stop - s.q_slices[b].start
             nu = s.u_slices[b].stop - s.u_slices[b].start
+            n_modes = nq - int(HINGE_NQ[HINGE_TYPES[hinge]])
+            # hinge coordinates followed by modal coordinates: mixed units unless the body is rigid
+            uq, uu, uud, uf = HINGE_UNITS[hinge] if n_modes == 0 else ("", "", "", "")
             if nq:
                 outputs.append(OutputPort(f"{body}.q", uq, (nq,), f"{hinge} hinge coordinates of {body}"))
             if nu:
@@ -303,17 +314,18 @@ class MultibodyModel(Model):
         initial = []
         for k, body in enumerate(bodies):
             here = where.child(description, "bodies").child(bodies, k)
-            _expect_mapping(body, here, BODY_KEYS, required=("name", "hinge", "mass", "inertia"))
+            flexible = isinstance(body, dict) and "body_file" in body
+            _expect_mapping(body, here, BODY_KEYS,
+                            required=("name", "hinge") if flexible else ("name", "hinge", "mass", "inertia"))
             body_name = _expect_name(body["name"], here.child(body, "name"), "a body name")
             here = _rename(here, body_name)
-            if "body_file" in body:
-                raise here.child(body, "body_file").error(
-                    "flexible bodies from body files are not supported by the engine yet; use a rigid body")
+            for key in (("mass", "inertia", "com") if flexible else FLEXIBLE_ONLY):
+                if key in body:
+                    raise here.child(body, key).error(
+                        "the body file gives the mass properties of a flexible body" if flexible else
+                        f"{key!r} applies to flexible bodies (with body_file:)")
             parent = body.get("parent", "world")
             kwargs = dict(
-                mass=float(_vector(body, "mass", "kg", (), here)),
-                inertia=_matrix_or_diagonal(body, here),
-                com=_vector(body, "com", "m", (3,), here, (0, 0, 0)),
                 hinge=_expect_name(body["hinge"], here.child(body, "hinge"), "a hinge type"),
                 inboard_position=_vector(body, "inboard_position", "m", (3,), here, (0, 0, 0)),
                 outboard_position=_vector(body, "outboard_position", "m", (3,), here, (0, 0, 0)),
@@ -326,22 +338,34 @@ class MultibodyModel(Model):
                 kwargs["axes"] = _vector(body, "axes", "", (2, 3), here)
             if "prescribed" in body:
                 kwargs["prescribed"] = body["prescribed"]
+            if "parent_node" in body:
+                kwargs["parent_node"] = _expect_name(body["parent_node"], here.child(body, "parent_node"), "a node")
+            parent = None if parent in (None, "world") else parent
             try:
-                builder.add_body(body_name, None if parent in (None, "world") else parent, **kwargs)
-            except ModelDefinitionError as exc:
-                raise here.error(str(exc)) from None
+                if flexible:
+                    builder.add_flexible_body(body_name, parent, **_flexible_options(body, here), **kwargs)
+                else:
+                    builder.add_body(body_name, parent, mass=float(_vector(body, "mass", "kg", (), here)),
+                                     inertia=_matrix_or_diagonal(body, here),
+                                     com=_vector(body, "com", "m", (3,), here, (0, 0, 0)), **kwargs)
+            except (ModelDefinitionError, OSError, KeyError) as exc:
+                raise here.error(str(exc.args[0] if isinstance(exc, KeyError) else exc)) from None
             initial.append((body_name, body.get("initial"), here, body))
         nodes = _expect_list(description.get("nodes", []), where.child(description, "nodes"), "nodes")
         for k, node in enumerate(nodes):
             here = where.child(description, "nodes").child(nodes, k)
             _expect_mapping(node, here, {"name": "node name", "body": "body it is fixed on",
-                                         "position": "in the body frame (m)", "rotation": "node -> body"},
+                                         "position": "in the body frame (m)", "rotation": "node -> body",
+                                         "grid": "FE grid id (nodes on flexible bodies)"},
                             required=("name", "body"))
+            grid = node.get("grid")
+            if grid is not None and (isinstance(grid, bool) or not isinstance(grid, int)):
+                raise here.child(node, "grid").error(f"expected an FE grid id (integer), given {grid!r}")
             try:
                 builder.add_node(_expect_name(node["name"], here.child(node, "name"), "a node name"),
                                  _expect_name(node["body"], here.child(node, "body"), "a body name"),
-                                 position=_vector(node, "position", "m", (3,), here, (0, 0, 0)),
-                                 rotation=_rotation(node, "rotation", here))
+                                 position=_vector(node, "position", "m", (3,), here) if "position" in node else None,
+                                 rotation=_rotation(node, "rotation", here), grid=grid)
             except ModelDefinitionError as exc:
                 raise here.error(str(exc)) from None
         try:
@@ -354,6 +378,34 @@ class MultibodyModel(Model):
                 _apply_initial(system, b, spec, here.child(body, "initial"), q0, u0)
         system.normalize_quaternions(q0)
         return cls(name, system, initial_q=q0, initial_u=u0)
+
+
+def _flexible_options(body, where) -> dict:
+    from pathlib import Path
+
+    path = Path(str(body["body_file"]))
+    if not path.is_absolute():
+        path = Path(where.file).parent / path
+    if not path.exists():
+        raise where.child(body, "body_file").error(f"no body file {str(path)!r} (paths are relative to the scenario)")
+    options = {"modal": str(path)}
+    if "modes" in body:
+        modes = body["modes"]
+        if not isinstance(modes, list) or not all(isinstance(m, int) and not isinstance(m, bool) for m in modes):
+            raise where.child(body, "modes").error(f"expected a list of mode indices, given {modes!r}")
+        options["modes"] = list(modes)
+    if "modal_integrals_order" in body:
+        order = body["modal_integrals_order"]
+        if order not in (0, 1, 2):
+            raise where.child(body, "modal_integrals_order").error(f"expected 0, 1 or 2, given {order!r}")
+        options["order"] = order
+    if "damping_ratio" in body:
+        options["damping_ratio"] = float(_vector(body, "damping_ratio", "", (), where))
+    if "integrals" in body:
+        if body["integrals"] not in ("general", "point_mass"):
+            raise where.child(body, "integrals").error(f"expected general or point_mass, given {body['integrals']!r}")
+        options["integrals"] = body["integrals"]
+    return options
 
 
 def _rename(where, body_name):
@@ -412,17 +464,21 @@ def _apply_initial(system, b, spec, where, q0, u0) -> None:
     _expect_mapping(spec, where, {k: f"{unit or 'SI'} ({applies})" for k, (unit, applies) in INITIAL_KEYS.items()})
     qs, us = system.q_slices[b], system.u_slices[b]
     nq, nu = qs.stop - qs.start, us.stop - us.start
+    hinge_nq, hinge_nu = int(HINGE_NQ[HINGE_TYPES[hinge]]), int(HINGE_NU[HINGE_TYPES[hinge]])
+    n_modes = nq - hinge_nq
+    kinds = hinge.split() + (["flexible"] if n_modes else [])
     for key, value in spec.items():
         unit, applies = INITIAL_KEYS[key]
-        if applies != "all" and hinge not in applies.split():
+        if applies != "all" and not set(applies.split()) & set(kinds):
             raise where.child(spec, key).error(f"{key!r} does not apply to a {hinge} hinge; use "
                                                f"{[k for k, (_, a) in INITIAL_KEYS.items() if a == 'all' or hinge in a.split()]}")
         target, sl, shape = {
             "q": (q0, slice(0, nq), (nq,)), "u": (u0, slice(0, nu), (nu,)),
-            "angle": (q0, slice(0, nq), (nq,)), "angle_rate": (u0, slice(0, nu), (nu,)),
+            "angle": (q0, slice(0, hinge_nq), (hinge_nq,)), "angle_rate": (u0, slice(0, hinge_nu), (hinge_nu,)),
             "displacement": (q0, slice(0, 1), (1,)), "displacement_rate": (u0, slice(0, 1), (1,)),
             "attitude": (q0, slice(0, 4), (4,)), "angular_velocity": (u0, slice(0, 3), (3,)),
             "position": (q0, slice(4, 7), (3,)), "velocity": (u0, slice(3, 6), (3,)),
+            "modal": (q0, slice(hinge_nq, nq), (n_modes,)), "modal_rate": (u0, slice(hinge_nu, nu), (n_modes,)),
         }[key]
         value_si = _vector(spec, key, unit, None, where)
         if value_si.shape == () and shape == (1,):
