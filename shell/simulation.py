@@ -576,7 +576,8 @@ class Simulation:
 
     def _handle_events(self, integ, g_old, g_new, target) -> str | None:
         sol = integ.dense_output()
-        hits = locate_events(self._event_functions, sol, integ.t_old, integ.t, g_old, g_new, xtol=self.event_tol)
+        hits = locate_events(self._event_functions, sol, integ.t_old, integ.t, g_old, g_new, xtol=self.event_tol,
+                             all_values=self._zero_crossing_vector)
         if not hits:
             return None
         t_event = hits[0][0]
