@@ -38,7 +38,7 @@ from numba import njit
 from shell.assembly import Assembly, Connection, flatten
 from shell.integrators import locate_events, make_integrator
 from shell.log_file import LoggedSignal, LogWriter
-from shell.model import Model, ModelError, parse_period
+from shell.model import ModelError, parse_period
 from shell.units import UnitError, conversion_factor, format_unit, to_magnitude
 
 
