@@ -195,8 +195,11 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
     pos = bulk.positions
     Rcd = bulk.displacement_rotation
 
+    row_of = {int(g): i for i, g in enumerate(bulk.grid_ids)}
+
     def idx(gid, ctx):
-        return bulk.grid_index(int(gid), ctx)
+        i = row_of.get(gid)
+        return bulk.grid_index(int(gid), ctx) if i is None else i
 
     elems = model.elements
     n_elem = len(elems)
@@ -238,12 +241,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
     if beams:
         if progress is not None:
             progress(f"element matrices for {len(beams)} beams")
-        dofs = np.array([b[0] for b in beams])
-        props = np.array([b[1] for b in beams])
-        frames = np.array([b[2] for b in beams])
-        wa = np.array([b[3] for b in beams])
-        wb = np.array([b[4] for b in beams])
-        torsion = np.array([b[5] for b in beams])
+        dofs, props, frames, wa, wb, torsion = _beam_batch(bulk, beams)
         Kg, Mg, MLg = el.beam_element_batch(props, frames, wa, wb, bulk.coupled_mass, torsion)
         K_b.add_batch(dofs, Kg)
         M_b.add_batch(dofs, Mg)
@@ -302,17 +300,8 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
     return structural
 
 
-def _orientation(bulk: BulkData, elem, ia: int, ctx: str) -> np.ndarray:
-    if elem.g0 is not None and int(elem.g0) > 0:
-        i0 = bulk.grid_index(int(elem.g0), ctx + " G0")
-        return bulk.positions[i0] - bulk.positions[ia]
-    if elem.x is None:
-        raise BulkDataError(f"{ctx}: no orientation vector (X1-X3 or G0)")
-    return bulk.displacement_rotation[ia] @ np.asarray(elem.x, float)
-
-
 def _beam_data(bulk, elem, ctx, wt, idx, sections):
-    """(dofs, props, frame, wa, wb, lumped_torsion) of one CBAR/CBEAM for the batch kernel."""
+    """Raw fields of one CBAR/CBEAM: (eid, ia, ib, x, i_g0, wa, wb, section, is_cbeam)."""
     model = bulk.model
     offt = getattr(elem, "offt", "GGG")
     if elem.type == "CBEAM" and getattr(elem, "bit", None) is not None:
@@ -322,14 +311,14 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
                             "in the grids' displacement frames) is supported")
     if int(elem.pa or 0) or int(elem.pb or 0):
         raise BulkDataError(f"{ctx}: pin flags PA/PB are not supported")
-    ga, gb = (int(g) for g in elem.nodes)
+    ga, gb = elem.nodes
     ia, ib = idx(ga, ctx), idx(gb, ctx)
-    Ra, Rb = bulk.displacement_rotation[ia], bulk.displacement_rotation[ib]
-    wa = Ra @ np.asarray(elem.wa if elem.wa is not None else np.zeros(3), float)
-    wb = Rb @ np.asarray(elem.wb if elem.wb is not None else np.zeros(3), float)
-    axis = bulk.positions[ib] + wb - bulk.positions[ia] - wa
-    Lam = el.beam_frame(axis, _orientation(bulk, elem, ia, ctx), ctx)
-    L = float(np.linalg.norm(axis))
+    if elem.g0 is not None and int(elem.g0) > 0:
+        i0, x = idx(int(elem.g0), ctx + " G0"), _ZERO3
+    elif elem.x is None:
+        raise BulkDataError(f"{ctx}: no orientation vector (X1-X3 or G0)")
+    else:
+        i0, x = -1, elem.x
     key = (elem.type, int(elem.pid))
     if key not in sections:
         prop = _property(model, int(elem.pid), ("PBAR",) if elem.type == "CBAR"
@@ -337,9 +326,45 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
         A, I1, I2, J, nsm, k1, k2 = _beam_section(prop, f"{ctx} -> {prop.type} {prop.pid}")
         E, G, rho = _material(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
         sections[key] = (E, G, A, I1, I2, J, (rho * A + nsm) * wt, k1, k2)
-    E, G, A, I1, I2, J, mu, k1, k2 = sections[key]
-    dofs = np.concatenate([6 * ia + np.arange(6), 6 * ib + np.arange(6)])
-    return (dofs, (L, E, G, A, I1, I2, J, mu, k1, k2), Lam, wa, wb, elem.type == "CBEAM")
+    wa = _ZERO3 if elem.wa is None else elem.wa
+    wb = _ZERO3 if elem.wb is None else elem.wb
+    return (int(elem.eid), ia, ib, x, i0, wa, wb, sections[key], elem.type == "CBEAM")
+
+
+_ZERO3 = np.zeros(3)
+
+
+def _beam_batch(bulk, beams):
+    """Vectorized geometry of all beams: dofs, props, frames, offsets (basic), CBEAM flags."""
+    eids = np.array([b[0] for b in beams])
+    ia = np.array([b[1] for b in beams])
+    ib = np.array([b[2] for b in beams])
+    x = np.array([b[3] for b in beams], dtype=float)
+    i0 = np.array([b[4] for b in beams])
+    R = bulk.displacement_rotation
+    pos = bulk.positions
+    wa = np.einsum("eab,eb->ea", R[ia], np.array([b[5] for b in beams], dtype=float))
+    wb = np.einsum("eab,eb->ea", R[ib], np.array([b[6] for b in beams], dtype=float))
+    v = np.where((i0 >= 0)[:, None], pos[i0] - pos[ia], np.einsum("eab,eb->ea", R[ia], x))
+    axis = pos[ib] + wb - pos[ia] - wa
+    L = np.linalg.norm(axis, axis=1)
+    bad = np.nonzero(L <= 0.0)[0]
+    if len(bad):
+        raise BulkDataError(f"{'CBEAM' if beams[bad[0]][8] else 'CBAR'} {eids[bad[0]]}: "
+                            "zero element length")
+    ex = axis / L[:, None]
+    vy = v - np.einsum("ea,ea->e", v, ex)[:, None] * ex
+    ny = np.linalg.norm(vy, axis=1)
+    bad = np.nonzero(ny <= 1e-9 * np.maximum(np.linalg.norm(v, axis=1), 1e-300))[0]
+    if len(bad):
+        raise ValueError(f"{'CBEAM' if beams[bad[0]][8] else 'CBAR'} {eids[bad[0]]}: "
+                         "orientation vector is parallel to the element axis (or zero)")
+    ey = vy / ny[:, None]
+    frames = np.stack([ex, ey, np.cross(ex, ey)], axis=1)
+    props = np.column_stack([L, np.array([b[7] for b in beams], dtype=float)])
+    dofs = np.concatenate([6 * ia[:, None] + np.arange(6), 6 * ib[:, None] + np.arange(6)],
+                          axis=1)
+    return dofs, props, frames, wa, wb, np.array([b[8] for b in beams])
 
 
 def _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
