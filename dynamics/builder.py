@@ -46,6 +46,7 @@ class BodyDefinition:
     joint_name: str
     parent_node: str | None = None
     flexible: object | None = None  # dynamics.flexible_body.FlexibleBodyData
+    locked_from: tuple | None = None  # the hinge a run-time lock replaced (dynamics.reconfigure)
 
 
 @dataclass

@@ -14,6 +14,7 @@ so a system must not be shared between threads (use :meth:`MultibodySystem.copy`
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 import numpy as np
@@ -137,12 +138,16 @@ class MultibodySystem:
         flex = {}
         if any(b.flexible is not None for b in bodies):
             flex = cls._flexible_arrays(bodies, nodes, inertia)
-        return cls(body_names=[b.name for b in bodies], joint_names=[b.joint_name for b in bodies],
-                   hinge_names=[b.hinge for b in bodies], node_names=[n.name for n in nodes],
-                   node_bodies=[n.body for n in nodes], topology=topology, hinge_dofs=hinge_dofs,
-                   joint_rot=joint_rot, joint_vec=joint_vec, spatial_inertia=inertia, gravity=gravity,
-                   node_body=node_body, node_rot=node_rot, node_pos=node_pos,
-                   masses=[b.mass for b in bodies], **flex)
+        system = cls(body_names=[b.name for b in bodies], joint_names=[b.joint_name for b in bodies],
+                     hinge_names=[b.hinge for b in bodies], node_names=[n.name for n in nodes],
+                     node_bodies=[n.body for n in nodes], topology=topology, hinge_dofs=hinge_dofs,
+                     joint_rot=joint_rot, joint_vec=joint_vec, spatial_inertia=inertia, gravity=gravity,
+                     node_body=node_body, node_rot=node_rot, node_pos=node_pos,
+                     masses=[b.mass for b in bodies], **flex)
+        # the description this system was compiled from, for run-time reconfiguration
+        system.definitions = (tuple(dataclasses.replace(b) for b in bodies),
+                              tuple(dataclasses.replace(n) for n in nodes), np.array(gravity, dtype=float))
+        return system
 
     @staticmethod
     def _flexible_arrays(bodies, nodes, inertia):
@@ -220,6 +225,41 @@ class MultibodySystem:
             return self.node_names.index(name)
         except ValueError:
             raise KeyError(f"unknown node '{name}'; nodes: {list(self.node_names)}") from None
+
+    def reconfigure(self, q, u, *, lock=(), unlock=(), detach=(), mass_properties=None):
+        """A new system after locking/unlocking hinges, detaching subtrees or changing mass properties,
+        with the state mapped across: returns ``(system, q, u)``. See :mod:`dynamics.reconfigure`."""
+        from dynamics.reconfigure import reconfigure
+
+        return reconfigure(self, q, u, lock=lock, unlock=unlock, detach=detach, mass_properties=mass_properties)
+
+    def set_mass_properties(self, body, mass, com, inertia):
+        """Change a rigid body's mass, center of mass and inertia (about the COM) in place, O(1): for
+        mass depletion during a run. The values are validated like :meth:`Multibody.add_body`'s."""
+        from dynamics.builder import ModelDefinitionError, Multibody
+
+        i = self.body_index(body)
+        if self.n_modes[i]:
+            raise ModelDefinitionError(f"set_mass_properties: '{body}' is flexible; its mass properties come "
+                                       f"from its modal data")
+        probe = Multibody()
+        probe.add_body(body, None, mass=mass, com=com, inertia=inertia, hinge="locked")
+        b = probe.bodies[0]
+        M = _spatial_inertia(b.mass, b.com, b.inertia)
+        self.spatial_inertia.setflags(write=True)
+        self.spatial_inertia[i] = M
+        self.spatial_inertia.setflags(write=False)
+        self.masses.setflags(write=True)
+        self.masses[i] = b.mass
+        self.masses.setflags(write=False)
+        if self.is_flexible:
+            start = int(self.flex_index[i, FK.FX_M0])
+            self.flex_data.setflags(write=True)
+            self.flex_data[start:start + 36] = M.ravel()
+            self.flex_data.setflags(write=False)
+        definitions = list(self.definitions[0])
+        definitions[i] = dataclasses.replace(definitions[i], mass=b.mass, com=b.com, inertia=b.inertia)
+        self.definitions = (tuple(definitions),) + self.definitions[1:]
 
     def neutral_configuration(self):
         """Zero hinge angles/displacements, identity quaternions, zero modal coordinates."""

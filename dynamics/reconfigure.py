@@ -1,0 +1,173 @@
+"""Run-time configuration changes: lock or unlock hinges, detach subtrees, change mass properties.
+
+A compiled system never changes shape; a configuration change builds the next system from the
+previous one's definitions and maps the state across (Dshell's run-time reconfiguration):
+
+* **lock** a hinge: the hinge becomes ``locked`` with its current pose folded into its inboard frame;
+  the locked DOFs' rates are removed by an *impulsive* (perfectly plastic) constraint,
+  ``u+ = u- + M^-1 E' lambda`` with ``E u+ = 0`` (E selects the locked DOFs), which conserves the
+  momentum of the rest of the system (the lock impulse is internal: total linear and angular momentum
+  are unchanged) and never adds energy.
+* **unlock** a hinge locked earlier: the original hinge comes back at the pose it was locked in, with
+  zero relative rate (continuous velocities, no impulse). A hinge defined as locked from the start is
+  unlocked by giving its new hinge, ``unlock={"name": {"hinge": "revolute", "axis": (0, 0, 1)}}``; its
+  coordinates start at zero (the inboard frame is kept).
+* **detach** a body: the subtree it roots separates from its parent (a separation event). The body is
+  re-attached to the ground by a free hinge placed at its current world pose and moving with its
+  current spatial velocity; every node keeps its pose and velocity, so nothing jumps.
+* **mass properties** of rigid bodies, via a new system or in place with
+  :meth:`dynamics.MultibodySystem.set_mass_properties` (cheap enough for per-step mass depletion).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from dynamics.builder import Multibody, ModelDefinitionError
+from dynamics.hinges import HINGE_TYPES
+from dynamics.spatial import rotation_to_quaternion
+
+
+def _hinge_pose(system, body, q):
+    """(R_FM, p_FM) of a body's hinge at configuration q."""
+    from dynamics.hinges import hinge_transform
+
+    i = system.body_index(body)
+    R = np.empty((3, 3))
+    p = np.empty(3)
+    hinge_transform(int(system.topology[i, 1]), np.asarray(q, dtype=float), int(system.topology[i, 2]),
+                    system.joint_vec[i, 2:4], R, p, np.empty((3, 3)), np.empty((3, 3)))
+    return R, p
+
+
+def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), mass_properties=None):
+    """Return ``(new_system, q_new, u_new)`` after the requested changes (applied in the order
+    mass properties, detach, unlock, lock)."""
+    bodies, nodes, gravity = system.definitions
+    bodies = [dataclasses.replace(b) for b in bodies]
+    by_name = {b.name: b for b in bodies}
+    joint_to_body = {b.joint_name: b for b in bodies}
+
+    def find(name, what):
+        body = by_name.get(name) or joint_to_body.get(name)
+        if body is None:
+            raise ModelDefinitionError(f"{what}: unknown body or hinge '{name}' (hinges: "
+                                       f"{[b.joint_name for b in bodies]})")
+        return body
+
+    q = np.asarray(q, dtype=float)
+    u = np.asarray(u, dtype=float)
+    # new coordinates per body: start from the old ones
+    q_parts = {b.name: q[system.q_slices[k]].copy() for k, b in enumerate(bodies)}
+    u_parts = {b.name: u[system.u_slices[k]].copy() for k, b in enumerate(bodies)}
+
+    for name, props in (mass_properties or {}).items():
+        body = find(name, "mass_properties")
+        if body.flexible is not None:
+            raise ModelDefinitionError(f"mass_properties: '{name}' is flexible; its mass properties come "
+                                       f"from its modal data")
+        probe = Multibody()
+        probe.add_body(name, None, mass=props.get("mass", body.mass), com=props.get("com", body.com),
+                       inertia=props.get("inertia", body.inertia), hinge="locked")
+        checked = probe.bodies[0]
+        body.mass, body.com, body.inertia = checked.mass, checked.com, checked.inertia
+
+    if detach:
+        rotations, origins = system.body_poses(q)
+        velocities = system.body_velocities(q, u)
+    for name in detach:
+        body = find(name, "detach")
+        if body.parent is None:
+            raise ModelDefinitionError(f"detach: '{body.name}' is already attached to the ground")
+        k = system.body_index(body.name)
+        n = 0 if body.flexible is None else body.flexible.n_modes
+        body.parent, body.parent_node, body.hinge = None, None, "free"
+        body.axes = np.zeros((2, 3))
+        body.prescribed = np.zeros(6, dtype=bool)
+        body.inboard_rotation, body.inboard_position = np.eye(3), np.zeros(3)
+        body.outboard_rotation, body.outboard_position = np.eye(3), np.zeros(3)
+        body.locked_from = None
+        eta = q_parts[body.name][len(q_parts[body.name]) - n:]
+        eta_dot = u_parts[body.name][len(u_parts[body.name]) - n:]
+        q_parts[body.name] = np.concatenate([rotation_to_quaternion(rotations[k]), origins[k], eta])
+        u_parts[body.name] = np.concatenate([velocities[k], eta_dot])
+
+    for entry in (unlock.items() if isinstance(unlock, dict) else [(name, None) for name in unlock]):
+        name, spec = entry
+        body = find(name, "unlock")
+        if body.hinge != "locked":
+            raise ModelDefinitionError(f"unlock: hinge '{body.joint_name}' is not locked (it is {body.hinge})")
+        modal_q, modal_u = q_parts[body.name], u_parts[body.name]  # a locked hinge has no coordinates
+        if spec is None:
+            if body.locked_from is None:
+                raise ModelDefinitionError(
+                    f"unlock: hinge '{body.joint_name}' was defined locked; give its new hinge, e.g. "
+                    f"unlock={{'{body.joint_name}': {{'hinge': 'revolute', 'axis': (0, 0, 1)}}}}")
+            hinge, axes, prescribed, R_in, p_in, q_hinge = body.locked_from
+            body.hinge, body.axes, body.prescribed = hinge, axes, prescribed
+            body.inboard_rotation, body.inboard_position = R_in, p_in
+        else:
+            probe = Multibody()
+            probe.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], **spec)
+            body.hinge, body.axes, body.prescribed = probe.bodies[0].hinge, probe.bodies[0].axes, \
+                probe.bodies[0].prescribed
+            q_hinge = probe.compile().neutral_configuration()
+        body.locked_from = None
+        nu = int(len(body.prescribed))
+        q_parts[body.name] = np.concatenate([q_hinge, modal_q])
+        u_parts[body.name] = np.concatenate([np.zeros(nu), modal_u])
+
+    locked_names = [find(name, "lock").name for name in lock]
+    for name in locked_names:
+        body = by_name[name]
+        if body.hinge == "locked":
+            raise ModelDefinitionError(f"lock: hinge '{body.joint_name}' is already locked")
+
+    # impulsive lock: project the velocities of the current (possibly detached/unlocked) system
+    if locked_names:
+        mid = _compile(bodies, nodes, gravity)
+        q_mid = np.concatenate([q_parts[b.name] for b in bodies])
+        u_mid = np.concatenate([u_parts[b.name] for b in bodies])
+        locked_dofs = []
+        for name in locked_names:
+            k = mid.body_index(name)
+            start = mid.u_slices[k].start
+            locked_dofs.extend(range(start, start + len(by_name[name].prescribed)))
+        E = np.zeros((len(locked_dofs), mid.nu))
+        E[np.arange(len(locked_dofs)), locked_dofs] = 1.0
+        M = mid.mass_matrix(q_mid)
+        Minv_Et = np.linalg.solve(M, E.T)
+        lam = np.linalg.solve(E @ Minv_Et, -E @ u_mid)
+        u_mid = u_mid + Minv_Et @ lam
+        for k, b in enumerate(bodies):
+            u_parts[b.name] = u_mid[mid.u_slices[k]]
+        for name in locked_names:
+            body = by_name[name]
+            k = mid.body_index(name)
+            nh = mid.q_slices[k].stop - mid.q_slices[k].start - mid.n_modes[k]
+            q_hinge = q_parts[name][:nh]
+            R_FM, p_FM = _hinge_pose(mid, name, q_mid)
+            body.locked_from = (body.hinge, body.axes, body.prescribed, body.inboard_rotation,
+                                body.inboard_position, q_hinge.copy())
+            body.inboard_position = body.inboard_position + body.inboard_rotation @ p_FM
+            body.inboard_rotation = body.inboard_rotation @ R_FM
+            body.hinge, body.axes, body.prescribed = "locked", np.zeros((2, 3)), np.zeros(0, dtype=bool)
+            nu = len(body.locked_from[2])
+            q_parts[name] = q_parts[name][nh:]
+            u_parts[name] = u_parts[name][nu:]
+
+    new = _compile(bodies, nodes, gravity)
+    q_new = np.concatenate([q_parts[b.name] for b in bodies])
+    u_new = np.concatenate([u_parts[b.name] for b in bodies])
+    return new, q_new, u_new
+
+
+def _compile(bodies, nodes, gravity):
+    from dynamics.system import MultibodySystem
+
+    for b in bodies:
+        if b.hinge not in HINGE_TYPES:
+            raise ModelDefinitionError(f"body '{b.name}': unknown hinge {b.hinge!r}")
+    return MultibodySystem.from_definitions(bodies, nodes, gravity)
