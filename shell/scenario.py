@@ -23,6 +23,7 @@ import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import networkx as nx
 import yaml
 
 from shell.assembly import Assembly
@@ -155,6 +156,7 @@ def _expect_name(value, where: _Where, what: str) -> str:
 TOP_LEVEL = {
     "name": "scenario name", "description": "free text", "seed": "integer (or list of integers)",
     "multibody": "bodies, hinges and nodes of the multibody engine", "models": "component models by name",
+    "assemblies": "reusable assembly types defined in this file",
     "connections": "list of 'source.port -> destination.port'", "integrator": "method and step",
     "stop": "stop time and stop events", "log": "logged signals and rates",
 }
@@ -183,6 +185,8 @@ class Scenario:
     log_rate: object = None
     log_signals: list = field(default_factory=list)  # (name, rate)
     log_file: str | None = None
+    templates: dict = field(default_factory=dict)  # assemblies: section, name -> (spec, where)
+    template_classes: dict = field(default_factory=dict)  # the Assembly subclasses built from them
 
     @property
     def name(self) -> str:
@@ -212,7 +216,8 @@ def parse_scenario(text: str, filename: str = "<string>", overrides: list[str] |
     _expect_mapping(document, _Where(filename, document.line or 1, ""), TOP_LEVEL)
     scenario = Scenario(file=filename, document=document, text=text)
     _validate_seed(document, root, scenario)
-    _validate_models(document, root)
+    scenario.templates = _validate_assemblies(document, root)
+    _validate_models(document, root, scenario.templates)
     _validate_connections(document, root)
     _validate_integrator(document, root, scenario)
     _validate_stop(document, root, scenario)
@@ -231,7 +236,60 @@ def _validate_seed(document, root: _Where, scenario: Scenario) -> None:
     scenario.seed = list(seed) if isinstance(seed, list) else seed
 
 
-def _validate_models(document, root: _Where) -> None:
+ASSEMBLY_KEYS = {
+    "description": "free text", "models": "member models and assemblies (as under models:)",
+    "connections": "connections between members", "inputs": "exposed input -> member input(s)",
+    "outputs": "exposed output -> member output",
+}
+
+
+def _validate_assemblies(document, root: _Where) -> dict:
+    """Check the assemblies: section; returns {type name: (spec, where)}."""
+    if "assemblies" not in document:
+        return {}
+    where = root.child(document, "assemblies")
+    section = document["assemblies"]
+    if not isinstance(section, dict):
+        raise where.error(f"expected a mapping of assembly type -> definition, given {_type_name(section)}")
+    templates = {}
+    for name, spec in section.items():
+        here = where.child(section, name)
+        if not isinstance(name, str) or not name.replace("_", "a").isalnum():
+            raise here.error(f"assembly type names use letters, digits and underscores, given {name!r}")
+        try:
+            lookup(name)
+        except RegistryError:
+            pass
+        else:
+            raise here.error(f"{name!r} is already a registered model type; choose another name")
+        _expect_mapping(spec, here, ASSEMBLY_KEYS, required=("models",))
+        templates[name] = (spec, here)
+    graph = nx.DiGraph()
+    for name, (spec, here) in templates.items():
+        _validate_models(spec, here, templates, inside=name)
+        if "connections" in spec:
+            _validate_connections(spec, here)
+        for key in ("inputs", "outputs"):
+            exposed = spec.get(key, {}) or {}
+            if not isinstance(exposed, dict):
+                raise here.child(spec, key).error(f"expected a mapping of exposed name -> member port, given {exposed!r}")
+            for port, inner in exposed.items():
+                targets = inner if key == "inputs" and isinstance(inner, list) else [inner]
+                for target in targets:
+                    if not isinstance(target, str) or "." not in target:
+                        raise here.child(spec, key).child(exposed, port).error(
+                            f"expected member.port{' or a list of them' if key == 'inputs' else ''}, given {inner!r}")
+        for member in (spec.get("models") or {}).values():
+            if member["type"] in templates:
+                graph.add_edge(name, member["type"])
+    try:
+        cycle = nx.find_cycle(graph)
+    except nx.NetworkXNoCycle:
+        return templates
+    raise where.error(f"assemblies contain themselves: {' -> '.join(a for a, _ in cycle)} -> {cycle[0][0]}")
+
+
+def _validate_models(document, root: _Where, templates: dict, inside: str | None = None) -> None:
     models = document.get("models", {})
     where = root.child(document, "models")
     if not isinstance(models, dict):
@@ -242,10 +300,16 @@ def _validate_models(document, root: _Where) -> None:
             raise here.error(f"model names use letters, digits and underscores, given {name!r}")
         _expect_mapping(entry, here, MODEL_KEYS, required=("type",))
         type_name = _expect_name(entry["type"], here.child(entry, "type"), "a model type")
-        try:
-            cls = lookup(type_name)
-        except RegistryError as exc:
-            raise here.child(entry, "type").error(str(exc)) from None
+        if inside is not None and "attach" in entry:
+            raise here.child(entry, "attach").error(f"attach the assembly {inside!r} where it is used (under the "
+                                                    "top-level models:), not its members")
+        if type_name in templates:
+            cls = Assembly
+        else:
+            try:
+                cls = lookup(type_name)
+            except RegistryError as exc:
+                raise here.child(entry, "type").error(str(exc)) from None
         section = getattr(cls, "scenario_section", None)
         if section:
             raise here.child(entry, "type").error(f"{type_name} is declared in the {section}: section, "
@@ -454,13 +518,23 @@ def build_root(scenario: Scenario) -> Assembly:
             if isinstance(exc, ScenarioError):
                 raise
             raise where.error(str(exc)) from None
-    models = document.get("models", {}) or {}
-    models_where = root_where.child(document, "models")
+    classes = {name: _assembly_class(name, spec, here, scenario) for name, (spec, here) in scenario.templates.items()}
+    scenario.template_classes = classes
+    _add_members(root, document, root_where, classes)
+    return root
+
+
+def _add_members(container: Assembly, section: dict, where: _Where, classes: dict) -> None:
+    """Construct the models of ``section['models']`` into ``container`` and add its connections
+    (the top-level scene, or an assembly type defined in the assemblies: section)."""
+    models = section.get("models", {}) or {}
+    models_where = where.child(section, "models")
     for name, entry in models.items():
         here = models_where.child(models, name)
-        cls = lookup(entry["type"])
+        cls = classes.get(entry["type"]) or lookup(entry["type"])
         kwargs = dict(entry.get("config", {}) or {})
         kwargs.update(entry.get("parameters", {}) or {})
+        kwargs = container.child_parameters(name, **kwargs)
         for key in ("rate", "period"):
             if key in entry:
                 kwargs["period"] = entry[key]
@@ -468,13 +542,15 @@ def build_root(scenario: Scenario) -> Assembly:
             kwargs["offset"] = entry["offset"]
         try:
             member = cls(name, **kwargs)
+        except ScenarioError as exc:  # inside an assembly type: also say where it is used
+            raise ScenarioError(f"{exc}\n  in {entry['type']} {name!r} used at {here.file}:{here.line}") from None
         except (ModelError, UnitError) as exc:
             raise _locate_error(here, entry, exc) from None
         except TypeError as exc:
             raise here.error(f"cannot construct {entry['type']}: {exc}") from None
-        if name in root.children:
+        if name in container.children:
             raise here.error(f"the name {name!r} is taken (the multibody engine model is named {name!r})")
-        root.add(member)
+        container.add(member)
         for state, value in (entry.get("initial", {}) or {}).items():
             if not isinstance(member, Model):
                 raise here.child(entry, "initial").error("initial values are set on models, not assemblies")
@@ -488,17 +564,30 @@ def build_root(scenario: Scenario) -> Assembly:
             attach = entry["attach"]
             try:
                 attach_where = here.child(entry, "attach")
-                root.attach(name, engine=attach.get("engine", "multibody"), node=attach.get("node"),
-                            hinge=attach.get("hinge"), origin=f"{attach_where.file}:{attach_where.line}")
+                container.attach(name, engine=attach.get("engine", "multibody"), node=attach.get("node"),
+                                 hinge=attach.get("hinge"), origin=f"{attach_where.file}:{attach_where.line}")
             except ModelError as exc:
                 raise here.child(entry, "attach").error(str(exc)) from None
-    connections = document.get("connections", []) or []
-    where = root_where.child(document, "connections")
+    connections = section.get("connections", []) or []
+    where = where.child(section, "connections")
     for k, item in enumerate(connections):
         here = where.child(connections, k)
         source, destination = _connection_ends(item, here)
-        root.connect(source, destination, origin=f"{here.file}:{here.line}")
-    return root
+        container.connect(source, destination, origin=f"{here.file}:{here.line}")
+
+
+def _assembly_class(name: str, spec: dict, where: _Where, scenario: Scenario) -> type:
+    """An Assembly subclass built from an assemblies: entry (members, connections, exposed ports)."""
+
+    def build(self) -> None:
+        _add_members(self, spec, where, scenario.template_classes)
+        for port, inner in (spec.get("inputs", {}) or {}).items():
+            self.expose_input(port, *(inner if isinstance(inner, list) else [inner]))
+        for port, inner in (spec.get("outputs", {}) or {}).items():
+            self.expose_output(port, inner)
+
+    summary = spec.get("description") or f"assembly defined in {where.file}:{where.line}"
+    return type(name, (Assembly,), {"build": build, "summary": summary, "__module__": __name__})
 
 
 def _locate_error(here: _Where, entry: dict, exc: Exception) -> ScenarioError:
