@@ -64,8 +64,8 @@ def describe(name: str, cls) -> str:
         lines.append(f"  exposed inputs: {source.input_names() if example else '(built from parameters)'}")
         lines.append(f"  exposed outputs: {source.output_names() if example else '(built from parameters)'}")
     if example is None and getattr(cls, "scenario_section", None):
-        lines.append(f"  declared in the scenario's {cls.scenario_section}: section; ports per body and node "
-                     f"(see `python -c 'help(\"{cls.__module__}\")'`)")
+        lines.append(f"  declared in the scenario's {cls.scenario_section}: section; ports per body and node:")
+        lines.extend(f"    {line}" for line in getattr(cls, "port_summary", ()))
     return "\n".join(lines)
 
 

@@ -147,6 +147,15 @@ class MultibodyModel(Model):
 
     summary = "multibody engine: hinge/node forces in, node/hinge kinematics out (from the multibody: section)"
     scenario_section = "multibody"
+    #: shown by `flexshell models` in place of per-instance ports
+    port_summary = (
+        "inputs (optional, zero when unconnected): <node>.torque [N*m] (3,), <node>.force [N] (3,), "
+        "<body>.torque (hinge nu,), <body>.prescribed_accel (hinge nu,)",
+        "outputs: <node>.attitude (4,) node->world, <node>.rotation (3,3), <node>.position [m], "
+        "<node>.angular_velocity [rad/s], <node>.linear_velocity [m/s], <node>.angular_acceleration, "
+        "<node>.linear_acceleration (feedthrough), <body>.q, <body>.u, <body>.u_dot, q, u",
+        "continuous states: q, u (docs/scenario_schema.md, section multibody)",
+    )
 
     def __init__(self, name: str, system, *, initial_q=None, initial_u=None):
         self.system = system
