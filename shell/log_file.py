@@ -3,7 +3,8 @@
 Layout (a stable contract, ARCHITECTURE.md)::
 
     /                         attrs: format="flexshell-log", format_version=1, status ("running",
-                              "completed", "stopped", "failed"), message, seed, scenario (YAML text)
+                              "completed", "stopped", "failed", "interrupted"), message, seed,
+                              scenario (YAML text)
     /<group>/time             (N,) float64, attrs unit="s"
     /<group>/<signal>         (N, *shape) float64, attrs unit, description, time="<group>/time"
 

@@ -514,6 +514,10 @@ class Simulation:
                     progress(self.t)
                 if instant >= end:
                     break
+        except KeyboardInterrupt:
+            if writer is not None:
+                writer.close("interrupted", f"interrupted by the user at t = {self.t:.9g} s")
+            raise
         except Exception as exc:
             message = str(exc) if isinstance(exc, SimulationError) else \
                 f"{type(exc).__name__} at t = {self.t:.9g} s: {exc}"

@@ -81,6 +81,11 @@ def run(args) -> int:
         if output:
             print(f"flexshell run: the log {output} keeps every sample up to the failure", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        progress.close()
+        print(f"flexshell run: interrupted at t = {simulation.t:.6g} s"
+              + (f"; the log {output} keeps every sample up to there" if output else ""), file=sys.stderr)
+        return 130
     progress.close()
     if args.save_state:
         simulation.save_state(args.save_state)

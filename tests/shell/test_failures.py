@@ -90,3 +90,26 @@ def test_exception_in_a_model_names_the_model_and_time(tmp_path):
     with h5py.File(tmp_path / "raise.h5") as f:
         assert f.attrs["status"] == "failed"
         assert f["every_0.1s/time"][-1] == pytest.approx(0.2)
+
+
+class _Interrupts(Model):
+    outputs = (OutputPort("x", "", ()),)
+    continuous_states = (State("x", "", (), 0.0),)
+    state_outputs = staticmethod(_copy_x)
+
+    def derivatives(self, t, x, z, u, p, xdot):
+        if t > 0.35:
+            raise KeyboardInterrupt
+        xdot[0] = 1.0
+
+
+def test_interrupted_run_closes_its_log(tmp_path):
+    root = Assembly("root")
+    root.add(_Interrupts("user"))
+    sim = Simulation(root, step=0.1)
+    sim.log(["user.x"], "10 Hz")
+    with pytest.raises(KeyboardInterrupt):
+        sim.run(1.0, log_path=tmp_path / "ctrl_c.h5")
+    with h5py.File(tmp_path / "ctrl_c.h5") as f:
+        assert f.attrs["status"] == "interrupted"
+        np.testing.assert_allclose(f["every_0.1s/time"][()], [0.0, 0.1, 0.2, 0.3], atol=1e-15)
