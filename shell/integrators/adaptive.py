@@ -57,6 +57,10 @@ class EmbeddedRungeKutta(Integrator):
         self.stiff_count = 0
         self.nonstiff_count = 0
 
+    def _on_extend(self):
+        if self.h_abs == 0.0:  # created or reset with t_bound == t: no first step chosen yet
+            self.h_abs = self._initial_step()
+
     def _initial_step(self):
         """HNW I Sec. II.4: h0 from |y0| and |f0|, refined with one explicit Euler step."""
         interval = self.t_bound - self.t

@@ -208,6 +208,9 @@ class Integrator:
     def _on_reset(self):
         """Forget step history that a state jump invalidates."""
 
+    def _on_extend(self):
+        """React to a new t_bound (adaptive methods choose a first step if they never had room for one)."""
+
     def _step_impl(self):
         raise NotImplementedError
 
@@ -276,6 +279,8 @@ class Integrator:
             raise RuntimeError(f"{self.name}: cannot extend a failed run ({self.message}); reset it first")
         self.t_bound = t_bound
         self.status = "finished" if self.t >= t_bound else "running"
+        if self.status == "running":
+            self._on_extend()
 
     # --- shared helpers -----------------------------------------------------------------------------
     def _initial_derivative(self, t, y):

@@ -96,6 +96,10 @@ class Radau5(Integrator):
             # LU, marked stale, so that a Newton failure refreshes it instead of paying n evaluations per sample
             self.current_jac = False
 
+    def _on_extend(self):
+        if self.h_abs == 0.0:  # created or reset with t_bound == t: no first step chosen yet
+            self.h_abs = self._initial_step()
+
     def _initial_step(self):
         """HNW I Sec. II.4 with the order of the error estimator (3)."""
         interval = self.t_bound - self.t

@@ -166,3 +166,16 @@ def test_multirate_extend_lands_on_every_sample_time():
         assert integ.t == pytest.approx(0.01 * k, abs=1e-15)
         integ.extend(0.01 * (k + 1))
     assert_allclose(integ.y, exact(1.0), atol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["dopri5", "radau5"])
+def test_created_at_t_bound_then_extended_chooses_a_proper_first_step(method):
+    # the shell creates the integrator at a sample instant that may equal t_bound, then extends it
+    fun, exact = linear_oscillator(1.0)
+    integ = make_integrator(method, fun, 0.0, [1.0, 0.0], 0.0, rtol=1e-8, atol=1e-10)
+    assert integ.status == "finished"
+    integ.extend(1.0)
+    while integ.status == "running":
+        integ.step()
+    assert integ.nsteps < 60  # not a ramp from a 1e-15 s first step
+    assert_allclose(integ.y, exact(1.0), atol=1e-7)
