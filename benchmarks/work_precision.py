@@ -281,7 +281,7 @@ def print_tables(scene, results):
         for rtol in sorted(set(a) & set(b)):
             ratios.append((ours, peer, rtol, b[rtol][1] / a[rtol][1], a[rtol][0], b[rtol][0]))
     if ratios:
-        print(f"\nSpeed against solve_ivp (same rtol/atol, same process): wall(scipy) / wall(flexshell)\n")
+        print("\nSpeed against solve_ivp (same rtol/atol, same process): wall(scipy) / wall(flexshell)\n")
         print("| flexshell | scipy | rtol | speed-up | error flexshell | error scipy |")
         print("| --- | --- | --- | --- | --- | --- |")
         for ours, peer, rtol, ratio, e_a, e_b in ratios:

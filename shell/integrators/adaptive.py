@@ -23,7 +23,7 @@ import warnings
 import numpy as np
 
 from . import kernels, tableaus
-from .base import EPS, DenseOutput, Integrator, PolynomialDenseOutput
+from .base import DenseOutput, Integrator, PolynomialDenseOutput
 
 SAFETY = 0.9
 MIN_FACTOR = 0.2

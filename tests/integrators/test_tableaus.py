@@ -1,6 +1,5 @@
 """Every Butcher table satisfies the Runge-Kutta order conditions of its order (and fails the next one);
 Radau IIA is L-stable; the stability radii used in the stability study are the textbook values."""
-import itertools
 
 import numpy as np
 import pytest
