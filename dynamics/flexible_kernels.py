@@ -34,6 +34,9 @@ from numba import njit
 
 from dynamics.kernels import (
     HINGE_TYPE,
+    accumulate_energy_momentum,
+    accumulate_world_poses,
+    compose_body_pose,
     INBOARD,
     MAT_S,
     N_FREE,
@@ -61,7 +64,6 @@ from dynamics.hinges import hinge_transform
 from dynamics.spatial import (
     force_to_parent_add,
     inertia_to_parent_add,
-    motion_cross_force_add,
     motion_cross_motion_add,
     motion_to_child,
 )
@@ -346,27 +348,9 @@ def _flex_position_kinematics(i, topology, joint_rot, joint_vec, node_shape, nod
             p_PF[a] = joint_vec[i, INBOARD, a]
             for b in range(3):
                 R_PF[a, b] = joint_rot[i, INBOARD, a, b]
-    R_PB = ws_rot[i, ROT_PB]
-    if topology[i, OUTBOARD_IDENTITY]:
-        for a in range(3):
-            for b in range(3):
-                R_PB[a, b] = R_PF[a, 0] * R_FM[0, b] + R_PF[a, 1] * R_FM[1, b] + R_PF[a, 2] * R_FM[2, b]
-            pos[a] = p_PF[a] + R_PF[a, 0] * p_FM[0] + R_PF[a, 1] * p_FM[1] + R_PF[a, 2] * p_FM[2]
-    else:
-        R_BM = joint_rot[i, OUTBOARD]
-        p_BM = joint_vec[i, OUTBOARD]
-        T = ws_rot[i, ROT_2] if hinge_type != UJOINT else tmp83[3:6]
-        for a in range(3):
-            for b in range(3):
-                T[a, b] = R_FM[a, 0] * R_BM[b, 0] + R_FM[a, 1] * R_BM[b, 1] + R_FM[a, 2] * R_BM[b, 2]
-        for a in range(3):
-            for b in range(3):
-                R_PB[a, b] = R_PF[a, 0] * T[0, b] + R_PF[a, 1] * T[1, b] + R_PF[a, 2] * T[2, b]
-        d0 = p_FM[0] - (T[0, 0] * p_BM[0] + T[0, 1] * p_BM[1] + T[0, 2] * p_BM[2])
-        d1 = p_FM[1] - (T[1, 0] * p_BM[0] + T[1, 1] * p_BM[1] + T[1, 2] * p_BM[2])
-        d2 = p_FM[2] - (T[2, 0] * p_BM[0] + T[2, 1] * p_BM[1] + T[2, 2] * p_BM[2])
-        for a in range(3):
-            pos[a] = p_PF[a] + R_PF[a, 0] * d0 + R_PF[a, 1] * d1 + R_PF[a, 2] * d2
+    T = ws_rot[i, ROT_2] if hinge_type != UJOINT else tmp83[3:6]
+    compose_body_pose(R_PF, p_PF, R_FM, p_FM, topology[i, OUTBOARD_IDENTITY], joint_rot[i, OUTBOARD],
+                      joint_vec[i, OUTBOARD], T, ws_rot[i, ROT_PB], pos)
 
 
 @njit(cache=True)
@@ -452,6 +436,19 @@ def _flex_kinematics_pass(topology, joint_rot, joint_vec, flex_index, flex_data,
                       fv[i, FV_H], fv[i, FV_P], fv[i, FV_Y])
 
 
+@njit(cache=True, inline="always")
+def _deformed_node(nd, topology, node_body, node_shape, node_rot, node_pos, q, u, Rn, l, node_psi, wd, tmp83):
+    """Deformed pose, Psi and w' of node ``nd`` on its body (see :func:`node_deformation`); returns the
+    body index and its number of modes."""
+    b = node_body[nd]
+    n = topology[b, N_MODES]
+    q_eta = topology[b, Q_START] + topology[b, NQ_HINGE]
+    u_eta = topology[b, U_START] + topology[b, NU_HINGE]
+    node_deformation(node_shape[nd], node_pos[nd], node_rot[nd], q[q_eta:q_eta + n], n, u[u_eta:u_eta + n],
+                     Rn, l, node_psi, wd, tmp83)
+    return b, n
+
+
 @njit(cache=True)
 def _apply_external_forces(topology, node_body, node_shape, node_rot, node_pos, node_forces, body_forces,
                            q, u, psi, fv, tmp83, scratch, sign):
@@ -469,12 +466,8 @@ def _apply_external_forces(topology, node_body, node_shape, node_rot, node_pos, 
     wd = scratch[1, 1]
     f6 = scratch[1, 2]
     for nd in range(node_body.shape[0]):
-        b = node_body[nd]
-        n = topology[b, N_MODES]
-        q_eta = topology[b, Q_START] + topology[b, NQ_HINGE]
-        u_eta = topology[b, U_START] + topology[b, NU_HINGE]
-        node_deformation(node_shape[nd], node_pos[nd], node_rot[nd], q[q_eta:q_eta + n], n,
-                         u[u_eta:u_eta + n], Rn, l, node_psi, wd, tmp83)
+        b, n = _deformed_node(nd, topology, node_body, node_shape, node_rot, node_pos, q, u, Rn, l, node_psi,
+                              wd, tmp83)
         for a in range(6):
             f6[a] = 0.0
         force_to_parent_add(Rn, l, node_forces[nd], f6)
@@ -486,6 +479,40 @@ def _apply_external_forces(topology, node_body, node_shape, node_rot, node_pos, 
             for a in range(6):
                 s_ += node_psi[a, rr] * f6[a]
             P[6 + rr] += sign * s_
+
+
+ALL_HINGE_DOFS = np.arange(6)
+"""Column indices of every hinge DOF (the mass matrix uses all of them, ABA only the free ones)."""
+
+
+@njit(cache=True, inline="always")
+def _inertia_times_subspace(I, S, cols, nh, n, N, out):
+    """out (N x (nh + n)) = I H for the hinge columns ``S[:, cols[:nh]]`` and the modal columns."""
+    for kk in range(nh):
+        k = cols[kk]
+        for a in range(N):
+            s_ = 0.0
+            for b in range(6):
+                s_ += I[a, b] * S[b, k]
+            out[a, kk] = s_
+    for rr in range(n):
+        for a in range(N):
+            out[a, nh + rr] = I[a, 6 + rr]
+
+
+@njit(cache=True, inline="always")
+def _subspace_transpose_times(S, cols, nh, n, F, ncol, out, row0, col0):
+    """out[row0 + k, col0 + l] = (H' F)[k, l] for the hinge rows ``S[:, cols[:nh]]'`` and modal rows."""
+    for kk in range(nh + n):
+        for ll in range(ncol):
+            if kk < nh:
+                k = cols[kk]
+                s_ = 0.0
+                for a in range(6):
+                    s_ += S[a, k] * F[a, ll]
+            else:
+                s_ = F[6 + kk - nh, ll]
+            out[row0 + kk, col0 + ll] = s_
 
 
 @njit(cache=True)
@@ -606,26 +633,9 @@ def flex_forward_dynamics(topology, hinge_dofs, joint_rot, joint_vec, flex_index
         c = fv[i, FV_C]
         d = fv[i, FV_D]
         pa = fv[i, FV_PA]
-        for kk in range(nfh):
-            k = hinge_dofs[i, 0, kk]
-            for a in range(N):
-                s_ = 0.0
-                for b in range(6):
-                    s_ += IA[a, b] * S[b, k]
-                U[a, kk] = s_
-        for rr in range(n):
-            for a in range(N):
-                U[a, nfh + rr] = IA[a, 6 + rr]
+        _inertia_times_subspace(IA, S, hinge_dofs[i, 0], nfh, n, N, U)
+        _subspace_transpose_times(S, hinge_dofs[i, 0], nfh, n, U, nf, D, 0, 0)
         for kk in range(nf):
-            for ll in range(nf):
-                if kk < nfh:
-                    k = hinge_dofs[i, 0, kk]
-                    s_ = 0.0
-                    for a in range(6):
-                        s_ += S[a, k] * U[a, ll]
-                else:
-                    s_ = U[6 + kk - nfh, ll]
-                D[kk, ll] = s_
             if kk < nfh:
                 k = hinge_dofs[i, 0, kk]
                 s_ = tau[u0 + k]
@@ -818,25 +828,11 @@ def flex_mass_matrix(topology, joint_rot, joint_vec, flex_index, flex_data, node
         S = ws_mat[i, MAT_S]
         Ic = fm[i, FM_IA]
         F = fm[i, FM_U]  # F = Ic H_i  (N x ncol)
-        for k in range(nu):
-            for a in range(N):
-                s_ = 0.0
-                for b in range(6):
-                    s_ += Ic[a, b] * S[b, k]
-                F[a, k] = s_
-        for rr in range(n):
-            for a in range(N):
-                F[a, nu + rr] = Ic[a, 6 + rr]
-        for k in range(ncol):
-            for l in range(k, ncol):
-                if k < nu:
-                    s_ = 0.0
-                    for a in range(6):
-                        s_ += S[a, k] * F[a, l]
-                else:
-                    s_ = F[6 + k - nu, l]
-                Mout[ui + k, ui + l] = s_
-                Mout[ui + l, ui + k] = s_
+        _inertia_times_subspace(Ic, S, ALL_HINGE_DOFS, nu, n, N, F)
+        _subspace_transpose_times(S, ALL_HINGE_DOFS, nu, n, F, ncol, Mout, ui, ui)
+        for k in range(ncol):  # symmetric by construction, not by round-off
+            for l in range(k + 1, ncol):
+                Mout[ui + l, ui + k] = Mout[ui + k, ui + l]
         j = i
         Fc = fm[i, FM_DINV]  # the force columns carried up the tree
         for a in range(N):
@@ -861,38 +857,10 @@ def flex_mass_matrix(topology, joint_rot, joint_vec, flex_index, flex_data, node
             nuj = topology[j, NU_HINGE]
             uj = topology[j, U_START]
             Sj = ws_mat[j, MAT_S]
+            _subspace_transpose_times(Sj, ALL_HINGE_DOFS, nuj, nj, Fc, ncol, Mout, uj, ui)
             for k in range(nuj + nj):
                 for l in range(ncol):
-                    if k < nuj:
-                        s_ = 0.0
-                        for a in range(6):
-                            s_ += Sj[a, k] * Fc[a, l]
-                    else:
-                        s_ = Fc[6 + k - nuj, l]
-                    Mout[uj + k, ui + l] = s_
-                    Mout[ui + l, uj + k] = s_
-
-
-@njit(cache=True)
-def _flex_world_poses(topology, ws_rot, ws_vec):
-    for i in range(topology.shape[0]):
-        parent = topology[i, PARENT]
-        R_PB = ws_rot[i, ROT_PB]
-        r = ws_vec[i, VEC_POS]
-        R_WB = ws_rot[i, ROT_WB]
-        p = ws_vec[i, VEC_WPOS]
-        if parent < 0:
-            for a in range(3):
-                p[a] = r[a]
-                for b in range(3):
-                    R_WB[a, b] = R_PB[a, b]
-        else:
-            R_WP = ws_rot[parent, ROT_WB]
-            pp = ws_vec[parent, VEC_WPOS]
-            for a in range(3):
-                p[a] = pp[a] + R_WP[a, 0] * r[0] + R_WP[a, 1] * r[1] + R_WP[a, 2] * r[2]
-                for b in range(3):
-                    R_WB[a, b] = R_WP[a, 0] * R_PB[0, b] + R_WP[a, 1] * R_PB[1, b] + R_WP[a, 2] * R_PB[2, b]
+                    Mout[ui + l, uj + k] = Mout[uj + k, ui + l]
 
 
 @njit(cache=True)
@@ -908,7 +876,7 @@ def flex_node_kinematics(topology, joint_rot, joint_vec, flex_index, flex_data, 
     for a in range(6):
         zero_g[a] = 0.0
     _flex_accelerations(topology, zero_g, udot, ws_rot, ws_vec, ws_mat, psi, fv)
-    _flex_world_poses(topology, ws_rot, ws_vec)
+    accumulate_world_poses(topology, ws_rot, ws_vec)
     node_psi = psi[nb]
     Rn = scratch[0, 0:3, 0:3]
     l = scratch[1, 0, 0:3]
@@ -917,12 +885,8 @@ def flex_node_kinematics(topology, joint_rot, joint_vec, flex_index, flex_data, 
     w = scratch[1, 3]
     Xw = scratch[1, 4]
     for nd in range(node_body.shape[0]):
-        b = node_body[nd]
-        n = topology[b, N_MODES]
-        q_eta = topology[b, Q_START] + topology[b, NQ_HINGE]
-        u_eta = topology[b, U_START] + topology[b, NU_HINGE]
-        node_deformation(node_shape[nd], node_pos[nd], node_rot[nd], q[q_eta:q_eta + n], n,
-                         u[u_eta:u_eta + n], Rn, l, node_psi, wd, tmp83)
+        b, n = _deformed_node(nd, topology, node_body, node_shape, node_rot, node_pos, q, u, Rn, l, node_psi,
+                              wd, tmp83)
         R_WB = ws_rot[b, ROT_WB]
         pw = ws_vec[b, VEC_WPOS]
         for a in range(3):
@@ -960,32 +924,13 @@ def flex_energy_momentum(topology, joint_rot, joint_vec, flex_index, flex_data, 
     nb = topology.shape[0]
     _flex_kinematics_pass(topology, joint_rot, joint_vec, flex_index, flex_data, node_shape, node_rot,
                           node_pos, q, u, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, False)
-    _flex_world_poses(topology, ws_rot, ws_vec)
+    accumulate_world_poses(topology, ws_rot, ws_vec)
     for a in range(8):
         out[a] = 0.0
     for i in range(nb):
         n = topology[i, N_MODES]
-        N = 6 + n
-        M = fm[i, FM_M]
-        x = fv[i, FV_X]
-        h = fv[i, FV_H]
-        ke = 0.0
-        for a in range(N):
-            s_ = 0.0
-            for b in range(N):
-                s_ += M[a, b] * x[b]
-            h[a] = s_
-            ke += x[a] * s_
-        out[0] += 0.5 * ke
-        m = M[3, 3]
-        R = ws_rot[i, ROT_WB]
-        p = ws_vec[i, VEC_WPOS]
-        cx = M[2, 4] / m
-        cy = M[0, 5] / m
-        cz = M[1, 3] / m
-        for a in range(3):
-            com_w = p[a] + R[a, 0] * cx + R[a, 1] * cy + R[a, 2] * cz
-            out[1] += m * ground_accel[3 + a] * com_w
+        accumulate_energy_momentum(fm[i, FM_M], fv[i, FV_X], fv[i, FV_H], 6 + n, ws_rot[i, ROT_WB],
+                                   ws_vec[i, VEC_WPOS], ground_accel, out)
         if n > 0:
             ok = flex_index[i, FX_K]
             q_eta = topology[i, Q_START] + topology[i, NQ_HINGE]
@@ -994,12 +939,3 @@ def flex_energy_momentum(topology, joint_rot, joint_vec, flex_index, flex_data, 
                 for s_ in range(n):
                     e += q[q_eta + r] * flex_data[ok + r * n + s_] * q[q_eta + s_]
             out[1] += 0.5 * e
-        Pw0 = R[0, 0] * h[3] + R[0, 1] * h[4] + R[0, 2] * h[5]
-        Pw1 = R[1, 0] * h[3] + R[1, 1] * h[4] + R[1, 2] * h[5]
-        Pw2 = R[2, 0] * h[3] + R[2, 1] * h[4] + R[2, 2] * h[5]
-        out[2] += Pw0
-        out[3] += Pw1
-        out[4] += Pw2
-        out[5] += R[0, 0] * h[0] + R[0, 1] * h[1] + R[0, 2] * h[2] + p[1] * Pw2 - p[2] * Pw1
-        out[6] += R[1, 0] * h[0] + R[1, 1] * h[1] + R[1, 2] * h[2] + p[2] * Pw0 - p[0] * Pw2
-        out[7] += R[2, 0] * h[0] + R[2, 1] * h[1] + R[2, 2] * h[2] + p[0] * Pw1 - p[1] * Pw0

@@ -85,6 +85,29 @@ N_MAT = 6
 
 
 @njit(cache=True, inline="always")
+def compose_body_pose(R_PF, p_PF, R_FM, p_FM, outboard_identity, R_BM, p_BM, T, R_PB, pos):
+    """Body pose in its parent through the hinge: ``R_PB = R_PF R_FM R_BM^T`` and
+    ``pos[0:3] = p_PF + R_PF (p_FM - R_FM R_BM^T p_BM)``; ``T`` is a 3x3 scratch."""
+    if outboard_identity:
+        for a in range(3):
+            for b in range(3):
+                R_PB[a, b] = R_PF[a, 0] * R_FM[0, b] + R_PF[a, 1] * R_FM[1, b] + R_PF[a, 2] * R_FM[2, b]
+            pos[a] = p_PF[a] + R_PF[a, 0] * p_FM[0] + R_PF[a, 1] * p_FM[1] + R_PF[a, 2] * p_FM[2]
+        return
+    for a in range(3):
+        for b in range(3):
+            T[a, b] = R_FM[a, 0] * R_BM[b, 0] + R_FM[a, 1] * R_BM[b, 1] + R_FM[a, 2] * R_BM[b, 2]
+    for a in range(3):
+        for b in range(3):
+            R_PB[a, b] = R_PF[a, 0] * T[0, b] + R_PF[a, 1] * T[1, b] + R_PF[a, 2] * T[2, b]
+    d0 = p_FM[0] - (T[0, 0] * p_BM[0] + T[0, 1] * p_BM[1] + T[0, 2] * p_BM[2])
+    d1 = p_FM[1] - (T[1, 0] * p_BM[0] + T[1, 1] * p_BM[1] + T[1, 2] * p_BM[2])
+    d2 = p_FM[2] - (T[2, 0] * p_BM[0] + T[2, 1] * p_BM[1] + T[2, 2] * p_BM[2])
+    for a in range(3):
+        pos[a] = p_PF[a] + R_PF[a, 0] * d0 + R_PF[a, 1] * d1 + R_PF[a, 2] * d2
+
+
+@njit(cache=True, inline="always")
 def _body_position_kinematics(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat):
     """Pose of body i in its parent (``ws_rot[i, ROT_PB]``, ``ws_vec[i, VEC_POS, 0:3]``); for a U-joint
     also its configuration-dependent motion subspace (the others are constant, see
@@ -96,31 +119,8 @@ def _body_position_kinematics(i, topology, joint_rot, joint_vec, q, ws_rot, ws_v
     p_FM = pos[3:6]
     axes = joint_vec[i, AXIS1:AXIS2 + 1]
     hinge_transform(hinge_type, q, q0, axes, R_FM, p_FM, ws_rot[i, ROT_1], ws_rot[i, ROT_2])
-    R_PF = joint_rot[i, INBOARD]
-    p_PF = joint_vec[i, INBOARD]
-    R_PB = ws_rot[i, ROT_PB]
-    if topology[i, OUTBOARD_IDENTITY]:
-        # M coincides with the body frame: R_PB = R_PF R_FM, r = p_PF + R_PF p_FM
-        for a in range(3):
-            for b in range(3):
-                R_PB[a, b] = R_PF[a, 0] * R_FM[0, b] + R_PF[a, 1] * R_FM[1, b] + R_PF[a, 2] * R_FM[2, b]
-            pos[a] = p_PF[a] + R_PF[a, 0] * p_FM[0] + R_PF[a, 1] * p_FM[1] + R_PF[a, 2] * p_FM[2]
-    else:
-        R_BM = joint_rot[i, OUTBOARD]
-        p_BM = joint_vec[i, OUTBOARD]
-        # T = R_FM R_BM^T (in ROT_1, free by now), R_PB = R_PF T, r = p_PF + R_PF (p_FM - T p_BM)
-        T = ws_rot[i, ROT_1]
-        for a in range(3):
-            for b in range(3):
-                T[a, b] = R_FM[a, 0] * R_BM[b, 0] + R_FM[a, 1] * R_BM[b, 1] + R_FM[a, 2] * R_BM[b, 2]
-        for a in range(3):
-            for b in range(3):
-                R_PB[a, b] = R_PF[a, 0] * T[0, b] + R_PF[a, 1] * T[1, b] + R_PF[a, 2] * T[2, b]
-        d0 = p_FM[0] - (T[0, 0] * p_BM[0] + T[0, 1] * p_BM[1] + T[0, 2] * p_BM[2])
-        d1 = p_FM[1] - (T[1, 0] * p_BM[0] + T[1, 1] * p_BM[1] + T[1, 2] * p_BM[2])
-        d2 = p_FM[2] - (T[2, 0] * p_BM[0] + T[2, 1] * p_BM[1] + T[2, 2] * p_BM[2])
-        for a in range(3):
-            pos[a] = p_PF[a] + R_PF[a, 0] * d0 + R_PF[a, 1] * d1 + R_PF[a, 2] * d2
+    compose_body_pose(joint_rot[i, INBOARD], joint_vec[i, INBOARD], R_FM, p_FM, topology[i, OUTBOARD_IDENTITY],
+                      joint_rot[i, OUTBOARD], joint_vec[i, OUTBOARD], ws_rot[i, ROT_1], ws_rot[i, ROT_PB], pos)
     if hinge_type == UJOINT:
         _body_motion_subspace(i, topology, joint_rot, joint_vec, ws_rot, ws_mat)
 
@@ -325,14 +325,8 @@ def forward_dynamics(topology, hinge_dofs, joint_rot, joint_vec, spatial_inertia
             force_to_parent_add(R, r, pa, ws_vec[parent, VEC_P])
 
     for i in range(nb):
-        parent = topology[i, PARENT]
         A = ws_vec[i, VEC_A]
-        R = ws_rot[i, ROT_PB]
-        r = ws_vec[i, VEC_POS]
-        if parent >= 0:
-            motion_to_child(R, r, ws_vec[parent, VEC_A], A)
-        else:
-            motion_to_child(R, r, ground_accel, A)
+        parent_acceleration(i, topology, ground_accel, ws_rot, ws_vec, A)
         c = ws_vec[i, VEC_C]
         for a in range(6):
             A[a] += c[a]
@@ -380,14 +374,8 @@ def inverse_dynamics(topology, joint_rot, joint_vec, spatial_inertia, ground_acc
     for i in range(nb):
         _body_position_kinematics(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat)
         _body_velocity_kinematics(i, topology, joint_vec, u, ws_rot, ws_vec, ws_mat)
-        parent = topology[i, PARENT]
         A = ws_vec[i, VEC_A]
-        R = ws_rot[i, ROT_PB]
-        r = ws_vec[i, VEC_POS]
-        if parent >= 0:
-            motion_to_child(R, r, ws_vec[parent, VEC_A], A)
-        else:
-            motion_to_child(R, r, ground_accel, A)
+        parent_acceleration(i, topology, ground_accel, ws_rot, ws_vec, A)
         S = ws_mat[i, MAT_S]
         c = ws_vec[i, VEC_C]
         u0 = topology[i, U_START]
@@ -488,11 +476,10 @@ def coordinate_rates(topology, q, u, qdot):
 
 
 @njit(cache=True)
-def world_poses(topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat):
+def accumulate_world_poses(topology, ws_rot, ws_vec):
     """Body -> world rotations (``ws_rot[:, ROT_WB]``) and body origins in the world
-    (``ws_vec[:, VEC_WPOS, 0:3]``); also leaves the parent-relative poses and motion subspaces."""
+    (``ws_vec[:, VEC_WPOS, 0:3]``) from the parent-relative poses."""
     for i in range(topology.shape[0]):
-        _body_position_kinematics(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat)
         parent = topology[i, PARENT]
         R_PB = ws_rot[i, ROT_PB]
         r = ws_vec[i, VEC_POS]
@@ -510,6 +497,59 @@ def world_poses(topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat):
                 p[a] = pp[a] + R_WP[a, 0] * r[0] + R_WP[a, 1] * r[1] + R_WP[a, 2] * r[2]
                 for b in range(3):
                     R_WB[a, b] = R_WP[a, 0] * R_PB[0, b] + R_WP[a, 1] * R_PB[1, b] + R_WP[a, 2] * R_PB[2, b]
+
+
+@njit(cache=True)
+def world_poses(topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat):
+    """World poses of every body (see :func:`accumulate_world_poses`); also leaves the parent-relative
+    poses and motion subspaces in the workspace."""
+    for i in range(topology.shape[0]):
+        _body_position_kinematics(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat)
+    accumulate_world_poses(topology, ws_rot, ws_vec)
+
+
+@njit(cache=True, inline="always")
+def parent_acceleration(i, topology, ground_accel, ws_rot, ws_vec, A):
+    """A = X_i a_parent (the ground's acceleration ``ground_accel`` for a root body)."""
+    parent = topology[i, PARENT]
+    if parent >= 0:
+        motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], ws_vec[parent, VEC_A], A)
+    else:
+        motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], ground_accel, A)
+
+
+@njit(cache=True)
+def accumulate_energy_momentum(M, x, h, n, R, p, ground_accel, out):
+    """Add one body's kinetic energy 1/2 x'Mx, gravity potential and world momentum to ``out``.
+
+    ``M`` (n x n, rigid block first: ``[[J, m c~], [-m c~, m I]]``) is the body's mass matrix about its
+    origin, ``x`` its velocity (``[omega; v]`` then modal rates), ``R``/``p`` its world pose; ``h`` is an
+    n-vector scratch that receives the momentum ``M x``."""
+    ke = 0.0
+    for a in range(n):
+        s = 0.0
+        for b in range(n):
+            s += M[a, b] * x[b]
+        h[a] = s
+        ke += x[a] * s
+    out[0] += 0.5 * ke
+    m = M[3, 3]
+    # center of mass from the coupling block m skew(c): c = (M[2,4], M[0,5], M[1,3]) / m
+    cx = M[2, 4] / m
+    cy = M[0, 5] / m
+    cz = M[1, 3] / m
+    for a in range(3):
+        com_w = p[a] + R[a, 0] * cx + R[a, 1] * cy + R[a, 2] * cz
+        out[1] += m * ground_accel[3 + a] * com_w  # ground_accel = [0; -g]
+    Pw0 = R[0, 0] * h[3] + R[0, 1] * h[4] + R[0, 2] * h[5]
+    Pw1 = R[1, 0] * h[3] + R[1, 1] * h[4] + R[1, 2] * h[5]
+    Pw2 = R[2, 0] * h[3] + R[2, 1] * h[4] + R[2, 2] * h[5]
+    out[2] += Pw0
+    out[3] += Pw1
+    out[4] += Pw2
+    out[5] += R[0, 0] * h[0] + R[0, 1] * h[1] + R[0, 2] * h[2] + p[1] * Pw2 - p[2] * Pw1
+    out[6] += R[1, 0] * h[0] + R[1, 1] * h[1] + R[1, 2] * h[2] + p[2] * Pw0 - p[0] * Pw2
+    out[7] += R[2, 0] * h[0] + R[2, 1] * h[1] + R[2, 2] * h[2] + p[0] * Pw1 - p[1] * Pw0
 
 
 @njit(cache=True)
@@ -580,30 +620,5 @@ def energy_momentum(topology, joint_rot, joint_vec, spatial_inertia, ground_acce
         out[a] = 0.0
     for i in range(nb):
         _body_velocity_kinematics(i, topology, joint_vec, u, ws_rot, ws_vec, ws_mat)
-        I = spatial_inertia[i]
-        V = ws_vec[i, VEC_V]
-        h = ws_vec[i, VEC_AUX]
-        mat6_vec(I, V, h)
-        ke = 0.0
-        for a in range(6):
-            ke += V[a] * h[a]
-        out[0] += 0.5 * ke
-        m = I[3, 3]
-        R = ws_rot[i, ROT_WB]
-        p = ws_vec[i, VEC_WPOS]
-        # center of mass from the inertia's coupling block m skew(c): c = (I[2,4], I[0,5], I[1,3]) / m
-        cx = I[2, 4] / m
-        cy = I[0, 5] / m
-        cz = I[1, 3] / m
-        for a in range(3):
-            com_w = p[a] + R[a, 0] * cx + R[a, 1] * cy + R[a, 2] * cz
-            out[1] += m * ground_accel[3 + a] * com_w  # ground_accel = [0; -g]
-        Pw0 = R[0, 0] * h[3] + R[0, 1] * h[4] + R[0, 2] * h[5]
-        Pw1 = R[1, 0] * h[3] + R[1, 1] * h[4] + R[1, 2] * h[5]
-        Pw2 = R[2, 0] * h[3] + R[2, 1] * h[4] + R[2, 2] * h[5]
-        out[2] += Pw0
-        out[3] += Pw1
-        out[4] += Pw2
-        out[5] += R[0, 0] * h[0] + R[0, 1] * h[1] + R[0, 2] * h[2] + p[1] * Pw2 - p[2] * Pw1
-        out[6] += R[1, 0] * h[0] + R[1, 1] * h[1] + R[1, 2] * h[2] + p[2] * Pw0 - p[0] * Pw2
-        out[7] += R[2, 0] * h[0] + R[2, 1] * h[1] + R[2, 2] * h[2] + p[0] * Pw1 - p[1] * Pw0
+        accumulate_energy_momentum(spatial_inertia[i], ws_vec[i, VEC_V], ws_vec[i, VEC_AUX], 6,
+                                   ws_rot[i, ROT_WB], ws_vec[i, VEC_WPOS], ground_accel, out)
