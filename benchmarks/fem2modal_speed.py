@@ -7,19 +7,26 @@ sparse pipeline must at least spend. Ratio = whole pipeline (read, assemble, sol
 properties, mode shapes, modal integrals) / bare eigsh.
 
 Run:  python3 benchmarks/fem2modal_speed.py [--nx 100 --ny 200 --modes 100]
+
+OpenBLAS is limited to one thread (unless OPENBLAS_NUM_THREADS is set): ARPACK's level-2 BLAS
+on long vectors gains nothing from threads and loses badly when the cores are shared (30k-DOF
+lattice, 106 modes: 36 s with default threads on the loaded 2-core machine, 7.6 s with one).
 """
 
 from __future__ import annotations
 
-import argparse
 import os
-import sys
-import tempfile
-import time
-import warnings
 
-import numpy as np
-import scipy.sparse.linalg as spla
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy.sparse.linalg as spla  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests", "flex"))
@@ -108,6 +115,7 @@ def main() -> None:
     ap.add_argument("--modes", type=int, default=100)
     args = ap.parse_args()
     warnings.simplefilter("ignore")
+    print(f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")
     with tempfile.TemporaryDirectory() as tmp:
         bench_beam(tmp)
         bench_lattice(tmp, args.nx, args.ny, args.modes)
