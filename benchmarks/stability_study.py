@@ -37,7 +37,7 @@ import numpy as np  # noqa: E402
 
 from shell.integrators import INTEGRATORS, Radau5, StiffnessWarning, integrate  # noqa: E402
 from shell.integrators import stability  # noqa: E402
-from shell.integrators.reference_problems import FreeFreeBeamModes  # noqa: E402
+from shell.integrators.reference_problems import FreeFreeBeamModes, TipForcedBeam  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -126,58 +126,10 @@ def part2(f_max=100.0, factors=(1, 10, 100, 1000, 10000)):
     return omega_max, rows
 
 
-class ForcedBeam:
-    """Beam modes driven at the tip by F(t) = F0 sin(Omega t); closed-form response.
-
-    Mass-normalized free-free mode shapes have tip values +-2/sqrt(m) for the elastic modes, 1/sqrt(m)
-    for translation and sqrt(3/m) for rotation (Blevins Table 8-1 shapes normalized to the beam mass m).
-    """
-
-    def __init__(self, f_max, force=10.0, frequency_hz=0.05):
-        self.beam = FreeFreeBeamModes(f_max=f_max, zeta=ZETA, eta0=None, eta_dot0=None)
-        beam = self.beam
-        n = beam.n_modes
-        mass = 2.0 * 10.0  # rho_A * length of the default beam
-        tip = np.empty(n)
-        tip[0] = 1.0 / np.sqrt(mass)
-        tip[1] = np.sqrt(3.0 / mass)
-        tip[2:] = 2.0 / np.sqrt(mass) * np.where(np.arange(n - 2) % 2 == 0, 1.0, -1.0)
-        self.b = tip * force
-        self.Omega = 2 * np.pi * frequency_hz
-        self.y0 = np.zeros(2 * n)
-        self.n = n
-
-    def fun(self, t, y):
-        out = self.beam.fun(t, y)
-        out[self.n:] += self.b * np.sin(self.Omega * t)
-        return out
-
-    def exact(self, t):
-        beam, W, n = self.beam, self.Omega, self.n
-        eta = np.empty(n)
-        eta_dot = np.empty(n)
-        for i in range(n):
-            w, z, b = beam.omega[i], beam.zeta[i], self.b[i]
-            if w == 0.0:
-                eta[i] = b * (t / W - np.sin(W * t) / W ** 2)
-                eta_dot[i] = b * (1 - np.cos(W * t)) / W
-                continue
-            P = b / (w * w - W * W + 2j * z * w * W)  # particular response Im(P e^{i W t})
-            xp, vp = (P * np.exp(1j * W * t)).imag, (1j * W * P * np.exp(1j * W * t)).imag
-            x0, v0 = -P.imag, -(1j * W * P).imag  # homogeneous part cancels the particular initial state
-            a = z * w
-            wd = w * np.sqrt(1 - z * z)
-            e = np.exp(-a * t)
-            B = (v0 + a * x0) / wd
-            eta[i] = xp + e * (x0 * np.cos(wd * t) + B * np.sin(wd * t))
-            eta_dot[i] = vp + e * ((-a * x0 + wd * B) * np.cos(wd * t) + (-a * B - wd * x0) * np.sin(wd * t))
-        return np.concatenate([eta, eta_dot])
-
-
 def part3(f_max_values, t_end=10.0, rtol=1e-6, atol=1e-7):
     rows = []
     for f_max in f_max_values:
-        problem = ForcedBeam(f_max)
+        problem = TipForcedBeam(f_max, zeta=ZETA)
         y_ref = problem.exact(t_end)
         for method in ["bs32", "dopri5", "dop853", "radau5"]:
             options = {"jac": problem.beam.jacobian()} if method == "radau5" else {}

@@ -9,6 +9,8 @@
   ``omega_n = (beta_n L)^2 sqrt(E I / (rho A L^4))`` with ``cos(beta L) cosh(beta L) = 1`` (Blevins,
   "Formulas for Natural Frequency and Mode Shape", 1979, Table 8-1), two rigid-body modes and light modal
   damping; each modal coordinate has the closed-form damped free response.
+- :class:`TipForcedBeam`: the same beam at rest, driven at its tip by a slow sinusoidal force (closed-form
+  forced response); high modes follow quasi-statically (stiff).
 - :func:`spinning_spacecraft_pd`: attitude (quaternion + body rates) of a rigid spacecraft under a PD
   controller with a reaction-wheel-like torque limit; no closed form (the reference is DOP853 at
   rtol = 1e-13), used as the closed-loop scene of the work-precision study.
@@ -212,6 +214,57 @@ class FreeFreeBeamModes:
             eta[i] = e * (x0 * c + B * s)
             eta_dot[i] = e * ((-a * x0 + wd * B) * c + (-a * B - wd * x0) * s)
         return np.concatenate([eta, eta_dot])
+
+
+class TipForcedBeam:
+    """The free-free beam's modes, at rest at t = 0, driven at the tip by F(t) = F0 sin(Omega t) (N);
+    state y = [eta, eta_dot]; closed-form response. A slow force makes the high modes follow
+    quasi-statically: the classic stiff structural problem.
+
+    Mass-normalized free-free mode shapes have tip values +-2/sqrt(m) for the elastic modes, 1/sqrt(m)
+    for translation and sqrt(3/m) for rotation (Blevins Table 8-1 shapes normalized to the beam mass m).
+    """
+
+    def __init__(self, f_max, zeta=0.005, force=10.0, frequency_hz=0.05):
+        self.beam = FreeFreeBeamModes(f_max=f_max, zeta=zeta)
+        beam = self.beam
+        n = beam.n_modes
+        mass = 2.0 * 10.0  # rho_A * length of the default beam
+        tip = np.empty(n)
+        tip[0] = 1.0 / np.sqrt(mass)
+        tip[1] = np.sqrt(3.0 / mass)
+        tip[2:] = 2.0 / np.sqrt(mass) * np.where(np.arange(n - 2) % 2 == 0, 1.0, -1.0)
+        self.b = tip * force
+        self.Omega = 2 * np.pi * frequency_hz
+        self.y0 = np.zeros(2 * n)
+        self.n = n
+
+    def fun(self, t, y):
+        out = self.beam.fun(t, y)
+        out[self.n:] += self.b * np.sin(self.Omega * t)
+        return out
+
+    def exact(self, t):
+        beam, W, n = self.beam, self.Omega, self.n
+        eta = np.empty(n)
+        eta_dot = np.empty(n)
+        for i in range(n):
+            w, z, b = beam.omega[i], beam.zeta[i], self.b[i]
+            if w == 0.0:
+                eta[i] = b * (t / W - np.sin(W * t) / W ** 2)
+                eta_dot[i] = b * (1 - np.cos(W * t)) / W
+                continue
+            P = b / (w * w - W * W + 2j * z * w * W)  # particular response Im(P e^{i W t})
+            xp, vp = (P * np.exp(1j * W * t)).imag, (1j * W * P * np.exp(1j * W * t)).imag
+            x0, v0 = -P.imag, -(1j * W * P).imag  # homogeneous part cancels the particular initial state
+            a = z * w
+            wd = w * np.sqrt(1 - z * z)
+            e = np.exp(-a * t)
+            B = (v0 + a * x0) / wd
+            eta[i] = xp + e * (x0 * np.cos(wd * t) + B * np.sin(wd * t))
+            eta_dot[i] = vp + e * ((-a * x0 + wd * B) * np.cos(wd * t) + (-a * B - wd * x0) * np.sin(wd * t))
+        return np.concatenate([eta, eta_dot])
+
 
 
 def _quat_multiply(p, q):

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from shell.integrators.reference_problems import (FreeFreeBeamModes, TorqueFreeRigidBody, free_free_beam_roots,
-                                                  linear_oscillator)
+from shell.integrators.reference_problems import (FreeFreeBeamModes, TipForcedBeam, TorqueFreeRigidBody,
+                                                  free_free_beam_roots, linear_oscillator)
 
 RIGID_CASES = [  # (principal moments, initial body rates): both solution families, unsorted axes, odd permutations
     ((100.0, 200.0, 300.0), (0.3, -0.5, 1.0)),
@@ -60,3 +60,12 @@ def test_damped_oscillator_exact_solution():
     fun, exact = linear_oscillator(3.0, 0.1)
     for t in (0.0, 0.4, 2.0):
         assert_allclose(_central_difference(exact, t, h=1e-6), fun(t, exact(t)), atol=1e-8)
+
+
+def test_tip_forced_beam_exact_response():
+    problem = TipForcedBeam(f_max=30.0)
+    assert_allclose(problem.exact(0.0), 0.0, atol=1e-18)  # starts at rest
+    for t in (0.05, 3.0):
+        y = problem.exact(t)
+        assert_allclose(_central_difference(problem.exact, t, h=1e-6), problem.fun(t, y), rtol=1e-6,
+                        atol=1e-9 * np.abs(problem.fun(t, y)).max())

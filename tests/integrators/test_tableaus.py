@@ -135,6 +135,10 @@ def test_stability_radii_match_textbook_values():
     # the stiffness thresholds of the adaptive pairs are 75% of these real-axis radii
     assert stability.stability_radius(tableaus.DOPRI5, np.pi) == pytest.approx(3.3066, abs=1e-4)
     assert stability.stability_radius(tableaus.DOP853, np.pi) == pytest.approx(6.3937, abs=1e-4)
+    # radii along a 1%-damped ray used to confirm stiffness warnings
+    one_percent = stability.mode_angle(0.01)
+    assert stability.stability_radius(tableaus.DOPRI5, one_percent) == pytest.approx(1.8721, abs=1e-4)
+    assert stability.stability_radius(tableaus.DOP853, one_percent) == pytest.approx(6.0317, abs=1e-4)
     # Euler on a damped mode: |1 + h lambda| <= 1  <=>  h omega <= 2 zeta
     zeta = 0.02
     assert stability.max_stable_step(tableaus.EULER, 1.0, zeta) == pytest.approx(2 * zeta, rel=1e-8)
