@@ -150,18 +150,39 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
                    - np.einsum("j,jsab,jbc,jcr->rsa", m, Gr, P, lam, **es)
                    + np.einsum("j,jsab,jbr->rsa", m, LXP, gam, **es)
                    - np.einsum("j,jab,jsbc,jcr->rsa", m, L0, LXP, lam, **es))
-        F2 = -(np.einsum("jsab,jbc,jlcd,jdr->rsla", Lr, J, Lr, lam, **es)
-               + np.einsum("j,jsab,jlbc,jcr->rsla", m, Gr, LXP, lam, **es))
+        # F2(r,s,l) = -sum_j [lambda_s x (J (lambda_l x lambda_r))
+        #                     + m gamma_s x ((lambda_l x p) x lambda_r)], GEMMs over (node, axis)
+        lam_t = np.moveaxis(lam, 2, 1)                                   # (N,n,3)
+        cross_rl = np.cross(lam_t[:, :, None, :], lam_t[:, None, :, :])  # (N,r,l,3)
+        Nj = len(m)
+        w = np.einsum("jab,jlrb->jalr", J, cross_rl)                         # J (l x r)
+        u = np.cross(lxp[:, :, None, :], lam_t[:, None, :, :])              # (l x p) x r
+        u = (m[:, None, None, None] * u).transpose(0, 3, 1, 2)               # (N,3,l,r)
+        F2 = -((Lr.transpose(1, 2, 0, 3).reshape(3 * n, 3 * Nj)
+                @ w.reshape(3 * Nj, n * n))
+               + (Gr.transpose(1, 2, 0, 3).reshape(3 * n, 3 * Nj)
+                  @ u.reshape(3 * Nj, n * n)))
+        F2 = F2.reshape(n, 3, n, n).transpose(3, 0, 2, 1)                    # [r,s,l,a]
         E1 = -np.einsum("j,jsab,jbr->rsa", m, LXP, lam, **es)
         G0 = G0 + (np.einsum("jar,jab,jbs->rs", lam, J, lam, **es)
                    + np.einsum("j,jar,jab,jbs->rs", m, lam, P, gam, **es)
                    + np.einsum("j,jas,jab,jbr->rs", m, lam, P, gam, **es))
-        G1 = (np.einsum("jar,jlab,jbc,jcs->rsl", lam, Lr, J, lam, **es)
-              + np.einsum("j,jar,jlab,jbs->rsl", m, lam, LXP, gam, **es))
+        # lambda_r' lambda_l~ = (lambda_r x lambda_l)' and lambda_r' [w]x = (lambda_r x w)':
+        # G1 as one GEMM over (node, axis)
+        Jlam = np.einsum("jab,jbs->jas", J, lam)                         # (N,3,n)
+        q = m[:, None, None, None] * np.cross(lam_t[:, :, None, :], lxp[:, None, :, :])
+        G1 = ((cross_rl.transpose(0, 3, 1, 2).reshape(3 * Nj, n * n).T
+               @ Jlam.reshape(3 * Nj, n))
+              + (q.transpose(0, 3, 1, 2).reshape(3 * Nj, n * n).T
+                 @ gam.reshape(3 * Nj, n))).reshape(n, n, n).transpose(0, 2, 1)
         hasJ = np.abs(J).reshape(len(m), -1).max(axis=1) > 0.0
         if np.any(hasJ) and n <= max_g2_modes:
-            G2 = -np.einsum("jar,jlab,jbc,jmcd,jds->rslm", lam[hasJ], Lr[hasJ], J[hasJ],
-                            Lr[hasJ], lam[hasJ], **es)
+            # G2(r,s,l,m) = -(lambda_r x lambda_l)' J (lambda_m x lambda_s): one GEMM
+            C = cross_rl[hasJ].transpose(0, 3, 1, 2).reshape(-1, n * n)      # rows (j,a)
+            JC = np.einsum("jab,jbX->jaX", J[hasJ],
+                           cross_rl[hasJ].transpose(0, 3, 1, 2).reshape(-1, 3, n * n))
+            X = (C.T @ JC.reshape(-1, n * n)).reshape(n, n, n, n)         # [r,l,m,s]
+            G2 = -X.transpose(0, 3, 1, 2)
         elif np.any(hasJ):
             warnings.warn(f"modal integral G2 (n^4 = {n**4} numbers) not computed for {n} "
                           f"modes (limit max_g2_modes = {max_g2_modes}); the O(eta^2) "
