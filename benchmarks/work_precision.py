@@ -2,7 +2,7 @@
 
 For each scene, every method is run over a sweep of steps (fixed-step methods) or tolerances (adaptive
 and implicit methods); the final-state relative error ``||y - y_ref|| / ||y_ref||`` is plotted against
-wall time and against derivative evaluations. Scenes:
+CPU time and against derivative evaluations. Scenes:
 
 (a) rigid spinning body: torque-free asymmetric body (Euler's equations), 100 s; reference = the
     Jacobi-elliptic closed form (shell.integrators.reference_problems.TorqueFreeRigidBody).
@@ -13,8 +13,9 @@ wall time and against derivative evaluations. Scenes:
     configs/demo_attitude_hold.yaml sampled at 10 Hz (every run restarts the integrator 10 times per
     second), 20 s; reference = DOP853 at rtol 1e-13 (no closed form; scipy cannot drive the sampled loop).
 
-Each point is the best of ``--repeat`` timings (default 2). Charts go to docs/integrators_wp_<scene>.png;
-tables (markdown) go to stdout, including the wall-time ratio against scipy's RK45 / DOP853 / Radau at the
+Each point is the best of ``--repeat`` timings (default 2) of the process CPU time (robust on a shared
+machine; the solvers are single-threaded). Charts go to docs/integrators_wp_<scene>.png;
+tables (markdown) go to stdout, including the CPU-time ratio against scipy's RK45 / DOP853 / Radau at the
 same tolerance (same problem, same process).
 
     python3 benchmarks/work_precision.py            # all scenes (~5 min on one core)
@@ -58,12 +59,14 @@ def relative_error(y, y_ref):
 
 
 def timed(run, repeat):
+    """Best CPU time of this process over ``repeat`` runs: on a shared machine wall time also counts other
+    jobs' work, CPU time does not (every solver here is single-threaded)."""
     best = np.inf
     result = None
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         result = run()
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, time.process_time() - t0)
     return best, result
 
 
@@ -202,7 +205,7 @@ def ode_scenes():
 
 
 def sweep(scene, repeat, quick):
-    """Run every method over its sweep; returns {label: [(error, wall, nfev, setting), ...]}."""
+    """Run every method over its sweep; returns {label: [(error, cpu_time, nfev, setting), ...]}."""
     results = {}
     for method in FIXED:
         kappas = KAPPA[method][::2] if quick else KAPPA[method]
@@ -211,24 +214,24 @@ def sweep(scene, repeat, quick):
             h = kappa / scene.omega_max
             if scene.t_end / h > MAX_STEPS:
                 continue
-            wall, out = timed(lambda: scene.run_ours(method, step=h), repeat)
+            cpu_time, out = timed(lambda: scene.run_ours(method, step=h), repeat)
             if out is None or not np.all(np.isfinite(out[0])) or relative_error(out[0], scene.y_ref) > 1.0:
                 print(f"  {method:7s} step {h:9.3g} s: unstable / failed")
                 continue
-            points.append((relative_error(out[0], scene.y_ref), wall, out[1], h))
+            points.append((relative_error(out[0], scene.y_ref), cpu_time, out[1], h))
         results[method] = points
     for method in ADAPTIVE:
         tols = RTOL[method][::2] if quick else RTOL[method]
         points, peer_points = [], []
         for rtol in tols:
-            wall, out = timed(lambda: scene.run_ours(method, rtol=rtol), repeat)
+            cpu_time, out = timed(lambda: scene.run_ours(method, rtol=rtol), repeat)
             if out is not None:
-                points.append((relative_error(out[0], scene.y_ref), wall, out[1], rtol))
+                points.append((relative_error(out[0], scene.y_ref), cpu_time, out[1], rtol))
             peer = SCIPY_PEER.get(method)
             if peer is not None:
-                wall_p, out_p = timed(lambda: scene.run_scipy(peer, rtol), repeat)
+                cpu_p, out_p = timed(lambda: scene.run_scipy(peer, rtol), repeat)
                 if out_p is not None:
-                    peer_points.append((relative_error(out_p[0], scene.y_ref), wall_p, out_p[1], rtol))
+                    peer_points.append((relative_error(out_p[0], scene.y_ref), cpu_p, out_p[1], rtol))
         results[method] = points
         if peer_points:
             results["scipy " + SCIPY_PEER[method]] = peer_points
@@ -241,7 +244,7 @@ def plot(scene, results):
         if not points:
             continue
         err = np.array([p[0] for p in points])
-        wall = np.array([p[1] for p in points])
+        cpu_time = np.array([p[1] for p in points])
         nfev = np.array([p[2] for p in points])
         if label.startswith("scipy"):
             ours = next(m for m, s in SCIPY_PEER.items() if "scipy " + s == label)
@@ -250,9 +253,9 @@ def plot(scene, results):
         else:
             color, marker = STYLE[label]
             kw = dict(ls="-", lw=1.6)
-        axes[0].loglog(wall, err, marker=marker, color=color, label=label, **kw)
+        axes[0].loglog(cpu_time, err, marker=marker, color=color, label=label, **kw)
         axes[1].loglog(nfev, err, marker=marker, color=color, label=label, **kw)
-    axes[0].set_xlabel("wall time (s)")
+    axes[0].set_xlabel("CPU time (s)")
     axes[1].set_xlabel("derivative evaluations")
     axes[0].set_ylabel("final-state relative error")
     for ax in axes:
@@ -268,12 +271,12 @@ def plot(scene, results):
 
 def print_tables(scene, results):
     print(f"\n### {scene.title}\n")
-    print("| method | setting | rel. error | wall (ms) | derivative evals |")
+    print("| method | setting | rel. error | CPU (ms) | derivative evals |")
     print("| --- | --- | --- | --- | --- |")
     for label, points in results.items():
-        for err, wall, nfev, setting in points:
+        for err, cpu_time, nfev, setting in points:
             kind = "step" if label in FIXED else "rtol"
-            print(f"| {label} | {kind} {setting:.3g} | {err:.2e} | {wall * 1e3:.1f} | {nfev} |")
+            print(f"| {label} | {kind} {setting:.3g} | {err:.2e} | {cpu_time * 1e3:.1f} | {nfev} |")
     ratios = []
     for ours, peer in SCIPY_PEER.items():
         a = {p[3]: p for p in results.get(ours, [])}
@@ -281,7 +284,7 @@ def print_tables(scene, results):
         for rtol in sorted(set(a) & set(b)):
             ratios.append((ours, peer, rtol, b[rtol][1] / a[rtol][1], a[rtol][0], b[rtol][0]))
     if ratios:
-        print("\nSpeed against solve_ivp (same rtol/atol, same process): wall(scipy) / wall(flexshell)\n")
+        print("\nSpeed against solve_ivp (same rtol/atol, same process): CPU(scipy) / CPU(flexshell)\n")
         print("| flexshell | scipy | rtol | speed-up | error flexshell | error scipy |")
         print("| --- | --- | --- | --- | --- | --- |")
         for ours, peer, rtol, ratio, e_a, e_b in ratios:
