@@ -159,6 +159,7 @@ TOP_LEVEL = {
     "assemblies": "reusable assembly types defined in this file",
     "connections": "list of 'source.port -> destination.port'", "integrator": "method and step",
     "stop": "stop time and stop events", "log": "logged signals and rates",
+    "events": "zero-crossing search: detection (sign_change | subdivided), tolerance",
 }
 MODEL_KEYS = {
     "type": "registered model or assembly type", "parameters": "parameter values (with units)",
@@ -182,6 +183,8 @@ class Scenario:
     integrator_options: dict = field(default_factory=dict)
     t_final: float | None = None
     stop_events: list = field(default_factory=list)
+    event_detection: str = "sign_change"
+    event_tolerance: float = 1e-10
     log_rate: object = None
     log_signals: list = field(default_factory=list)  # (name, rate)
     log_file: str | None = None
@@ -221,6 +224,7 @@ def parse_scenario(text: str, filename: str = "<string>", overrides: list[str] |
     _validate_connections(document, root)
     _validate_integrator(document, root, scenario)
     _validate_stop(document, root, scenario)
+    _validate_events(document, root, scenario)
     _validate_log(document, root, scenario)
     return scenario
 
@@ -414,6 +418,27 @@ def _validate_stop(document, root: _Where, scenario: Scenario) -> None:
         scenario.stop_events = list(events)
 
 
+def _validate_events(document, root: _Where, scenario: Scenario) -> None:
+    if "events" not in document:
+        return
+    where = root.child(document, "events")
+    spec = _expect_mapping(document["events"], where, {
+        "detection": "sign_change (default: search a step when a function changes sign between its ends) or "
+                     "subdivided (search every step: also two crossings inside one step)",
+        "tolerance": "time tolerance of located crossings, e.g. 1e-10 s"})
+    if "detection" in spec:
+        if spec["detection"] not in ("sign_change", "subdivided"):
+            raise where.child(spec, "detection").error(f"expected sign_change or subdivided, given {spec['detection']!r}")
+        scenario.event_detection = spec["detection"]
+    if "tolerance" in spec:
+        try:
+            scenario.event_tolerance = float(to_magnitude(spec["tolerance"], "s", (), "tolerance"))
+        except UnitError as exc:
+            raise where.child(spec, "tolerance").error(f"expected a time, given {spec['tolerance']!r} ({exc})") from None
+        if not scenario.event_tolerance > 0:
+            raise where.child(spec, "tolerance").error(f"expected a positive time, given {spec['tolerance']!r}")
+
+
 def _validate_log(document, root: _Where, scenario: Scenario) -> None:
     if "log" not in document:
         return
@@ -461,7 +486,7 @@ def apply_override(document: dict, assignment: str, filename: str) -> None:
     models = document.get("models") or {}
     if parts[0] in ("seed", "name", "description") and len(parts) == 1:
         document[parts[0]] = value
-    elif parts[0] in ("integrator", "stop", "log"):
+    elif parts[0] in ("integrator", "stop", "log", "events"):
         section = document.setdefault(parts[0], LineDict())
         if not isinstance(section, dict):
             raise where.error(f"section {parts[0]} is not a mapping")
@@ -488,7 +513,7 @@ def apply_override(document: dict, assignment: str, filename: str) -> None:
             params = entry.setdefault("parameters", LineDict())
             params[".".join(parts[1:])] = value
     else:
-        known = sorted(set(models) | {"seed", "integrator", "stop", "log", "multibody"})
+        known = sorted(set(models) | {"seed", "integrator", "stop", "log", "events", "multibody"})
         raise where.error(f"{parts[0]!r} is neither a model nor a scenario section; known: {known}")
 
 
@@ -610,7 +635,8 @@ def build_simulation(scenario: Scenario):
     try:
         simulation = Simulation(root, integrator=scenario.integrator, step=scenario.step,
                                 integrator_options=scenario.integrator_options, seed=scenario.seed,
-                                stop_events=scenario.stop_events)
+                                stop_events=scenario.stop_events, event_tol=scenario.event_tolerance,
+                                event_detection=scenario.event_detection)
     except (ModelError, UnitError) as exc:
         message = str(exc)
         raise ScenarioError(message if message.startswith(scenario.file) else f"{scenario.file}: {message}") from None

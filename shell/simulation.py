@@ -15,8 +15,10 @@ returned copy.
 
 Run loop (TM-2020-5008164 App. D.1: multi-rate models, zero finding): integrate continuously up to the
 next instant at which a sampled model updates or a log group samples (exact rational sample instants),
-checking the models' zero-crossing functions after each step. A sign change is located to ``event_tol``
-on the integrator's dense output (:func:`shell.integrators.locate_events`), the state is moved to the
+checking the models' zero-crossing functions after each step. A sign change (with
+``event_detection="subdivided"``: any crossing, also two inside one step, found by sampling the step) is
+located to ``event_tol`` on the integrator's dense output (:func:`shell.integrators.locate_events`), the
+state is moved to the
 crossing, the models' ``on_event`` handlers run (state reset, mode switch) in (time, model order), and
 the integrator restarts; a terminal crossing stops the run. At a sample instant the due sampled models
 update one after another in dataflow order (upstream first, ties by declaration order), each seeing the
@@ -102,10 +104,15 @@ class Simulation:
 
     def __init__(self, root: Assembly, *, integrator: str = "rk4", step: float | None = 0.01,
                  integrator_options: dict | None = None, seed=0, stop_events=(), event_tol: float = 1e-10,
-                 t_start: float = 0.0, fuse: bool = False):
+                 event_detection: str = "sign_change", t_start: float = 0.0, fuse: bool = False):
         self.root = root
         self.seed = seed
         self.event_tol = float(event_tol)
+        if event_detection not in ("sign_change", "subdivided"):
+            raise ModelError(f"event detection {event_detection!r}: expected 'sign_change' (search a step when a "
+                             "zero-crossing function changes sign between its ends) or 'subdivided' (search every "
+                             "step on its dense output: also finds two crossings inside one step)")
+        self.event_detection = event_detection
         self.models, self.connections = flatten(root)
         if not self.models:
             raise WiringError("the scene has no models")
@@ -356,6 +363,7 @@ class Simulation:
             raise ModelError(f"zero crossings {sorted(declared)} need continuous states to be located on; "
                              "the scene has none")
         self._g = np.zeros(n)
+        self._last_events: tuple[float, set] = (-np.inf, set())
         self._event_functions = [_EventFunction(self, j, zc.direction, terminal[j])
                                  for j, (_, _, zc) in enumerate(self._zc_owner)]
 
@@ -556,7 +564,7 @@ class Simulation:
             self.counters["steps"] += 1
             if have_events:
                 g_new = self._zero_crossing_vector(integ.t, integ.y)
-                if self._crossed(g_old, g_new):
+                if self.event_detection == "subdivided" or self._crossed(g_old, g_new):
                     stop = self._handle_events(integ, g_old, g_new, target)
                     if stop is not None:
                         return stop
@@ -582,6 +590,10 @@ class Simulation:
         sol = integ.dense_output()
         hits = locate_events(self._event_functions, sol, integ.t_old, integ.t, g_old, g_new, xtol=self.event_tol,
                              all_values=self._zero_crossing_vector)
+        # a crossing just handled leaves its function at zero up to round-off, which may read as a new
+        # sign change right after the restart: the same function within the tolerance is not a new event
+        t_last, handled = self._last_events
+        hits = [(t, j) for t, j in hits if not (j in handled and t - t_last <= 4 * self.event_tol)]
         if not hits:
             return None
         t_event = hits[0][0]
@@ -592,6 +604,7 @@ class Simulation:
         self.x[:] = y_event
         self.evaluate(t_event)
         stop = None
+        self._last_events = (t_event, {j for t_hit, j in hits if t_hit == t_event})
         for t_hit, j in hits:
             if t_hit != t_event:
                 break

@@ -2,8 +2,10 @@
 
 import numpy as np
 import pytest
+from numba import njit
 
 from shell.assembly import Assembly
+from shell.model import Model, State, ZeroCrossing
 from shell.models.test_plants import BouncingBall
 from shell.simulation import Simulation
 
@@ -57,3 +59,53 @@ def test_unknown_stop_event_is_refused():
     with pytest.raises(ModelError, match=r"stop event 'ball.contact': no such zero crossing; declared: "
                                          r"\['ball.ground_contact'\]"):
         ball_scene(0.01, stop_events=["ball.contact"])
+
+
+@njit(cache=True)
+def _clock_rate(t, x, z, u, p, xdot):
+    xdot[0] = 1.0
+
+
+@njit(cache=True)
+def _dip(t, x, z, u, p, g):
+    g[0] = (x[0] - 0.505) ** 2 - 1e-6  # negative only on (0.504, 0.506): inside one 10 ms step
+
+
+class _Dip(Model):
+    continuous_states = (State("clock", "s", (), 0.0),)
+    discrete_states = (State("crossings", "", (), 0.0),)
+    zero_crossings = (ZeroCrossing("dip"),)
+    derivatives = staticmethod(_clock_rate)
+    zero_crossing_values = staticmethod(_dip)
+
+    def on_event(self, index, t, x, z, p):
+        z[0] += 1.0
+
+
+@pytest.mark.parametrize("detection, expected", [("sign_change", []), ("subdivided", [0.504, 0.506])])
+def test_two_crossings_inside_one_step(detection, expected):
+    root = Assembly("root")
+    root.add(_Dip("probe"))
+    sim = Simulation(root, step=0.01, event_detection=detection, event_tol=1e-13)
+    sim.run(1.0)
+    # g is negative only between 0.504 and 0.506 s, inside the step [0.50, 0.51]: its ends have the same
+    # sign, so only the subdivided search sees the pair (clock = t exactly: RK4 on x' = 1)
+    np.testing.assert_allclose([t for t, _ in sim.events], expected, atol=1e-12)
+    assert sim.signal("probe.crossings") == len(expected)
+
+
+def test_event_options_from_yaml(scene):
+    sim = scene("""
+    models:
+      ball: {type: BouncingBall}
+    events: {detection: subdivided, tolerance: 1e-12 s}
+    """)
+    assert sim.event_detection == "subdivided" and sim.event_tol == 1e-12
+    from shell.scenario import ScenarioError
+
+    with pytest.raises(ScenarioError, match=r"scene.yaml:4: events.detection: expected sign_change or subdivided"):
+        scene("""
+        models:
+          ball: {type: BouncingBall}
+        events: {detection: always}
+        """)
