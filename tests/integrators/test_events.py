@@ -123,3 +123,15 @@ def test_vectorized_sampling_gives_the_same_roots_with_fewer_calls():
     assert_allclose([t for t, _ in roots], [0.2, 0.3, 0.6, 0.7], atol=1e-13)
     assert calls["all"] == 7  # one call per interior sample instead of one per function and sample
     assert calls["single"] == single_calls - 2 * 7
+
+
+def test_integrate_output_times_on_dense_output_up_to_terminal_event():
+    fun, exact = oscillator(1.0)
+    stop = _g(lambda t, y: y[0] + 0.5, terminal=True, direction=-1)  # t = 2 pi / 3
+    t_eval = np.linspace(0.0, 5.0, 51)
+    r = integrate("dop853", fun, 0.0, [1.0, 0.0], 5.0, rtol=1e-12, atol=1e-12, t_eval=t_eval, events=[stop])
+    kept = t_eval[t_eval <= 2 * np.pi / 3]
+    assert_allclose(r.t, kept, rtol=0, atol=0)  # exactly the requested times, none after the stop
+    assert_allclose(r.y, exact(kept), atol=1e-10)
+    with pytest.raises(ValueError, match="increasing 1-D array within"):
+        integrate("rk4", fun, 0.0, [1.0, 0.0], 1.0, step=0.1, t_eval=[0.5, 0.2])
