@@ -564,7 +564,10 @@ class Simulation:
             self.counters["steps"] += 1
             if have_events:
                 g_new = self._zero_crossing_vector(integ.t, integ.y)
-                if self.event_detection == "subdivided" or self._crossed(g_old, g_new):
+                # the step right after an event is always searched: a function left at zero by the event
+                # can leave and come back inside one (long, adaptive) step without a sign change at its ends
+                if self.event_detection == "subdivided" or integ.t_old == self._last_events[0] \
+                        or self._crossed(g_old, g_new):
                     stop = self._handle_events(integ, g_old, g_new, target)
                     if stop is not None:
                         return stop
