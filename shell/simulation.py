@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from shell.assembly import Assembly, Connection, flatten
-from shell.integrators import locate_events, make_integrator
+from shell.integrators import locate_events, make_integrator, quaternion_gauge
 from shell.log_file import LoggedSignal, LogWriter
 from shell.model import ModelError, parse_period
 from shell.units import UnitError, conversion_factor, format_unit, to_magnitude
@@ -472,8 +472,14 @@ class Simulation:
             def normalize(y):
                 for model, block in views:
                     model.normalize_state(y[block])
+        options = dict(self.integrator_options)
+        w_indices = [self._x_block[self.model_index[m.path]].start + k
+                     for m in self._normalizers for k in getattr(m, "quaternion_w_indices", list)()]
+        if w_indices and "error_exclude" not in options:
+            # quaternion norms are fixed by normalize; their error along the quaternion is gauge, not error
+            options["error_exclude"] = quaternion_gauge(np.asarray(w_indices, dtype=np.int64))
         return make_integrator(self.integrator_name, self.rhs, self.t, self.x.copy(), t_bound,
-                               normalize=normalize, **self.integrator_options)
+                               normalize=normalize, **options)
 
     def _initialize(self) -> None:
         if self._initialized:

@@ -304,6 +304,10 @@ class MultibodyModel(Model):
         """Renormalize hinge quaternions in place (the integrator's normalize hook)."""
         self.system.normalize_quaternions(x[:self.system.nq])
 
+    def quaternion_w_indices(self) -> list[int]:
+        """Positions in this model's state of each hinge quaternion's w (for the integrator's error norm)."""
+        return [int(k) for k in self.system.quaternion_q_indices]
+
     # -- construction from a scenario -------------------------------------------------------------------
     @classmethod
     def from_description(cls, description, where) -> "MultibodyModel":
