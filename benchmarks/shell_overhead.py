@@ -88,12 +88,15 @@ def main() -> None:
     args = parser.parse_args()
     rows = []
 
-    root = Assembly("root")
-    add_trivial_models(root)
-    sim = Simulation(root)
+    def trivial_scene():
+        root = Assembly("root")
+        add_trivial_models(root)
+        return root
+
+    sim = Simulation(trivial_scene())
     y = np.linspace(1.0, 2.0, sim.x.size)
     t0 = time.perf_counter()
-    fused = Simulation(root, fuse=True).rhs
+    fused = Simulation(trivial_scene(), fuse=True).rhs
     fused(0.0, y)
     compile_seconds = time.perf_counter() - t0
     assert np.array_equal(fused(0.0, y), sim.derivative(0.0, y))

@@ -27,8 +27,10 @@ outputs the previous ones just produced; their outputs are then held until their
 
 from __future__ import annotations
 
+import gc
 import json
 import time as _time
+import weakref
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -150,6 +152,15 @@ class Simulation:
         self.counters = {"steps": 0, "nfev": 0, "events": 0, "updates": 0}
         #: (time, "model.zero_crossing") of every handled event, in order
         self.events: list[tuple[float, str]] = []
+        for m in self.models:  # a model's random stream and engine workspace serve one simulation
+            owner = getattr(m, "_simulation", None)
+            if owner is not None and owner() is not None:
+                gc.collect()  # a discarded simulation may still be waiting in a reference cycle
+            if owner is not None and owner() is not None:
+                raise ModelError(f"model {m.path} already belongs to another Simulation (its random stream and "
+                                 "workspace would be shared); build the scene again for a second simulation")
+        for m in self.models:
+            m._simulation = weakref.ref(self)
 
     # ------------------------------------------------------------------------------------------------
     # build

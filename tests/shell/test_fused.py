@@ -9,8 +9,7 @@ from shell.models.blocks import Constant, Gain, Integrator
 from shell.simulation import Simulation
 
 
-@pytest.mark.slow  # compiling the generated function takes 6-10 s (numba recompiles the inlined kernels)
-def test_fused_derivative_is_bit_identical_to_the_interpreted_one():
+def scene():
     root = Assembly("root")
     root.add(Constant("bias", unit="m/s", shape=(2,), value=[0.5, -0.25]))
     root.add(Integrator("x", unit="m", shape=(2,)))
@@ -19,8 +18,13 @@ def test_fused_derivative_is_bit_identical_to_the_interpreted_one():
     root.connect("bias.y", "x.u")
     root.connect("x.y", "k.u")
     root.connect("k.y", "y.u")
-    interpreted = Simulation(root, step=0.01)
-    fused = Simulation(root, step=0.01, fuse=True)
+    return root
+
+
+@pytest.mark.slow  # compiling the generated function takes 6-10 s (numba recompiles the inlined kernels)
+def test_fused_derivative_is_bit_identical_to_the_interpreted_one():
+    interpreted = Simulation(scene(), step=0.01)
+    fused = Simulation(scene(), step=0.01, fuse=True)
     state = np.array([1.0, 2.0, 3.0, 4.0])
     assert fused.rhs(0.3, state).tobytes() == interpreted.derivative(0.3, state).tobytes()
     # y' = 0.01 * (-300 x) = -3 x

@@ -160,6 +160,18 @@ def test_parameter_out_of_bounds():
         BouncingBall("ball", restitution=1.5)
 
 
+def test_a_scene_serves_one_simulation():
+    root = Assembly("root")
+    root.add(Constant("a", unit="1/s"))
+    root.add(Integrator("i"))
+    root.connect("a.y", "i.u")
+    first = Simulation(root)
+    with pytest.raises(ModelError, match="model a already belongs to another Simulation"):
+        Simulation(root)
+    del first  # once the first simulation is gone its models may be reused
+    Simulation(root)
+
+
 def test_driven_twice_in_python_names_the_assembly():
     root = Assembly("root")
     root.add(Constant("a", unit="1/s"))
