@@ -19,6 +19,27 @@ def test_unknown_model_type(scene):
         """)
 
 
+def test_unknown_model_in_a_connection_or_log(scene):
+    with pytest.raises(ScenarioError, match=r"scene.yaml:5: connection a.y -> integ.u: input 'integ.u': the scene "
+                                            r"has no member 'integ'; members: \['a', 'i'\]"):
+        scene("""
+        models:
+          a: {type: Constant, config: {unit: 1/s}}
+          i: {type: Integrator}
+        connections: [a.y -> integ.u]
+        """)
+    with pytest.raises(ScenarioError, match=r"scene.yaml:7: log.signals\[0\]: signal 'b.y': no model path is a "
+                                            r"prefix of it; models: \['a', 'i'\]"):
+        scene("""
+        models:
+          a: {type: Constant, config: {unit: 1/s}}
+          i: {type: Integrator}
+        connections: [a.y -> i.u]
+        log:
+          signals: [b.y]
+        """)
+
+
 def test_unknown_parameter(scene):
     with pytest.raises(ScenarioError) as info:
         scene("""
