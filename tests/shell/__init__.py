@@ -1,0 +1,1 @@
+"""Tests of the component framework (shell): units, models, wiring, scenarios, simulation, logs."""
