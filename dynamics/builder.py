@@ -47,6 +47,7 @@ class BodyDefinition:
     parent_node: str | None = None
     flexible: object | None = None  # dynamics.flexible_body.FlexibleBodyData
     locked_from: tuple | None = None  # the hinge a run-time lock replaced (dynamics.reconfigure)
+    outboard_node: str | None = None  # node of this (flexible) body carrying the hinge's outboard frame
 
 
 @dataclass
@@ -179,32 +180,35 @@ class Multibody:
         self._body_index[name] = len(self.bodies) - 1
         return name
 
-    def add_flexible_body(self, name, parent=GROUND, *, modal, hinge, modes=None, order=2, damping_ratio=None,
-                          integrals="general", **hinge_kwargs):
+    def add_flexible_body(self, name, parent=GROUND, *, modal, hinge, modes=None, order=None, damping_ratio=None,
+                          integrals="general", child_grid=None, **hinge_kwargs):
         """Add a flexible body whose reference frame is connected to ``parent`` by a hinge.
 
         ``modal``: a body file path (``flexshell fem2modal ... --modal-integrals``), a
         ``dynamics.flex.body_file.ModalBody`` or a :class:`dynamics.flexible_body.FlexibleBodyData`.
         The body frame is the FE model's reference frame (basic axes at the reference grid). ``modes``
         selects mode indices, ``order`` the modal-integral order (0, 1, 2), ``damping_ratio`` overrides
-        the file's modal damping, ``integrals`` picks ``"general"`` or ``"point_mass"`` integrals. Other
-        keywords are those of :meth:`add_body` (hinge axes, frames, prescribed, parent_node, joint_name).
-        Modal coordinates are appended to the hinge coordinates in ``q`` and ``u``.
+        the file's modal damping, ``integrals`` picks ``"general"`` or ``"point_mass"`` integrals.
+        ``child_grid`` puts the hinge's outboard frame on that grid of this body, so the hinge holds the
+        deforming interface grid (as DARTS does) rather than the body frame; ``outboard_position`` and
+        ``outboard_rotation`` are then relative to the grid's node frame. Other keywords are those of
+        :meth:`add_body` (hinge axes, frames, prescribed, parent_node, joint_name). Modal coordinates are
+        appended to the hinge coordinates in ``q`` and ``u``.
         """
         from dynamics.flexible_body import FlexibleBodyData, flexible_body_from_modal_body
 
         if isinstance(modal, FlexibleBodyData):
             data = modal
-            if modes is not None or damping_ratio is not None:
-                raise ModelDefinitionError(f"body '{name}': modes/damping_ratio apply to body files; "
-                                           f"FlexibleBodyData is used as given")
+            if modes is not None or damping_ratio is not None or (order is not None and order != data.order):
+                raise ModelDefinitionError(f"body '{name}': modes/damping_ratio/order apply to body files; "
+                                           f"FlexibleBodyData is used as given (its order is {data.order})")
         else:
             if not hasattr(modal, "modal_integrals"):
                 from dynamics.flex.body_file import read_body_file
 
                 modal = read_body_file(modal)
-            data = flexible_body_from_modal_body(modal, modes=modes, order=order, damping_ratio=damping_ratio,
-                                                 integrals=integrals)
+            data = flexible_body_from_modal_body(modal, modes=modes, order=2 if order is None else order,
+                                                 damping_ratio=damping_ratio, integrals=integrals)
         M0 = data.M0
         mass = M0[3, 3]
         com = np.array([M0[2, 4], M0[0, 5], M0[1, 3]]) / mass
@@ -212,6 +216,8 @@ class Multibody:
         J_com = J0 - mass * (com @ com * np.eye(3) - np.outer(com, com))
         self.add_body(name, parent, mass=mass, com=com, inertia=J_com, hinge=hinge, **hinge_kwargs)
         self.bodies[-1].flexible = data
+        if child_grid is not None:
+            self.bodies[-1].outboard_node = self.add_node(f"{name}.hinge", name, grid=child_grid)
         return name
 
     def add_node(self, name, body, position=None, rotation=None, grid=None):

@@ -32,8 +32,8 @@ class FlexibleBodyData:
     n_modes: int
     order: int
     M0: np.ndarray  # (N, N)
-    M1: np.ndarray  # (n, N, N)
-    M2: np.ndarray  # (n, n, N, N)
+    M1: np.ndarray  # (n, N, N) at order >= 1, else empty
+    M2: np.ndarray  # (n, n, N, N) at order 2, else empty
     stiffness: np.ndarray  # (n, n) modal stiffness
     damping: np.ndarray  # (n, n) modal damping
     grid_ids: np.ndarray  # (G,) grids whose shapes are available for nodes
@@ -56,12 +56,14 @@ class FlexibleBodyData:
 
 
 def mass_matrix_polynomial(mi, order):
-    """(M0, M1, M2) in [omega, v, eta] order from a ``dynamics.flex.modal_integrals.ModalIntegrals``."""
+    """(M0, M1, M2) in [omega, v, eta] order from a ``dynamics.flex.modal_integrals.ModalIntegrals``.
+
+    Only the terms of the requested order are allocated (M2 alone is n^2 (6 + n)^2 numbers)."""
     n = mi.p1.shape[0]
     N = 6 + n
     M0 = np.zeros((N, N))
-    M1 = np.zeros((n, N, N))
-    M2 = np.zeros((n, n, N, N))
+    M1 = np.zeros((n, N, N) if order >= 1 else (0, N, N))
+    M2 = np.zeros((n, n, N, N) if order >= 2 else (0, 0, N, N))
     m = float(mi.mass)
     M0[:3, :3] = mi.J0
     M0[:3, 3:6] = m * skew(mi.p0)
@@ -90,9 +92,9 @@ def mass_matrix_polynomial(mi, order):
     # the modal/rigid blocks mirror the rigid/modal ones (the rigid and modal diagonal blocks are
     # symmetric by construction above)
     M0[6:, :6] = M0[:6, 6:].T
-    for r in range(n):
+    for r in range(M1.shape[0]):
         M1[r, 6:, :6] = M1[r, :6, 6:].T
-        for s in range(n):
+        for s in range(M2.shape[1] if r < M2.shape[0] else 0):
             M2[r, s, 6:, :6] = M2[r, s, :6, 6:].T
     return M0, M1, M2
 

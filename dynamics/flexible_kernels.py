@@ -16,7 +16,10 @@ Differentiating gives ``xdot_k = P_k xdot_p + H_k udot_k + c_k`` with the veloci
     w' = [Adot eta_dot; (gamma eta_dot) x (A eta_dot) + l~ Adot eta_dot]
 
 (derivation: Featherstone, RBDA, eqs. 2.39-2.43, for a parent frame that itself moves relative to the
-parent body). The body equations come from its kinetic energy ``T = 1/2 x' M(eta) x`` with
+parent body). When the hinge's outboard frame sits on a deforming node c of body k itself (a flexible
+child attached at its interface grid), body k moves relative to that node with ``-w_c``,
+``w_c = Psi_c eta_dot_k``: the modal columns of ``H_k`` gain the rigid part ``-Psi_c``, ``S_k`` follows the
+node's pose, and ``c_k`` gains ``w_c x (S u) - w'_c`` with ``v_kp = X_k w + S u - w_c`` in the terms above. The body equations come from its kinetic energy ``T = 1/2 x' M(eta) x`` with
 ``M(eta) = M0 + M1 eta + M2 eta eta`` (:mod:`dynamics.flexible_body`, TM-2020-5008164 eq. E.2.6):
 Euler-Poincare (Kirchhoff) equations for the quasi-velocity V and Lagrange's equations for eta give
 
@@ -34,6 +37,7 @@ from numba import njit
 
 from dynamics.kernels import (
     HINGE_TYPE,
+    MAT_TMP,
     accumulate_energy_momentum,
     accumulate_world_poses,
     compose_body_pose,
@@ -50,6 +54,7 @@ from dynamics.kernels import (
     Q_START,
     ROT_1,
     ROT_2,
+    ROT_BM,
     ROT_FM,
     ROT_PB,
     ROT_WB,
@@ -59,6 +64,7 @@ from dynamics.kernels import (
     VEC_WPOS,
     _body_motion_subspace,
     _spd_inverse,
+    motion_subspace_in_body,
 )
 from dynamics.hinges import hinge_transform
 from dynamics.spatial import (
@@ -68,8 +74,10 @@ from dynamics.spatial import (
     motion_to_child,
 )
 
-# topology column for flexible systems: the parent node a hinge is attached to (-1: the parent frame)
+# topology columns for flexible systems: the parent node a hinge is attached to (-1: the parent frame)
+# and the node of the body itself that carries the hinge's outboard frame (-1: the body frame)
 PARENT_NODE = 10
+OUTBOARD_NODE = 11
 
 # flex_index columns (nb, 6)
 FX_N = 0
@@ -89,7 +97,8 @@ FV_PA = 5  # pa
 FV_H = 6  # scratch: momentum, M x, ...
 FV_Y = 7  # scratch
 FV_W = 8  # [0:6] X_k w (attachment velocity in body axes), [6:12] w' (parent axes)
-N_FV = 9
+FV_OUT = 9  # outboard node: [0:3] p_BM(eta), [3:6] scratch, [6:12] its w' (body axes)
+N_FV = 10
 
 # augmented matrix slots (nb, N_FM, NM, NM)
 FM_IA = 0
@@ -324,7 +333,7 @@ def _flex_position_kinematics(i, topology, joint_rot, joint_vec, node_shape, nod
         _body_motion_subspace(i, topology, joint_rot, joint_vec, ws_rot, ws_mat)
     # inboard frame F in the parent: R_PF, p_PF (deformed when attached to a node of a flexible parent)
     R_PF = ws_rot[i, ROT_1]
-    p_PF = tmp83[7]  # row 7 is not used by node_deformation's outputs we keep
+    p_PF = ws_vec[i, VEC_WPOS, 3:6]
     n_p = topology[parent, N_MODES] if parent >= 0 else 0
     wd = fv[i, FV_W, 6:12]
     for a in range(6):
@@ -349,8 +358,30 @@ def _flex_position_kinematics(i, topology, joint_rot, joint_vec, node_shape, nod
             for b in range(3):
                 R_PF[a, b] = joint_rot[i, INBOARD, a, b]
     T = ws_rot[i, ROT_2] if hinge_type != UJOINT else tmp83[3:6]
-    compose_body_pose(R_PF, p_PF, R_FM, p_FM, topology[i, OUTBOARD_IDENTITY], joint_rot[i, OUTBOARD],
-                      joint_vec[i, OUTBOARD], T, ws_rot[i, ROT_PB], pos)
+    onode = topology[i, OUTBOARD_NODE]
+    if onode < 0:
+        compose_body_pose(R_PF, p_PF, R_FM, p_FM, topology[i, OUTBOARD_IDENTITY], joint_rot[i, OUTBOARD],
+                          joint_vec[i, OUTBOARD], T, ws_rot[i, ROT_PB], pos)
+        return
+    # outboard frame M on the body's own deforming node c: R_BM = R_Bc R_cM, p_BM = l_c + R_Bc p_cM
+    n = topology[i, N_MODES]
+    q_eta = topology[i, Q_START] + topology[i, NQ_HINGE]
+    u_eta = topology[i, U_START] + topology[i, NU_HINGE]
+    R_Bc = ws_rot[i, ROT_WB]  # scratch until world poses are needed
+    out = fv[i, FV_OUT]
+    node_deformation(node_shape[onode], node_pos[onode], node_rot[onode], q[q_eta:q_eta + n], n,
+                     u[u_eta:u_eta + n], R_Bc, out[3:6], psi[i, 6:12], out[6:12], tmp83)
+    R_cM = joint_rot[i, OUTBOARD]
+    p_cM = joint_vec[i, OUTBOARD]
+    R_BM = ws_rot[i, ROT_BM]
+    for a in range(3):
+        for b in range(3):
+            R_BM[a, b] = R_Bc[a, 0] * R_cM[0, b] + R_Bc[a, 1] * R_cM[1, b] + R_Bc[a, 2] * R_cM[2, b]
+        out[a] = out[3 + a] + R_Bc[a, 0] * p_cM[0] + R_Bc[a, 1] * p_cM[1] + R_Bc[a, 2] * p_cM[2]
+    T = ws_rot[i, ROT_2] if hinge_type != UJOINT else tmp83[3:6]
+    compose_body_pose(R_PF, p_PF, R_FM, p_FM, 0, R_BM, out[0:3], T, ws_rot[i, ROT_PB], pos)
+    motion_subspace_in_body(hinge_type, axes, ws_rot[i, ROT_2], R_BM, out[0:3], topology[i, NU_HINGE],
+                            ws_mat[i, MAT_S], ws_mat[i, MAT_TMP])
 
 
 @njit(cache=True)
@@ -400,8 +431,24 @@ def _flex_velocity(i, topology, joint_vec, q, u, ws_rot, ws_vec, ws_mat, psi, fv
     for k in range(n):
         x[6 + k] = u[u0 + nu + k]
         c[6 + k] = 0.0
+    onode = topology[i, OUTBOARD_NODE]
+    wc = fv[i, FV_D, 0:6]  # free until the articulated-body pass
+    for a in range(6):
+        wc[a] = 0.0
+    if onode >= 0:
+        # the body moves relative to its hinge node with -w_c, w_c = Psi_c eta_dot
+        Pc = psi[i, 6:12]
+        out = fv[i, FV_OUT]
+        for a in range(6):
+            s_ = 0.0
+            for k in range(n):
+                s_ += Pc[a, k] * x[6 + k]
+            wc[a] = s_
+            x[a] -= s_
+            c[a] -= out[6 + a]
+        motion_cross_motion_add(wc, vJ, c)
     if topology[i, HINGE_TYPE] == UJOINT:
-        p_BM = joint_vec[i, OUTBOARD]
+        p_BM = joint_vec[i, OUTBOARD] if onode < 0 else fv[i, FV_OUT, 0:3]
         g = u[u0] * u[u0 + 1]
         c0 = g * (S[1, 0] * S[2, 1] - S[2, 0] * S[1, 1])
         c1 = g * (S[2, 0] * S[0, 1] - S[0, 0] * S[2, 1])
@@ -412,11 +459,12 @@ def _flex_velocity(i, topology, joint_vec, q, u, ws_rot, ws_vec, ws_mat, psi, fv
         c[3] += p_BM[1] * c2 - p_BM[2] * c1
         c[4] += p_BM[2] * c0 - p_BM[0] * c2
         c[5] += p_BM[0] * c1 - p_BM[1] * c0
-    # V x (X w + S u) + (X w) x (S u)
+    # V x (X w + S u - w_c) + (X w) x (S u - w_c)
     for a in range(6):
-        tmp[a] = Xw[a] + vJ[a]
+        tmp[a] = Xw[a] + vJ[a] - wc[a]
+        tmp[6 + a] = vJ[a] - wc[a]
     motion_cross_motion_add(x[0:6], tmp[0:6], c)
-    motion_cross_motion_add(Xw, vJ, c)
+    motion_cross_motion_add(Xw, tmp[6:12], c)
 
 
 @njit(cache=True)
@@ -486,8 +534,9 @@ ALL_HINGE_DOFS = np.arange(6)
 
 
 @njit(cache=True, inline="always")
-def _inertia_times_subspace(I, S, cols, nh, n, N, out):
-    """out (N x (nh + n)) = I H for the hinge columns ``S[:, cols[:nh]]`` and the modal columns."""
+def _inertia_times_subspace(I, S, cols, nh, n, N, Pc, has_pc, out):
+    """out (N x (nh + n)) = I H for the hinge columns ``S[:, cols[:nh]]`` and the modal columns
+    ``e_(6+r) - [Pc[:, r]; 0]`` (``Pc`` only when the hinge sits on a deforming node of the body)."""
     for kk in range(nh):
         k = cols[kk]
         for a in range(N):
@@ -497,11 +546,15 @@ def _inertia_times_subspace(I, S, cols, nh, n, N, out):
             out[a, kk] = s_
     for rr in range(n):
         for a in range(N):
-            out[a, nh + rr] = I[a, 6 + rr]
+            s_ = I[a, 6 + rr]
+            if has_pc:
+                for b in range(6):
+                    s_ -= I[a, b] * Pc[b, rr]
+            out[a, nh + rr] = s_
 
 
 @njit(cache=True, inline="always")
-def _subspace_transpose_times(S, cols, nh, n, F, ncol, out, row0, col0):
+def _subspace_transpose_times(S, cols, nh, n, Pc, has_pc, F, ncol, out, row0, col0):
     """out[row0 + k, col0 + l] = (H' F)[k, l] for the hinge rows ``S[:, cols[:nh]]'`` and modal rows."""
     for kk in range(nh + n):
         for ll in range(ncol):
@@ -511,8 +564,22 @@ def _subspace_transpose_times(S, cols, nh, n, F, ncol, out, row0, col0):
                 for a in range(6):
                     s_ += S[a, k] * F[a, ll]
             else:
-                s_ = F[6 + kk - nh, ll]
+                rr = kk - nh
+                s_ = F[6 + rr, ll]
+                if has_pc:
+                    for a in range(6):
+                        s_ -= Pc[a, rr] * F[a, ll]
             out[row0 + kk, col0 + ll] = s_
+
+
+@njit(cache=True, inline="always")
+def _modal_projection(F, r, Pc, has_pc):
+    """(H' F) at modal DOF r: F[6 + r] - Pc[:, r] . F[0:6]."""
+    s_ = F[6 + r]
+    if has_pc:
+        for a in range(6):
+            s_ -= Pc[a, r] * F[a]
+    return s_
 
 
 @njit(cache=True)
@@ -633,8 +700,10 @@ def flex_forward_dynamics(topology, hinge_dofs, joint_rot, joint_vec, flex_index
         c = fv[i, FV_C]
         d = fv[i, FV_D]
         pa = fv[i, FV_PA]
-        _inertia_times_subspace(IA, S, hinge_dofs[i, 0], nfh, n, N, U)
-        _subspace_transpose_times(S, hinge_dofs[i, 0], nfh, n, U, nf, D, 0, 0)
+        Pc = psi[i, 6:12]
+        has_pc = topology[i, OUTBOARD_NODE] >= 0
+        _inertia_times_subspace(IA, S, hinge_dofs[i, 0], nfh, n, N, Pc, has_pc, U)
+        _subspace_transpose_times(S, hinge_dofs[i, 0], nfh, n, Pc, has_pc, U, nf, D, 0, 0)
         for kk in range(nf):
             if kk < nfh:
                 k = hinge_dofs[i, 0, kk]
@@ -642,7 +711,7 @@ def flex_forward_dynamics(topology, hinge_dofs, joint_rot, joint_vec, flex_index
                 for a in range(6):
                     s_ -= S[a, k] * pA[a]
             else:
-                s_ = tau[u0 + nu + kk - nfh] - pA[6 + kk - nfh]
+                s_ = tau[u0 + nu + kk - nfh] - _modal_projection(pA, kk - nfh, Pc, has_pc)
             d[kk] = s_
         if nf > 0:
             tr = 0.0
@@ -719,6 +788,9 @@ def flex_forward_dynamics(topology, hinge_dofs, joint_rot, joint_vec, flex_index
                 udot[u0 + nu + rr] = s_
                 tau_out[u0 + nu + rr] = tau[u0 + nu + rr]
                 A[6 + rr] += s_
+                if topology[i, OUTBOARD_NODE] >= 0:
+                    for a in range(6):
+                        A[a] -= psi[i, 6 + a, rr] * s_
         npres = topology[i, N_PRESCRIBED]
         if npres > 0:
             IA = fm[i, FM_IA]
@@ -751,8 +823,13 @@ def _flex_accelerations(topology, ground_accel, udot, ws_rot, ws_vec, ws_mat, ps
             for k in range(nu):
                 s_ += S[a, k] * udot[u0 + k]
             A[a] = s_
+        has_pc = topology[i, OUTBOARD_NODE] >= 0
         for rr in range(n):
-            A[6 + rr] = c[6 + rr] + udot[u0 + nu + rr]
+            e = udot[u0 + nu + rr]
+            A[6 + rr] = c[6 + rr] + e
+            if has_pc:
+                for a in range(6):
+                    A[a] -= psi[i, 6 + a, rr] * e
 
 
 @njit(cache=True)
@@ -789,7 +866,7 @@ def flex_inverse_dynamics(topology, joint_rot, joint_vec, flex_index, flex_data,
                 s_ += S[a, k] * F[a]
             tau[u0 + k] = s_
         for rr in range(n):
-            tau[u0 + nu + rr] = F[6 + rr]
+            tau[u0 + nu + rr] = _modal_projection(F, rr, psi[i, 6:12], topology[i, OUTBOARD_NODE] >= 0)
         parent = topology[i, PARENT]
         if parent >= 0:
             n_p = topology[parent, N_MODES] if topology[i, PARENT_NODE] >= 0 else 0
@@ -828,8 +905,9 @@ def flex_mass_matrix(topology, joint_rot, joint_vec, flex_index, flex_data, node
         S = ws_mat[i, MAT_S]
         Ic = fm[i, FM_IA]
         F = fm[i, FM_U]  # F = Ic H_i  (N x ncol)
-        _inertia_times_subspace(Ic, S, ALL_HINGE_DOFS, nu, n, N, F)
-        _subspace_transpose_times(S, ALL_HINGE_DOFS, nu, n, F, ncol, Mout, ui, ui)
+        has_pc = topology[i, OUTBOARD_NODE] >= 0
+        _inertia_times_subspace(Ic, S, ALL_HINGE_DOFS, nu, n, N, psi[i, 6:12], has_pc, F)
+        _subspace_transpose_times(S, ALL_HINGE_DOFS, nu, n, psi[i, 6:12], has_pc, F, ncol, Mout, ui, ui)
         for k in range(ncol):  # symmetric by construction, not by round-off
             for l in range(k + 1, ncol):
                 Mout[ui + l, ui + k] = Mout[ui + k, ui + l]
@@ -857,7 +935,8 @@ def flex_mass_matrix(topology, joint_rot, joint_vec, flex_index, flex_data, node
             nuj = topology[j, NU_HINGE]
             uj = topology[j, U_START]
             Sj = ws_mat[j, MAT_S]
-            _subspace_transpose_times(Sj, ALL_HINGE_DOFS, nuj, nj, Fc, ncol, Mout, uj, ui)
+            _subspace_transpose_times(Sj, ALL_HINGE_DOFS, nuj, nj, psi[j, 6:12], topology[j, OUTBOARD_NODE] >= 0,
+                                      Fc, ncol, Mout, uj, ui)
             for k in range(nuj + nj):
                 for l in range(ncol):
                     Mout[ui + l, uj + k] = Mout[uj + k, ui + l]

@@ -48,8 +48,9 @@ N_MODES = 6
 N_FREE = 7
 N_PRESCRIBED = 8
 OUTBOARD_IDENTITY = 9  # 1 when the hinge outboard frame is the body frame (saves a frame product)
-# column 10: PARENT_NODE, used by dynamics.flexible_kernels (the rigid kernels fold node offsets in)
-TOPOLOGY_COLUMNS = 11
+# columns 10 PARENT_NODE and 11 OUTBOARD_NODE are used by dynamics.flexible_kernels (hinges on deforming
+# nodes); the rigid kernels fold node offsets into the hinge frames
+TOPOLOGY_COLUMNS = 12
 
 # joint_rot slots: (nb, 2, 3, 3) and joint_vec slots: (nb, 4, 3)
 INBOARD = 0  # rotation R_PF / position of F in the parent frame
@@ -63,7 +64,8 @@ ROT_FM = 1
 ROT_1 = 2
 ROT_2 = 3
 ROT_WB = 4  # body -> world rotation
-N_ROT = 5
+ROT_BM = 5  # outboard frame on a deforming node of a flexible body (dynamics.flexible_kernels)
+N_ROT = 6
 
 VEC_V = 0  # spatial velocity of the body
 VEC_C = 1  # velocity-product (and prescribed) bias acceleration
@@ -126,14 +128,10 @@ def _body_position_kinematics(i, topology, joint_rot, joint_vec, q, ws_rot, ws_v
 
 
 @njit(cache=True, inline="always")
-def _body_motion_subspace(i, topology, joint_rot, joint_vec, ws_rot, ws_mat):
-    """S_B = X_{B<-M} S_M: omega_B = R_BM omega_M, v_B = R_BM v_M + p_BM x omega_B."""
-    R_BM = joint_rot[i, OUTBOARD]
-    p_BM = joint_vec[i, OUTBOARD]
-    S = ws_mat[i, MAT_S]
-    tmp = ws_mat[i, MAT_TMP]
-    hinge_motion_subspace(topology[i, HINGE_TYPE], joint_vec[i, AXIS1:AXIS2 + 1], ws_rot[i, ROT_2], tmp)
-    for k in range(topology[i, NU_HINGE]):
+def motion_subspace_in_body(hinge_type, axes, R2, R_BM, p_BM, nu, S, tmp):
+    """S_B = X_{B<-M} S_M: omega_B = R_BM omega_M, v_B = R_BM v_M + p_BM x omega_B (``tmp`` 6x6 scratch)."""
+    hinge_motion_subspace(hinge_type, axes, R2, tmp)
+    for k in range(nu):
         for a in range(3):
             S[a, k] = R_BM[a, 0] * tmp[0, k] + R_BM[a, 1] * tmp[1, k] + R_BM[a, 2] * tmp[2, k]
         for a in range(3):
@@ -142,6 +140,14 @@ def _body_motion_subspace(i, topology, joint_rot, joint_vec, ws_rot, ws_mat):
         S[3, k] += p_BM[1] * w2 - p_BM[2] * w1
         S[4, k] += p_BM[2] * w0 - p_BM[0] * w2
         S[5, k] += p_BM[0] * w1 - p_BM[1] * w0
+
+
+@njit(cache=True, inline="always")
+def _body_motion_subspace(i, topology, joint_rot, joint_vec, ws_rot, ws_mat):
+    """The motion subspace of body i's hinge in body axes (``ws_mat[i, MAT_S]``)."""
+    motion_subspace_in_body(topology[i, HINGE_TYPE], joint_vec[i, AXIS1:AXIS2 + 1], ws_rot[i, ROT_2],
+                            joint_rot[i, OUTBOARD], joint_vec[i, OUTBOARD], topology[i, NU_HINGE],
+                            ws_mat[i, MAT_S], ws_mat[i, MAT_TMP])
 
 
 @njit(cache=True)

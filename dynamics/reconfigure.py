@@ -88,6 +88,7 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), mass_properties=
         body.prescribed = np.zeros(6, dtype=bool)
         body.inboard_rotation, body.inboard_position = np.eye(3), np.zeros(3)
         body.outboard_rotation, body.outboard_position = np.eye(3), np.zeros(3)
+        body.outboard_node = None
         body.locked_from = None
         eta = q_parts[body.name][len(q_parts[body.name]) - n:]
         eta_dot = u_parts[body.name][len(u_parts[body.name]) - n:]

@@ -111,12 +111,13 @@ class MultibodySystem:
             free = np.flatnonzero(~b.prescribed)
             pres = np.flatnonzero(b.prescribed)
             outboard_identity = (np.array_equal(b.outboard_rotation, np.eye(3))
-                                 and not np.any(b.outboard_position))
+                                 and not np.any(b.outboard_position) and b.outboard_node is None)
             n_modes = 0 if b.flexible is None else b.flexible.n_modes
             parent_flexible = b.parent is not None and bodies[index[b.parent]].flexible is not None
             parent_node = node_index[b.parent_node] if (b.parent_node and parent_flexible) else -1
+            outboard_node = node_index[b.outboard_node] if b.outboard_node else -1
             topology[i] = [-1 if b.parent is None else index[b.parent], code, q0, nq, u0, nu, n_modes,
-                           len(free), len(pres), outboard_identity, parent_node]
+                           len(free), len(pres), outboard_identity, parent_node, outboard_node]
             hinge_dofs[i, 0, :len(free)] = free
             hinge_dofs[i, 1, :len(pres)] = pres
             R_in, p_in = b.inboard_rotation, b.inboard_position
@@ -172,7 +173,7 @@ class MultibodySystem:
             n = data.n_modes
             flex_index[i, FK.FX_N] = n
             flex_index[i, FK.FX_M0] = push(data.M0)
-            flex_index[i, FK.FX_M1] = push(data.M1)
+            flex_index[i, FK.FX_M1] = push(data.M1 if data.order >= 1 else np.zeros(0))
             flex_index[i, FK.FX_M2] = push(data.M2 if data.order == 2 else np.zeros(0))
             flex_index[i, FK.FX_K] = push(data.stiffness)
             push(data.damping)
@@ -200,7 +201,7 @@ class MultibodySystem:
         if self.is_flexible:
             nmax = self.node_shape.shape[2]
             nm = max(6 + max(self.n_modes), 12)
-            self.fw_psi = np.zeros((nb + 1, 6, nmax))
+            self.fw_psi = np.zeros((nb + 1, 12, nmax))  # Psi of the parent node, then of the own hinge node
             self.fw_vec = np.zeros((nb, FK.N_FV, nm))
             self.fw_mat = np.zeros((nb, FK.N_FM, nm, nm))
             self.fw_tmp = np.zeros((8, 3))
