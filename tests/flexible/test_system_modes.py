@@ -10,10 +10,11 @@ at rest without gravity (``K phi = omega^2 M(q0) phi``, on the null space of the
 and compared mode by mode: frequencies in Hz, and the motion of every grid (multibody nodes at the FE
 grids) after unit-norm scaling and sign alignment.
 
-Interfaces between flexible bodies are closures at the deforming grids (each beam on a free hinge):
-the engine's hinges hold the child's body frame, which normalized component modes do not keep at the
-interface grid (they are mass-orthogonal to the rigid-body motion), while a closure holds the
-deformed grids together exactly as the assembled FE model does.
+Interfaces between flexible bodies are closures at the deforming grids (each beam on a free hinge),
+which hold the deformed grids together exactly as the assembled FE model does. A hinge on the child's
+body frame would not: normalized component modes are mass-orthogonal to the rigid-body motion, so they
+move the interface grid relative to the body frame; a hinge holding the child's deforming grid
+(``child_grid``) is equivalent to the closure (test below).
 
 Convergence: the multibody model is the Craig-Bampton synthesis of the assembled structure, so its
 error is the fixed-interface truncation error; with ``N_MODES`` fixed-interface modes per body the
@@ -93,8 +94,9 @@ def case_double_beam(bodies, tmp, angle_deg=0.0, assembly="closure"):
 
     ``assembly``: "closure" (both beams free, weld closure between the deformed grids), "tree" (beam 2
     on a locked hinge at beam 1's grid-101 node, its modes referred to its grid 1, see
-    :func:`dynamics.modal_analysis.rest_body_data`), or "tree_as_is" (the same hinge with the body
-    file's modes unchanged: the hinge holds beam 2's body frame, not its deformed grid 1)."""
+    :func:`dynamics.modal_analysis.rest_body_data`), "tree_child_grid" (the same hinge holding beam 2's
+    deforming grid 1: ``add_flexible_body(..., child_grid=1)``, the body file's modes unchanged), or
+    "tree_as_is" (the hinge on beam 2's body frame with the modes unchanged: not the FE structure)."""
     R = rz(np.radians(angle_deg))
     d = single_beam()
     d.add_line(101, (LENGTH, 0.0, 0.0), R[:, 0], LENGTH, N_ELEMENTS, R[:, 1], 101, start_grid=101)
@@ -106,7 +108,8 @@ def case_double_beam(bodies, tmp, angle_deg=0.0, assembly="closure"):
         add_beam(mb, "b2", bodies["a1"], position=(LENGTH, 0.0, 0.0), rotation=R)
     else:
         data = rest_body_data(bodies["a1"], interface_grid=1 if assembly == "tree" else None)
-        mb.add_flexible_body("b2", "b1", modal=data, hinge="locked", parent_node="b1_joint")
+        child_grid = 1 if assembly == "tree_child_grid" else None
+        mb.add_flexible_body("b2", "b1", modal=data, hinge="locked", parent_node="b1_joint", child_grid=child_grid)
         for k in range(1, N_ELEMENTS + 2):
             mb.add_node(f"b2_{k}", "b2", grid=k)
     system = mb.compile()
@@ -286,14 +289,17 @@ def test_rigid_and_mechanism_modes_counted(bodies, tmp):
 
 
 def test_tree_with_interface_referenced_modes_equals_closure(bodies, tmp):
-    """A locked hinge holds the child's body frame. With the child's modes referred to its interface
-    grid the tree is the same model as the weld closure between the deformed grids (frequencies agree
-    to round-off); with the body file's normalized component modes as they are, the interface grid moves
-    relative to the hinge and the structure is wrong (0.38 Hz off at 45 degrees, measured)."""
+    """A locked hinge on the child's body frame with the body file's normalized component modes is wrong:
+    the interface grid moves relative to the hinge (0.38 Hz off at 45 degrees, measured). Holding the
+    child's deforming interface grid (``child_grid``) or referring its modes to that grid makes the
+    tree the same model as the weld closure between the deformed grids (frequencies agree to
+    round-off), and so the FE structure."""
     closure, _ = compare(case_double_beam(bodies, tmp, 45.0, "closure"))
     tree, _ = compare(case_double_beam(bodies, tmp, 45.0, "tree"))
+    child_grid, _ = compare(case_double_beam(bodies, tmp, 45.0, "tree_child_grid"))
     as_is, _ = compare(case_double_beam(bodies, tmp, 45.0, "tree_as_is"))
     np.testing.assert_allclose(tree.frequencies_mb_hz, closure.frequencies_mb_hz, rtol=1e-10, atol=0)
+    np.testing.assert_allclose(child_grid.frequencies_mb_hz, closure.frequencies_mb_hz, rtol=1e-10, atol=0)
     assert as_is.max_frequency_difference_hz > 0.1
 
 
