@@ -183,7 +183,7 @@ class Scenario:
     integrator_options: dict = field(default_factory=dict)
     t_final: float | None = None
     stop_events: list = field(default_factory=list)
-    event_detection: str = "sign_change"
+    event_detection: str = "subdivided"
     event_tolerance: float = 1e-10
     log_rate: object = None
     log_signals: list = field(default_factory=list)  # (name, rate)
@@ -423,8 +423,8 @@ def _validate_events(document, root: _Where, scenario: Scenario) -> None:
         return
     where = root.child(document, "events")
     spec = _expect_mapping(document["events"], where, {
-        "detection": "sign_change (default: search a step when a function changes sign between its ends) or "
-                     "subdivided (search every step: also two crossings inside one step)",
+        "detection": "subdivided (default: search every step, also two crossings inside one step) or "
+                     "sign_change (search a step only when a function changes sign between its ends; cheaper)",
         "tolerance": "time tolerance of located crossings, e.g. 1e-10 s"})
     if "detection" in spec:
         if spec["detection"] not in ("sign_change", "subdivided"):

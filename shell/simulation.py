@@ -15,9 +15,10 @@ returned copy.
 
 Run loop (TM-2020-5008164 App. D.1: multi-rate models, zero finding): integrate continuously up to the
 next instant at which a sampled model updates or a log group samples (exact rational sample instants),
-checking the models' zero-crossing functions after each step. A sign change (with
-``event_detection="subdivided"``: any crossing, also two inside one step, found by sampling the step) is
-located to ``event_tol`` on the integrator's dense output (:func:`shell.integrators.locate_events`), the
+checking the models' zero-crossing functions after each step. Every crossing (the default
+``event_detection="subdivided"`` samples each step on the dense output, so two crossings inside one step
+are both found; ``"sign_change"`` searches only steps whose ends differ in sign, cheaper but blind to
+such pairs) is located to ``event_tol`` on the integrator's dense output (:func:`shell.integrators.locate_events`), the
 state is moved to the
 crossing, the models' ``on_event`` handlers run (state reset, mode switch) in (time, model order), and
 the integrator restarts; a terminal crossing stops the run. At a sample instant the due sampled models
@@ -106,7 +107,7 @@ class Simulation:
 
     def __init__(self, root: Assembly, *, integrator: str = "rk4", step: float | None = 0.01,
                  integrator_options: dict | None = None, seed=0, stop_events=(), event_tol: float = 1e-10,
-                 event_detection: str = "sign_change", t_start: float = 0.0, fuse: bool = False):
+                 event_detection: str = "subdivided", t_start: float = 0.0, fuse: bool = False):
         self.root = root
         self.seed = seed
         self.event_tol = float(event_tol)

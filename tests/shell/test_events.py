@@ -100,11 +100,14 @@ class _Dip(Model):
         z[0] += 1.0
 
 
-@pytest.mark.parametrize("detection, expected", [("sign_change", []), ("subdivided", [0.504, 0.506])])
+@pytest.mark.parametrize("detection, expected", [("sign_change", []), ("subdivided", [0.504, 0.506]),
+                                                 (None, [0.504, 0.506])])
 def test_two_crossings_inside_one_step(detection, expected):
+    """The default search finds both crossings of a pair inside one step."""
     root = Assembly("root")
     root.add(_Dip("probe"))
-    sim = Simulation(root, step=0.01, event_detection=detection, event_tol=1e-13)
+    options = {} if detection is None else {"event_detection": detection}
+    sim = Simulation(root, step=0.01, event_tol=1e-13, **options)
     sim.run(1.0)
     # g is negative only between 0.504 and 0.506 s, inside the step [0.50, 0.51]: its ends have the same
     # sign, so only the subdivided search sees the pair (clock = t exactly: RK4 on x' = 1)
