@@ -76,8 +76,9 @@ BODY_KEYS = {
     "modal_integrals_order": "0, 1 or 2: order of the deformation-dependent modal integrals (default 2)",
     "damping_ratio": "modal damping ratio overriding the body file's",
     "integrals": "general or point_mass modal integrals (default general)",
+    "child_grid": "grid of this flexible body that the hinge holds (its deforming interface grid)",
 }
-FLEXIBLE_ONLY = ("modes", "modal_integrals_order", "damping_ratio", "integrals")
+FLEXIBLE_ONLY = ("modes", "modal_integrals_order", "damping_ratio", "integrals", "child_grid")
 INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
     "q": ("", "all"), "u": ("", "all"),
     "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
@@ -324,6 +325,31 @@ class MultibodyModel(Model):
         gravity = _vector(description, "gravity", "m/s^2", (3,), where, (0.0, 0.0, 0.0))
         builder = Multibody(gravity=tuple(gravity))
         bodies = _expect_list(description["bodies"], where.child(description, "bodies"), "bodies")
+        # nodes are added right after their body, so that a later body's hinge can attach to them
+        pending_nodes = {}
+        nodes = _expect_list(description.get("nodes", []), where.child(description, "nodes"), "nodes")
+        for k, node in enumerate(nodes):
+            here = where.child(description, "nodes").child(nodes, k)
+            _expect_mapping(node, here, {"name": "node name", "body": "body it is fixed on",
+                                         "position": "in the body frame (m)", "rotation": "node -> body",
+                                         "grid": "FE grid id (nodes on flexible bodies)"},
+                            required=("name", "body"))
+            grid = node.get("grid")
+            if grid is not None and (isinstance(grid, bool) or not isinstance(grid, int)):
+                raise here.child(node, "grid").error(f"expected an FE grid id (integer), given {grid!r}")
+            node_name = _expect_name(node["name"], here.child(node, "name"), "a node name")
+            node_body = _expect_name(node["body"], here.child(node, "body"), "a body name")
+            position = _vector(node, "position", "m", (3,), here) if "position" in node else None
+            rotation = _rotation(node, "rotation", here)
+
+            def add(node_name=node_name, node_body=node_body, position=position, rotation=rotation, grid=grid,
+                    here=here):
+                try:
+                    builder.add_node(node_name, node_body, position=position, rotation=rotation, grid=grid)
+                except ModelDefinitionError as exc:
+                    raise here.error(str(exc)) from None
+
+            pending_nodes.setdefault(node_body, []).append(add)
         initial = []
         for k, body in enumerate(bodies):
             here = where.child(description, "bodies").child(bodies, k)
@@ -363,24 +389,12 @@ class MultibodyModel(Model):
                                      com=_vector(body, "com", "m", (3,), here, (0, 0, 0)), **kwargs)
             except (ModelDefinitionError, OSError, KeyError) as exc:
                 raise here.error(str(exc.args[0] if isinstance(exc, KeyError) else exc)) from None
+            for add in pending_nodes.pop(body_name, []):
+                add()
             initial.append((body_name, body.get("initial"), here, body))
-        nodes = _expect_list(description.get("nodes", []), where.child(description, "nodes"), "nodes")
-        for k, node in enumerate(nodes):
-            here = where.child(description, "nodes").child(nodes, k)
-            _expect_mapping(node, here, {"name": "node name", "body": "body it is fixed on",
-                                         "position": "in the body frame (m)", "rotation": "node -> body",
-                                         "grid": "FE grid id (nodes on flexible bodies)"},
-                            required=("name", "body"))
-            grid = node.get("grid")
-            if grid is not None and (isinstance(grid, bool) or not isinstance(grid, int)):
-                raise here.child(node, "grid").error(f"expected an FE grid id (integer), given {grid!r}")
-            try:
-                builder.add_node(_expect_name(node["name"], here.child(node, "name"), "a node name"),
-                                 _expect_name(node["body"], here.child(node, "body"), "a body name"),
-                                 position=_vector(node, "position", "m", (3,), here) if "position" in node else None,
-                                 rotation=_rotation(node, "rotation", here), grid=grid)
-            except ModelDefinitionError as exc:
-                raise here.error(str(exc)) from None
+        for node_body in list(pending_nodes):  # nodes of bodies that do not exist: named by add_node
+            for add in pending_nodes.pop(node_body):
+                add()
         try:
             system = builder.compile()
         except ModelDefinitionError as exc:
@@ -418,6 +432,11 @@ def _flexible_options(body, where) -> dict:
         if body["integrals"] not in ("general", "point_mass"):
             raise where.child(body, "integrals").error(f"expected general or point_mass, given {body['integrals']!r}")
         options["integrals"] = body["integrals"]
+    if "child_grid" in body:
+        grid = body["child_grid"]
+        if not isinstance(grid, int) or isinstance(grid, bool):
+            raise where.child(body, "child_grid").error(f"expected an FE grid id (integer), given {grid!r}")
+        options["child_grid"] = grid
     return options
 
 

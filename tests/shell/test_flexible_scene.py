@@ -93,3 +93,26 @@ def test_flexible_body_keys_are_checked(scene, beam_file):
               hinge: free
               body_file: missing.h5
         """)
+
+
+def test_flexible_child_hinged_at_its_grid_from_yaml(scene, beam_file):
+    sim = scene(f"""
+    multibody:
+      bodies:
+        - {{name: beam1, hinge: free, body_file: {beam_file}}}
+        - {{name: beam2, parent: beam1, parent_node: joint, hinge: revolute, axis: [0, 0, 1],
+           body_file: {beam_file}, child_grid: 1, modes: [0, 1]}}
+      nodes:
+        - {{name: joint, body: beam1, grid: 10}}
+    """)
+    system = sim.models[0].system
+    assert "beam2.hinge" in system.node_names and system.n_modes == (4, 2)
+    from dynamics.flexible_kernels import OUTBOARD_NODE
+
+    assert system.topology[1, OUTBOARD_NODE] == system.node_index("beam2.hinge")
+    with pytest.raises(ScenarioError, match=r"child_grid: expected an FE grid id"):
+        scene(f"""
+        multibody:
+          bodies:
+            - {{name: beam, hinge: free, body_file: {beam_file}, child_grid: first}}
+        """)
