@@ -212,3 +212,54 @@ def test_pinned_body_under_gravity_with_point_masses_matches_lagrange():
         tau = rng.standard_normal(1 + n)
         ref = reference_lagrange(model, 2, Hmat, q[1:], u, tau, potential=potential, q=q)
         assert rel(system.forward_dynamics(q, u, tau), ref) < 1e-10
+
+
+@pytest.fixture(scope="module")
+def fe_beam():
+    """The FModal paper's 101-grid, 9 m beam through the pipeline: free-free modes, and normalized
+    component modes with grid 1 in the a-set (the body used for clamped and pinned attachments)."""
+    from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
+
+    deck = "configs/fem/single_length_beam.dat"
+    return {"free": fem2modal(deck, Fem2ModalOptions(n_modes=6, modal_integrals=True)),
+            "component": fem2modal(deck, Fem2ModalOptions(n_modes=4, aset=[(1, [1, 2, 3, 4, 5, 6])],
+                                                          modal_integrals=True))}
+
+
+def node_model_of(body):
+    from .random_flexible import NodeModel
+
+    shapes = np.concatenate([body.rotation_shapes, body.translation_shapes], axis=1)
+    return NodeModel(body.node_mass, body.node_cm_offset, body.node_inertia, body.grid_positions, shapes,
+                     np.asarray(body.modal_stiffness), np.asarray(body.modal_damping))
+
+
+@pytest.mark.parametrize("attachment", ["free", "clamped", "pinned"])
+@pytest.mark.parametrize("order", [0, 2])
+def test_fe_beam_matches_nodal_reference(fe_beam, attachment, order):
+    """The same comparison on the FE beam of the FModal paper, its data straight from the body file
+    (node masses and inertias of the lumped mass matrix, grid positions, mode shapes)."""
+    body = fe_beam["free" if attachment == "free" else "component"]
+    model = node_model_of(body)
+    n = body.n_modes
+    mb = Multibody()
+    hinge = {"free": dict(hinge="free"), "clamped": dict(hinge="locked"),
+             "pinned": dict(hinge="revolute", axis=(0.0, 0.0, 1.0))}[attachment]
+    mb.add_flexible_body("beam", None, modal=body, order=order, damping_ratio=0.02, **hinge)
+    system = mb.compile()
+    model.damping = system.damping_matrix()[-n:, -n:]
+    rng = np.random.default_rng(order)
+    q = system.neutral_configuration()
+    u = rng.standard_normal(system.nu)
+    tau = rng.standard_normal(system.nu)
+    q[-n:] = 0.05 * rng.standard_normal(n)
+    if attachment == "free":
+        ref = reference_free_free(model, order, u, q[-n:], tau)
+    else:
+        nh = 1 if attachment == "pinned" else 0
+        Hmat = np.zeros((6 + n, nh + n))
+        if nh:
+            Hmat[2, 0] = 1.0
+        Hmat[6:, nh:] = np.eye(n)
+        ref = reference_lagrange(model, order, Hmat, q[-n:], u, tau)
+    assert rel(system.forward_dynamics(q, u, tau), ref) < 1e-10
