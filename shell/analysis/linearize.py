@@ -1,0 +1,383 @@
+"""Numerical linearization of a built simulation: A, B, C, D between named inputs and outputs.
+
+For the scene's continuous dynamics ``x' = f(t, x, u)`` and outputs ``y = g(t, x, u)`` about an
+operating point ``(t0, x0, u0)`` (discrete states held), the Jacobians
+
+    A = df/dx,  B = df/du,  C = dg/dx,  D = dg/du
+
+are computed column by column with central differences (TM-2020-5008164 Sec. 7.1.3: two- and
+four-point central difference schemes, Richardson extrapolation, step sizes from a user relative-error
+tolerance, verified against analytic linear models as in Sec. 7.3):
+
+    D2(h) = (F(h) - F(-h)) / (2 h)                       truncation O(h^2)
+    D4(h) = (4 D2(h) - D2(2h)) / 3                        the four-point scheme, O(h^4)
+    Richardson on D2: (4 D2(h) - D2(2h)) / 3 = D4(h);     on D4: (16 D4(h) - D4(2h)) / 15, O(h^6)
+
+The reported error estimate of every entry is the size of the last correction (the difference
+between the two levels of the scheme, which for an un-extrapolated result is about (2^p - 1) times
+its truncation error and for an extrapolated one bounds the error of the less accurate level it
+improves on) plus a round-off term ``16 eps max|F| / h``. The step of variable j is
+``h_j = scale_j * tol^(1/p)``, with ``p`` the order of the final result and ``scale_j`` the larger of
+``|x0_j|`` and the variable's typical size (1 in SI units unless the user gives one), so that the
+truncation error relative to the derivative is about ``tol``.
+
+States are minimal coordinates: each unit quaternion of a model that declares
+``quaternion_w_indices`` (hinge quaternions of the engine) is replaced by a rotation vector ``phi``
+with ``q = q0 (x) Exp(phi)`` (a right, body-frame perturbation), whose rate is
+``phi' = Jr(phi)^-1 omega``, ``omega = 2 vec(q* (x) q')``, with the inverse right Jacobian of SO(3)
+``Jr^-1(phi) = I + [phi x]/2 + (1/|phi|^2 - (1 + cos|phi|) / (2 |phi| sin|phi|)) [phi x]^2``.
+A therefore has no rank deficiency from the quaternion norm.
+
+Inputs are input ports (or elements ``port[k]``) of the scene. A connected input is opened for the
+linearization: its value is held at the operating-point value plus the perturbation, and the model
+driving it no longer reaches it (the plant seen from that input, as for controller design).
+Outputs are any port or state (or element) by dotted name, in their declared units.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from shell.model import ModelError
+from shell.units import format_unit
+
+EPS = np.finfo(float).eps
+SCHEMES = {  # (points, richardson) -> order of the result
+    (2, False): 2, (2, True): 4, (4, False): 4, (4, True): 6,
+}
+
+
+class LinearizationError(ModelError):
+    """A linearization request that cannot be carried out; the message names the port or state."""
+
+
+@dataclass
+class LinearModel:
+    """``x' = A x + B u``, ``y = C x + D u`` in deviations from the operating point (SI / declared units)."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    state_names: list
+    state_units: list
+    input_names: list
+    input_units: list
+    output_names: list
+    output_units: list
+    #: estimated absolute error of each entry of A, B, C, D (same shapes)
+    errors: dict
+    #: t, x (full state, quaternions included), z, u (inputs), y (outputs), xdot (tangent rates)
+    operating_point: dict
+    #: port/state name -> (indices into the state, input or output vector)
+    state_index: dict
+    input_index: dict
+    output_index: dict
+    method: dict = field(default_factory=dict)
+    metadata: dict = field(default_factory=dict)
+
+    @property
+    def max_error(self) -> float:
+        return max(float(np.max(e, initial=0.0)) for e in self.errors.values())
+
+    def __str__(self) -> str:
+        n, m, p = self.A.shape[0], self.B.shape[1], self.C.shape[0]
+        return (f"linear model: {n} states, {m} inputs, {p} outputs; {self.method.get('points')}-point central "
+                f"differences{' with Richardson extrapolation' if self.method.get('richardson') else ''}, "
+                f"tolerance {self.method.get('tolerance'):g}; largest estimated entry error {self.max_error:.3g}")
+
+
+# --------------------------------------------------------------------------------------------------
+# quaternion tangent coordinates
+def _quat_multiply(a, b):
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def quaternion_exp(phi):
+    """Unit quaternion of the rotation vector phi (scalar first)."""
+    angle = float(np.linalg.norm(phi))
+    half = 0.5 * angle
+    s = 0.5 - angle * angle / 48.0 if angle < 1e-4 else np.sin(half) / angle
+    return np.concatenate(([np.cos(half)], s * np.asarray(phi, dtype=float)))
+
+
+def _skew(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def inverse_right_jacobian(phi):
+    """Jr^-1(phi) of SO(3): phi' = Jr^-1(phi) omega for q = q0 (x) Exp(phi), omega in the body frame."""
+    angle = float(np.linalg.norm(phi))
+    S = _skew(phi)
+    if angle < 1e-4:
+        c = 1.0 / 12.0 + angle * angle / 720.0
+    else:
+        c = 1.0 / angle ** 2 - (1.0 + np.cos(angle)) / (2.0 * angle * np.sin(angle))
+    return np.eye(3) + 0.5 * S + c * (S @ S)
+
+
+# --------------------------------------------------------------------------------------------------
+_ELEMENT = re.compile(r"^(.*)\[(\d+)\]$")
+
+
+def _split_element(name: str):
+    match = _ELEMENT.match(name.strip())
+    if match:
+        return match.group(1), int(match.group(2))
+    return name.strip(), None
+
+
+class _StateMap:
+    """Tangent coordinates of the simulation's continuous state (quaternions -> rotation vectors)."""
+
+    def __init__(self, sim, x0, scales):
+        quaternion_starts = set()
+        for m in sim.models:
+            if hasattr(m, "quaternion_w_indices"):
+                block = sim._x_block[sim.model_index[m.path]]
+                quaternion_starts.update(block.start + int(k) for k in m.quaternion_w_indices())
+        self.x0 = np.array(x0, dtype=float)
+        self.plain = []          # (tangent index, x index)
+        self.quaternions = []    # (tangent start, x start, q0)
+        self.names, self.units, self.index = [], [], {}
+        scale_of = {}
+        for key, sl, decl in sim.x_states():
+            label = f"{key[0]}.{key[1]}"
+            unit = format_unit(decl.unit)
+            members = []
+            k = sl.start
+            while k < sl.stop:
+                if k in quaternion_starts:
+                    start = len(self.names)
+                    self.quaternions.append((start, k, self.x0[k:k + 4].copy()))
+                    for axis in range(3):
+                        self.names.append(f"{label}[{k - sl.start}:{k - sl.start + 4}].rotation_vector[{axis}]")
+                        self.units.append("rad")
+                        members.append(start + axis)
+                    k += 4
+                else:
+                    self.plain.append((len(self.names), k))
+                    self.names.append(f"{label}[{k - sl.start}]" if sl.stop - sl.start > 1 else label)
+                    self.units.append(unit)
+                    members.append(len(self.names) - 1)
+                    k += 1
+            self.index[label] = np.asarray(members, dtype=np.int64)
+            given = scales.get(label)
+            if given is not None:
+                given = np.broadcast_to(np.asarray(given, dtype=float), (len(members),))
+                for j, value in zip(members, given):
+                    scale_of[j] = float(value)
+        self.n = len(self.names)
+        self._plain_t = np.array([t for t, _ in self.plain], dtype=np.int64)
+        self._plain_x = np.array([x for _, x in self.plain], dtype=np.int64)
+        self.value = np.zeros(self.n)           # tangent coordinates of x0 (rotation vectors are 0)
+        self.value[self._plain_t] = self.x0[self._plain_x]
+        self.scale = np.array([max(abs(self.value[j]), scale_of.get(j, 1.0)) for j in range(self.n)])
+
+    def retract(self, xi):
+        """Full state for tangent coordinates ``xi`` (deviations from x0)."""
+        x = self.x0.copy()
+        x[self._plain_x] += xi[self._plain_t]
+        for t, k, q0 in self.quaternions:
+            x[k:k + 4] = _quat_multiply(q0, quaternion_exp(xi[t:t + 3]))
+        return x
+
+    def tangent_rate(self, xi, x, xdot):
+        """Rates of the tangent coordinates from the full state derivative."""
+        out = np.empty(self.n)
+        out[self._plain_t] = xdot[self._plain_x]
+        for t, k, _ in self.quaternions:
+            q, qd = x[k:k + 4], xdot[k:k + 4]
+            omega = 2.0 * _quat_multiply(np.array([q[0], -q[1], -q[2], -q[3]]), qd)[1:]
+            out[t:t + 3] = inverse_right_jacobian(xi[t:t + 3]) @ omega
+        return out
+
+
+class _Signals:
+    """Named ports/states (with optional ``[k]`` element) resolved to buffer indices."""
+
+    def __init__(self, sim, names, what):
+        self.names, self.units, self.index, self.kinds, self.positions = [], [], {}, [], []
+        for name in names:
+            base, element = _split_element(name)
+            try:
+                kind, sl, decl = sim._locate(base)
+            except ModelError as exc:
+                raise LinearizationError(f"{what} {name!r}: {exc}") from None
+            positions = np.arange(sl.start, sl.stop)
+            if element is not None:
+                if element >= positions.size:
+                    raise LinearizationError(f"{what} {name!r}: {base} has {positions.size} elements "
+                                             f"(shape {tuple(decl.shape)}), element {element} does not exist")
+                positions = positions[element:element + 1]
+            if name in self.index:
+                raise LinearizationError(f"{what} {name!r} is listed twice")
+            start = len(self.names)
+            for k, pos in enumerate(positions):
+                label = name if positions.size == 1 else f"{name}[{k}]"
+                self.names.append(label)
+                self.units.append(format_unit(decl.unit))
+                self.kinds.append(kind)
+                self.positions.append(int(pos))
+            self.index[name] = np.arange(start, len(self.names), dtype=np.int64)
+        self.positions = np.asarray(self.positions, dtype=np.int64)
+        self.kinds = list(self.kinds)
+
+    def read(self, sim):
+        sources = {"signal": sim.signals, "x": sim.x, "z": sim.z}
+        return np.array([sources[k][p] for k, p in zip(self.kinds, self.positions)])
+
+
+@contextlib.contextmanager
+def _opened_inputs(sim, positions):
+    """Connections into the given signal elements become self-copies (factor 1), so a value written
+    there is held through every evaluation; restored on exit."""
+    src, factor = sim._src.copy(), sim._factor.copy()
+    hits = np.flatnonzero(np.isin(sim._dst, positions))
+    sim._src[hits] = sim._dst[hits]
+    sim._factor[hits] = 1.0
+    try:
+        yield
+    finally:
+        sim._src[:] = src
+        sim._factor[:] = factor
+
+
+def _input_signals(sim, names):
+    inputs = _Signals(sim, names, "input")
+    input_ports = {sl.start for key, sl in sim.port_slices.items()
+                   if key[1] in {port.name for port in sim.models[sim.model_index[key[0]]].inputs}}
+    for name, idx in inputs.index.items():
+        base, _ = _split_element(name)
+        kind, sl, decl = sim._locate(base)
+        if kind != "signal" or sl.start not in input_ports:
+            raise LinearizationError(f"input {name!r} is not an input port (a state or an output port); "
+                                     "linearize from an input port such as a hinge torque or a node force")
+    return inputs
+
+
+def _evaluate(sim, t, states: _StateMap, inputs: _Signals, outputs: _Signals, u0, xi, v):
+    x = states.retract(xi)
+    sim.signals[inputs.positions] = u0 + v
+    sim.x[:] = x
+    sim.evaluate(t)
+    y = outputs.read(sim)
+    xdot = sim.derivative(t, x)
+    return np.concatenate((states.tangent_rate(xi, x, xdot), y))
+
+
+def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4, richardson: bool = True,
+              t=None, x=None, input_values=None, scales=None, metadata=None) -> LinearModel:
+    """Linearize ``sim`` about its current (or the given) operating point.
+
+    inputs: input port names (``"multibody.bus.torque"``) or elements (``"...torque[2]"``).
+    outputs: port or state names or elements.
+    tolerance: relative truncation error aimed at (sets the steps, see the module docstring).
+    points: 2 or 4 (central-difference scheme); richardson: extrapolate one level further.
+    t, x: operating time and full continuous state (default: the simulation's current ones).
+    input_values: {input name: value} at the operating point (default: the values the scene gives).
+    scales: {input or state name: typical size} for variables whose natural size is not ~1 SI unit.
+    """
+    if (points, bool(richardson)) not in SCHEMES:
+        raise LinearizationError(f"points = {points}: expected 2 or 4 (central differences)")
+    if not tolerance > 0.0 or tolerance >= 1.0:
+        raise LinearizationError(f"tolerance = {tolerance}: expected a relative error in (0, 1)")
+    order = SCHEMES[(points, bool(richardson))]
+    scales = dict(scales or {})
+    t0 = sim.t if t is None else float(t)
+    x_saved, signals_saved = sim.x.copy(), sim.signals.copy()
+    x0 = sim.x.copy() if x is None else np.asarray(x, dtype=float).copy()
+    if x0.shape != sim.x.shape:
+        raise LinearizationError(f"operating state has shape {x0.shape}, the scene's state has {sim.x.shape}")
+    for m in sim._normalizers:  # the operating point lies on the unit-quaternion manifold
+        m.normalize_state(x0[sim._x_block[sim.model_index[m.path]]])
+    states = _StateMap(sim, x0, scales)
+    ins = _input_signals(sim, inputs)
+    outs = _Signals(sim, outputs, "output")
+    for name in scales:
+        if name not in states.index and name not in ins.index:
+            raise LinearizationError(f"scale given for {name!r}, which is neither a state nor a listed input; "
+                                     f"states: {sorted(states.index)}; inputs: {list(ins.index)}")
+    sim.x[:] = x0
+    sim.evaluate(t0)
+    u0 = sim.signals[ins.positions].copy()
+    for name, value in (input_values or {}).items():
+        if name not in ins.index:
+            raise LinearizationError(f"operating value given for {name!r}, which is not a listed input "
+                                     f"({list(ins.index)})")
+        u0[ins.index[name]] = np.asarray(value, dtype=float).reshape(-1)
+    input_scale = np.ones(len(ins.names))
+    for name, idx in ins.index.items():
+        if name in scales:
+            input_scale[idx] = np.broadcast_to(np.asarray(scales[name], dtype=float), idx.shape)
+    input_scale = np.maximum(np.abs(u0), input_scale)
+
+    n, m = states.n, len(ins.names)
+    p = len(outs.names)
+    levels = (1, 2) if points == 2 else (1, 2, 4)  # step multiples: the scheme and its error estimate
+    try:
+        with _opened_inputs(sim, ins.positions):
+            F0 = _evaluate(sim, t0, states, ins, outs, u0, np.zeros(n), np.zeros(m))
+            jac = np.empty((n + p, n + m))
+            err = np.empty((n + p, n + m))
+            steps = np.empty(n + m)
+            for j in range(n + m):
+                scale = states.scale[j] if j < n else input_scale[j - n]
+                h = scale * tolerance ** (1.0 / order)
+                h = float((scale + h) - scale) or h  # a step representable against the variable
+                steps[j] = h
+                diffs, fmax = {}, float(np.max(np.abs(F0), initial=0.0))
+                for level in levels:
+                    plus, minus = [], []
+                    for sign, store in ((1.0, plus), (-1.0, minus)):
+                        xi, v = np.zeros(n), np.zeros(m)
+                        if j < n:
+                            xi[j] = sign * level * h
+                        else:
+                            v[j - n] = sign * level * h
+                        F = _evaluate(sim, t0, states, ins, outs, u0, xi, v)
+                        if not np.all(np.isfinite(F)):
+                            raise LinearizationError(f"non-finite derivative or output perturbing "
+                                                     f"{(states.names + ins.names)[j]} by {sign * level * h:.3g}")
+                        fmax = max(fmax, float(np.max(np.abs(F), initial=0.0)))
+                        store.append(F)
+                    diffs[level] = (plus[0] - minus[0]) / (2.0 * level * h)
+                column, correction = _combine(diffs, points, richardson)
+                jac[:, j] = column
+                err[:, j] = np.abs(correction) + 16.0 * EPS * fmax / h
+    finally:
+        sim.x[:] = x_saved
+        sim.signals[:] = signals_saved
+    A, B = jac[:n, :n], jac[:n, n:]
+    C, D = jac[n:, :n], jac[n:, n:]
+    errors = {"A": err[:n, :n], "B": err[:n, n:], "C": err[n:, :n], "D": err[n:, n:]}
+    op = {"t": t0, "x": x0, "z": sim.z.copy(), "u": u0, "y": F0[n:], "xdot": F0[:n], "tangent": states.value}
+    return LinearModel(A, B, C, D, states.names, states.units, ins.names, ins.units, outs.names, outs.units,
+                       errors, op, states.index, ins.index, outs.index,
+                       method={"points": points, "richardson": bool(richardson), "tolerance": tolerance,
+                               "order": order, "state_steps": steps[:n], "input_steps": steps[n:]},
+                       metadata=dict(metadata or {}))
+
+
+def _combine(diffs, points, richardson):
+    """Result and last correction from the central differences D2(level h)."""
+    if points == 2:
+        if not richardson:
+            return diffs[1], diffs[1] - diffs[2]
+        d4 = (4.0 * diffs[1] - diffs[2]) / 3.0
+        return d4, d4 - diffs[1]
+    d4_h = (4.0 * diffs[1] - diffs[2]) / 3.0
+    d4_2h = (4.0 * diffs[2] - diffs[4]) / 3.0
+    if not richardson:
+        return d4_h, d4_h - d4_2h
+    r = (16.0 * d4_h - d4_2h) / 15.0
+    return r, r - d4_h
