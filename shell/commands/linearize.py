@@ -1,0 +1,70 @@
+"""``flexshell linearize SCENARIO.yaml --inputs ... --outputs ... -o LIN.h5``: linear model of a scene.
+
+Builds the scenario, optionally runs it to ``--at`` seconds, linearizes between the named input ports
+and outputs (:func:`shell.analysis.linearize.linearize`) and writes the HDF5 linear-model file
+(:mod:`shell.analysis.linear_model_file`, TM-2020-5008164 App. G.4 layout) and, with ``--mat``, a
+MATLAB file.
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def _names(values):
+    return [name for value in values for name in value.split(",") if name.strip()]
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "linearize", help="linearize a scenario between named inputs and outputs (A, B, C, D to HDF5)",
+        description="Linearize a scenario about its initial state (or its state at --at) between input ports "
+                    "and outputs named by dotted path (an element as port[k]); central differences with "
+                    "Richardson extrapolation; writes A, B, C, D, index maps, units, operating point and "
+                    "error estimates to an HDF5 linear-model file.")
+    parser.add_argument("scenario", help="scenario file (YAML)")
+    parser.add_argument("--inputs", action="append", required=True, metavar="PORT[,PORT...]",
+                        help="input ports or elements, e.g. multibody.bus.torque or multibody.acs.torque[2]")
+    parser.add_argument("--outputs", action="append", required=True, metavar="SIGNAL[,SIGNAL...]",
+                        help="output ports, input ports or states, e.g. multibody.acs.angular_velocity")
+    parser.add_argument("-o", "--output", required=True, help="linear-model file to write (HDF5)")
+    parser.add_argument("--mat", help="also write a MATLAB .mat file")
+    parser.add_argument("--at", type=float, default=None, metavar="SECONDS",
+                        help="run the scenario to this time first and linearize there")
+    parser.add_argument("--tolerance", type=float, default=1e-10,
+                        help="relative truncation error aimed at; sets the steps (default 1e-10)")
+    parser.add_argument("--points", type=int, choices=(2, 4), default=4, help="central-difference points")
+    parser.add_argument("--no-richardson", action="store_true", help="no Richardson extrapolation")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a scenario value (as for run)")
+    parser.set_defaults(func=linearize_command)
+
+
+def linearize_command(args) -> int:
+    from datetime import datetime, timezone
+
+    from shell.analysis.linear_model_file import write_linear_model, write_mat
+    from shell.analysis.linearize import linearize
+    from shell.model import ModelError
+    from shell.scenario import ScenarioError, build_simulation, load_scenario
+    from shell.units import UnitError
+
+    try:
+        scenario = load_scenario(args.scenario, args.overrides)
+        simulation = build_simulation(scenario)
+        if args.at is not None:
+            simulation.run(args.at)
+        model = linearize(simulation, _names(args.inputs), _names(args.outputs), tolerance=args.tolerance,
+                          points=args.points, richardson=not args.no_richardson,
+                          metadata={"scenario": str(args.scenario), "scenario_name": scenario.name,
+                                    "overrides": list(args.overrides),
+                                    "created": datetime.now(timezone.utc).isoformat(timespec="seconds")})
+    except (ScenarioError, UnitError, ModelError, ValueError, OSError) as exc:
+        print(f"flexshell linearize: {exc}", file=sys.stderr)
+        return 1
+    write_linear_model(args.output, model)
+    if args.mat:
+        write_mat(args.mat, model)
+    print(f"{args.scenario}: {model}")
+    print(f"  written {args.output}{' and ' + args.mat if args.mat else ''}")
+    return 0
