@@ -1,0 +1,115 @@
+"""Central-body gravity with J2 and the gravity-gradient torque, for a body at one of its nodes.
+
+Attach to a node at the body's center of mass (``attach: {node: ...}``): the model reads the node's
+world position and rotation and applies, in node axes,
+
+* the point-mass + J2 acceleration (Vallado, "Fundamentals of Astrodynamics", 4th ed., eq. 8-30; pole
+  along world z, body-fixed rotation of the planet ignored since J2 is axisymmetric)::
+
+      g = -mu r / |r|^3 - 3/2 J2 mu R^2 / |r|^5 [ (1 - 5 z^2/|r|^2) x, (1 - 5 z^2/|r|^2) y,
+                                                   (3 - 5 z^2/|r|^2) z ]
+
+  as the force ``m g`` (``mass`` parameter: the body's mass);
+* the gravity-gradient torque about the center of mass (Wie sec. 6.2; Hughes, "Spacecraft Attitude
+  Dynamics", ch. 8), with ``J`` the body's inertia about its center of mass in node axes::
+
+      T = 3 mu / |r|^3  r_hat x (J r_hat),     r_hat the unit position vector in node axes
+
+  (``gravity_gradient: 0`` switches the torque off: the fidelity switch for a scene that needs only the
+  orbit);
+* ``gravitational_acceleration`` (node axes) for an :class:`shell.models.imu.Imu` on the same body,
+  which must not sense gravity.
+
+A uniform field needs no model: the engine applies ``multibody: gravity:`` to every body exactly.
+One model per body whose orbit or gravity-gradient torque matters.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from shell.model import InputPort, Model, OutputPort, Parameter
+from shell.registry import register_model
+
+EARTH_MU = 3.986004418e14        # m^3/s^2, WGS 84 / EGM 2008
+EARTH_RADIUS = 6378137.0         # m, WGS 84 equatorial
+EARTH_J2 = 1.08262668e-3         # EGM 2008 (unnormalized)
+
+
+@njit(cache=True)
+def central_body_acceleration(r, mu, radius, j2, out):
+    """Point-mass + J2 gravitational acceleration at world position r (world axes)."""
+    r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
+    rn = np.sqrt(r2)
+    k = -mu / (r2 * rn)
+    zz = r[2] * r[2] / r2
+    c = -1.5 * j2 * mu * radius * radius / (r2 * r2 * rn)
+    out[0] = k * r[0] + c * (1.0 - 5.0 * zz) * r[0]
+    out[1] = k * r[1] + c * (1.0 - 5.0 * zz) * r[1]
+    out[2] = k * r[2] + c * (3.0 - 5.0 * zz) * r[2]
+
+
+@njit(cache=True)
+def gravity_gradient_torque(r_node, inertia, mu, out):
+    """3 mu / |r|^3 r_hat x (J r_hat); r_node from the planet center, node axes; inertia (9,) row-major."""
+    rn = np.sqrt(r_node[0] ** 2 + r_node[1] ** 2 + r_node[2] ** 2)
+    rh = r_node / rn
+    jr = np.empty(3)
+    for i in range(3):
+        jr[i] = inertia[3 * i] * rh[0] + inertia[3 * i + 1] * rh[1] + inertia[3 * i + 2] * rh[2]
+    k = 3.0 * mu / (rn * rn * rn)
+    out[0] = k * (rh[1] * jr[2] - rh[2] * jr[1])
+    out[1] = k * (rh[2] * jr[0] - rh[0] * jr[2])
+    out[2] = k * (rh[0] * jr[1] - rh[1] * jr[0])
+
+
+@njit(cache=True)
+def _gravity_outputs(t, x, z, u, p, y):
+    # u = [position (3, world), rotation (9, node -> world)]
+    # p = [mu, radius, j2, mass, inertia (9), gravity_gradient]; y = [force, torque, acceleration]
+    g_world = np.empty(3)
+    central_body_acceleration(u[0:3], p[0], p[1], p[2], g_world)
+    r_node = np.empty(3)
+    for i in range(3):
+        g_node = 0.0
+        r = 0.0
+        for j in range(3):
+            g_node += u[3 + 3 * j + i] * g_world[j]
+            r += u[3 + 3 * j + i] * u[j]
+        r_node[i] = r
+        y[6 + i] = g_node
+        y[i] = p[3] * g_node
+    torque = np.zeros(3)
+    if p[13] != 0.0:
+        gravity_gradient_torque(r_node, p[4:13], p[0], torque)
+    for i in range(3):
+        y[3 + i] = torque[i]
+
+
+@register_model
+class CentralBodyGravity(Model):
+    """Point-mass + J2 gravity force and gravity-gradient torque at a body's center-of-mass node."""
+
+    summary = "central-body gravity (mu, J2) force and gravity-gradient torque at a center-of-mass node"
+    parameters = (
+        Parameter("mu", "m^3/s^2", EARTH_MU, (), (0.0, None), "gravitational parameter (default Earth)"),
+        Parameter("radius", "m", EARTH_RADIUS, (), (0.0, None), "reference radius of J2"),
+        Parameter("j2", "", EARTH_J2, (), None, "second zonal harmonic (0: point mass)"),
+        Parameter("mass", "kg", None, (), (0.0, None), "mass of the body"),
+        Parameter("inertia", "kg*m^2", np.zeros((3, 3)), (3, 3), None,
+                  "inertia about the center of mass in node axes (gravity-gradient torque)"),
+        Parameter("gravity_gradient", "", 1.0, (), (0.0, 1.0), "1: apply the gravity-gradient torque, 0: not"),
+    )
+    inputs = (
+        InputPort("position", "m", (3,), "node origin (the center of mass) from the planet center, world",
+                  feedthrough=True),
+        InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
+    )
+    outputs = (
+        OutputPort("force", "N", (3,), "gravitational force, node axes", feedthrough=True),
+        OutputPort("torque", "N*m", (3,), "gravity-gradient torque about the node, node axes", feedthrough=True),
+        OutputPort("gravitational_acceleration", "m/s^2", (3,), "gravitational acceleration, node axes",
+                   feedthrough=True),
+    )
+    feedthrough_outputs = staticmethod(_gravity_outputs)
