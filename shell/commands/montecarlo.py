@@ -1,0 +1,133 @@
+"""``flexshell montecarlo CAMPAIGN.yaml -o OUT.h5``: run a Monte Carlo campaign (serial, pool or Dask)."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "montecarlo", help="run a Monte Carlo campaign over a scenario and store draws + metrics per run",
+        description="Run the N dispersed runs of a campaign (docs/montecarlo.md); each run's row is stored as "
+                    "it completes, so an interrupted campaign is finished with --resume.")
+    parser.add_argument("campaign", help="campaign file (YAML)")
+    parser.add_argument("-o", "--output", help="results file (HDF5); default <campaign name>.h5")
+    parser.add_argument("--executor", choices=("serial", "pool", "dask"), default="serial",
+                        help="serial (default), pool (local processes, all cores) or dask (--scheduler ADDRESS, "
+                             "else a LocalCluster)")
+    parser.add_argument("--workers", type=int, help="pool / LocalCluster worker processes (default: cores)")
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://host:8786")
+    parser.add_argument("--resume", action="store_true", help="finish a partial campaign in OUT.h5")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing OUT.h5")
+    parser.add_argument("--rerun", type=int, metavar="I",
+                        help="run only run I again, write its full log to -o, print its draws and metrics")
+    parser.add_argument("--print-overrides", type=int, metavar="I",
+                        help="print the --set list that makes the scenario into run I, and exit")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(func=run)
+
+
+class CampaignProgress:
+    """One-line progress on stderr: runs done, failures, runs per minute, estimated time left."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.start = time.perf_counter()
+        self.first_done = None
+        self.bad = 0
+
+    def __call__(self, record, done: int, total: int) -> None:
+        if record.status not in ("completed", "stopped"):
+            self.bad += 1
+        if self.first_done is None:
+            self.first_done = done - 1
+        if not self.enabled:
+            return
+        elapsed = time.perf_counter() - self.start
+        rate = (done - self.first_done) / elapsed * 60 if elapsed > 0 else 0.0
+        left = (total - done) / rate * 60 if rate > 0 else float("nan")
+        width = 30
+        filled = int(round(width * done / max(total, 1)))
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} runs, {self.bad} not completed, "
+                         f"{rate:6.1f} runs/min, {left:6.0f} s left ")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def run(args) -> int:
+    from shell.montecarlo.campaign import CampaignError, load_campaign
+    from shell.montecarlo.executors import run_campaign
+    from shell.montecarlo.results import ResultsError
+
+    try:
+        campaign = load_campaign(args.campaign)
+    except CampaignError as exc:
+        print(f"flexshell montecarlo: {exc}", file=sys.stderr)
+        return 1
+    if args.print_overrides is not None:
+        for item in campaign.overrides(args.print_overrides):
+            print(f"--set \"{item}\"")
+        return 0
+    output = args.output or f"{campaign.name}.h5"
+    if args.rerun is not None:
+        return _rerun(campaign, args.rerun, args.output or f"{campaign.name}_run{args.rerun}.h5")
+    progress = CampaignProgress(enabled=not args.quiet and sys.stderr.isatty())
+    start = time.perf_counter()
+    try:
+        counts = run_campaign(campaign, output, args.executor, args.workers, args.scheduler, args.resume,
+                              args.overwrite, progress)
+    except ResultsError as exc:
+        progress.close()
+        print(f"flexshell montecarlo: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        progress.close()
+        print(f"flexshell montecarlo: interrupted; completed runs are in {output} "
+              f"(finish with --resume)", file=sys.stderr)
+        return 130
+    progress.close()
+    wall = time.perf_counter() - start
+    summary = ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
+    print(f"{campaign.name}: {campaign.runs} runs ({summary}); this session {wall:.1f} s wall, "
+          f"{args.executor} executor")
+    _print_metric_summary(output)
+    print(f"results: {output}")
+    return 0 if counts.get("pending", 0) == 0 else 1
+
+
+def _print_metric_summary(output) -> None:
+    import numpy as np
+
+    from shell.montecarlo.results import read_results
+
+    results = read_results(output)
+    table = results["table"]
+    good = np.isin(table["status"], [b"completed", b"stopped"])
+    for column in results["metric_columns"]:
+        values = table[column][good]
+        if values.size == 0:
+            continue
+        p5, p50, p95 = np.percentile(values, [5, 50, 95])
+        print(f"  {column:32s} [{results['units'][column]}]  p5 {p5:.4g}  median {p50:.4g}  p95 {p95:.4g}  "
+              f"max {values.max():.4g}")
+    for row in table[~good & (table["status"] != b"pending")]:
+        print(f"  run {row['run']}: {row['status'].decode()}: {row['message']}")
+
+
+def _rerun(campaign, run: int, log_path) -> int:
+    if not 0 <= run < campaign.runs:
+        print(f"flexshell montecarlo: --rerun {run}: the campaign has runs 0..{campaign.runs - 1}", file=sys.stderr)
+        return 1
+    record = campaign.run(run, log_path=log_path)
+    print(f"{campaign.name} run {run}: {record.status} ({record.message}), t_end = {record.t_end:.6g} s, "
+          f"wall {record.wall_time:.3f} s")
+    for column, value in zip(campaign.draw_columns, record.draws):
+        print(f"  draw   {column} = {value!r}")
+    for column, value in zip(campaign.metric_columns, record.metrics):
+        print(f"  metric {column} = {value!r}")
+    print(f"log: {log_path}")
+    return 0 if record.status in ("completed", "stopped") else 1

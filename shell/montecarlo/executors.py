@@ -1,0 +1,131 @@
+"""Where the runs of a campaign execute: serially, on a local process pool, or on a Dask cluster.
+
+Every executor calls the same function, :func:`run_campaign_member` (``Campaign.run(i)``), and yields
+:class:`~shell.montecarlo.campaign.RunRecord` objects as runs complete (in completion order; the
+results file stores row i at index i, so the table does not depend on the order). A run's result
+depends only on (campaign, i), hence serial, pool and Dask give identical tables.
+
+Compiled kernels: the numba kernels of flexshell are ``cache=True``, so the coordinator compiles (or
+loads) them once when the campaign is validated (a few steps of the median scene), which writes
+numba's on-disk cache; workers then load the machine code from that cache instead of compiling. On
+Linux the pool forks the coordinator, so its workers even start with the kernels in memory; Dask
+workers are fresh processes and load from the cache (each record counts the kernels its worker
+had to compile: 0 when the cache was used; on other machines of a cluster the cache directory must be
+shared, or each machine compiles once).
+
+Dask: ``--scheduler ADDRESS`` connects to a running ``dask scheduler`` (workers started with
+``dask worker ADDRESS`` where flexshell is installed and the campaign's files are readable);
+without it a ``LocalCluster`` of one single-threaded worker process per core is started and closed.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+from shell.montecarlo.campaign import Campaign, RunRecord
+from shell.montecarlo.results import open_results
+
+EXECUTORS = ("serial", "pool", "dask")
+
+
+def run_campaign_member(campaign: Campaign, run: int) -> RunRecord:
+    """Run ``run`` of ``campaign`` (top-level so that process pools and Dask can pickle it)."""
+    return campaign.run(run)
+
+
+def run_serial(campaign: Campaign, runs):
+    for i in runs:
+        yield campaign.run(i)
+
+
+def run_pool(campaign: Campaign, runs, workers: int | None = None):
+    """A process pool of ``workers`` (default: all cores); at most 2 runs queued per worker."""
+    workers = workers or os.cpu_count() or 1
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    pending_runs = list(runs)
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method)) as pool:
+        in_flight = set()
+        try:
+            while pending_runs or in_flight:
+                while pending_runs and len(in_flight) < 2 * workers:
+                    in_flight.add(pool.submit(run_campaign_member, campaign, pending_runs.pop(0)))
+                done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
+                for future in done:
+                    yield future.result()
+        except BaseException:
+            for future in in_flight:
+                future.cancel()
+            raise
+
+
+def run_dask(campaign: Campaign, runs, scheduler: str | None = None, workers: int | None = None,
+             timeout: float = 60.0):
+    """Runs as Dask futures on ``scheduler`` (an address) or on a LocalCluster of worker processes."""
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster, timeout=timeout)
+    else:
+        client = Client(scheduler, timeout=timeout)
+    try:
+        shipped = client.scatter(campaign, broadcast=True)
+        futures = [client.submit(run_campaign_member, shipped, i, pure=False, key=f"{campaign.name}-{campaign.fingerprint[:12]}-run-{i}")
+                   for i in runs]
+        try:
+            for future in as_completed(futures):
+                yield future.result()
+        except BaseException:
+            client.cancel(futures)
+            raise
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def execute(campaign: Campaign, runs, executor: str = "serial", workers: int | None = None,
+            scheduler: str | None = None):
+    """Records of ``runs`` (indices) as they complete, on the chosen executor."""
+    if executor == "serial":
+        return run_serial(campaign, runs)
+    if executor == "pool":
+        return run_pool(campaign, runs, workers)
+    if executor == "dask":
+        return run_dask(campaign, runs, scheduler, workers)
+    raise ValueError(f"executor {executor!r}: expected one of {EXECUTORS}")
+
+
+def run_campaign(campaign: Campaign, output, executor: str = "serial", workers: int | None = None,
+                 scheduler: str | None = None, resume: bool = False, overwrite: bool = False, progress=None,
+                 runs=None) -> dict:
+    """Run the campaign's runs not yet in ``output`` and store each as it completes.
+
+    ``progress(record, done, total)`` is called after each stored run. Returns counts by status.
+    ``runs`` restricts the campaign to those indices (default: all).
+    An interrupted campaign (Ctrl-C) keeps its completed runs and marks the file "interrupted".
+    """
+    results = open_results(output, campaign, resume=resume, overwrite=overwrite)
+    status = "interrupted"
+    try:
+        done = results.done()
+        selected = range(campaign.runs) if runs is None else runs
+        todo = [i for i in selected if i not in done]
+        total, count = len(done) + len(todo), len(done)
+        for record in execute(campaign, todo, executor, workers, scheduler):
+            results.write(record)
+            count += 1
+            if progress is not None:
+                progress(record, count, total)
+        finished = results.done()
+        status = "completed" if len(finished) == campaign.runs else "partial"
+        counts = {}
+        for s in results.table["status"]:
+            counts[s.decode()] = counts.get(s.decode(), 0) + 1
+        return counts
+    finally:
+        results.close(status)
