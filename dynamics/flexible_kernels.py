@@ -86,6 +86,8 @@ FX_M1 = 2
 FX_M2 = 3
 FX_K = 4  # stiffness, then damping right after it (n*n each)
 FX_ORDER = 5
+FX_M2_EXTENT = 6  # M2 is stored on its leading k x k block only (k = 3 for point-mass nodes: only J2)
+N_FX = 7
 
 # augmented vector slots (nb, N_FV, NM)
 FV_X = 0  # x = [V; eta_dot]
@@ -244,13 +246,15 @@ def body_mass_matrix(fx, flex_data, eta, n, M):
                 M[i, j] += e * flex_data[base + i * N + j]
     if order == 2:
         o2 = fx[FX_M2]
+        k = fx[FX_M2_EXTENT]
+        kk = k * k
         for r in range(n):
             for s in range(n):
                 e = eta[r] * eta[s]
-                base = o2 + (r * n + s) * NN
-                for i in range(N):
-                    for j in range(N):
-                        M[i, j] += e * flex_data[base + i * N + j]
+                base = o2 + (r * n + s) * kk
+                for i in range(k):
+                    for j in range(k):
+                        M[i, j] += e * flex_data[base + i * k + j]
 
 
 @njit(cache=True)
@@ -290,15 +294,17 @@ def body_bias(fx, flex_data, eta, x, n, M, h, out, y):
                     s += flex_data[base + i * N + j] * x[j]
                 y[i] = s
             if order == 2:
+                k = fx[FX_M2_EXTENT]
+                kk = k * k
                 for s_ in range(n):
                     e = 2.0 * eta[s_]
                     if e == 0.0:
                         continue
-                    base = o2 + (r * n + s_) * NN
-                    for i in range(N):
+                    base = o2 + (r * n + s_) * kk
+                    for i in range(k):
                         acc = 0.0
-                        for j in range(N):
-                            acc += flex_data[base + i * N + j] * x[j]
+                        for j in range(k):
+                            acc += flex_data[base + i * k + j] * x[j]
                         y[i] += e * acc
             q = 0.0
             for i in range(N):

@@ -154,7 +154,7 @@ class MultibodySystem:
     def _flexible_arrays(bodies, nodes, inertia):
         """flex_index, flex_data (M0, M1, M2, K, C per body, flattened) and padded node mode shapes."""
         nb = len(bodies)
-        flex_index = np.zeros((nb, 6), dtype=np.int64)
+        flex_index = np.zeros((nb, FK.N_FX), dtype=np.int64)
         chunks, offset = [], 0
 
         def push(a):
@@ -168,13 +168,20 @@ class MultibodySystem:
         for i, b in enumerate(bodies):
             data = b.flexible
             if data is None:
-                flex_index[i] = [0, push(inertia[i]), 0, 0, 0, 0]
+                flex_index[i] = [0, push(inertia[i]), 0, 0, 0, 0, 0]
                 continue
             n = data.n_modes
             flex_index[i, FK.FX_N] = n
             flex_index[i, FK.FX_M0] = push(data.M0)
             flex_index[i, FK.FX_M1] = push(data.M1 if data.order >= 1 else np.zeros(0))
-            flex_index[i, FK.FX_M2] = push(data.M2 if data.order == 2 else np.zeros(0))
+            if data.order == 2:
+                # store M2 on the smallest leading block holding its non-zeros (only J2 for point masses)
+                nonzero = np.flatnonzero(np.any(data.M2 != 0.0, axis=(0, 1, 2)) | np.any(data.M2 != 0.0, axis=(0, 1, 3)))
+                extent = int(nonzero.max()) + 1 if nonzero.size else 0
+                flex_index[i, FK.FX_M2_EXTENT] = extent
+                flex_index[i, FK.FX_M2] = push(data.M2[:, :, :extent, :extent])
+            else:
+                flex_index[i, FK.FX_M2] = push(np.zeros(0))
             flex_index[i, FK.FX_K] = push(data.stiffness)
             push(data.damping)
             flex_index[i, FK.FX_ORDER] = data.order
