@@ -640,4 +640,4 @@ def _validate_against_scenario(campaign: Campaign, document: dict, root: _Where)
             try:
                 conversion_factor(source, metric.unit, f"metric {metric.name}")
             except UnitError as exc:
-                raise here.error(str(exc)) from None
+                raise here.child(section[metric.name], "unit").error(str(exc)) from None

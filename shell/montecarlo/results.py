@@ -241,7 +241,9 @@ def read_results(path) -> dict:
                 raise ResultsError(f"{path}: not a flexshell campaign results file (format "
                                    f"{f.attrs.get('format')!r})")
             table = f["table"]
-            return {"table": table[:], "timing": f["timing"][:], "attrs": dict(f.attrs),
+            rows = table[:]
+            rows["message"] = [m.decode() if isinstance(m, bytes) else m for m in rows["message"]]
+            return {"table": rows, "timing": f["timing"][:], "attrs": dict(f.attrs),
                     "units": json.loads(table.attrs["units"]),
                     "draw_columns": json.loads(table.attrs["draw_columns"]),
                     "metric_columns": json.loads(table.attrs["metric_columns"]),
