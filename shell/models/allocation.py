@@ -1,5 +1,10 @@
 """Actuator allocation and load summation for clusters of wheels and thrusters.
 
+``NonnegativeAllocator`` (thrusters push only): ``c = A^+ d + s n`` with n > 0 a strictly positive
+null vector of A (A n = 0, found once by linear programming) and s the smallest shift that makes every
+command nonnegative, so ``A c = d`` still holds exactly (the null-motion method for redundant jet
+sets, Wie sec. 7.7; the demand must be producible, which the existence of n guarantees).
+
 ``PseudoInverseAllocator``: commands ``c = A^+ d`` for a demanded vector d (torque, or [torque; force])
 and an actuator effectiveness matrix A (columns: what one unit command of each actuator produces),
 the minimum-norm solution of ``A c = d`` (Moore-Penrose, e.g. Wie sec. 7.5 for wheel clusters); the
@@ -11,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from scipy.optimize import linprog
 
 from shell.model import InputPort, Model, ModelError, OutputPort, Parameter
 from shell.registry import register_model
@@ -91,3 +98,54 @@ class NodeLoadSum(Model):
         self.inputs = tuple(inputs)
         self.outputs = (OutputPort("torque", "N*m", (3,), "total torque", feedthrough=True),
                         OutputPort("force", "N", (3,), "total force", feedthrough=True))
+
+
+@njit(cache=True)
+def _allocate_nonnegative(t, x, z, u, p, y):
+    # p = [A (m x n), A^+ (n x m), null vector (n)]
+    n = y.shape[0]
+    m = u.shape[0]
+    start = m * n
+    null = start + n * m
+    shift = 0.0
+    for i in range(n):
+        acc = 0.0
+        for j in range(m):
+            acc += p[start + i * m + j] * u[j]
+        y[i] = acc
+        shift = max(shift, -acc / p[null + i])
+    for i in range(n):
+        y[i] = max(y[i] + shift * p[null + i], 0.0)  # >= 0 up to round-off
+
+
+@register_model
+class NonnegativeAllocator(PseudoInverseAllocator):
+    """c = pinv(A) d + s n >= 0 with A n = 0, n > 0 (thrusters); config as PseudoInverseAllocator."""
+
+    summary = "nonnegative allocation for thrusters: pinv plus null-vector shift (config: demand, actuators, ...)"
+    feedthrough_outputs = staticmethod(_allocate_nonnegative)
+
+    def __init__(self, name: str, **kwargs):
+        if "null_vector" in kwargs:
+            raise ModelError(f"model {name}: null_vector is computed from effectiveness; do not give it")
+        super().__init__(name, **kwargs)
+
+    def declare(self):
+        super().declare()
+        self.parameters = self.parameters + (
+            Parameter("null_vector", "", np.zeros(self.n_actuators), (self.n_actuators,), None,
+                      "computed: positive null vector of A (do not give)"),)
+
+    def configure(self):
+        super().configure()
+        a = self.parameter("effectiveness")
+        n = a.shape[1]
+        # the most balanced null vector: maximize t with t <= n_k <= 1, A n = 0 (small shifts for any demand)
+        m = a.shape[0]
+        result = linprog(np.r_[np.zeros(n), -1.0], A_ub=np.c_[-np.eye(n), np.ones(n)], b_ub=np.zeros(n),
+                         A_eq=np.c_[a, np.zeros(m)], b_eq=np.zeros(m), bounds=[(0.0, 1.0)] * (n + 1), method="highs")
+        if result.status != 0 or result.x[-1] <= 1e-9:
+            raise ModelError(f"model {self.path}: parameter effectiveness: no strictly positive combination of "
+                             "the actuators cancels out, so push-only actuators cannot produce every demand "
+                             "direction (add or reorient thrusters)")
+        self.parameter("null_vector")[...] = result.x[:n]

@@ -109,7 +109,6 @@ class Thruster(Model):
         Parameter("rise_time", "s", 0.0, (), (0.0, None), "time constant of the thrust rise (0: instant)"),
         Parameter("fall_time", "s", 0.0, (), (0.0, None), "time constant of the thrust decay (0: instant)"),
     )
-    inputs = (InputPort("command", "", (), "pwm / proportional: demanded thrust in N; on_off: valve flag"),)
     outputs = (
         OutputPort("torque", "N*m", (3,), "torque about the node, node axes"),
         OutputPort("force", "N", (3,), "force, node axes"),
@@ -131,6 +130,12 @@ class Thruster(Model):
         self.mode = mode
         self._given_period = period
         super().__init__(name, period=period, **kwargs)
+
+    def declare(self):
+        if self.mode == "on_off":
+            self.inputs = (InputPort("command", "", (), "valve flag: >= 0.5 open for the cycle"),)
+        else:
+            self.inputs = (InputPort("command", "N", (), "demanded (pwm: mean over the cycle) thrust"),)
 
     def configure(self):
         from shell.model import parse_period
