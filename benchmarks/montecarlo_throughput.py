@@ -1,0 +1,81 @@
+"""Monte Carlo throughput: runs per minute serial vs process pool vs Dask LocalCluster, and the per-run
+overhead of the campaign machinery beyond the simulation itself.
+
+Campaign: configs/campaign_attitude_hold.yaml (rigid bus, PD controller at 5-10 Hz, RK4 50 ms),
+shortened to ``--runs`` runs. Peer measured in the same process: a bare loop that builds each run's
+scene from the same --set overrides and calls Simulation.run without logging, the least any tool must
+do per run. Overheads reported:
+
+* in-run: a run's wall time minus its Simulation.run time (parse + overrides + build + HDF5 log of the
+  run + metrics), from the results' timing table;
+* per run, serial campaign vs bare loop: (campaign wall - bare wall) / runs (adds journal + results file);
+* startup: pool / Dask wall minus runs x (serial wall per run) / workers, i.e. process/cluster start.
+
+Usage: python benchmarks/montecarlo_throughput.py [--runs 24] [--workers 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from shell.montecarlo.campaign import load_campaign  # noqa: E402
+from shell.montecarlo.executors import run_campaign  # noqa: E402
+from shell.montecarlo.results import read_results  # noqa: E402
+from shell.scenario import build_simulation, parse_scenario  # noqa: E402
+
+
+def bare_loop(campaign, runs: int) -> tuple[float, float]:
+    """(wall, summed Simulation.run time) of building and running each run without the campaign machinery."""
+    start, simulated = time.perf_counter(), 0.0
+    for i in range(runs):
+        scenario = parse_scenario(campaign.scenario_text, campaign.scenario_file, campaign.overrides(i))
+        summary = build_simulation(scenario).run(scenario.t_final)
+        simulated += summary.wall_time
+    return time.perf_counter() - start, simulated
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--runs", type=int, default=24)
+    parser.add_argument("--workers", type=int, default=os.cpu_count())
+    parser.add_argument("--campaign", default=str(ROOT / "configs" / "campaign_attitude_hold.yaml"))
+    args = parser.parse_args()
+    campaign = load_campaign(args.campaign)
+    campaign.runs = args.runs
+    print(f"campaign {campaign.name}: {args.runs} runs, {args.workers} workers, {os.cpu_count()} cores")
+    bare_wall, bare_sim = bare_loop(campaign, args.runs)
+    print(f"bare loop (build + run, no log):  {bare_wall:7.2f} s  {60 * args.runs / bare_wall:7.1f} runs/min  "
+          f"(Simulation.run {bare_sim / args.runs * 1e3:.1f} ms/run, build {1e3 * (bare_wall - bare_sim) / args.runs:.1f} ms/run)")
+    walls = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for executor in ("serial", "pool", "dask"):
+            output = Path(tmp) / f"{executor}.h5"
+            start = time.perf_counter()
+            run_campaign(campaign, output, executor=executor, workers=args.workers)
+            walls[executor] = time.perf_counter() - start
+            timing = read_results(output)["timing"]
+            in_run = timing["wall_time"] - timing["simulation_time"]
+            print(f"{executor:7s} campaign: {walls[executor]:7.2f} s  {60 * args.runs / walls[executor]:7.1f} runs/min  "
+                  f"(Simulation.run {np.mean(timing['simulation_time']) * 1e3:.1f} ms/run, in-run overhead "
+                  f"median {np.median(in_run) * 1e3:.1f} ms, kernels compiled in workers "
+                  f"{int(timing['compiled_kernels'].sum())})")
+    per_run = walls["serial"] / args.runs
+    print(f"campaign overhead per run beyond the bare loop (serial): {1e3 * (walls['serial'] - bare_wall) / args.runs:.1f} ms")
+    for executor in ("pool", "dask"):
+        ideal = per_run * args.runs / args.workers
+        print(f"{executor}: speed-up {walls['serial'] / walls[executor]:.2f}x over serial; "
+              f"wall minus ideal parallel time {walls[executor] - ideal:.2f} s (start-up, imports, load imbalance)")
+
+
+if __name__ == "__main__":
+    main()
