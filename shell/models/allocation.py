@@ -93,8 +93,10 @@ class NodeLoadSum(Model):
     def declare(self):
         inputs = []
         for k in range(self.count):
-            inputs.append(InputPort(f"torque_{k}", "N*m", (3,), f"torque {k}", feedthrough=True))
-            inputs.append(InputPort(f"force_{k}", "N", (3,), f"force {k}", feedthrough=True))
+            inputs.append(InputPort(f"torque_{k}", "N*m", (3,), f"torque {k} (zero if unconnected)", feedthrough=True,
+                                    required=False))
+            inputs.append(InputPort(f"force_{k}", "N", (3,), f"force {k} (zero if unconnected)", feedthrough=True,
+                                    required=False))
         self.inputs = tuple(inputs)
         self.outputs = (OutputPort("torque", "N*m", (3,), "total torque", feedthrough=True),
                         OutputPort("force", "N", (3,), "total force", feedthrough=True))

@@ -1,0 +1,134 @@
+"""Hook for user flight software: a Python function called at a discrete rate, named signals in and out.
+
+The bridge between a scene and G&C code written outside flexshell (TM-2020-5008164 App. D.1: flight
+software in the loop). At each sample t_k the hook gathers its inputs into a dict of numpy arrays (in the
+declared units), calls ``function(t, inputs)`` and expects a mapping with every declared output, which it
+holds until the next sample (zero-order hold, like a flight computer's output registers)::
+
+    # configs/flight_software/unload.py
+    def momentum_unloading(t, signals):
+        return {"torque_command": -0.01 * signals["wheel_momentum"]}
+
+    models:
+      fsw:
+        type: UserFunction
+        rate: 1 Hz
+        config:
+          function: flight_software/unload.py:momentum_unloading   # or an importable "package.module:name"
+          inputs: {wheel_momentum: {unit: N*m*s, shape: [3]}}
+          outputs: {torque_command: {unit: N*m, shape: [3]}}
+
+A file path is relative to the working directory (``flexshell run`` resolves it as given). The object
+named may be any callable; a class instance keeps the software's own state between calls. Outputs are
+checked (missing names, shapes, non-finite values) and refused with the model path and the time.
+This hook runs interpreted Python at its sample rate; everything else stays compiled.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+
+from shell.model import InputPort, Model, ModelError, OutputPort, State
+from shell.registry import register_model
+
+
+def load_callable(spec: str, where: str):
+    """``path/to/file.py:name`` or ``package.module:name`` -> the object."""
+    if ":" not in spec:
+        raise ModelError(f"{where}: function {spec!r}: expected 'file.py:name' or 'package.module:name'")
+    source, _, attribute = spec.rpartition(":")
+    if source.endswith(".py"):
+        path = Path(source)
+        if not path.is_file():
+            raise ModelError(f"{where}: function {spec!r}: file {path} not found")
+        module_spec = importlib.util.spec_from_file_location(f"flexshell_user_{path.stem}", path)
+        module = importlib.util.module_from_spec(module_spec)
+        module_spec.loader.exec_module(module)
+    else:
+        try:
+            module = importlib.import_module(source)
+        except ImportError as exc:
+            raise ModelError(f"{where}: function {spec!r}: cannot import {source}: {exc}") from None
+    if not hasattr(module, attribute):
+        raise ModelError(f"{where}: function {spec!r}: {source} has no {attribute!r}")
+    function = getattr(module, attribute)
+    if not callable(function):
+        raise ModelError(f"{where}: function {spec!r} is not callable")
+    return function
+
+
+def _port_specs(specs, kind, where):
+    if not isinstance(specs, dict) or not specs:
+        raise ModelError(f"{where}: config {kind}: expected a mapping name -> {{unit, shape}}, given {specs!r}")
+    out = []
+    for name, spec in specs.items():
+        spec = spec or {}
+        unknown = set(spec) - {"unit", "shape", "description"}
+        if unknown:
+            raise ModelError(f"{where}: config {kind}.{name}: unknown key(s) {sorted(unknown)}; known: unit, shape")
+        shape = spec.get("shape", ())
+        shape = (int(shape),) if isinstance(shape, int) else tuple(int(n) for n in shape)
+        out.append((str(name), str(spec.get("unit", "")), shape, str(spec.get("description", ""))))
+    return out
+
+
+@register_model
+class UserFunction(Model):
+    """Calls a user Python function at its rate: named inputs in, named outputs out (held)."""
+
+    summary = "user flight-software hook: function(t, inputs) -> outputs at a discrete rate (config: function, inputs, outputs)"
+
+    def __init__(self, name: str, *, function: str | None = None, inputs=None, outputs=None, **kwargs):
+        where = f"model {name}"
+        if function is None:
+            raise ModelError(f"{where}: UserFunction needs config: function ('file.py:name' or 'module:name')")
+        self.function_spec = function
+        self.function = load_callable(function, where)
+        self._input_specs = _port_specs(inputs, "inputs", where)
+        self._output_specs = _port_specs(outputs, "outputs", where)
+        super().__init__(name, **kwargs)
+
+    def declare(self):
+        self.inputs = tuple(InputPort(n, u, s, d or "input of the user function") for n, u, s, d in self._input_specs)
+        self.outputs = tuple(OutputPort(n, u, s, d or "output of the user function (held)")
+                             for n, u, s, d in self._output_specs)
+        self.discrete_states = tuple(State(n, u, s, None, "held output") for n, u, s, d in self._output_specs)
+
+    def configure(self):
+        from shell.model import Layout
+
+        self._in_layout = Layout.of(self.inputs)
+        self._out_layout = Layout.of(self.outputs)
+
+    @staticmethod
+    def state_outputs(t, x, z, u, p, y):
+        y[:] = z
+
+    def update(self, t, x, z, u, p):
+        signals = {name: u[self._in_layout.slice(name)].reshape(shape).copy()
+                   for name, shape in self._in_layout.shapes.items()}
+        try:
+            result = self.function(t, signals)
+        except Exception as exc:
+            raise ModelError(f"model {self.path}: user function {self.function_spec} failed at t = {t:.12g} s: "
+                             f"{type(exc).__name__}: {exc}") from exc
+        if not isinstance(result, dict):
+            raise ModelError(f"model {self.path}: user function {self.function_spec} returned {type(result).__name__} "
+                             f"at t = {t:.12g} s; expected a dict with {self._out_layout.names}")
+        missing = [n for n in self._out_layout.names if n not in result]
+        if missing:
+            raise ModelError(f"model {self.path}: user function {self.function_spec} at t = {t:.12g} s: missing "
+                             f"output(s) {missing}; returned {sorted(result)}")
+        for name, shape in self._out_layout.shapes.items():
+            value = np.asarray(result[name], dtype=float)
+            if value.shape != shape and not (value.size == 1 and shape == ()):
+                raise ModelError(f"model {self.path}: user function output {name!r} at t = {t:.12g} s: expected "
+                                 f"shape {shape}, given {value.shape}")
+            if not np.all(np.isfinite(value)):
+                raise ModelError(f"model {self.path}: user function output {name!r} at t = {t:.12g} s is not "
+                                 f"finite: {value}")
+            z[self._out_layout.slice(name)] = value.reshape(-1)
