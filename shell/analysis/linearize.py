@@ -265,14 +265,52 @@ def _input_signals(sim, names):
     return inputs
 
 
-def _evaluate(sim, t, states: _StateMap, inputs: _Signals, outputs: _Signals, u0, xi, v):
-    x = states.retract(xi)
-    sim.signals[inputs.positions] = u0 + v
-    sim.x[:] = x
-    sim.evaluate(t)
-    y = outputs.read(sim)
-    xdot = sim.derivative(t, x)
-    return np.concatenate((states.tangent_rate(xi, x, xdot), y))
+class _Evaluator:
+    """f and g at one perturbed point, running only the output stages that the derivatives or the
+    requested outputs need (a flexible body's node accelerations, say, are skipped unless asked for)."""
+
+    def __init__(self, sim, states: _StateMap, inputs: _Signals, outputs: _Signals):
+        self.sim, self.states, self.inputs, self.outputs = sim, states, inputs, outputs
+        feeding: dict[str, list] = {}
+        for c in sim.connections:
+            out_port = sim.port_info[(c.source_model.path, c.source_port)]
+            in_port = sim.port_info[(c.destination_model.path, c.destination_port)]
+            stage = (c.source_model.path, "feedthrough" if out_port.feedthrough else "state")
+            feeding.setdefault(c.destination_model.path, []).append((stage, in_port.feedthrough))
+        pending = list(sim._stages_needed_by_derivatives())
+        for name in outputs.index:
+            path, _, leaf = sim._split_name(_split_element(name)[0])
+            model = sim.models[sim.model_index[path]]
+            for port in model.outputs:
+                if port.name == leaf:
+                    pending.append((path, "feedthrough" if port.feedthrough else "state"))
+            if (path, leaf) in sim.driver:
+                c = sim.driver[(path, leaf)]
+                port = sim.port_info[(c.source_model.path, c.source_port)]
+                pending.append((c.source_model.path, "feedthrough" if port.feedthrough else "state"))
+        needed: set = set()
+        while pending:
+            stage = pending.pop()
+            if stage in needed:
+                continue
+            needed.add(stage)
+            if stage[1] == "feedthrough":
+                pending.extend(s for s, through in feeding.get(stage[0], []) if through)
+        self.plan = [entry for entry in sim._output_plan_full
+                     if (entry[0].path, "state" if entry[1] == entry[0].state_outputs else "feedthrough") in needed]
+
+    def __call__(self, t, u0, xi, v):
+        from shell.simulation import gather_inputs
+
+        sim = self.sim
+        x = self.states.retract(xi)
+        sim.signals[self.inputs.positions] = u0 + v
+        sim.x[:] = x
+        sim._evaluate_outputs(t, self.plan)
+        gather_inputs(sim.signals, sim._src, sim._dst, sim._factor, 0, sim._n_gather)
+        for m, fn, xm, zm, um, pm, xdot in sim._derivative_plan:
+            fn(t, xm, zm, um, pm, xdot)
+        return np.concatenate((self.states.tangent_rate(xi, x, sim.xdot), self.outputs.read(sim)))
 
 
 def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4, richardson: bool = True,
@@ -326,7 +364,8 @@ def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4
     levels = (1, 2) if points == 2 else (1, 2, 4)  # step multiples: the scheme and its error estimate
     try:
         with _opened_inputs(sim, ins.positions):
-            F0 = _evaluate(sim, t0, states, ins, outs, u0, np.zeros(n), np.zeros(m))
+            evaluate = _Evaluator(sim, states, ins, outs)
+            F0 = evaluate(t0, u0, np.zeros(n), np.zeros(m))
             jac = np.empty((n + p, n + m))
             err = np.empty((n + p, n + m))
             steps = np.empty(n + m)
@@ -344,7 +383,7 @@ def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4
                             xi[j] = sign * level * h
                         else:
                             v[j - n] = sign * level * h
-                        F = _evaluate(sim, t0, states, ins, outs, u0, xi, v)
+                        F = evaluate(t0, u0, xi, v)
                         if not np.all(np.isfinite(F)):
                             raise LinearizationError(f"non-finite derivative or output perturbing "
                                                      f"{(states.names + ins.names)[j]} by {sign * level * h:.3g}")
