@@ -59,7 +59,7 @@ class ThrusterCluster(Assembly):
         positions = np.array(self.parameter("positions"), float)
         effectiveness = np.cross(positions, directions).T
         self.add(NonnegativeAllocator("allocator", demand=3, actuators=self.n_thrusters, demand_unit="N*m",
-                                      command_unit="N",
+                                      command_unit="N", period=self.cycle,
                                       **self.child_parameters("allocator", effectiveness=effectiveness)))
         self.add(NodeLoadSum("loads", count=self.n_thrusters))
         self.expose_input("torque_command", "allocator.demand")

@@ -1,9 +1,10 @@
 """Actuator allocation and load summation for clusters of wheels and thrusters.
 
-``NonnegativeAllocator`` (thrusters push only): ``c = A^+ d + s n`` with n > 0 a strictly positive
-null vector of A (A n = 0, found once by linear programming) and s the smallest shift that makes every
-command nonnegative, so ``A c = d`` still holds exactly (the null-motion method for redundant jet
-sets, Wie sec. 7.7; the demand must be producible, which the existence of n guarantees).
+``NonnegativeAllocator`` (thrusters push only), sampled at the thruster cycle: the minimum-fuel
+solution ``min sum c  s.t.  A c = d, c >= 0`` (a linear program, scipy HiGHS, solved in Python at the
+thruster rate: the classical jet-selection LP, Wie sec. 7.7), scaled down along the demand when one
+command exceeds ``max_command``. At build it checks that A has a strictly positive null vector, the
+condition for every demand to be producible by push-only jets.
 
 ``PseudoInverseAllocator``: commands ``c = A^+ d`` for a demanded vector d (torque, or [torque; force])
 and an actuator effectiveness matrix A (columns: what one unit command of each actuator produces),
@@ -19,7 +20,7 @@ from numba import njit
 
 from scipy.optimize import linprog
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter
+from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State
 from shell.registry import register_model
 
 
@@ -103,51 +104,52 @@ class NodeLoadSum(Model):
 
 
 @njit(cache=True)
-def _allocate_nonnegative(t, x, z, u, p, y):
-    # p = [A (m x n), A^+ (n x m), null vector (n)]
-    n = y.shape[0]
-    m = u.shape[0]
-    start = m * n
-    null = start + n * m
-    shift = 0.0
-    for i in range(n):
-        acc = 0.0
-        for j in range(m):
-            acc += p[start + i * m + j] * u[j]
-        y[i] = acc
-        shift = max(shift, -acc / p[null + i])
-    for i in range(n):
-        y[i] = max(y[i] + shift * p[null + i], 0.0)  # >= 0 up to round-off
+def _held_commands(t, x, z, u, p, y):
+    y[:] = z
 
 
 @register_model
 class NonnegativeAllocator(PseudoInverseAllocator):
-    """c = pinv(A) d + s n >= 0 with A n = 0, n > 0 (thrusters); config as PseudoInverseAllocator."""
+    """Sampled push-only minimum-fuel allocation c >= 0, A c = d (thrusters); config as
+    PseudoInverseAllocator, plus its period (the thruster cycle)."""
 
-    summary = "nonnegative allocation for thrusters: pinv plus null-vector shift (config: demand, actuators, ...)"
-    feedthrough_outputs = staticmethod(_allocate_nonnegative)
-
-    def __init__(self, name: str, **kwargs):
-        if "null_vector" in kwargs:
-            raise ModelError(f"model {name}: null_vector is computed from effectiveness; do not give it")
-        super().__init__(name, **kwargs)
+    summary = "sampled push-only minimum-fuel allocation for thrusters (linear program; config: demand, actuators)"
+    feedthrough_outputs = None
+    state_outputs = staticmethod(_held_commands)
+    default_period = "0.1 s"
 
     def declare(self):
         super().declare()
-        self.parameters = self.parameters + (
-            Parameter("null_vector", "", np.zeros(self.n_actuators), (self.n_actuators,), None,
-                      "computed: positive null vector of A (do not give)"),)
+        self.parameters = (self.parameters[0], Parameter(
+            "max_command", self.command_unit, 0.0, (), (0.0, None),
+            "largest single command; a solution above it is scaled down along the demand (0: no limit)"))
+        self.inputs = (InputPort("demand", self.demand_unit, (self.n_demand,), "demanded vector d"),)
+        self.outputs = tuple(OutputPort(o.name, o.unit, o.shape, o.description) for o in self.outputs)
+        self.discrete_states = (State("command", self.command_unit, (self.n_actuators,), None, "held commands"),)
 
     def configure(self):
-        super().configure()
         a = self.parameter("effectiveness")
-        n = a.shape[1]
-        # the most balanced null vector: maximize t with t <= n_k <= 1, A n = 0 (small shifts for any demand)
-        m = a.shape[0]
+        n, m = a.shape[1], a.shape[0]
+        # every demand is producible by push-only actuators iff a strictly positive null vector exists
         result = linprog(np.r_[np.zeros(n), -1.0], A_ub=np.c_[-np.eye(n), np.ones(n)], b_ub=np.zeros(n),
                          A_eq=np.c_[a, np.zeros(m)], b_eq=np.zeros(m), bounds=[(0.0, 1.0)] * (n + 1), method="highs")
-        if result.status != 0 or result.x[-1] <= 1e-9:
+        if np.linalg.matrix_rank(a) < m or result.status != 0 or result.x[-1] <= 1e-9:
             raise ModelError(f"model {self.path}: parameter effectiveness: no strictly positive combination of "
                              "the actuators cancels out, so push-only actuators cannot produce every demand "
                              "direction (add or reorient thrusters)")
-        self.parameter("null_vector")[...] = result.x[:n]
+        self._cost = np.ones(n)
+        self._bounds = [(0.0, None)] * n
+
+    def update(self, t, x, z, u, p):
+        a = self.parameter("effectiveness")
+        if not np.any(u):
+            z[:] = 0.0
+            return
+        result = linprog(self._cost, A_eq=a, b_eq=u, bounds=self._bounds, method="highs")
+        if result.status != 0:
+            raise ModelError(f"model {self.path}: allocation failed at t = {t:.12g} s for demand {u}: {result.message}")
+        c = np.maximum(result.x, 0.0)
+        limit = float(self.parameter("max_command"))
+        if limit > 0.0 and c.max() > limit:
+            c *= limit / c.max()
+        z[:] = c
