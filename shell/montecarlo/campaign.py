@@ -141,6 +141,7 @@ METRIC_KEYS = {
     "signal": "logged model.port or model.state", "statistic": f"one of {list(STATISTICS)}",
     "of": f"one of {list(MAPPINGS)} (default value)", "component": "component index of a vector signal",
     "unit": "unit of the result", "tolerance": "settling_time band", "target": "settling_time target (default 0)",
+    "reference": "quaternion_angle: unit quaternion [w, x, y, z] the error is measured from (default identity)",
 }
 
 
@@ -304,6 +305,16 @@ def _parse_metric(name: str, spec, where: _Where) -> Metric:
         except UnitError as exc:
             raise where.child(spec, "unit").error(str(exc)) from None
     metric = Metric(name, spec["signal"], spec["statistic"], of, component, None if unit is None else str(unit))
+    if "reference" in spec:
+        reference = spec["reference"]
+        try:
+            r = np.asarray(reference, dtype=np.float64)
+        except (TypeError, ValueError):
+            r = np.zeros(0)
+        if of != "quaternion_angle" or r.shape != (4,) or abs(np.linalg.norm(r) - 1.0) > 1e-9:
+            raise where.child(spec, "reference").error(
+                f"expected a unit quaternion [w, x, y, z] with of: quaternion_angle, given {reference!r}")
+        metric.reference = tuple(float(v) for v in r)
     if metric.statistic == "settling_time":
         if "tolerance" not in spec:
             raise where.error("settling_time needs a tolerance (the band around target)")

@@ -5,8 +5,10 @@ sample by sample (``of``):
 
 * ``value``: the signal itself (a vector signal gives one column per component, or pick ``component``),
 * ``norm``: the Euclidean norm of each sample,
-* ``quaternion_angle``: the rotation angle ``2 atan2(|v|, |w|)`` of a scalar-first quaternion sample
-  ``[w, v]`` (the attitude error when the command is the identity; the short way round),
+* ``quaternion_angle``: the rotation angle ``2 atan2(|v_e|, |w_e|)`` of the error quaternion
+  ``e = r^* (x) q`` between each scalar-first sample ``q`` and a ``reference`` quaternion ``r`` (default
+  identity): the attitude error to a command, the short way round. With ``r = [r_w, r_v]``:
+  ``w_e = r_w q_w + r_v . q_v``, ``v_e = r_w q_v - q_w r_v - r_v x q_v`` (Hamilton product),
 
 then over time (``statistic``):
 
@@ -39,6 +41,7 @@ class Metric:
     unit: str | None = None        # output unit (None: the log's unit; rad for quaternion_angle)
     tolerance: float | None = None  # settling_time band, in ``unit``
     target: float = 0.0             # settling_time target, in ``unit``
+    reference: tuple = (1.0, 0.0, 0.0, 0.0)  # quaternion_angle: attitude the error is measured from
     size: int = 1                   # number of columns (set from the signal's logged shape)
 
     def columns(self) -> list[str]:
@@ -54,8 +57,12 @@ def mapped_samples(metric: Metric, values: np.ndarray) -> np.ndarray:
         if samples.shape[1] != 4:
             raise ValueError(f"metric {metric.name}: quaternion_angle needs a 4-component signal, "
                              f"{metric.signal} has {samples.shape[1]}")
-        vector = np.sqrt(np.sum(samples[:, 1:] ** 2, axis=1))
-        return (2.0 * np.arctan2(vector, np.abs(samples[:, 0])))[:, None]
+        r = np.asarray(metric.reference, dtype=np.float64)
+        qw, qv = samples[:, 0], samples[:, 1:]
+        w_e = r[0] * qw + qv @ r[1:]
+        v_e = r[0] * qv - qw[:, None] * r[1:] - np.cross(r[1:], qv)
+        vector = np.sqrt(np.sum(v_e ** 2, axis=1))
+        return (2.0 * np.arctan2(vector, np.abs(w_e)))[:, None]
     if metric.component is not None:
         if not 0 <= metric.component < samples.shape[1]:
             raise ValueError(f"metric {metric.name}: component {metric.component} of {metric.signal}, which has "

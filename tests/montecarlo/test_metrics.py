@@ -53,3 +53,25 @@ def test_quaternion_angle_short_way_round():
     # beyond pi the short way round is 2 pi - angle
     big = np.array([[np.cos(2.0), *(np.sin(2.0) * axis)]])  # rotation by 4 rad
     np.testing.assert_allclose(mapped_samples(metric, big)[0, 0], 2 * np.pi - 4.0, rtol=1e-14)
+
+
+def test_quaternion_angle_from_a_reference():
+    """Angle between q = rot(a, n) and r = rot(b, n) about one axis is |a - b|; about different axes,
+    compare with the angle of the rotation matrices' relative rotation (independent formula)."""
+    def quaternion(angle, axis):
+        axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+        return np.array([np.cos(angle / 2), *(np.sin(angle / 2) * axis)])
+
+    def matrix(q):
+        w, x, y, z = q
+        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+    r = quaternion(0.7, [1, 1, 1])
+    metric = Metric("m", "s", "final", of="quaternion_angle", reference=tuple(r))
+    q = np.array([quaternion(0.2, [1, 1, 1]), quaternion(0.5, [1, -2, 0.5]), quaternion(2.9, [0, 0, 1])])
+    relative = [matrix(r).T @ matrix(qk) for qk in q]
+    expected = [np.arccos(np.clip((np.trace(m) - 1) / 2, -1, 1)) for m in relative]
+    np.testing.assert_allclose(mapped_samples(metric, q)[:, 0], expected, rtol=1e-12)
+    assert abs(mapped_samples(metric, q)[0, 0] - 0.5) < 1e-14
