@@ -28,6 +28,7 @@ from __future__ import annotations
 import difflib
 import hashlib
 import os
+import re
 import socket
 import sys
 import tempfile
@@ -42,9 +43,6 @@ from shell.montecarlo.draws import DISTRIBUTIONS, CorrelationGroup, Dispersion, 
 from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples
 from shell.scenario import LineDict, LineList, ScenarioError, build_simulation, load_yaml, parse_scenario
 from shell.units import UnitError, conversion_factor, parse_unit, to_magnitude, ureg
-
-STATUSES = ("pending", "completed", "stopped", "failed", "nonfinite", "timeout")
-
 
 class CampaignError(ScenarioError):
     """An invalid campaign; the message starts with ``file:line: key.path:``."""
@@ -146,7 +144,7 @@ METRIC_KEYS = {
 
 
 def _unit_of(value) -> str:
-    """The unit written in a value ("3 deg/s", "[1, 2] N*m", {value, unit}); "" for bare numbers."""
+    """The unit as written in a value ("3 deg/s", "[1, 2] N*m", {value, unit}); "" for bare numbers."""
     if isinstance(value, dict) and "unit" in value:
         return str(value["unit"])
     if isinstance(value, list) and value and isinstance(value[0], (str, list, dict)):
@@ -155,12 +153,12 @@ def _unit_of(value) -> str:
         text = value.strip()
         if text.startswith("["):
             return text[text.rfind("]") + 1:].strip()
-        try:
-            quantity = ureg.Quantity(text)
-        except Exception:  # pint raises several unrelated types for unreadable text
-            return ""
-        return "" if isinstance(quantity, (int, float)) else f"{quantity.units}"
+        match = _NUMBER_THEN_UNIT.match(text)
+        return match.group(1).strip() if match else ""
     return ""
+
+
+_NUMBER_THEN_UNIT = re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*(.*)$")
 
 
 def _parse_dispersion(path: str, spec, where: _Where) -> Dispersion:
@@ -196,7 +194,7 @@ def _parse_dispersion(path: str, spec, where: _Where) -> Dispersion:
     location = {"normal": "mean", "truncated_normal": "mean", "uniform": "low", "lognormal": "median"}[kind]
     unit = str(spec["unit"]) if "unit" in spec else _unit_of(spec[location])
     try:
-        parse_unit(unit, "unit")
+        unit = "" if parse_unit(unit, "unit") == ureg.dimensionless else unit
     except UnitError as exc:
         raise where.child(spec, "unit" if "unit" in spec else location).error(str(exc)) from None
     parameters = {}
@@ -406,12 +404,6 @@ class Campaign:
 
     def draws(self, run: int) -> dict[str, np.ndarray]:
         return draw_run(self.dispersions, self.groups, self.seed, run)
-
-    def draw_row(self, run: int) -> np.ndarray:
-        draws = self.draws(run)
-        if not self.dispersions:
-            return np.zeros(0)
-        return np.concatenate([draws[d.path] for d in self.dispersions])
 
     def overrides(self, run: int, draws: dict | None = None) -> list[str]:
         """The ``--set`` list that turns the scenario into run ``run``."""

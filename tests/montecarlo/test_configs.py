@@ -31,3 +31,23 @@ def test_attitude_hold_campaign_runs(tmp_path):
     rates = np.array([table[f"multibody.bus.initial.angular_velocity[{k}]"][0] for k in range(3)])
     np.testing.assert_allclose(simulation.signal("multibody.acs.angular_velocity"), np.radians(rates),
                                rtol=1e-15)                                            # deg/s drawn, rad/s built
+
+
+def test_spacecraft_slew_campaign_builds_each_run_with_its_draws(monkeypatch):
+    """Wheel friction (assembly member paths), IMU noise and bias, inertia and rates reach the scene in
+    the declared units. (One slew run takes ~10 s: the campaign's runs are in docs/montecarlo.md.)"""
+    monkeypatch.chdir(CONFIGS.parent)   # the scenario's flight-software path is relative to the repository
+    campaign = load_campaign(CONFIGS / "campaign_spacecraft_slew.yaml")
+    assert campaign.runs == 30 and campaign.timeout == 300.0
+    draws = campaign.draws(4)
+    _, simulation = campaign.build(4)
+    models = {m.path: m for m in simulation.models}
+    for k in range(1, 5):   # drawn in mN*m, built in N*m
+        np.testing.assert_allclose(models[f"wheels.rw{k}"].parameter("coulomb_friction"),
+                                   draws[f"wheels.rw{k}.coulomb_friction"][0] * 1e-3, rtol=1e-15)
+    hour = 3600.0
+    np.testing.assert_allclose(models["imu"].parameter("gyro_bias"), np.radians(draws["imu.gyro_bias"]) / hour,
+                               rtol=1e-15)
+    np.testing.assert_allclose(models["imu"].parameter("gyro_random_walk"),
+                               np.radians(draws["imu.gyro_random_walk"][0]) / np.sqrt(hour), rtol=1e-15)
+    assert np.all(np.abs(draws["imu.gyro_bias"]) <= 10.0)
