@@ -131,3 +131,25 @@ def pendulum_scene(angle, length=1.5, mass=2.0, gravity=9.81):
     scene = Assembly("scene")
     scene.add(MultibodyModel("multibody", system, initial_q=[angle], initial_u=[0.0]))
     return Simulation(scene, integrator="rk4", step=0.01), system
+
+
+def launch_vehicle_scene(thrust, prescribed):
+    """Rigid airframe on a free hinge (origin at its CG) with a gimbaled engine on a U-joint (pitch about
+    airframe y, then yaw about the engine's z), thrust along the engine's +x at the gimbal (a Constant
+    into the nozzle node's force), a sensor node on the airframe; data of
+    tests/linearize/launch_vehicle_reference.py (TM-2020-5008164 App. F complex test case, rigid)."""
+    from tests.linearize import launch_vehicle_reference as lv
+
+    mb = Multibody(gravity=(0.0, 0.0, 0.0))
+    mb.add_body("airframe", None, mass=lv.AIRFRAME_MASS, inertia=lv.AIRFRAME_INERTIA, hinge="free")
+    mb.add_node("sensor", "airframe", position=tuple(lv.SENSOR))
+    mb.add_body("engine", "airframe", mass=lv.ENGINE_MASS, com=tuple(lv.ENGINE_CG), inertia=lv.ENGINE_INERTIA,
+                hinge="ujoint", axes=[(0.0, 1.0, 0.0), (0.0, 0.0, 1.0)], inboard_position=tuple(lv.GIMBAL),
+                prescribed=prescribed)
+    mb.add_node("nozzle", "engine")
+    system = mb.compile()
+    scene = Assembly("launch_vehicle")
+    scene.add(MultibodyModel("multibody", system))
+    scene.add(Constant("thrust", unit="N", shape=(3,), value=[thrust, 0.0, 0.0]))
+    scene.connect("thrust.y", "multibody.nozzle.force")
+    return Simulation(scene, integrator="rk4", step=0.01)
