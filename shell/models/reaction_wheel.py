@@ -15,6 +15,12 @@ no algebraic loop.
 The motor torque is the command clipped to ``max_torque``, and set to zero when the wheel is at
 ``max_speed`` and the command would spin it faster (a speed limiter).
 
+Body representation (``ReactionWheelMotor``): the wheel is a body of the engine on a revolute hinge
+(its full inertia in the engine, the bus's without it), and this model is its motor: attached to the
+hinge (``attach: {hinge: <wheel body>}``) it reads the relative speed and applies the same limited
+motor torque minus friction as the hinge torque. The engine then carries the gyroscopic coupling, and
+imbalance is exact geometry: a wheel COM offset r (U_s = m r) and a product of inertia (U_d).
+
 Imbalance (Masterson, Miller and Grogan, J. Sound Vib. 2002, the standard RWA disturbance model):
 a static imbalance ``U_s`` (kg m) gives the radial force ``U_s Omega^2 e(theta)`` and a dynamic
 imbalance ``U_d`` (kg m^2) the rocking torque ``U_d Omega^2 e(theta)``, both rotating with the wheel
@@ -136,3 +142,37 @@ class ReactionWheel(Model):
         norm = float(np.sqrt(axis @ axis))
         if abs(norm - 1.0) > 1e-9:
             raise ModelError(f"model {self.path}: parameter spin_axis: expected a unit vector, given norm {norm:.12g}")
+
+
+@njit(cache=True)
+def _motor_torque(t, x, z, u, p, y):
+    # u = [torque_command, hinge rate (1)]; p = [max_torque, max_speed, coulomb, smoothing, viscous]
+    speed = u[1]
+    tau = min(max(u[0], -p[0]), p[0])
+    if (speed >= p[1] and tau > 0.0) or (speed <= -p[1] and tau < 0.0):
+        tau = 0.0
+    y[0] = tau - (p[2] * np.tanh(speed / p[3]) + p[4] * speed)
+    y[1] = tau
+
+
+@register_model
+class ReactionWheelMotor(Model):
+    """Motor of a wheel body on a revolute hinge (body representation); see the module docstring."""
+
+    summary = "reaction-wheel motor on a revolute hinge of a wheel body: limits, friction (attach: {hinge: ...})"
+    parameters = (
+        Parameter("max_torque", "N*m", 0.2, (), (0.0, None), "motor torque limit"),
+        Parameter("max_speed", "rad/s", 6000 * np.pi / 30, (), (0.0, None), "speed limit"),
+        Parameter("coulomb_friction", "N*m", 0.0, (), (0.0, None), "Coulomb friction torque"),
+        Parameter("coulomb_smoothing_speed", "rad/s", 0.1, (), (1e-9, None), "tanh regularization speed"),
+        Parameter("viscous_friction", "N*m*s/rad", 0.0, (), (0.0, None), "viscous friction coefficient"),
+    )
+    inputs = (
+        InputPort("torque_command", "N*m", (), "commanded motor torque", feedthrough=True),
+        InputPort("u", "rad/s", (1,), "wheel speed relative to the bus (the hinge rate)", feedthrough=True),
+    )
+    outputs = (
+        OutputPort("torque", "N*m", (1,), "hinge torque: motor minus friction", feedthrough=True),
+        OutputPort("motor_torque", "N*m", (), "applied motor torque after limits", feedthrough=True),
+    )
+    feedthrough_outputs = staticmethod(_motor_torque)
