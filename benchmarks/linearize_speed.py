@@ -39,7 +39,8 @@ THRUSTER_GRIDS = list(range(5, 100, 6))[:16]
 def observatory(n_modes: int, tmp: Path):
     deck = BeamDeck()
     deck.add_line(1, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), 9.0, 100, (0.0, 1.0, 0.0), 1)
-    body = fem2modal(str(deck.write(tmp / "beam.dat")), Fem2ModalOptions(n_modes=n_modes, aset=[(101, [1, 2, 3, 4, 5, 6])]))
+    body = fem2modal(str(deck.write(tmp / "beam.dat")),
+                     Fem2ModalOptions(n_modes=n_modes, aset=[(101, [1, 2, 3, 4, 5, 6])]))
     mb = Multibody(gravity=(0.0, 0.0, 0.0))
     mb.add_flexible_body("structure", None, modal=rest_body_data(body), hinge="free")
     mb.add_node("wheel_mount", "structure", grid=51)

@@ -2,25 +2,27 @@
 "complex test case": 1695 kg airframe, 50 kg engine with its CG 1 m aft of the gimbal and 10 cm /
 20 cm lateral offsets, large products of inertia, 1000 N thrust), rigid airframe.
 
-Derived with SymPy from Lagrange's equations in coordinates chosen independently of the engine's:
-airframe attitude by 3-2-1 Euler angles (psi, theta, phi), airframe CG position p (world), gimbal
-angles (d1 about the airframe's y axis, then d2 about the rotated z axis). Kinetic energy
-T = 1/2 qdot' M(q) qdot with M = sum m Jv' Jv + Jw' R I R' Jw (Jv, Jw the symbolic Jacobians of each
-CG position and of the angular velocity, [w x] = Rdot R'); generalized forces Q from virtual work of
-the thrust (along the engine's +x axis at the gimbal) and the gimbal torques. About a state at rest
+Derived with SymPy in coordinates chosen independently of the engine's: airframe attitude by 3-2-1
+Euler angles (psi, theta, phi), airframe CG position p (world), gimbal angles (d1 about the airframe's
+y axis, then d2 about the rotated z axis). Kinetic energy T = 1/2 qdot' M(q) qdot with
+M = sum m Jv' Jv + Jw' R I R' Jw (Jv, Jw the symbolic Jacobians of each CG position and of the angular
+velocity, [w x] = Rdot R'); generalized forces Q from the virtual work of the thrust (along the
+engine's +x axis at the gimbal) and the gimbal torque.
+
 Kane's equations in the generalized speeds u = (airframe angular velocity and velocity in airframe
-axes, gimbal rates) -- the engine's speeds, which matter because the thrust case is linearized about
-a state that accelerates, where the Jacobian depends on the choice of speeds (not of coordinates) --
-with qdot = W(q) u are W' M W udot + (velocity-quadratic terms) = W' Q; about a state at rest the
-velocity-quadratic terms drop out of the linearization exactly, so
+axes, gimbal rates) -- the engine's speeds, which matter because the thrust cases are linearized
+about a state that accelerates, where the Jacobian depends on the choice of speeds (not of
+coordinates) -- with qdot = W(q) u read W' M W udot + (velocity-quadratic terms) = W' Q. About a
+state at rest the velocity-quadratic terms drop out of the linearization exactly, so
 
     udot = Mk(q)^-1 Qk(q, tau),   d udot / dq_j = Mk^-1 (dQk/dq_j - dMk/dq_j udot0),   Mk = W'MW, Qk = W'Q
 
 with the derivatives in q taken by complex steps on the lambdified SymPy expressions
-(d f / dq_j = Im f(q0 + i h e_j) / h, h = 1e-30: exact to round-off, no differencing). Outputs at the sensor point r_s of the airframe: angular
-velocity in airframe axes (Jw_body qdot) and classical acceleration in airframe axes
-(R_b' J_s qddot, no gravity). Prescribed gimbal motion: the gimbal rows of M are replaced by the
-prescribed accelerations (TM App. F: load-torque feedback open).
+(d f / dq_j = Im f(q0 + i h e_j) / h, h = 1e-30: exact to round-off, no differencing). Outputs at
+the sensor point r_s of the airframe: angular velocity in airframe axes (the first three speeds) and
+classical acceleration in airframe axes (R_b' J_s W udot, no gravity). Prescribed gimbal motion
+(TM App. F: load-torque feedback open): the gimbal accelerations are the input, the remaining rows
+M_ff udot_f = Q_f - M_fp d'' give the rest.
 
 The geometry of TM Fig. F.6.1 (sensor and gimbal positions, airframe inertia) is not in the text;
 the values here are representative, with the TM's stated masses, offsets and thrust.
