@@ -39,7 +39,8 @@ def trim(sim, *, hold=(), free_inputs=(), inputs=(), input_values=None, derivati
          tolerance: float = 1e-12, max_evaluations: int = 2000) -> TrimResult:
     """Solve for an operating point of ``sim`` starting from its current state.
 
-    hold: state names (``model.state``) kept at their current values.
+    hold: state names (``model.state``) or elements (``model.state[k]``, the names of
+        ``LinearModel.state_names``) kept at their current values.
     free_inputs: input ports/elements solved for (start at their current values).
     inputs, input_values: further (held) inputs opened at the given values.
     derivatives: state names whose rates must vanish (default: every state: an equilibrium).
@@ -48,20 +49,28 @@ def trim(sim, *, hold=(), free_inputs=(), inputs=(), input_values=None, derivati
     """
     targets = dict(targets or {})
     states = _StateMap(sim, sim.x.copy(), {})
-    for name in list(hold) + list(derivatives or []) + list(targets):
-        if name not in states.index:
-            raise LinearizationError(f"trim: {name!r} is not a continuous state; states: {sorted(states.index)}")
+    position = {name: k for k, name in enumerate(states.names)}
+
+    def members(name):
+        if name in states.index:
+            return states.index[name]
+        if name in position:
+            return np.array([position[name]], dtype=np.int64)
+        raise LinearizationError(f"trim: {name!r} is neither a continuous state nor a state element; states: "
+                                 f"{sorted(states.index)} (elements as in LinearModel.state_names, e.g. "
+                                 f"{states.names[-1]!r})")
+
     held = np.zeros(states.n, dtype=bool)
     for name in hold:
-        held[states.index[name]] = True
+        held[members(name)] = True
     equations_of = list(derivatives) if derivatives is not None else list(states.index)
     for name in targets:
         if name not in equations_of:
             equations_of.append(name)
-    rows = np.concatenate([states.index[name] for name in equations_of]) if equations_of else np.zeros(0, int)
+    rows = np.concatenate([members(name) for name in equations_of]) if equations_of else np.zeros(0, int)
     target = np.zeros(states.n)
     for name, value in targets.items():
-        target[states.index[name]] = np.asarray(value, dtype=float).reshape(-1)
+        target[members(name)] = np.asarray(value, dtype=float).reshape(-1)
     all_inputs = list(free_inputs) + [name for name in inputs if name not in free_inputs]
     ins = _input_signals(sim, all_inputs)
     sim.evaluate(sim.t)
