@@ -51,10 +51,7 @@ def _prescribed_outputs(t, x, z, u, p, y):
 def _reference_derivatives(t, x, z, u, p, xdot):
     xdot[0] = x[2]
     xdot[1] = x[3]
-    acc = np.empty(2)
-    _reference_acceleration(x, u, p, acc)
-    xdot[2] = acc[0]
-    xdot[3] = acc[1]
+    _reference_acceleration(x, u, p, xdot[2:4])
 
 
 @njit(cache=True)

@@ -52,39 +52,35 @@ def central_body_acceleration(r, mu, radius, j2, out):
 
 @njit(cache=True)
 def gravity_gradient_torque(r_node, inertia, mu, out):
-    """3 mu / |r|^3 r_hat x (J r_hat); r_node from the planet center, node axes; inertia (9,) row-major."""
+    """3 mu / |r|^3 r_hat x (J r_hat); r_node from the planet center, node axes; inertia (9,) row-major.
+    Reads r_node completely before writing out (they may be the same array)."""
     rn = np.sqrt(r_node[0] ** 2 + r_node[1] ** 2 + r_node[2] ** 2)
-    rh = r_node / rn
-    jr = np.empty(3)
-    for i in range(3):
-        jr[i] = inertia[3 * i] * rh[0] + inertia[3 * i + 1] * rh[1] + inertia[3 * i + 2] * rh[2]
+    x, y, z = r_node[0] / rn, r_node[1] / rn, r_node[2] / rn
+    j0 = inertia[0] * x + inertia[1] * y + inertia[2] * z
+    j1 = inertia[3] * x + inertia[4] * y + inertia[5] * z
+    j2 = inertia[6] * x + inertia[7] * y + inertia[8] * z
     k = 3.0 * mu / (rn * rn * rn)
-    out[0] = k * (rh[1] * jr[2] - rh[2] * jr[1])
-    out[1] = k * (rh[2] * jr[0] - rh[0] * jr[2])
-    out[2] = k * (rh[0] * jr[1] - rh[1] * jr[0])
+    out[0] = k * (y * j2 - z * j1)
+    out[1] = k * (z * j0 - x * j2)
+    out[2] = k * (x * j1 - y * j0)
 
 
 @njit(cache=True)
 def _gravity_outputs(t, x, z, u, p, y):
     # u = [position (3, world), rotation (9, node -> world)]
     # p = [mu, radius, j2, mass, inertia (9), gravity_gradient]; y = [force, torque, acceleration]
-    g_world = np.empty(3)
-    central_body_acceleration(u[0:3], p[0], p[1], p[2], g_world)
-    r_node = np.empty(3)
+    # (y[0:3] holds g in world axes and y[3:6] the position in node axes until they are overwritten)
+    central_body_acceleration(u[0:3], p[0], p[1], p[2], y[0:3])
     for i in range(3):
-        g_node = 0.0
-        r = 0.0
-        for j in range(3):
-            g_node += u[3 + 3 * j + i] * g_world[j]
-            r += u[3 + 3 * j + i] * u[j]
-        r_node[i] = r
-        y[6 + i] = g_node
-        y[i] = p[3] * g_node
-    torque = np.zeros(3)
+        y[6 + i] = u[3 + i] * y[0] + u[6 + i] * y[1] + u[9 + i] * y[2]       # R^T g
+        y[3 + i] = u[3 + i] * u[0] + u[6 + i] * u[1] + u[9 + i] * u[2]       # R^T r
+    for i in range(3):
+        y[i] = p[3] * y[6 + i]
     if p[13] != 0.0:
-        gravity_gradient_torque(r_node, p[4:13], p[0], torque)
-    for i in range(3):
-        y[3 + i] = torque[i]
+        gravity_gradient_torque(y[3:6], p[4:13], p[0], y[3:6])
+    else:
+        for i in range(3):
+            y[3 + i] = 0.0
 
 
 @register_model

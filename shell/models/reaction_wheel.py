@@ -40,16 +40,14 @@ from shell.registry import register_model
 
 
 @njit(cache=True)
-def perpendicular_basis(a):
-    """Two unit vectors e1, e2 with (e1, e2, a) right-handed."""
-    if abs(a[0]) < 0.9:
-        helper = np.array([1.0, 0.0, 0.0])
-    else:
-        helper = np.array([0.0, 1.0, 0.0])
-    e2 = np.cross(a, helper)
-    e2 /= np.sqrt(e2 @ e2)
-    e1 = np.cross(e2, a)
-    return e1, e2
+def perpendicular_basis(a0, a1, a2):
+    """Two unit vectors e1, e2 (as tuples, no allocation) with (e1, e2, a) right-handed."""
+    h0, h1 = (1.0, 0.0) if abs(a0) < 0.9 else (0.0, 1.0)
+    # e2 = a x h (h = (h0, h1, 0)), normalized; e1 = e2 x a
+    x, y, z = -a2 * h1, a2 * h0, a0 * h1 - a1 * h0
+    n = np.sqrt(x * x + y * y + z * z)
+    x, y, z = x / n, y / n, z / n
+    return (y * a2 - z * a1, z * a0 - x * a2, x * a1 - y * a0), (x, y, z)
 
 
 @njit(cache=True)
@@ -80,14 +78,14 @@ def _wheel_loads(t, x, z, u, p, y):
     h = x[0]
     a0, a1, a2 = p[0], p[1], p[2]
     w0, w1, w2 = u[1], u[2], u[3]
-    e1, e2 = perpendicular_basis(p[0:3])
+    e1, e2 = perpendicular_basis(a0, a1, a2)
     c, s = np.cos(x[1]), np.sin(x[1])
     s2 = speed * speed
     y[0] = -net * a0 - h * (w1 * a2 - w2 * a1)
     y[1] = -net * a1 - h * (w2 * a0 - w0 * a2)
     y[2] = -net * a2 - h * (w0 * a1 - w1 * a0)
-    for i in range(3):
-        direction = c * e1[i] + s * e2[i]
+    for i, (b1, b2) in enumerate(((e1[0], e2[0]), (e1[1], e2[1]), (e1[2], e2[2]))):
+        direction = c * b1 + s * b2
         y[i] += p[10] * s2 * direction
         y[3 + i] = p[9] * s2 * direction
     y[6] = speed

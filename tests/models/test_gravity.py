@@ -99,3 +99,31 @@ def test_gravity_gradient_torque_equals_point_mass_sum():
             scale = 3 * EARTH_MU / distance**3 * np.abs(np.linalg.eigvalsh(inertia)).max()
             # next term of the expansion ~ (size / r) relative; size ~ 10 m
             assert_allclose(brute, formula, rtol=0, atol=scale * 50.0 / distance)
+
+
+def test_model_outputs_rotate_into_node_axes():
+    from scipy.spatial.transform import Rotation
+
+    from shell.models.gravity import CentralBodyGravity
+
+    inertia = np.array([[100.0, 3.0, -2.0], [3.0, 200.0, 5.0], [-2.0, 5.0, 300.0]])
+    model = CentralBodyGravity("g", mass=500.0, inertia=inertia)
+    rotation = Rotation.from_rotvec([0.3, -1.1, 0.7]).as_matrix()     # node -> world
+    r = np.array([3.0e6, -5.5e6, 2.0e6])
+    y = np.empty(9)
+    model.feedthrough_outputs(0.0, None, None, np.concatenate([r, rotation.reshape(-1)]), model.p, y)
+    g = np.empty(3)
+    central_body_acceleration(r, EARTH_MU, EARTH_RADIUS, EARTH_J2, g)
+    assert_allclose(y[6:9], rotation.T @ g, rtol=1e-14)
+    assert_allclose(y[0:3], 500.0 * rotation.T @ g, rtol=1e-14)
+    r_node = rotation.T @ r
+    r_hat = r_node / np.linalg.norm(r_node)
+    expected = 3 * EARTH_MU / np.linalg.norm(r) ** 3 * np.cross(r_hat, inertia @ r_hat)
+    assert_allclose(y[3:6], expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+    # J2 against the gradient of its potential U = -mu/r [1 - J2 (R/r)^2 (3 sin^2 phi - 1)/2]
+    def potential(p):
+        rn = np.linalg.norm(p)
+        return -EARTH_MU / rn * (1 - EARTH_J2 * (EARTH_RADIUS / rn) ** 2 * (3 * (p[2] / rn) ** 2 - 1) / 2)
+    step = 1.0
+    numeric = -np.array([(potential(r + step * e) - potential(r - step * e)) / (2 * step) for e in np.eye(3)])
+    assert_allclose(g, numeric, rtol=1e-8)        # central differences with a 1 m step: ~(1/r)^2 relative
