@@ -8,7 +8,7 @@ do per run. Overheads reported:
 
 * in-run: a run's wall time minus its Simulation.run time (parse + overrides + build + HDF5 log of the
   run + metrics), from the results' timing table;
-* per run, serial campaign vs bare loop: (campaign wall - bare wall) / runs (adds journal + results file);
+* coordinator: storing one run (journal line + HDF5 row + kept signals, flushed), timed alone;
 * startup: pool / Dask wall minus runs x (serial wall per run) / workers, i.e. process/cluster start.
 
 Usage: python benchmarks/montecarlo_throughput.py [--runs 24] [--workers 2]
@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 
 from shell.montecarlo.campaign import load_campaign  # noqa: E402
 from shell.montecarlo.executors import run_campaign  # noqa: E402
-from shell.montecarlo.results import read_results  # noqa: E402
+from shell.montecarlo.results import open_results, read_results  # noqa: E402
 from shell.scenario import build_simulation, parse_scenario  # noqa: E402
 
 
@@ -52,7 +52,8 @@ def main() -> None:
     args = parser.parse_args()
     campaign = load_campaign(args.campaign)
     campaign.runs = args.runs
-    print(f"campaign {campaign.name}: {args.runs} runs, {args.workers} workers, {os.cpu_count()} cores")
+    print(f"campaign {campaign.name}: {args.runs} runs, {args.workers} workers, {os.cpu_count()} cores, "
+          f"load average before {os.getloadavg()[0]:.2f}")
     bare_wall, bare_sim = bare_loop(campaign, args.runs)
     print(f"bare loop (build + run, no log):  {bare_wall:7.2f} s  {60 * args.runs / bare_wall:7.1f} runs/min  "
           f"(Simulation.run {bare_sim / args.runs * 1e3:.1f} ms/run, build {1e3 * (bare_wall - bare_sim) / args.runs:.1f} ms/run)")
@@ -66,15 +67,26 @@ def main() -> None:
             timing = read_results(output)["timing"]
             in_run = timing["wall_time"] - timing["simulation_time"]
             print(f"{executor:7s} campaign: {walls[executor]:7.2f} s  {60 * args.runs / walls[executor]:7.1f} runs/min  "
-                  f"(Simulation.run {np.mean(timing['simulation_time']) * 1e3:.1f} ms/run, in-run overhead "
+                  f"(Simulation.run {np.mean(timing['simulation_time']) * 1e3:.1f} ms/run wall, worker CPU "
+                  f"{np.mean(timing['cpu_time']) * 1e3:.1f} ms/run, in-run overhead "
                   f"median {np.median(in_run) * 1e3:.1f} ms, kernels compiled in workers "
                   f"{int(timing['compiled_kernels'].sum())})")
+        records = [campaign.run(i) for i in range(5)]
+        results = open_results(Path(tmp) / "store.h5", campaign)
+        start = time.perf_counter()
+        for record in records * 4:
+            results.write(record)
+        store = (time.perf_counter() - start) / (4 * len(records))
+        results.close("partial")
+    print(f"coordinator: storing one run (journal + HDF5 row + kept signals, flushed) {store * 1e3:.2f} ms")
     per_run = walls["serial"] / args.runs
-    print(f"campaign overhead per run beyond the bare loop (serial): {1e3 * (walls['serial'] - bare_wall) / args.runs:.1f} ms")
     for executor in ("pool", "dask"):
         ideal = per_run * args.runs / args.workers
         print(f"{executor}: speed-up {walls['serial'] / walls[executor]:.2f}x over serial; "
-              f"wall minus ideal parallel time {walls[executor] - ideal:.2f} s (start-up, imports, load imbalance)")
+              f"wall minus ideal parallel time {walls[executor] - ideal:.2f} s (start-up, imports, load imbalance, "
+              f"other jobs on the cores)")
+    print(f"load average after {os.getloadavg()[0]:.2f} (other users' jobs share the cores: compare CPU per run "
+          "with wall per run)")
 
 
 if __name__ == "__main__":

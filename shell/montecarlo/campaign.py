@@ -344,6 +344,7 @@ class RunRecord:
     metrics: np.ndarray
     wall_time: float = 0.0          # the whole run: build, simulate, metrics
     simulation_time: float = 0.0    # Simulation.run alone
+    cpu_time: float = 0.0           # CPU time of the worker process during the whole run
     worker: str = ""
     compiled_kernels: int = 0       # numba compilations in the worker during this run (0: cache used)
     kept: dict = field(default_factory=dict)  # signal -> (time, values, unit)
@@ -435,7 +436,7 @@ class Campaign:
 
         ``log_path``: keep the run's full HDF5 log there (default: a temporary file, removed).
         """
-        wall_start = time.perf_counter()
+        wall_start, cpu_start = time.perf_counter(), time.process_time()
         compiled_before = _numba_compilations()
         draws = self.draws(run)
         row = np.concatenate([draws[d.path] for d in self.dispersions]) if self.dispersions else np.zeros(0)
@@ -452,6 +453,7 @@ class Campaign:
                 Path(log_path).unlink(missing_ok=True)
         record.compiled_kernels = _numba_compilations() - compiled_before
         record.wall_time = time.perf_counter() - wall_start
+        record.cpu_time = time.process_time() - cpu_start
         return record
 
     def _simulate(self, run: int, draws: dict, log_path: str, record: RunRecord) -> None:

@@ -8,7 +8,7 @@ Layout (a stable contract, like the log layout of shell/log_file.py)::
     /table               (runs,) compound, row i = run i: run, status, message, t_end, one float64
                          column per drawn component (e.g. "controller.kp[0]"), one per metric column;
                          attrs draw_columns, metric_columns, units (JSON column -> unit), choices (JSON)
-    /timing              (runs,) compound: wall_time, simulation_time, compiled_kernels, worker
+    /timing              (runs,) compound: wall_time, simulation_time, cpu_time, compiled_kernels, worker
     /signals/run_000017/<signal>/time, /values   kept signals of run 17 (attrs unit)
 
 Only /timing depends on the machine and the executor; /table and /signals are bit-identical for the
@@ -48,7 +48,7 @@ def _table_dtype(campaign: Campaign) -> np.dtype:
     return np.dtype(fields)
 
 
-TIMING_DTYPE = np.dtype([("wall_time", "<f8"), ("simulation_time", "<f8"), ("compiled_kernels", "<i8"),
+TIMING_DTYPE = np.dtype([("wall_time", "<f8"), ("simulation_time", "<f8"), ("cpu_time", "<f8"), ("compiled_kernels", "<i8"),
                          ("worker", h5py.string_dtype())])
 
 
@@ -76,7 +76,7 @@ def record_to_json(record: RunRecord) -> str:
     return json.dumps({
         "run": record.run, "status": record.status, "message": record.message, "t_end": record.t_end,
         "draws": _encode(record.draws), "metrics": _encode(record.metrics), "wall_time": record.wall_time,
-        "simulation_time": record.simulation_time, "worker": record.worker,
+        "simulation_time": record.simulation_time, "cpu_time": record.cpu_time, "worker": record.worker,
         "compiled_kernels": record.compiled_kernels,
         "kept": {s: [_encode(t), _encode(v), u] for s, (t, v, u) in record.kept.items()}})
 
@@ -84,8 +84,8 @@ def record_to_json(record: RunRecord) -> str:
 def record_from_json(line: str) -> RunRecord:
     item = json.loads(line)
     return RunRecord(item["run"], item["status"], item["message"], item["t_end"], _decode(item["draws"]),
-                     _decode(item["metrics"]), item["wall_time"], item["simulation_time"], item["worker"],
-                     item["compiled_kernels"],
+                     _decode(item["metrics"]), item["wall_time"], item["simulation_time"], item["cpu_time"],
+                     item["worker"], item["compiled_kernels"],
                      {s: (_decode(t), _decode(v), u) for s, (t, v, u) in item["kept"].items()})
 
 
@@ -139,6 +139,7 @@ class ResultsFile:
         self.table[record.run] = row
         timing = np.zeros((), dtype=TIMING_DTYPE)
         timing["wall_time"], timing["simulation_time"] = record.wall_time, record.simulation_time
+        timing["cpu_time"] = record.cpu_time
         timing["compiled_kernels"], timing["worker"] = record.compiled_kernels, record.worker
         self.timing[record.run] = timing
         group_name = f"signals/run_{record.run:06d}"
@@ -179,7 +180,7 @@ def _create(path: str, campaign: Campaign) -> h5py.File:
     table.attrs["units"] = json.dumps(_units(campaign))
     table.attrs["choices"] = json.dumps({d.path: d.choices for d in campaign.dispersions if d.distribution == "choice"})
     timing = np.zeros(campaign.runs, dtype=TIMING_DTYPE)
-    timing["wall_time"] = timing["simulation_time"] = np.nan
+    timing["wall_time"] = timing["simulation_time"] = timing["cpu_time"] = np.nan
     timing["worker"] = ""
     h5.create_dataset("timing", data=timing, track_times=False)
     h5.create_group("signals")
