@@ -156,3 +156,61 @@ def reference_state_space(thrust: float, prescribed: bool):
     D = np.zeros((6, 1))
     D[3:6, 0] = G0 @ dudot_du
     return A, B, C, D
+
+
+def _skew(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _grid_jacobian(body, row, nu):
+    """[omega; v] of grid ``row`` of a free flexible body per speed u = (w, v, eta', ...), at rest."""
+    n = body.n_modes
+    J = np.zeros((6, nu))
+    J[0:3, 0:3] = np.eye(3)
+    J[0:3, 6:6 + n] = body.rotation_shapes[row]
+    J[3:6, 0:3] = -_skew(body.grid_positions[row])
+    J[3:6, 3:6] = np.eye(3)
+    J[3:6, 6:6 + n] = body.translation_shapes[row]
+    return J
+
+
+def flexible_airframe_at_rest(body, gimbal_grid, sensor_grid, damping_ratio):
+    """(A, B, C, D) of the flexible airframe (free-free modal body) with the gimbaled engine at the
+    gimbal grid, at rest, no thrust (Table F1 case 7, flexible): input pitch gimbal torque, outputs
+    sensor-grid angular velocity and acceleration (grid axes = body axes at rest).
+
+    Brute force from the FE data, not from modal integrals: the kinetic energy is summed over every
+    lumped grid mass (mass, CG offset and inertia of the body file's NodeMass, moving with the grid's
+    rigid-body plus modal translation and rotation) plus the engine (its gimbal on the grid's deformed
+    frame, pitch about y then yaw about z), M = sum J' M_spatial J in the speeds
+    u = (w, v, eta', d1', d2'); stiffness diag(w_k^2) and damping diag(2 zeta w_k) on the modes."""
+    n = body.n_modes
+    nu = 6 + n + 2
+    M = np.zeros((nu, nu))
+    for i in range(len(body.grid_ids)):
+        J = _grid_jacobian(body, i, nu)
+        m, c = body.node_mass[i], body.node_cm_offset[i]
+        spatial = np.block([[body.node_inertia[i], m * _skew(c)], [-m * _skew(c), m * np.eye(3)]])
+        M += J.T @ spatial @ J
+    row = {int(g): k for k, g in enumerate(body.grid_ids)}
+    engine = _grid_jacobian(body, row[gimbal_grid], nu)
+    engine[0:3, 6 + n] = (0.0, 1.0, 0.0)
+    engine[0:3, 7 + n] = (0.0, 0.0, 1.0)
+    c = ENGINE_CG
+    about_gimbal = ENGINE_INERTIA - ENGINE_MASS * _skew(c) @ _skew(c)
+    spatial = np.block([[about_gimbal, ENGINE_MASS * _skew(c)], [-ENGINE_MASS * _skew(c), ENGINE_MASS * np.eye(3)]])
+    M += engine.T @ spatial @ engine
+    w = 2.0 * np.pi * body.frequencies_hz
+    K = np.zeros((nu, nu))
+    K[6:6 + n, 6:6 + n] = np.diag(w ** 2)
+    damping = np.zeros((nu, nu))
+    damping[6:6 + n, 6:6 + n] = np.diag(2.0 * damping_ratio * w)
+    M_inv = np.linalg.inv(M)
+    A = np.block([[np.zeros((nu, nu)), np.eye(nu)], [-M_inv @ K, -M_inv @ damping]])
+    torque = np.zeros(nu)
+    torque[6 + n] = 1.0
+    B = np.concatenate([np.zeros(nu), M_inv @ torque]).reshape(-1, 1)
+    sensor = _grid_jacobian(body, row[sensor_grid], nu)
+    C = np.vstack([np.hstack([np.zeros((3, nu)), sensor[0:3]]), sensor[3:6] @ A[nu:]])
+    D = np.vstack([np.zeros((3, 1)), sensor[3:6] @ B[nu:]])
+    return A, B, C, D
