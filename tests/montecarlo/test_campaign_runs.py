@@ -72,7 +72,7 @@ FAULTY_CAMPAIGN = """
 scenario: faulty.yaml
 runs: 12
 seed: 3
-timeout: 0.2 s
+timeout: 0.5 s
 dispersions:
   escape.initial.x: {distribution: choice, choices: [0.01, 1.0], probabilities: [0.6, 0.4]}   # 1.0: x -> inf at t = 1 s
   ball.restitution: {distribution: choice, choices: [0.8, 1.5], probabilities: [0.7, 0.3]}   # 1.5: out of bounds
@@ -107,7 +107,7 @@ def test_failing_runs_are_recorded_and_the_campaign_continues(write, tmp_path):
         if status == "nonfinite":
             assert "non-finite" in row["message"] and 0.9 < row["t_end"] < 1.05  # escape at t = 1 s
         if status == "timeout":
-            assert "timeout of 0.2 s" in row["message"]
+            assert "timeout of 0.5 s" in row["message"]
         if status == "completed":
             np.testing.assert_allclose(row["final_x"], 0.01 / (1 - 0.01 * 3.0), rtol=1e-9)  # x0 / (1 - x0 t)
         else:
@@ -167,7 +167,7 @@ def test_damaged_results_file_is_rebuilt_from_the_journal(ramp_campaign, tmp_pat
 def test_killed_campaign_loses_no_completed_run(ramp_campaign, tmp_path):
     """SIGKILL a `flexshell montecarlo` process after some runs completed; every run in the journal at
     that moment survives, and --resume completes the campaign to the same table as an uninterrupted one."""
-    path = ramp_campaign(runs=16, extra="set: {stop.time: 20 s}\n")
+    path = ramp_campaign(runs=12, extra="set: {stop.time: 40 s}\n")
     output = tmp_path / "killed.h5"
     journal = tmp_path / "killed.h5.journal"
     process = subprocess.Popen([sys.executable, "-m", "shell.cli", "montecarlo", str(path), "-o", str(output),
@@ -189,7 +189,7 @@ def test_killed_campaign_loses_no_completed_run(ramp_campaign, tmp_path):
     campaign = load_campaign(path)
     executed = []
     run_campaign(campaign, output, resume=True, progress=lambda record, done, total: executed.append(record.run))
-    assert survived.isdisjoint(executed) and len(survived) + len(executed) == 16
+    assert survived.isdisjoint(executed) and len(survived) + len(executed) == 12
     fresh = tmp_path / "fresh.h5"
     run_campaign(campaign, fresh)
     assert tables_equal(read_results(output)["table"], read_results(fresh)["table"])

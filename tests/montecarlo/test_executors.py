@@ -16,9 +16,10 @@ def test_serial_pool_and_dask_give_identical_tables(ramp_campaign, tmp_path):
     run_campaign(campaign, tmp_path / "serial.h5", executor="serial")
     run_campaign(campaign, tmp_path / "pool.h5", executor="pool", workers=2)
     # Dask in a child process with a hard time limit, so that a cluster problem fails instead of hanging
-    subprocess.run([sys.executable, "-m", "shell.cli", "montecarlo", str(path), "-o", str(tmp_path / "dask.h5"),
-                    "--executor", "dask", "--workers", "2", "--quiet"], check=True, timeout=240,
-                   capture_output=True)
+    result = subprocess.run([sys.executable, "-m", "shell.cli", "montecarlo", str(path), "-o", str(tmp_path / "dask.h5"),
+                             "--executor", "dask", "--workers", "2", "--quiet"], timeout=240, capture_output=True,
+                            text=True)
+    assert result.returncode == 0, result.stderr[-3000:]
     serial = read_results(tmp_path / "serial.h5")
     for name in ("pool", "dask"):
         other = read_results(tmp_path / f"{name}.h5")
