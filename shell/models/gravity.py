@@ -1,10 +1,11 @@
-"""Central-body gravity with J2 and the gravity-gradient torque, for a body at one of its nodes.
+"""Central-body gravity with zonal harmonics (J2, J3, J4) and the gravity-gradient torque at a node.
 
 Attach to a node at the body's center of mass (``attach: {node: ...}``): the model reads the node's
 world position and rotation and applies, in node axes,
 
 * the point-mass + J2 acceleration (Vallado, "Fundamentals of Astrodynamics", 4th ed., eq. 8-30; pole
-  along world z, body-fixed rotation of the planet ignored since J2 is axisymmetric)::
+  along world z, body-fixed rotation of the planet ignored since zonal terms are axisymmetric), with
+  optional J3 and J4 terms (same source; parameters ``j3``, ``j4``, default 0)::
 
       g = -mu r / |r|^3 - 3/2 J2 mu R^2 / |r|^5 [ (1 - 5 z^2/|r|^2) x, (1 - 5 z^2/|r|^2) y,
                                                    (3 - 5 z^2/|r|^2) z ]
@@ -35,19 +36,38 @@ from shell.registry import register_model
 EARTH_MU = 3.986004418e14        # m^3/s^2, WGS 84 / EGM 2008
 EARTH_RADIUS = 6378137.0         # m, WGS 84 equatorial
 EARTH_J2 = 1.08262668e-3         # EGM 2008 (unnormalized)
+EARTH_J3 = -2.53265649e-6        # EGM 2008 (unnormalized)
+EARTH_J4 = -1.61962159e-6        # EGM 2008 (unnormalized)
 
 
 @njit(cache=True)
-def central_body_acceleration(r, mu, radius, j2, out):
-    """Point-mass + J2 gravitational acceleration at world position r (world axes)."""
+def central_body_acceleration(r, mu, radius, j2, out, j3=0.0, j4=0.0):
+    """Point-mass + zonal (J2, J3, J4) gravitational acceleration at world position r (world axes)."""
     r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
     rn = np.sqrt(r2)
     k = -mu / (r2 * rn)
     zz = r[2] * r[2] / r2
     c = -1.5 * j2 * mu * radius * radius / (r2 * r2 * rn)
-    out[0] = k * r[0] + c * (1.0 - 5.0 * zz) * r[0]
-    out[1] = k * r[1] + c * (1.0 - 5.0 * zz) * r[1]
-    out[2] = k * r[2] + c * (3.0 - 5.0 * zz) * r[2]
+    ax = k * r[0] + c * (1.0 - 5.0 * zz) * r[0]
+    ay = k * r[1] + c * (1.0 - 5.0 * zz) * r[1]
+    az = k * r[2] + c * (3.0 - 5.0 * zz) * r[2]
+    if j3 != 0.0:
+        r7 = r2 * r2 * r2 * rn
+        c3 = -2.5 * j3 * mu * radius ** 3 / r7
+        horizontal = c3 * (3.0 * r[2] - 7.0 * r[2] * zz)
+        ax += horizontal * r[0]
+        ay += horizontal * r[1]
+        az += c3 * (6.0 * r[2] * r[2] - 7.0 * r[2] * r[2] * zz - 0.6 * r2)
+    if j4 != 0.0:
+        r7 = r2 * r2 * r2 * rn
+        c4 = 1.875 * j4 * mu * radius ** 4 / r7
+        horizontal = c4 * (1.0 - 14.0 * zz + 21.0 * zz * zz)
+        ax += horizontal * r[0]
+        ay += horizontal * r[1]
+        az += c4 * (5.0 - 70.0 / 3.0 * zz + 21.0 * zz * zz) * r[2]
+    out[0] = ax
+    out[1] = ay
+    out[2] = az
 
 
 @njit(cache=True)
@@ -68,9 +88,9 @@ def gravity_gradient_torque(r_node, inertia, mu, out):
 @njit(cache=True)
 def _gravity_outputs(t, x, z, u, p, y):
     # u = [position (3, world), rotation (9, node -> world)]
-    # p = [mu, radius, j2, mass, inertia (9), gravity_gradient]; y = [force, torque, acceleration]
+    # p = [mu, radius, j2, mass, inertia (9), gravity_gradient, j3, j4]; y = [force, torque, acceleration]
     # (y[0:3] holds g in world axes and y[3:6] the position in node axes until they are overwritten)
-    central_body_acceleration(u[0:3], p[0], p[1], p[2], y[0:3])
+    central_body_acceleration(u[0:3], p[0], p[1], p[2], y[0:3], p[14], p[15])
     for i in range(3):
         y[6 + i] = u[3 + i] * y[0] + u[6 + i] * y[1] + u[9 + i] * y[2]       # R^T g
         y[3 + i] = u[3 + i] * u[0] + u[6 + i] * u[1] + u[9 + i] * u[2]       # R^T r
@@ -96,6 +116,8 @@ class CentralBodyGravity(Model):
         Parameter("inertia", "kg*m^2", np.zeros((3, 3)), (3, 3), None,
                   "inertia about the center of mass in node axes (gravity-gradient torque)"),
         Parameter("gravity_gradient", "", 1.0, (), (0.0, 1.0), "1: apply the gravity-gradient torque, 0: not"),
+        Parameter("j3", "", 0.0, (), None, f"third zonal harmonic (Earth {EARTH_J3:g})"),
+        Parameter("j4", "", 0.0, (), None, f"fourth zonal harmonic (Earth {EARTH_J4:g})"),
     )
     inputs = (
         InputPort("position", "m", (3,), "node origin (the center of mass) from the planet center, world",
