@@ -2,9 +2,11 @@
 
 For the runs that completed (status completed or stopped):
 
-* ``percentiles.md`` / ``percentiles.csv``: for each metric and draw column, the number of runs, mean,
+* ``percentiles.md`` / ``percentiles.csv``: for each metric and draw column, the number of runs with a
+  finite value, the number with an infinite one (a settling time that was never reached), mean,
   standard deviation, min, the 1/5/50/95/99th percentiles (numpy's linear interpolation between order
-  statistics) and max; runs that did not complete are listed with their status and message;
+  statistics) and max of the finite values; runs that did not complete are listed with their status
+  and message;
 * ``hist_<column>.png``: histogram of each metric column;
 * ``scatter_<metric>.png``: each metric column against every drawn component (dispersion plots), to
   see which dispersion drives it;
@@ -28,18 +30,20 @@ def _file_name(text: str) -> str:
 
 
 def percentile_rows(results: dict) -> list[tuple]:
-    """(column, unit, kind, n, mean, std, min, p1, p5, p50, p95, p99, max) of completed runs."""
+    """(column, unit, kind, n finite, n infinite, mean, std, min, p1, p5, p50, p95, p99, max) of the
+    completed runs."""
     table = results["table"]
     good = np.isin(table["status"], [b"completed", b"stopped"])
     rows = []
     for kind, columns in (("metric", results["metric_columns"]), ("draw", results["draw_columns"])):
         for column in columns:
             values = table[column][good]
+            infinite = int(np.isinf(values).sum())
             values = values[np.isfinite(values)]
             if values.size == 0:
-                rows.append((column, results["units"][column], kind, 0) + (float("nan"),) * 9)
+                rows.append((column, results["units"][column], kind, 0, infinite) + (float("nan"),) * 9)
                 continue
-            rows.append((column, results["units"][column], kind, values.size, values.mean(),
+            rows.append((column, results["units"][column], kind, values.size, infinite, values.mean(),
                          values.std(ddof=1) if values.size > 1 else 0.0, values.min(),
                          *np.percentile(values, PERCENTILES), values.max()))
     return rows
@@ -59,7 +63,7 @@ def write_report(path, directory) -> list[Path]:
     written = []
     good = np.isin(table["status"], [b"completed", b"stopped"])
     rows = percentile_rows(results)
-    header = ["column", "unit", "kind", "n", "mean", "std", "min"] + [f"p{p}" for p in PERCENTILES] + ["max"]
+    header = ["column", "unit", "kind", "n", "infinite", "mean", "std", "min"] + [f"p{p}" for p in PERCENTILES] + ["max"]
     with open(out / "percentiles.csv", "w") as f:
         f.write(",".join(header) + "\n")
         for row in rows:

@@ -206,7 +206,7 @@ def test_command_line_campaign_report_and_overrides(ramp_campaign, tmp_path, cap
     assert main(["report", str(output), "-o", str(tmp_path / "report")]) == 0
     capsys.readouterr()
     report = (tmp_path / "report" / "percentiles.md").read_text()
-    assert "| final_position | m | metric | 5 |" in report
+    assert "| final_position | m | metric | 5 | 0 |" in report
     for name in ("hist_final_position.png", "scatter_peak_reading.png", "signal_sensor.y.png", "percentiles.csv"):
         assert (tmp_path / "report" / name).stat().st_size > 0
     assert main(["montecarlo", str(path), "--print-overrides", "3"]) == 0
