@@ -87,3 +87,44 @@ def test_command_line_refuses_unknown_port(tmp_path, capsys):
     assert rc == 1
     assert "no port or state 'acs.torq'" in capsys.readouterr().err
     assert not (tmp_path / "x.h5").exists()
+
+
+PENDULUM_YAML = """
+name: pendulum
+multibody:
+  gravity: "[0, -9.81, 0] m/s^2"
+  bodies:
+    - name: rod
+      parent: world
+      hinge: revolute
+      axis: [0, 0, 1]
+      mass: 2 kg
+      com: "[0, -1.5, 0] m"
+      inertia: "[0.001, 0.001, 0.001] kg*m^2"
+      initial: {angle: 0.3 rad}
+  nodes:
+    - {name: tip, body: rod, position: "[0, -1.5, 0] m"}
+"""
+
+
+def test_command_line_trims_before_linearizing(tmp_path):
+    """``--trim --hold multibody.u``: the pendulum released at 0.3 rad is trimmed to hang at 0
+    (A21 = -m g l / I); ``--trim --free`` with everything held solves the holding torque m g l sin(0.3)."""
+    scene = tmp_path / "pendulum.yaml"
+    scene.write_text(PENDULUM_YAML)
+    inertia = 2.0 * 1.5 ** 2 + 1e-3
+    out = tmp_path / "hanging.h5"
+    assert main(["linearize", str(scene), "--inputs", "multibody.rod.torque", "--outputs", "multibody.tip.position",
+                 "--trim", "--hold", "multibody.u", "-o", str(out)]) == 0
+    model = read_linear_model(out)
+    np.testing.assert_allclose(model.operating_point["x"], [0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(model.A[1, 0], -2.0 * 9.81 * 1.5 / inertia, rtol=1e-9)
+    assert model.metadata["trim_residual"] < 1e-12
+    out = tmp_path / "held.h5"
+    assert main(["linearize", str(scene), "--inputs", "multibody.rod.torque", "--outputs", "multibody.tip.position",
+                 "--trim", "--hold", "multibody.q,multibody.u", "--free", "multibody.rod.torque", "-o", str(out)]) == 0
+    model = read_linear_model(out)
+    np.testing.assert_allclose(model.operating_point["u"], [2.0 * 9.81 * 1.5 * np.sin(0.3)], rtol=1e-10)
+    np.testing.assert_allclose(model.operating_point["xdot"], 0.0, atol=1e-10)
+    assert main(["linearize", str(scene), "--inputs", "multibody.rod.torque", "--outputs", "multibody.tip.position",
+                 "--hold", "multibody.u", "-o", str(tmp_path / "x.h5")]) == 1
