@@ -177,11 +177,41 @@ class _StateMap:
                 for j, value in zip(members, given):
                     scale_of[j] = float(value)
         self.n = len(self.names)
+        self._add_body_indices(sim)
         self._plain_t = np.array([t for t, _ in self.plain], dtype=np.int64)
         self._plain_x = np.array([x for _, x in self.plain], dtype=np.int64)
         self.value = np.zeros(self.n)           # tangent coordinates of x0 (rotation vectors are 0)
         self.value[self._plain_t] = self.x0[self._plain_x]
         self.scale = np.array([max(abs(self.value[j]), scale_of.get(j, 1.0)) for j in range(self.n)])
+
+    def _add_body_indices(self, sim) -> None:
+        """Index entries per body of an engine model, as in the TM G.4 delivery file's state_index
+        (``bus_rotational_pos``, ``bus_modal_pos``, ...): ``<model>.<body>.hinge_q`` / ``.modal_q`` /
+        ``.hinge_u`` / ``.modal_u`` (tangent rows of that body's hinge and modal coordinates)."""
+        tangent_of = {}
+        for t, k in self.plain:
+            tangent_of[k] = [t]
+        for t, k, _ in self.quaternions:
+            tangent_of[k] = [t, t + 1, t + 2]
+            for j in range(1, 4):
+                tangent_of[k + j] = []
+        for m in sim.models:
+            system = getattr(m, "system", None)
+            if system is None or not hasattr(system, "q_slices"):
+                continue
+            from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
+
+            block = sim._x_block[sim.model_index[m.path]].start
+            for b, body in enumerate(system.body_names):
+                hinge = HINGE_TYPES[system.hinge_names[b]]
+                for kind, sl, offset, n_hinge in (("q", system.q_slices[b], 0, int(HINGE_NQ[hinge])),
+                                                  ("u", system.u_slices[b], system.nq, int(HINGE_NU[hinge]))):
+                    start = block + offset + sl.start
+                    for part, lo, hi in (("hinge", start, start + n_hinge), ("modal", start + n_hinge,
+                                                                                 block + offset + sl.stop)):
+                        rows = [t for k in range(lo, hi) for t in tangent_of.get(k, [])]
+                        if rows:
+                            self.index[f"{m.path}.{body}.{part}_{kind}"] = np.asarray(rows, dtype=np.int64)
 
     def retract(self, xi):
         """Full state for tangent coordinates ``xi`` (deviations from x0)."""

@@ -44,6 +44,11 @@ def test_linearized_flexible_frequencies_equal_engine_and_fe(points, richardson,
                       richardson=richardson)
     modes = state_space_modes(model.A)
     reference = system_modes(system, q0)
+    # per-body index maps as in the TM G.4 delivery file (bus_rotational_pos, bus_modal_pos, ...)
+    np.testing.assert_array_equal(model.state_index["multibody.beam.hinge_q"], np.arange(6))
+    np.testing.assert_array_equal(model.state_index["multibody.beam.modal_q"], np.arange(6, 26))
+    np.testing.assert_array_equal(model.state_index["multibody.beam.modal_u"], np.arange(32, 52))
+    assert not any(name.startswith("multibody.mass.") for name in model.state_index)  # locked: no states
     assert modes.n_rigid == 12  # six rigid-body modes, each a double zero eigenvalue of A
     # linearization vs the engine's exact at-rest eigenproblem: round-off level (measured 3e-13 Hz)
     assert np.max(np.abs(compare_frequencies(modes.frequencies_hz, reference.frequencies_hz, N_COMPARED))) < 1e-9
