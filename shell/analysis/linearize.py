@@ -149,7 +149,6 @@ class _StateMap:
         self.plain = []          # (tangent index, x index)
         self.quaternions = []    # (tangent start, x start, q0)
         self.names, self.units, self.index = [], [], {}
-        scale_of = {}
         for key, sl, decl in sim.x_states():
             label = f"{key[0]}.{key[1]}"
             unit = format_unit(decl.unit)
@@ -171,18 +170,17 @@ class _StateMap:
                     members.append(len(self.names) - 1)
                     k += 1
             self.index[label] = np.asarray(members, dtype=np.int64)
-            given = scales.get(label)
-            if given is not None:
-                given = np.broadcast_to(np.asarray(given, dtype=float), (len(members),))
-                for j, value in zip(members, given):
-                    scale_of[j] = float(value)
         self.n = len(self.names)
         self._add_body_indices(sim)
+        typical = np.ones(self.n)
+        for name, given in scales.items():  # a model state or a per-body entry (later entries win)
+            if name in self.index:
+                typical[self.index[name]] = np.broadcast_to(np.asarray(given, dtype=float), self.index[name].shape)
         self._plain_t = np.array([t for t, _ in self.plain], dtype=np.int64)
         self._plain_x = np.array([x for _, x in self.plain], dtype=np.int64)
         self.value = np.zeros(self.n)           # tangent coordinates of x0 (rotation vectors are 0)
         self.value[self._plain_t] = self.x0[self._plain_x]
-        self.scale = np.array([max(abs(self.value[j]), scale_of.get(j, 1.0)) for j in range(self.n)])
+        self.scale = np.maximum(np.abs(self.value), typical)
 
     def _add_body_indices(self, sim) -> None:
         """Index entries per body of an engine model, as in the TM G.4 delivery file's state_index

@@ -115,3 +115,15 @@ def test_requests_are_checked():
         linearize(sim, ["chain.force"], ["sensor.y"], points=3)
     with pytest.raises(LinearizationError, match="not a listed input"):
         linearize(sim, ["chain.force"], ["sensor.y"], input_values={"amplifier.u": [1, 2, 3]})
+
+
+def test_steps_follow_tolerance_order_and_scales():
+    """h_j = max(|x0_j|, scale_j) tol^(1/order): order 6 for 4-point Richardson; a per-body entry
+    (``multibody.rod.hinge_q``) or a model state may set the typical size."""
+    sim, _ = pendulum_scene(0.0)
+    model = linearize(sim, ["multibody.rod.torque"], ["multibody.rod.q"], tolerance=1e-12,
+                      scales={"multibody.rod.hinge_q": 0.1, "multibody.rod.torque": 50.0})
+    np.testing.assert_allclose(model.method["state_steps"], [0.1 * 1e-2, 1e-2], rtol=1e-12)
+    np.testing.assert_allclose(model.method["input_steps"], [50.0 * 1e-2], rtol=1e-12)
+    with pytest.raises(LinearizationError, match="neither a state nor a listed input"):
+        linearize(sim, ["multibody.rod.torque"], ["multibody.rod.q"], scales={"multibody.rod.angle": 1.0})
