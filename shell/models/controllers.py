@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State
+from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, parse_period
 from shell.registry import register_model
 
 
@@ -79,8 +79,6 @@ class PidAttitudeController(Model):
         super().__init__(name, period=period, **kwargs)
 
     def configure(self):
-        from shell.model import parse_period
-
         command = self.parameter("attitude_command")
         norm = float(np.sqrt(command @ command))
         if abs(norm - 1.0) > 1e-9:

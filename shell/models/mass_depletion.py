@@ -19,7 +19,6 @@ set again at the first sample after a restore, so a restart continues correctly 
 
 from __future__ import annotations
 
-import numpy as np
 
 from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State
 from shell.registry import register_model

@@ -27,7 +27,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, ZeroCrossing
+from shell.model import (InputPort, Model, ModelError, OutputPort, Parameter, State, ZeroCrossing,
+                         parse_period)
 from shell.registry import register_model
 
 G0 = 9.80665
@@ -138,8 +139,6 @@ class Thruster(Model):
             self.inputs = (InputPort("command", "N", (), "demanded (pwm: mean over the cycle) thrust"),)
 
     def configure(self):
-        from shell.model import parse_period
-
         direction = self.parameter("direction")
         if abs(float(np.sqrt(direction @ direction)) - 1.0) > 1e-9:
             raise ModelError(f"model {self.path}: parameter direction: expected a unit vector, given {direction}")

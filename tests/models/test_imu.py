@@ -9,7 +9,6 @@ that variance for walk-type processes (fewer equivalent degrees of freedom).
 """
 
 import numpy as np
-import pytest
 from numpy.testing import assert_allclose
 
 from shell.models.imu import (FLICKER_FLOOR, GAUSS_MARKOV_PEAK, Imu, allan_deviation,

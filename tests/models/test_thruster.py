@@ -4,11 +4,9 @@ rise/fall lags (analytic pulse area); momentum delivered to a free body."""
 import textwrap
 
 import numpy as np
-import pytest
 from scipy.optimize import linprog
 from numpy.testing import assert_allclose
 
-from shell.log_file import read_log
 from shell.scenario import build_simulation, parse_scenario
 
 G0 = 9.80665
