@@ -1,5 +1,7 @@
-"""Serial, process-pool and Dask (LocalCluster, 2 worker processes) runs of one campaign give identical
-tables and kept signals; workers load the kernels from numba's on-disk cache instead of compiling."""
+"""Serial, process-pool and Dask (LocalCluster, and a scheduler address) runs of one campaign give
+identical tables and kept signals; workers load the kernels from numba's on-disk cache instead of
+compiling. Dask runs go through child processes with hard time limits, so a cluster problem fails the
+test instead of hanging it."""
 
 import subprocess
 import sys
@@ -30,3 +32,44 @@ def test_serial_pool_and_dask_give_identical_tables(ramp_campaign, tmp_path):
         # fresh Dask worker processes loaded every kernel from the cache: nothing compiled
         assert other["timing"]["compiled_kernels"].tolist() == [0] * 6, name
     assert set(serial["table"]["status"]) == {b"completed"}
+
+
+def test_dask_scheduler_address(ramp_campaign, tmp_path):
+    """--scheduler ADDRESS: a `dask scheduler` and a `dask worker` (2 processes; the modules behind those
+    commands) started as a user would on a cluster; the table equals the serial one. Every process
+    started here is stopped by its process group."""
+    import json
+    import os
+    import signal
+    import time
+
+    path = ramp_campaign(runs=4)
+    run_campaign(load_campaign(path), tmp_path / "serial.h5")
+    scheduler_file = tmp_path / "scheduler.json"
+    started = []
+    quiet = dict(cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        started.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--scheduler-file",
+                                         str(scheduler_file), "--port", "0", "--no-dashboard"], **quiet))
+        deadline = time.monotonic() + 60
+        while not scheduler_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        address = json.loads(scheduler_file.read_text())["address"]
+        started.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", "--scheduler-file",
+                                         str(scheduler_file), "--nworkers", "2", "--nthreads", "1", "--no-dashboard"],
+                                        **quiet))
+        result = subprocess.run([sys.executable, "-m", "shell.cli", "montecarlo", str(path), "-o",
+                                 str(tmp_path / "cluster.h5"), "--executor", "dask", "--scheduler", address, "--quiet"],
+                                timeout=180, capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr[-3000:]
+    finally:
+        for process in reversed(started):
+            os.killpg(process.pid, signal.SIGTERM)
+            try:
+                process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait(timeout=20)
+    cluster = read_results(tmp_path / "cluster.h5")
+    assert tables_equal(read_results(tmp_path / "serial.h5")["table"], cluster["table"])
+    assert cluster["timing"]["compiled_kernels"].tolist() == [0] * 4
