@@ -24,7 +24,7 @@ import warnings
 import numpy as np
 
 from . import kernels, tableaus
-from .base import DenseOutput, Integrator, PolynomialDenseOutput
+from .base import DenseOutput, Integrator, PolynomialDenseOutput, StepSizeControl
 
 SAFETY = 0.9
 MIN_FACTOR = 0.2
@@ -35,7 +35,7 @@ class StiffnessWarning(UserWarning):
     """The explicit step size is pinned at its stability limit: an implicit method would be cheaper."""
 
 
-class EmbeddedRungeKutta(Integrator):
+class EmbeddedRungeKutta(StepSizeControl, Integrator):
     adaptive = True
     tableau = None
     stiffness_boundary = None  # h*rho at which the stiffness counter increments (None: no detection)
@@ -60,30 +60,8 @@ class EmbeddedRungeKutta(Integrator):
         self.stiff_count = 0
         self.nonstiff_count = 0
 
-    def _on_extend(self):
-        if self.h_abs == 0.0:  # created or reset with t_bound == t: no first step chosen yet
-            self.h_abs = self._initial_step()
-
     def _initial_step(self):
-        """HNW I Sec. II.4: h0 from |y0| and |f0|, refined with one explicit Euler step."""
-        interval = self.t_bound - self.t
-        if interval == 0.0:
-            return 0.0
-        scale = self.atol + np.abs(self.y) * self.rtol
-        w = self.error_weight
-        n_w = max(self.n_weighted, 1)
-        d0 = np.sqrt(np.sum(w * (self.y / scale) ** 2) / n_w)
-        d1 = np.sqrt(np.sum(w * (self.f / scale) ** 2) / n_w)
-        h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
-        h0 = min(h0, interval)
-        f1 = np.asarray(self.fun(self.t + h0, self.y + h0 * self.f), dtype=np.float64)
-        self.nfev += 1
-        d2 = np.sqrt(np.sum(w * ((f1 - self.f) / scale) ** 2) / n_w) / h0
-        if d1 <= 1e-15 and d2 <= 1e-15:
-            h1 = max(1e-6, h0 * 1e-3)
-        else:
-            h1 = (0.01 / max(d1, d2)) ** (1.0 / (self.tableau.order + 1))
-        return min(100 * h0, h1, interval, self.max_step)
+        return self._hairer_initial_step(self.tableau.order + 1, self.error_weight, self.n_weighted)
 
     def _stages(self, t, y, h, K):
         """Stages 1..s-1 (stage 0 is the FSAL derivative already in K[0])."""

@@ -109,6 +109,42 @@ def _as_positive_float(value, what, allow_inf=False):
     return v
 
 
+class StepSizeControl:
+    """First-step choice shared by the error-controlled methods (Hairer, Norsett & Wanner I, Sec. II.4)."""
+
+    def _on_extend(self):
+        if self.h_abs == 0.0:  # created or reset with t_bound == t: no first step chosen yet
+            self.h_abs = self._initial_step()
+
+    def _hairer_initial_step(self, error_order, weight=None, n_weighted=None):
+        """h0 from |y0| and |f0|, refined with one explicit Euler step, for an error estimate of order
+        ``error_order``; the norm is the RMS, or with ``weight`` the weighted RMS over ``n_weighted``."""
+        interval = self.t_bound - self.t
+        if interval == 0.0:
+            return 0.0
+        scale = self.atol + np.abs(self.y) * self.rtol
+        if weight is None:
+            def norm(z):
+                return np.sqrt(np.mean(z ** 2))
+        else:
+            n_w = max(n_weighted, 1)
+
+            def norm(z):
+                return np.sqrt(np.sum(weight * z ** 2) / n_w)
+        d0 = norm(self.y / scale)
+        d1 = norm(self.f / scale)
+        h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+        h0 = min(h0, interval)
+        f1 = np.asarray(self.fun(self.t + h0, self.y + h0 * self.f), dtype=np.float64)
+        self.nfev += 1
+        d2 = norm((f1 - self.f) / scale) / h0
+        if d1 <= 1e-15 and d2 <= 1e-15:
+            h1 = max(1e-6, h0 * 1e-3)
+        else:
+            h1 = (0.01 / max(d1, d2)) ** (1.0 / error_order)
+        return min(100 * h0, h1, interval, self.max_step)
+
+
 class Integrator:
     """Base class. Subclasses set the class attributes and implement ``_step_impl`` and ``_dense_output_impl``.
 

@@ -19,7 +19,7 @@ Method (HW II Sec. IV.5 and IV.8, the algorithm of the authors' RADAU5 code):
 import numpy as np
 
 from . import kernels, tableaus
-from .base import EPS, DenseOutput, Integrator
+from .base import EPS, DenseOutput, Integrator, StepSizeControl
 
 NEWTON_MAXITER = 6
 MIN_FACTOR = 0.2
@@ -52,7 +52,7 @@ class RadauDenseOutput(DenseOutput):
         return self.y_old[:, None] + self.Q @ p
 
 
-class Radau5(Integrator):
+class Radau5(StepSizeControl, Integrator):
     """Radau IIA order 5, adaptive step, simplified Newton, L-stable (recommended for stiff flexible modes)."""
 
     name = "radau5"
@@ -96,25 +96,9 @@ class Radau5(Integrator):
             # LU, marked stale, so that a Newton failure refreshes it instead of paying n evaluations per sample
             self.current_jac = False
 
-    def _on_extend(self):
-        if self.h_abs == 0.0:  # created or reset with t_bound == t: no first step chosen yet
-            self.h_abs = self._initial_step()
-
     def _initial_step(self):
-        """HNW I Sec. II.4 with the order of the error estimator (3)."""
-        interval = self.t_bound - self.t
-        if interval == 0.0:
-            return 0.0
-        scale = self.atol + np.abs(self.y) * self.rtol
-        d0 = np.sqrt(np.mean((self.y / scale) ** 2))
-        d1 = np.sqrt(np.mean((self.f / scale) ** 2))
-        h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
-        h0 = min(h0, interval)
-        f1 = np.asarray(self.fun(self.t + h0, self.y + h0 * self.f), dtype=np.float64)
-        self.nfev += 1
-        d2 = np.sqrt(np.mean(((f1 - self.f) / scale) ** 2)) / h0
-        h1 = max(1e-6, h0 * 1e-3) if (d1 <= 1e-15 and d2 <= 1e-15) else (0.01 / max(d1, d2)) ** 0.25
-        return min(100 * h0, h1, interval, self.max_step)
+        """With the order of the error estimator (3): exponent 1/4."""
+        return self._hairer_initial_step(4)
 
     def _jacobian(self, t, y, f):
         self.njev += 1
