@@ -49,16 +49,9 @@ def _size(shape: tuple[int, ...]) -> int:
     return int(np.prod(shape, dtype=np.int64)) if shape else 1
 
 
-@dataclass(frozen=True)
-class Parameter:
-    """A model parameter: value converted to ``unit`` at construction, checked against ``bounds``."""
-
-    name: str
-    unit: str = ""
-    default: object = None
-    shape: tuple = ()
-    bounds: tuple | None = None  # (low, high) in ``unit``, either may be None
-    description: str = ""
+class _Shaped:
+    """Shape normalization (an int or any sequence -> a tuple of ints) and element count of the
+    declarations below (parameters, ports, states)."""
 
     def __post_init__(self):
         object.__setattr__(self, "shape", _shape(self.shape))
@@ -69,7 +62,19 @@ class Parameter:
 
 
 @dataclass(frozen=True)
-class InputPort:
+class Parameter(_Shaped):
+    """A model parameter: value converted to ``unit`` at construction, checked against ``bounds``."""
+
+    name: str
+    unit: str = ""
+    default: object = None
+    shape: tuple = ()
+    bounds: tuple | None = None  # (low, high) in ``unit``, either may be None
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class InputPort(_Shaped):
     """An input signal. ``feedthrough``: the model's feedthrough outputs read it at the same instant.
 
     An input that is not ``required`` takes ``default`` (in ``unit``; zeros if None) when unconnected.
@@ -83,16 +88,9 @@ class InputPort:
     required: bool = True
     default: object = None
 
-    def __post_init__(self):
-        object.__setattr__(self, "shape", _shape(self.shape))
-
-    @property
-    def size(self) -> int:
-        return _size(self.shape)
-
 
 @dataclass(frozen=True)
-class OutputPort:
+class OutputPort(_Shaped):
     """An output signal; ``feedthrough`` outputs are computed by ``feedthrough_outputs``."""
 
     name: str
@@ -101,16 +99,9 @@ class OutputPort:
     description: str = ""
     feedthrough: bool = False
 
-    def __post_init__(self):
-        object.__setattr__(self, "shape", _shape(self.shape))
-
-    @property
-    def size(self) -> int:
-        return _size(self.shape)
-
 
 @dataclass(frozen=True)
-class State:
+class State(_Shaped):
     """A continuous or discrete state with its initial value (in ``unit``)."""
 
     name: str
@@ -118,13 +109,6 @@ class State:
     shape: tuple = ()
     initial: object = None
     description: str = ""
-
-    def __post_init__(self):
-        object.__setattr__(self, "shape", _shape(self.shape))
-
-    @property
-    def size(self) -> int:
-        return _size(self.shape)
 
 
 @dataclass(frozen=True)
