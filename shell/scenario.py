@@ -114,7 +114,7 @@ class _Where:
             line = lines[key]
         part = path_part if path_part is not None else (f"[{key}]" if isinstance(key, int) else str(key))
         joined = f"{self.key}{part}" if part.startswith("[") or not self.key else f"{self.key}.{part}"
-        return _Where(self.file, line, joined)
+        return type(self)(self.file, line, joined)
 
     def error(self, message: str) -> ScenarioError:
         return ScenarioError(f"{self}: {message}")

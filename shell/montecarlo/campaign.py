@@ -41,7 +41,9 @@ import numpy as np
 
 from shell.montecarlo.draws import DISTRIBUTIONS, CorrelationGroup, Dispersion, draw_run
 from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples
-from shell.scenario import LineDict, LineList, ScenarioError, build_simulation, load_yaml, parse_scenario
+from shell.scenario import ScenarioError, build_simulation, load_yaml, parse_scenario
+from shell.scenario import _expect_mapping
+from shell.scenario import _Where as scenario_Where
 from shell.units import UnitError, conversion_factor, parse_unit, to_magnitude, ureg
 
 class CampaignError(ScenarioError):
@@ -52,39 +54,15 @@ class RunTimeout(Exception):
     """Raised from the progress callback when a run exceeds the campaign's wall-time limit."""
 
 
-@dataclass
-class _Where:
-    file: str
-    line: int
-    key: str
-
-    def child(self, container, key) -> "_Where":
-        line = self.line
-        if isinstance(container, LineDict) and key in container.lines:
-            line = container.lines[key]
-        elif isinstance(container, LineList) and isinstance(key, int) and key < len(container.lines):
-            line = container.lines[key]
-        part = f"[{key}]" if isinstance(key, int) else str(key)
-        return _Where(self.file, line, f"{self.key}{part}" if part.startswith("[") or not self.key
-                      else f"{self.key}.{part}")
+class _Where(scenario_Where):
+    """A location in the campaign file (file, line, dotted key path); errors are CampaignErrors."""
 
     def error(self, message: str) -> CampaignError:
         return CampaignError(f"{self.file}:{self.line}: {self.key}: {message}" if self.key
                              else f"{self.file}:{self.line}: {message}")
 
 
-def _mapping(value, where: _Where, allowed: dict, required=()) -> dict:
-    if not isinstance(value, dict):
-        raise where.error(f"expected a mapping with keys {sorted(allowed)}, given {value!r}")
-    for key in value:
-        if key not in allowed:
-            close = difflib.get_close_matches(str(key), list(allowed), n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise where.child(value, key).error(f"unknown key {key!r}{hint}; expected one of {sorted(allowed)}")
-    for key in required:
-        if key not in value:
-            raise where.error(f"missing required key {key!r} ({allowed[key]})")
-    return value
+_mapping = _expect_mapping  # the scenario's key check; the _Where decides the error type
 
 
 def _plain(value):
