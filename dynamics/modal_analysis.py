@@ -234,7 +234,9 @@ class BeamDeck:
             J = np.asarray(J, dtype=float)
             x = np.asarray(offset, dtype=float)
             lines.append(f"CONM2, {eid}, {gid}, 0, {f(mass)}, {f(x[0])}, {f(x[1])}, {f(x[2])}")
-            lines.append(f", {f(J[0, 0])}, {f(J[1, 0])}, {f(J[1, 1])}, {f(J[2, 0])}, {f(J[2, 1])}, {f(J[2, 2])}")
+            # CONM2 I21, I31, I32 are the negated off-diagonal entries of the inertia matrix (NASTRAN
+            # sign convention, as dynamics.flex.elements.conm2_inertia reads them back)
+            lines.append(f", {f(J[0, 0])}, {f(-J[1, 0])}, {f(J[1, 1])}, {f(-J[2, 0])}, {f(-J[2, 1])}, {f(J[2, 2])}")
         lines.append(f"MAT1, 1, {f(self.E)}, {f(self.G)}, , {f(self.rho)}")
         lines.append(f"PBEAM, 1, 1, {f(self.area)}, {f(self.I1)}, {f(self.I2)}, 0., {f(self.J)}, 0.")
         lines.append(", 0., 0., 0., 0., 0., 0., 0., 0.")

@@ -331,3 +331,20 @@ def test_system_modes_refuse_gravity(bodies):
     system = mb.compile()
     with pytest.raises(ValueError, match="without gravity"):
         system_modes(system, system.neutral_configuration())
+
+
+def test_beam_deck_conm2_inertia_round_trips_through_the_pipeline(tmp_path):
+    """BeamDeck writes CONM2 I21, I31, I32 negated (NASTRAN convention): a CONM2 with products of
+    inertia and a CG offset adds exactly m, m c and I + m (|c|^2 1 - c c') about the origin to the
+    body's mass properties (read back by the pipeline; round-off 1e-12 of the inertia)."""
+    mass, cg = 50.0, np.array([-1.0, 0.1, 0.2])
+    inertia = np.array([[4.0, 1.1, -0.8], [1.1, 6.5, 0.9], [-0.8, 0.9, 6.0]])
+    bare = fem2modal(str(single_beam().write(tmp_path / "bare.dat")), Fem2ModalOptions(n_modes=2))
+    deck = single_beam()
+    deck.conm2.append((9001, 1, mass, cg, inertia))
+    loaded = fem2modal(str(deck.write(tmp_path / "loaded.dat")), Fem2ModalOptions(n_modes=2))
+    assert loaded.mass - bare.mass == pytest.approx(mass, rel=1e-12)
+    added_first_moment = loaded.mass * loaded.cm_offset - bare.mass * bare.cm_offset
+    np.testing.assert_allclose(added_first_moment, mass * cg, rtol=0, atol=1e-10)
+    expected = inertia + mass * (cg @ cg * np.eye(3) - np.outer(cg, cg))
+    np.testing.assert_allclose(loaded.inertia - bare.inertia, expected, rtol=0, atol=1e-9)
