@@ -22,6 +22,12 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 DENSE_LIMIT = 600
+# A mass matrix whose smallest eigenvalue is below this fraction of its largest is treated as
+# singular: LAPACK's Cholesky of M may still succeed (a Craig-Bampton M_n whose fixed-interface modes
+# span the interior part of a constraint mode of a massless boundary DOF is singular only up to
+# round-off), but the near-massless direction then comes out as a spurious mode of arbitrary
+# frequency. The inverted problem below drops it as the infinite eigenvalue it is.
+MASSLESS_RATIO = 1e-12
 TWO_PI = 2.0 * np.pi
 
 
@@ -80,6 +86,9 @@ def solve_dense(K: np.ndarray, M: np.ndarray, n_modes: int | None = None,
     K = np.asarray(K.toarray() if sp.issparse(K) else K, dtype=float)
     M = np.asarray(M.toarray() if sp.issparse(M) else M, dtype=float)
     try:
+        mass_range = sla.eigvalsh(M)
+        if mass_range[0] <= MASSLESS_RATIO * mass_range[-1]:
+            raise np.linalg.LinAlgError("M is numerically singular")
         lam, vec = sla.eigh(K, M)
         # Rayleigh quotients: LAPACK's eigenvalues of rigid-body modes carry round-off of order
         # eps ||M^-1 K||, the quotients of the (accurate) vectors of order eps^2 ||M^-1 K||.

@@ -193,6 +193,15 @@ def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
         cb_data = CraigBamptonData(frequencies_hz=cb.fixed_interface.frequencies_hz,
                                    mass=cb.mass, stiffness=cb.stiffness, uset=b_uset)
         rigid, flex = normalized_component_modes(cb, options.rigid_threshold_hz)
+        massless = cb.mass.shape[0] - len(rigid.eigenvalues) - len(flex.eigenvalues)
+        if massless:
+            warnings.warn(
+                f"{deck}: {massless} direction(s) of the Craig-Bampton basis carry no mass and were "
+                f"dropped (the {cb.n_modes} fixed-interface modes span the interior motion of a "
+                "constraint mode of a massless a-set DOF, e.g. a beam-end rotation with lumped mass); "
+                f"the body has {len(flex.eigenvalues)} flexible modes instead of "
+                f"{len(flex.eigenvalues) + massless}. Ask fewer "
+                "fixed-interface modes, or use PARAM COUPMASS 1 so every DOF has mass", stacklevel=2)
         mode_set = "normalized-component"
     else:
         say("free-free normal modes (shift-invert Lanczos)")
