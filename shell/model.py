@@ -309,6 +309,12 @@ class Model:
         """Handle zero crossing ``index`` at time ``t``: reset ``x`` and/or switch modes in ``z``
         (both writable views). Called outside the integration loop; may be plain Python."""
 
+    # -- restart -----------------------------------------------------------------------------------
+    def restored(self, t: float, x: np.ndarray, z: np.ndarray, p: np.ndarray) -> None:
+        """Called by ``Simulation.restore`` once every state is back: re-establish from ``x`` and ``z``
+        whatever the model keeps outside its states (e.g. mass properties it set in the engine), so
+        the run continues exactly as if it had never stopped. Plain Python; default: nothing."""
+
     # -- initial values ----------------------------------------------------------------------------
     def initial_continuous_state(self) -> np.ndarray:
         return self._initial(self.continuous_states)

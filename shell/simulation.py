@@ -765,6 +765,12 @@ class Simulation:
                 self._log_groups[g]["next"] = None if value is None else Fraction(*value)
         for m in self.models:
             m.rng.bit_generator.state = snapshot["rng"][m.path]
+        for i, m in enumerate(self.models):
+            try:
+                m.restored(self.t, self.x[self._x_block[i]], self.z[self._z_block[i]], m.p)
+            except Exception as exc:
+                raise SimulationError(f"model {m.path} failed re-applying its restored state at t = "
+                                      f"{self.t:.9g} s: {type(exc).__name__}: {exc}") from exc
         self._integrator_stale = True
         self._initialized = True
 

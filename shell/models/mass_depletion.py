@@ -14,7 +14,8 @@ in the limit of a fast sample rate, and exactly the sum ``sum_k F T / m_k`` at r
 
 Config: ``body`` (the engine body to deplete), ``engine`` (the engine model's name, default
 ``multibody``). Parameters are the full and empty mass properties. The engine's mass properties are
-set again at the first sample after a restore, so a restart continues correctly from the next sample.
+set again from the restored state the moment a run is restored (``Model.restored``), so a restart
+continues bit-identically, also between two samples.
 """
 
 from __future__ import annotations
@@ -60,7 +61,9 @@ class MassDepletion(Model):
             raise ModelError(f"model {self.path}: parameters empty_mass ({empty:g} kg) must be below full_mass "
                              f"({full:g} kg)")
         self.discrete_states = (State("mass", "kg", (), full, "current body mass"),
-                                State("propellant_remaining", "kg", (), full - empty, "propellant left"))
+                                State("propellant_remaining", "kg", (), full - empty, "propellant left"),
+                                State("propellant_used", "kg", (), 0.0, "propellant used at the last sample "
+                                      "(kept exactly, so a restore re-applies the same mass properties)"))
         self._system = None
 
     def _engine_system(self):
@@ -76,14 +79,24 @@ class MassDepletion(Model):
                              f"{list(system.body_names)}") from None
         return system
 
-    def update(self, t, x, z, u, p):
+    def _apply(self, used: float, z) -> None:
+        """Mass properties for ``used`` kg of propellant into the engine and the states (the same
+        arithmetic at a sample and after a restore, so both give bit-identical mass properties)."""
         if self._system is None:
             self._system = self._engine_system()
         full, empty = float(self.parameter("full_mass")), float(self.parameter("empty_mass"))
-        used = min(max(float(u[0]), 0.0), full - empty)
         f = used / (full - empty)
         com = (1 - f) * self.parameter("full_com") + f * self.parameter("empty_com")
         inertia = (1 - f) * self.parameter("full_inertia") + f * self.parameter("empty_inertia")
         self._system.set_mass_properties(self.body, full - used, com, inertia)
         z[0] = full - used
         z[1] = full - empty - used
+        z[2] = used
+
+    def update(self, t, x, z, u, p):
+        full, empty = float(self.parameter("full_mass")), float(self.parameter("empty_mass"))
+        self._apply(min(max(float(u[0]), 0.0), full - empty), z)
+
+    def restored(self, t, x, z, p):
+        # the engine still holds whatever mass it had before the restore: set the restored one now
+        self._apply(float(z[2]), z)

@@ -63,3 +63,26 @@ def test_constant_thrust_follows_the_sampled_mass_sum_and_the_rocket_equation():
     errors = [abs(v - rocket) / rocket for v in velocities]
     # (1 kg/s * T / 2 / ~75 kg: 7e-3 at T = 1 s, 7e-4 at 0.1 s): first order in T
     assert errors[0] < 1e-2 and errors[1] < 1e-3 and errors[1] < errors[0] / 9
+
+
+def test_restart_between_samples_continues_bit_identically(tmp_path):
+    """Save a depleting run between two mass samples, restore it into a freshly built scene (whose engine
+    starts with the full-tank mass properties) and continue: the restored model re-applies its mass
+    properties at once (Model.restored), so the result equals the straight run bit for bit. Without the
+    hook the resumed engine flies 100 kg until the next sample: the velocity at 20 s is 2.6e-3 low."""
+    text = textwrap.dedent(ROCKET).replace("RATE", "1 Hz")
+    straight = build_simulation(parse_scenario(text, "rocket.yaml", None))
+    straight.run(20.0)
+    first = build_simulation(parse_scenario(text, "rocket.yaml", None))
+    first.run(10.5)                      # between the 10 s and 11 s mass samples
+    first.save_state(tmp_path / "restart.h5")
+    resumed = build_simulation(parse_scenario(text, "rocket.yaml", None))
+    system = resumed.models[resumed.model_index["multibody"]].system
+    assert system.masses[0] == 100.0     # fresh scene: full tanks
+    resumed.load_state(tmp_path / "restart.h5")
+    assert system.masses[0] == first.models[first.model_index["multibody"]].system.masses[0] < 90.0
+    resumed.run(20.0)
+    assert resumed.x.tobytes() == straight.x.tobytes()
+    assert resumed.z.tobytes() == straight.z.tobytes()
+    assert system.definitions[0][0].com.tobytes() == \
+        straight.models[straight.model_index["multibody"]].system.definitions[0][0].com.tobytes()
