@@ -74,8 +74,14 @@ def _split_string_value(text: str) -> tuple[object, str]:
     """Split "3.5 deg", "[1, 2, 3] deg/s" or "1e-3" into (number or nested list, unit text)."""
     match = _VECTOR_WITH_UNIT.match(text)
     if match:
-        import yaml  # the bracketed part is a YAML/JSON flow sequence
+        import json
 
+        import yaml  # the bracketed part is a JSON (or else YAML) flow sequence
+
+        try:  # JSON first: PyYAML (YAML 1.1) reads 1e5 or 1e-6 as strings, JSON as numbers
+            return json.loads(match.group(1)), match.group(2)
+        except ValueError:
+            pass
         try:
             numbers = yaml.safe_load(match.group(1))
         except yaml.YAMLError as exc:

@@ -16,6 +16,9 @@ def test_value_forms_convert_to_declared_unit():
     assert to_magnitude("20 kg*m^2", "kg*m**2") == 20.0
     assert to_magnitude(3, "N*m") == 3.0  # bare numbers are in the declared unit
     assert to_magnitude("100 ms", "s") == pytest.approx(0.1, rel=1e-15)
+    # exponents without a dot (YAML 1.1 would read "1e5" as a string) and nested lists
+    assert_allclose(to_magnitude("[1e5, 2E-6, -3.5e+2] kg*m^2", "kg*m^2", (3,)), [1e5, 2e-6, -350.0], rtol=0)
+    assert_allclose(to_magnitude("[[1e3, 0], [0, 2e3]] g", "kg", (2, 2)), [[1.0, 0.0], [0.0, 2.0]], rtol=1e-15)
 
 
 def test_conversion_factor_between_ports():
