@@ -17,6 +17,9 @@ revolute hinge, 2 for a U-joint; ``kind``: ``rotational`` gains in N m/rad, ``tr
 A pendulum needs only damping (k = 0); the damping ``c = 2 zeta m_s L^2 omega`` (pendulum) or
 ``2 zeta sqrt(k m_s)`` (spring) gives the liquid's damping ratio zeta. Attach it to the slosh body's
 hinge: ``attach: {hinge: <slosh body>}``.
+
+Parameters from a tank's fill level (upright cylinder): :func:`dynamics.slosh_tank.cylindrical_tank_slosh`
+or ``flexshell slosh``, which prints the pendulum bodies and these dampers as scenario YAML.
 """
 
 from __future__ import annotations
