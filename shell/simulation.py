@@ -319,17 +319,26 @@ class Simulation:
         """Output stages a derivative evaluation must run: those feeding, directly or through
         feedthrough stages, an input of a model with continuous states or zero crossings. Inputs of
         purely sampled models are read only at their sample instants (full evaluation there)."""
+        feeding = self._feeding_stages()
+        return self._stages_closure([stage for m in self.models if m.x_layout.size or m.zero_crossings
+                                     for stage, _ in feeding.get(m.path, [])], feeding)
+
+    def _feeding_stages(self) -> dict[str, list]:
+        """{model path: [((source path, "feedthrough" | "state"), input is feedthrough), ...]}."""
         feeding: dict[str, list] = {}
         for c in self.connections:
             out_port = self.port_info[(c.source_model.path, c.source_port)]
             in_port = self.port_info[(c.destination_model.path, c.destination_port)]
             stage = (c.source_model.path, "feedthrough" if out_port.feedthrough else "state")
             feeding.setdefault(c.destination_model.path, []).append((stage, in_port.feedthrough))
+        return feeding
+
+    def _stages_closure(self, stages, feeding: dict[str, list] | None = None) -> set:
+        """``stages`` and every output stage they need: a feedthrough stage needs the stages feeding
+        its feedthrough inputs, recursively."""
+        feeding = self._feeding_stages() if feeding is None else feeding
         needed: set = set()
-        pending = []
-        for m in self.models:
-            if m.x_layout.size or m.zero_crossings:
-                pending.extend(stage for stage, _ in feeding.get(m.path, []))
+        pending = list(stages)
         while pending:
             stage = pending.pop()
             if stage in needed:

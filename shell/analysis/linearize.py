@@ -299,12 +299,6 @@ class _Evaluator:
 
     def __init__(self, sim, states: _StateMap, inputs: _Signals, outputs: _Signals):
         self.sim, self.states, self.inputs, self.outputs = sim, states, inputs, outputs
-        feeding: dict[str, list] = {}
-        for c in sim.connections:
-            out_port = sim.port_info[(c.source_model.path, c.source_port)]
-            in_port = sim.port_info[(c.destination_model.path, c.destination_port)]
-            stage = (c.source_model.path, "feedthrough" if out_port.feedthrough else "state")
-            feeding.setdefault(c.destination_model.path, []).append((stage, in_port.feedthrough))
         pending = list(sim._stages_needed_by_derivatives())
         for name in outputs.index:
             path, _, leaf = sim._split_name(_split_element(name)[0])
@@ -316,14 +310,7 @@ class _Evaluator:
                 c = sim.driver[(path, leaf)]
                 port = sim.port_info[(c.source_model.path, c.source_port)]
                 pending.append((c.source_model.path, "feedthrough" if port.feedthrough else "state"))
-        needed: set = set()
-        while pending:
-            stage = pending.pop()
-            if stage in needed:
-                continue
-            needed.add(stage)
-            if stage[1] == "feedthrough":
-                pending.extend(s for s, through in feeding.get(stage[0], []) if through)
+        needed = sim._stages_closure(pending)
         self.plan = [entry for entry in sim._output_plan_full
                      if (entry[0].path, "state" if entry[1] == entry[0].state_outputs else "feedthrough") in needed]
 
