@@ -16,12 +16,21 @@ array the kernel fills. The kernels a model may provide:
 ``feedthrough_outputs(t, x, z, u, p, y)``   outputs marked ``feedthrough`` (may read feedthrough inputs)
 ``derivatives(t, x, z, u, p, xdot)``        continuous-state derivatives
 ``update(t, x, z, u, p)``                   periodic discrete update, in place on ``z``
+``update(t, x, z, u, p, noise)``            the same for a model with ``noise_size > 0``: ``noise`` holds
+                                            ``noise_size`` fresh standard normals from the model's
+                                            random stream (drawn by the framework before each call)
 ``zero_crossing_values(t, x, z, u, p, g)``  zero-crossing functions (one per declared ZeroCrossing)
 
 Kernels are normally ``numba.njit(cache=True)`` functions set as ``staticmethod`` class attributes,
-so the simulation can call them without Python-level indirection today and fuse them into one
-compiled derivative later. Output kernels write the whole output block; the ones not written by
-``state_outputs`` are written by ``feedthrough_outputs``.
+so the simulation can call them without Python-level indirection and fuse them into one compiled
+loop. Output kernels write the whole output block; the ones not written by ``state_outputs`` are
+written by ``feedthrough_outputs``.
+
+Kernels read their arrays by name, never by hand-counted position: :func:`named_offsets` turns a
+tuple of declarations into a named tuple of start offsets (``P = named_offsets(PARAMETERS)``, then
+``p[P.kp + i]`` in the kernel), which numba folds to constants at compile time. Define ``P`` in the
+same module as the kernels that use it: numba's on-disk cache is invalidated when that file changes,
+so reordering a declaration recompiles the kernels with the new offsets.
 """
 
 from __future__ import annotations
@@ -33,6 +42,21 @@ from fractions import Fraction
 import numpy as np
 
 from shell.units import UnitError, format_unit, parse_unit, to_magnitude, ureg
+
+
+def named_offsets(declarations, name: str = "Offsets"):
+    """Start offset of each declaration in the flat array that packs them in declaration order, as a
+    named tuple (``named_offsets((Parameter("kp", shape=(3,)), Parameter("kd", shape=(3,)))).kd == 3``).
+
+    Works for parameters, ports and states alike; the names must be Python identifiers."""
+    from collections import namedtuple
+
+    names, offsets, offset = [], [], 0
+    for d in declarations:
+        names.append(d.name)
+        offsets.append(offset)
+        offset += _size(_shape(d.shape))
+    return namedtuple(name, names)(*offsets)
 
 
 class ModelError(ValueError):
@@ -233,6 +257,9 @@ class Model:
     discrete_states: tuple[State, ...] = ()
     zero_crossings: tuple[ZeroCrossing, ...] = ()
     default_period: object = None
+    #: standard normals the framework draws from the model's stream before each ``update`` call (the
+    #: kernel's sixth argument); 0: the update kernel takes the five-argument form
+    noise_size: int = 0
     #: one line shown by ``flexshell models``
     summary: str = ""
 

@@ -124,6 +124,7 @@ class Simulation:
         self._wire()
         self._order_outputs()
         self._order_updates()
+        self._noise = {i: np.zeros(int(m.noise_size)) for i, m in enumerate(self.models) if m.noise_size}
         self._collect_zero_crossings(stop_events)
         for m in self.models:
             m.seed_random_stream(seed)
@@ -714,7 +715,14 @@ class Simulation:
             m = self.models[i]
             self.evaluate(t)
             try:
-                m.update(t, self.x[self._x_block[i]], self.z[self._z_block[i]], self.signals[self._u_block[i]], m.p)
+                if m.noise_size:
+                    noise = self._noise[i]
+                    m.rng.standard_normal(out=noise)
+                    m.update(t, self.x[self._x_block[i]], self.z[self._z_block[i]], self.signals[self._u_block[i]],
+                             m.p, noise)
+                else:
+                    m.update(t, self.x[self._x_block[i]], self.z[self._z_block[i]], self.signals[self._u_block[i]],
+                             m.p)
             except Exception as exc:
                 raise SimulationError(f"model {m.path} failed in its discrete update at t = {t:.9g} s: "
                                       f"{type(exc).__name__}: {exc}") from exc
