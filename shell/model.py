@@ -268,6 +268,13 @@ class Model:
     derivatives = None
     update = None
     zero_crossing_values = None
+    #: optional: the derivatives kernel to call when this model's feedthrough stage ran earlier in the same
+    #: evaluation (same state and inputs), so it can reuse what that stage computed (the engine's
+    #: accelerations: one forward-dynamics solve per evaluation)
+    derivatives_after_feedthrough = None
+    #: the model keeps per-run data (arrays its kernels read and write besides x, z, u, p): its kernels
+    #: take it as an extra argument after ``p``, and :meth:`create_data` makes it for each run's context
+    uses_data = False
 
     def __init__(self, name: str, *, period=None, offset=0.0, **parameter_values):
         if not name or "." in name or not name.replace("_", "a").isalnum():
@@ -364,7 +371,22 @@ class Model:
             parts.append(to_magnitude(raw, s.unit, s.shape, f"model {self.path}: initial {s.name}").reshape(-1))
         return np.concatenate(parts) if parts else np.zeros(0)
 
+    # -- per-run data -------------------------------------------------------------------------------
+    def create_data(self, own: bool = False):
+        """``(host, data)`` of a model with ``uses_data``: ``data`` a tuple of numpy arrays (numba-friendly)
+        its kernels receive after ``p``, ``host`` the Python object owning them (or None). ``own``: a
+        private copy for an additional context (a Monte Carlo run); otherwise the model's own arrays may
+        be shared (the first context)."""
+        raise NotImplementedError(f"{type(self).__name__} declares uses_data but no create_data")
+
     # -- random stream -----------------------------------------------------------------------------
+    def random_stream(self, scenario_seed) -> np.random.Generator:
+        """This model's generator for scenario seed ``scenario_seed`` (see :meth:`seed_random_stream`)."""
+        digest = hashlib.sha256(self.path.encode()).digest()
+        spawn_key = tuple(int.from_bytes(digest[i:i + 4], "little") for i in range(0, 16, 4))
+        sequence = np.random.SeedSequence(entropy=scenario_seed, spawn_key=spawn_key)
+        return np.random.Generator(np.random.PCG64(sequence))
+
     def seed_random_stream(self, scenario_seed) -> None:
         """Give the model its own generator, derived from (scenario seed, model path) only.
 
@@ -372,10 +394,7 @@ class Model:
         not depend on which other models exist or in which order they draw; Monte Carlo run i uses
         ``scenario_seed = [master_seed, i]``.
         """
-        digest = hashlib.sha256(self.path.encode()).digest()
-        spawn_key = tuple(int.from_bytes(digest[i:i + 4], "little") for i in range(0, 16, 4))
-        sequence = np.random.SeedSequence(entropy=scenario_seed, spawn_key=spawn_key)
-        self.rng = np.random.Generator(np.random.PCG64(sequence))
+        self.rng = self.random_stream(scenario_seed)
 
     # -- attachment to multibody nodes/hinges ----------------------------------------------------------
     def attachment_ports(self, kind: str, target: str) -> tuple[dict[str, str], dict[str, str]]:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from shell.analysis.linearize import LinearModel, _Evaluator, _input_signals, _opened_inputs, _Signals, _StateMap
+from shell.analysis.linearize import LinearModel, _Evaluator, _input_signals, _Signals, _StateMap
 
 
 def frequency_response(model: LinearModel, frequencies_hz) -> np.ndarray:
@@ -62,31 +62,27 @@ def small_signal_response(sim, model: LinearModel, input_name: str, output_name:
     u0 = np.array([op["u"][k]])
     t0 = float(op["t"])
     try:
-        with _opened_inputs(sim, ins.positions):
-            evaluate = _Evaluator(sim, states, ins, outs)
-            from shell.simulation import gather_inputs
+        evaluate = _Evaluator(sim, states, ins, outs)
+        context = sim.context
 
-            def rhs(t, x):
-                sim.signals[ins.positions] = u0 + amplitude * np.sin(w * (t - t0))
-                sim.x[:] = x
-                sim._evaluate_outputs(t, evaluate.plan)
-                gather_inputs(sim.signals, sim._src, sim._dst, sim._factor, 0, sim._n_gather)
-                for _, fn, xm, zm, um, pm, xdot in sim._derivative_plan:
-                    fn(t, xm, zm, um, pm, xdot)
-                return sim.xdot.copy()
+        def rhs(t, x):
+            context.signals[ins.positions] = u0 + amplitude * np.sin(w * (t - t0))
+            context.x[:] = x
+            evaluate.opened.derivatives_into(context, t, evaluate.stages)
+            return context.xdot.copy()
 
-            period = 2.0 * np.pi / w
-            times = t0 + np.linspace(0.0, periods * period, periods * samples_per_period, endpoint=False)
-            solution = solve_ivp(rhs, (t0, times[-1]), states.retract(xi0), method="DOP853", t_eval=times,
-                                 rtol=rtol, atol=atol)
-            if not solution.success:
-                raise RuntimeError(f"small_signal_response: integration failed: {solution.message}")
-            y = np.empty(times.size)
-            for i, (t, x) in enumerate(zip(times, solution.y.T)):
-                sim.signals[ins.positions] = u0 + amplitude * np.sin(w * (t - t0))
-                sim.x[:] = x
-                sim._evaluate_outputs(t, evaluate.plan)
-                y[i] = outs.read(sim)[0]
+        period = 2.0 * np.pi / w
+        times = t0 + np.linspace(0.0, periods * period, periods * samples_per_period, endpoint=False)
+        solution = solve_ivp(rhs, (t0, times[-1]), states.retract(xi0), method="DOP853", t_eval=times,
+                             rtol=rtol, atol=atol)
+        if not solution.success:
+            raise RuntimeError(f"small_signal_response: integration failed: {solution.message}")
+        y = np.empty(times.size)
+        for i, (t, x) in enumerate(zip(times, solution.y.T)):
+            context.signals[ins.positions] = u0 + amplitude * np.sin(w * (t - t0))
+            context.x[:] = x
+            evaluate.opened.evaluate(context, t, evaluate.stages)
+            y[i] = outs.read(sim)[0]
     finally:
         sim.x[:] = x_saved
         sim.signals[:] = signals_saved

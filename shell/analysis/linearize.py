@@ -36,7 +36,6 @@ Outputs are any port or state (or element) by dotted name, in their declared uni
 
 from __future__ import annotations
 
-import contextlib
 import re
 from dataclasses import dataclass, field
 
@@ -140,11 +139,7 @@ class _StateMap:
     """Tangent coordinates of the simulation's continuous state (quaternions -> rotation vectors)."""
 
     def __init__(self, sim, x0, scales):
-        quaternion_starts = set()
-        for m in sim.models:
-            if hasattr(m, "quaternion_w_indices"):
-                block = sim._x_block[sim.model_index[m.path]]
-                quaternion_starts.update(block.start + int(k) for k in m.quaternion_w_indices())
+        quaternion_starts = {int(k) for k in sim.diagram.quaternion_w_indices()}
         self.x0 = np.array(x0, dtype=float)
         self.plain = []          # (tangent index, x index)
         self.quaternions = []    # (tangent start, x start, q0)
@@ -199,7 +194,7 @@ class _StateMap:
                 continue
             from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 
-            block = sim._x_block[sim.model_index[m.path]].start
+            block = sim.diagram.x_block[sim.model_index[m.path]].start
             for b, body in enumerate(system.body_names):
                 hinge = HINGE_TYPES[system.hinge_names[b]]
                 for kind, sl, offset, n_hinge in (("q", system.q_slices[b], 0, int(HINGE_NQ[hinge])),
@@ -238,7 +233,7 @@ class _Signals:
         for name in names:
             base, element = _split_element(name)
             try:
-                kind, sl, decl = sim._locate(base)
+                kind, sl, decl = sim.diagram.locate(base)
             except ModelError as exc:
                 raise LinearizationError(f"{what} {name!r}: {exc}") from None
             positions = np.arange(sl.start, sl.stop)
@@ -265,28 +260,13 @@ class _Signals:
         return np.array([sources[k][p] for k, p in zip(self.kinds, self.positions)])
 
 
-@contextlib.contextmanager
-def _opened_inputs(sim, positions):
-    """Connections into the given signal elements become self-copies (factor 1), so a value written
-    there is held through every evaluation; restored on exit."""
-    src, factor = sim._src.copy(), sim._factor.copy()
-    hits = np.flatnonzero(np.isin(sim._dst, positions))
-    sim._src[hits] = sim._dst[hits]
-    sim._factor[hits] = 1.0
-    try:
-        yield
-    finally:
-        sim._src[:] = src
-        sim._factor[:] = factor
-
-
 def _input_signals(sim, names):
     inputs = _Signals(sim, names, "input")
     input_ports = {sl.start for key, sl in sim.port_slices.items()
                    if key[1] in {port.name for port in sim.models[sim.model_index[key[0]]].inputs}}
     for name, idx in inputs.index.items():
         base, _ = _split_element(name)
-        kind, sl, decl = sim._locate(base)
+        kind, sl, decl = sim.diagram.locate(base)
         if kind != "signal" or sl.start not in input_ports:
             raise LinearizationError(f"input {name!r} is not an input port (a state or an output port); "
                                      "linearize from an input port such as a hinge torque or a node force")
@@ -295,37 +275,33 @@ def _input_signals(sim, names):
 
 class _Evaluator:
     """f and g at one perturbed point, running only the output stages that the derivatives or the
-    requested outputs need (a flexible body's node accelerations, say, are skipped unless asked for)."""
+    requested outputs need (a flexible body's node accelerations, say, are skipped unless asked for),
+    on the diagram opened at the inputs (their drivers no longer reach them)."""
 
     def __init__(self, sim, states: _StateMap, inputs: _Signals, outputs: _Signals):
+        diagram = sim.diagram
         self.sim, self.states, self.inputs, self.outputs = sim, states, inputs, outputs
-        pending = list(sim._stages_needed_by_derivatives())
+        self.opened = diagram.opened(inputs.positions)
+        pending = list(diagram.stages_needed_by_derivatives())
         for name in outputs.index:
-            path, _, leaf = sim._split_name(_split_element(name)[0])
-            model = sim.models[sim.model_index[path]]
+            path, _, leaf = diagram.split_name(_split_element(name)[0])
+            model = diagram.models[diagram.model_index[path]]
             for port in model.outputs:
                 if port.name == leaf:
                     pending.append((path, "feedthrough" if port.feedthrough else "state"))
-            if (path, leaf) in sim.driver:
-                c = sim.driver[(path, leaf)]
-                port = sim.port_info[(c.source_model.path, c.source_port)]
+            if (path, leaf) in diagram.driver:
+                c = diagram.driver[(path, leaf)]
+                port = diagram.port_info[(c.source_model.path, c.source_port)]
                 pending.append((c.source_model.path, "feedthrough" if port.feedthrough else "state"))
-        needed = sim._stages_closure(pending)
-        self.plan = [entry for entry in sim._output_plan_full
-                     if (entry[0].path, "state" if entry[1] == entry[0].state_outputs else "feedthrough") in needed]
+        self.stages = diagram.stages_for(diagram.stages_closure(pending))
 
     def __call__(self, t, u0, xi, v):
-        from shell.simulation import gather_inputs
-
-        sim = self.sim
+        context = self.sim.context
         x = self.states.retract(xi)
-        sim.signals[self.inputs.positions] = u0 + v
-        sim.x[:] = x
-        sim._evaluate_outputs(t, self.plan)
-        gather_inputs(sim.signals, sim._src, sim._dst, sim._factor, 0, sim._n_gather)
-        for m, fn, xm, zm, um, pm, xdot in sim._derivative_plan:
-            fn(t, xm, zm, um, pm, xdot)
-        return np.concatenate((self.states.tangent_rate(xi, x, sim.xdot), self.outputs.read(sim)))
+        context.signals[self.inputs.positions] = u0 + v
+        context.x[:] = x
+        self.opened.derivatives_into(context, t, self.stages)
+        return np.concatenate((self.states.tangent_rate(xi, x, context.xdot), self.outputs.read(self.sim)))
 
 
 def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4, richardson: bool = True,
@@ -351,8 +327,7 @@ def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4
     x0 = sim.x.copy() if x is None else np.asarray(x, dtype=float).copy()
     if x0.shape != sim.x.shape:
         raise LinearizationError(f"operating state has shape {x0.shape}, the scene's state has {sim.x.shape}")
-    for m in sim._normalizers:  # the operating point lies on the unit-quaternion manifold
-        m.normalize_state(x0[sim._x_block[sim.model_index[m.path]]])
+    sim.diagram.normalize(sim.context, x0)  # the operating point lies on the unit-quaternion manifold
     states = _StateMap(sim, x0, scales)
     ins = _input_signals(sim, inputs)
     outs = _Signals(sim, outputs, "output")
@@ -378,36 +353,35 @@ def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4
     p = len(outs.names)
     levels = (1, 2) if points == 2 else (1, 2, 4)  # step multiples: the scheme and its error estimate
     try:
-        with _opened_inputs(sim, ins.positions):
-            evaluate = _Evaluator(sim, states, ins, outs)
-            F0 = evaluate(t0, u0, np.zeros(n), np.zeros(m))
-            jac = np.empty((n + p, n + m))
-            err = np.empty((n + p, n + m))
-            steps = np.empty(n + m)
-            for j in range(n + m):
-                scale = states.scale[j] if j < n else input_scale[j - n]
-                h = scale * tolerance ** (1.0 / order)
-                h = float((scale + h) - scale) or h  # a step representable against the variable
-                steps[j] = h
-                diffs, fmax = {}, float(np.max(np.abs(F0), initial=0.0))
-                for level in levels:
-                    plus, minus = [], []
-                    for sign, store in ((1.0, plus), (-1.0, minus)):
-                        xi, v = np.zeros(n), np.zeros(m)
-                        if j < n:
-                            xi[j] = sign * level * h
-                        else:
-                            v[j - n] = sign * level * h
-                        F = evaluate(t0, u0, xi, v)
-                        if not np.all(np.isfinite(F)):
-                            raise LinearizationError(f"non-finite derivative or output perturbing "
-                                                     f"{(states.names + ins.names)[j]} by {sign * level * h:.3g}")
-                        fmax = max(fmax, float(np.max(np.abs(F), initial=0.0)))
-                        store.append(F)
-                    diffs[level] = (plus[0] - minus[0]) / (2.0 * level * h)
-                column, correction = _combine(diffs, points, richardson)
-                jac[:, j] = column
-                err[:, j] = np.abs(correction) + 16.0 * EPS * fmax / h
+        evaluate = _Evaluator(sim, states, ins, outs)
+        F0 = evaluate(t0, u0, np.zeros(n), np.zeros(m))
+        jac = np.empty((n + p, n + m))
+        err = np.empty((n + p, n + m))
+        steps = np.empty(n + m)
+        for j in range(n + m):
+            scale = states.scale[j] if j < n else input_scale[j - n]
+            h = scale * tolerance ** (1.0 / order)
+            h = float((scale + h) - scale) or h  # a step representable against the variable
+            steps[j] = h
+            diffs, fmax = {}, float(np.max(np.abs(F0), initial=0.0))
+            for level in levels:
+                plus, minus = [], []
+                for sign, store in ((1.0, plus), (-1.0, minus)):
+                    xi, v = np.zeros(n), np.zeros(m)
+                    if j < n:
+                        xi[j] = sign * level * h
+                    else:
+                        v[j - n] = sign * level * h
+                    F = evaluate(t0, u0, xi, v)
+                    if not np.all(np.isfinite(F)):
+                        raise LinearizationError(f"non-finite derivative or output perturbing "
+                                                 f"{(states.names + ins.names)[j]} by {sign * level * h:.3g}")
+                    fmax = max(fmax, float(np.max(np.abs(F), initial=0.0)))
+                    store.append(F)
+                diffs[level] = (plus[0] - minus[0]) / (2.0 * level * h)
+            column, correction = _combine(diffs, points, richardson)
+            jac[:, j] = column
+            err[:, j] = np.abs(correction) + 16.0 * EPS * fmax / h
     finally:
         sim.x[:] = x_saved
         sim.signals[:] = signals_saved

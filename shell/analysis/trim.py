@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from shell.analysis.linearize import (LinearizationError, _Evaluator, _input_signals, _opened_inputs, _Signals,
+from shell.analysis.linearize import (LinearizationError, _Evaluator, _input_signals, _Signals,
                                       _StateMap)
 
 
@@ -87,29 +87,27 @@ def trim(sim, *, hold=(), free_inputs=(), inputs=(), input_values=None, derivati
     saved_signals = sim.signals.copy()
     counter = [0]
 
-    with _opened_inputs(sim, ins.positions):
-        evaluate = _Evaluator(sim, states, ins, outputs)
+    evaluate = _Evaluator(sim, states, ins, outputs)
 
-        def unpack(z):
-            xi, v = np.zeros(states.n), np.zeros(len(ins.names))
-            xi[free_x] = z[:free_x.size]
-            v[free_u] = z[free_x.size:]
-            return xi, v
+    def unpack(z):
+        xi, v = np.zeros(states.n), np.zeros(len(ins.names))
+        xi[free_x] = z[:free_x.size]
+        v[free_u] = z[free_x.size:]
+        return xi, v
 
-        def residual(z):
-            counter[0] += 1
-            xi, v = unpack(z)
-            rates = evaluate(sim.t, u0, xi, v)[:states.n]
-            return rates[rows] - target[rows]
+    def residual(z):
+        counter[0] += 1
+        xi, v = unpack(z)
+        rates = evaluate(sim.t, u0, xi, v)[:states.n]
+        return rates[rows] - target[rows]
 
-        solution = least_squares(residual, np.zeros(free_x.size + free_u.size), method="trf", xtol=tolerance,
-                                 ftol=tolerance, gtol=tolerance, max_nfev=max_evaluations, x_scale="jac")
-        xi, v = unpack(solution.x)
-        final = residual(solution.x)
+    solution = least_squares(residual, np.zeros(free_x.size + free_u.size), method="trf", xtol=tolerance,
+                             ftol=tolerance, gtol=tolerance, max_nfev=max_evaluations, x_scale="jac")
+    xi, v = unpack(solution.x)
+    final = residual(solution.x)
     sim.signals[:] = saved_signals
     x = states.retract(xi)
-    sim.x[:] = x
-    sim._integrator_stale = True
+    sim.set_state(x=x)
     u = u0 + v
     values = {name: u[idx].copy() if idx.size > 1 else float(u[idx[0]]) for name, idx in ins.index.items()}
     names = [states.names[r] for r in rows]

@@ -69,7 +69,8 @@ class MassDepletion(Model):
     def _engine_system(self):
         simulation = self._simulation()
         index = simulation.model_index.get(self.engine_name)
-        system = getattr(simulation.models[index], "system", None) if index is not None else None
+        # the engine system of this run (a Monte Carlo run's context has its own mass properties)
+        system = simulation.context.hosts[index] if index is not None else None
         if system is None:
             raise ModelError(f"model {self.path}: config engine: no engine model named {self.engine_name!r}")
         try:

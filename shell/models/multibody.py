@@ -32,9 +32,12 @@ without a unit and carry SI values; single-kind hinges declare rad, m, rad/s, N 
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
+from dynamics import engine as E
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 
 from shell.model import InputPort, Model, ModelError, OutputPort, State
@@ -121,16 +124,128 @@ def rotation_to_quaternion_into(R, out):
         out[m] /= norm
 
 
-@njit(cache=True)
-def _scatter(source, source_index, destination, destination_index):
-    for k in range(source_index.shape[0]):
-        destination[destination_index[k]] = source[source_index[k]]
+class EnginePorts(NamedTuple):
+    """Where the engine model's ports sit in its input and output blocks (built once per model)."""
+
+    nq: int
+    nu: int
+    q_out: int                  # start of output q in y
+    u_out: int                  # start of output u in y
+    tau_src: np.ndarray         # input element -> generalized force index
+    tau_dst: np.ndarray
+    acc_src: np.ndarray         # input element -> prescribed acceleration index
+    acc_dst: np.ndarray
+    force_src: np.ndarray       # input element -> flat index into node_forces (nnodes x 6)
+    force_dst: np.ndarray
+    node_offsets: np.ndarray    # (nnodes, 5) y starts of attitude, rotation, position, angular/linear velocity
+    accel_offsets: np.ndarray   # (nnodes, 2) y starts of angular and linear acceleration
+    hinge_q: np.ndarray         # (k, 3) [y start, q start, count] of <body>.q outputs
+    hinge_u: np.ndarray         # (k, 3) the same for <body>.u
+    hinge_udot: np.ndarray      # (k, 3) the same for <body>.u_dot
+
+
+class EngineWork(NamedTuple):
+    """Per-run scratch of the engine model: engine inputs, accelerations and node kinematics."""
+
+    tau: np.ndarray             # (nu,) generalized forces from the hinge torque ports
+    udot: np.ndarray            # (nu,) accelerations (prescribed ones on entry to the engine)
+    tau_out: np.ndarray         # (nu,)
+    zero_u: np.ndarray          # (nu,) zeros: node kinematics without accelerations
+    node_forces: np.ndarray     # (nnodes, 6) [torque; force] per node, node axes
+    rotation: np.ndarray        # (nnodes, 3, 3)
+    position: np.ndarray        # (nnodes, 3)
+    velocity: np.ndarray        # (nnodes, 6)
+    acceleration: np.ndarray    # (nnodes, 6)
+    status: np.ndarray          # (1,) int64: 0, or 1 + the body whose articulated inertia was singular
 
 
 @njit(cache=True)
-def _node_outputs(rotation, position, angular_velocity, linear_velocity, y, offsets):
+def _solve_accelerations(x, u, d):
+    """Scatter the input ports into the engine's arrays and run its forward dynamics into ``work.udot``.
+    A singular articulated inertia records the body in ``work.status`` and makes the accelerations NaN,
+    which the simulation reports with the body's name (``MultibodyModel.failure_message``)."""
+    engine, ports, work = d
+    nq = ports.nq
+    for k in range(ports.tau_src.shape[0]):
+        work.tau[ports.tau_dst[k]] = u[ports.tau_src[k]]
+    for k in range(ports.force_src.shape[0]):
+        f = ports.force_dst[k]
+        work.node_forces[f // 6, f % 6] = u[ports.force_src[k]]
+    for k in range(ports.nu):
+        work.udot[k] = 0.0
+    for k in range(ports.acc_src.shape[0]):
+        work.udot[ports.acc_dst[k]] = u[ports.acc_src[k]]
+    status = E.forward_dynamics(engine, x[:nq], x[nq:], work.tau, work.node_forces, work.udot, work.tau_out)
+    work.status[0] = status
+    if status != 0:
+        for k in range(ports.nu):
+            work.udot[k] = np.nan
+
+
+@njit(cache=True)
+def _copy_blocks(source, blocks, y):
+    for b in range(blocks.shape[0]):
+        y0, s0, n = blocks[b, 0], blocks[b, 1], blocks[b, 2]
+        for k in range(n):
+            y[y0 + k] = source[s0 + k]
+
+
+@njit(cache=True)
+def _engine_state_outputs(t, x, z, u, p, d, y):
+    engine, ports, work = d
+    nq, nu = ports.nq, ports.nu
+    for k in range(nq):
+        y[ports.q_out + k] = x[k]
+    for k in range(nu):
+        y[ports.u_out + k] = x[nq + k]
+    _copy_blocks(x, ports.hinge_q, y)
+    _copy_blocks(x[nq:], ports.hinge_u, y)
+    if ports.node_offsets.shape[0]:
+        E.node_kinematics(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
+                          work.acceleration)
+        _node_outputs(work.rotation, work.position, work.velocity, y, ports.node_offsets)
+
+
+@njit(cache=True)
+def _engine_feedthrough_outputs(t, x, z, u, p, d, y):
+    engine, ports, work = d
+    nq = ports.nq
+    _solve_accelerations(x, u, d)
+    _copy_blocks(work.udot, ports.hinge_udot, y)
+    if ports.accel_offsets.shape[0]:
+        E.node_kinematics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position, work.velocity,
+                          work.acceleration)
+        for n in range(ports.accel_offsets.shape[0]):
+            a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
+            for k in range(3):
+                y[a + k] = work.acceleration[n, k]
+                y[b + k] = work.acceleration[n, 3 + k]
+
+
+@njit(cache=True)
+def _engine_derivatives_after_feedthrough(t, x, z, u, p, d, xdot):
+    engine, ports, work = d
+    nq = ports.nq
+    for k in range(ports.nu):
+        xdot[nq + k] = work.udot[k]
+    E.coordinate_rates(engine, x[:nq], x[nq:], xdot[:nq])
+
+
+@njit(cache=True)
+def _engine_derivatives(t, x, z, u, p, d, xdot):
+    _solve_accelerations(x, u, d)
+    _engine_derivatives_after_feedthrough(t, x, z, u, p, d, xdot)
+
+
+@njit(cache=True)
+def _engine_normalize(x, d):
+    E.normalize_quaternions(d[0], x)
+
+
+@njit(cache=True)
+def _node_outputs(rotation, position, velocity, y, offsets):
     """Write node kinematics into the output block; offsets[n] = (attitude, rotation, position,
-    angular_velocity, linear_velocity) start indices in y (-1: not declared)."""
+    angular_velocity, linear_velocity) start indices in y."""
     for n in range(offsets.shape[0]):
         o = offsets[n]
         rotation_to_quaternion_into(rotation[n], y[o[0]:o[0] + 4])
@@ -138,8 +253,20 @@ def _node_outputs(rotation, position, angular_velocity, linear_velocity, y, offs
             for b in range(3):
                 y[o[1] + 3 * a + b] = rotation[n, a, b]
             y[o[2] + a] = position[n, a]
-            y[o[3] + a] = angular_velocity[n, a]
-            y[o[4] + a] = linear_velocity[n, a]
+            y[o[3] + a] = velocity[n, a]
+            y[o[4] + a] = velocity[n, 3 + a]
+
+
+def _private_system(system):
+    """A copy of ``system`` with its own workspace and its own mass-property arrays (a run that changes
+    mass properties must not change another run's)."""
+    other = system.copy()
+    for name in ("spatial_inertia", "masses", "flex_data"):
+        if hasattr(other, name):
+            a = np.array(getattr(other, name))
+            a.setflags(write=False)
+            setattr(other, name, a)
+    return other
 
 
 @register_model
@@ -209,9 +336,6 @@ class MultibodyModel(Model):
 
         s = self.system
         u_layout, y_layout = Layout.of(self.inputs), Layout.of(self.outputs)
-        self._tau = np.zeros(s.nu)
-        self._prescribed = np.zeros(s.nu)
-        self._node_forces = np.zeros((s.nnodes, 6))
         tau_src, tau_dst, acc_src, acc_dst, f_src, f_dst = [], [], [], [], [], []
         for port, sl in self._hinge_torque_ports:
             tau_src.extend(range(u_layout.slice(port).start, u_layout.slice(port).stop))
@@ -225,23 +349,40 @@ class MultibodyModel(Model):
                 f_src.extend(range(start, start + 3))
                 f_dst.extend(range(6 * n + column, 6 * n + column + 3))
         as_index = lambda values: np.asarray(values, dtype=np.int64)  # noqa: E731
-        self._tau_src, self._tau_dst = as_index(tau_src), as_index(tau_dst)
-        self._acc_src, self._acc_dst = as_index(acc_src), as_index(acc_dst)
-        self._force_src, self._force_dst = as_index(f_src), as_index(f_dst)
-        self._has_prescribed = bool(acc_src)
-        self._node_offsets = np.array([[y_layout.offsets[f"{node}.{k}"] for k in
-                                        ("attitude", "rotation", "position", "angular_velocity", "linear_velocity")]
-                                       for node in s.node_names], dtype=np.int64).reshape(-1, 5)
-        self._node_accel_offsets = np.array([[y_layout.offsets[f"{node}.angular_acceleration"],
-                                              y_layout.offsets[f"{node}.linear_acceleration"]]
-                                             for node in s.node_names], dtype=np.int64).reshape(-1, 2)
-        self._hinge_q_out = [(y_layout.slice(f"{b}.q"), s.q_slices[i]) for i, b in enumerate(s.body_names)
-                             if f"{b}.q" in y_layout.offsets]
-        self._hinge_u_out = [(y_layout.slice(f"{b}.u"), s.u_slices[i]) for i, b in enumerate(s.body_names)
-                             if f"{b}.u" in y_layout.offsets]
-        self._hinge_udot_out = [(y_layout.slice(f"{b}.u_dot"), s.u_slices[i]) for i, b in enumerate(s.body_names)
-                                if f"{b}.u_dot" in y_layout.offsets]
-        self._q_out, self._u_out = y_layout.slice("q"), y_layout.slice("u")
+
+        def blocks(kind, slices):
+            return as_index([[y_layout.offsets[f"{b}.{kind}"], slices[i].start, slices[i].stop - slices[i].start]
+                             for i, b in enumerate(s.body_names) if f"{b}.{kind}" in y_layout.offsets]).reshape(-1, 3)
+
+        self.ports = EnginePorts(
+            s.nq, s.nu, y_layout.offsets["q"], y_layout.offsets["u"], as_index(tau_src), as_index(tau_dst),
+            as_index(acc_src), as_index(acc_dst), as_index(f_src), as_index(f_dst),
+            as_index([[y_layout.offsets[f"{node}.{k}"] for k in
+                       ("attitude", "rotation", "position", "angular_velocity", "linear_velocity")]
+                      for node in s.node_names]).reshape(-1, 5),
+            as_index([[y_layout.offsets[f"{node}.angular_acceleration"],
+                       y_layout.offsets[f"{node}.linear_acceleration"]] for node in s.node_names]).reshape(-1, 2),
+            blocks("q", s.q_slices), blocks("u", s.u_slices), blocks("u_dot", s.u_slices))
+
+    def create_data(self, own: bool = False):
+        """(the engine system of the run, (EngineData, EnginePorts, EngineWork)); ``own``: a private copy
+        of the system (own workspace and mass properties) for an additional context."""
+        system = _private_system(self.system) if own else self.system
+        nu, nn = system.nu, system.nnodes
+        work = EngineWork(np.zeros(nu), np.zeros(nu), np.zeros(nu), np.zeros(nu), np.zeros((nn, 6)),
+                          np.zeros((nn, 3, 3)), np.zeros((nn, 3)), np.zeros((nn, 6)), np.zeros((nn, 6)),
+                          np.zeros(1, dtype=np.int64))
+        return system, (E.engine_data(system), self.ports, work)
+
+    def failure_message(self, data) -> str | None:
+        """Why the last forward dynamics failed (singular articulated inertia), or None."""
+        status = int(data[2].status[0])
+        if status == 0:
+            return None
+        s = self.system
+        return (f"articulated inertia of hinge '{s.joint_names[status - 1]}' (body '{s.body_names[status - 1]}') "
+                "is singular: the subtree it moves has no inertia along a free DOF (massless subtree, or a "
+                "configuration where the hinge axes align)")
 
     def attachment_ports(self, kind: str, target: str):
         s = self.system
@@ -256,54 +397,14 @@ class MultibodyModel(Model):
         inputs = {k: f"{target}.{k}" for k in ("torque", "prescribed_accel") if f"{target}.{k}" in names}
         return outputs, inputs
 
-    # -- kernels -----------------------------------------------------------------------------------------
-    def _inputs_to_engine(self, u) -> None:
-        _scatter(u, self._tau_src, self._tau, self._tau_dst)
-        _scatter(u, self._force_src, self._node_forces.reshape(-1), self._force_dst)
-        if self._has_prescribed:
-            _scatter(u, self._acc_src, self._prescribed, self._acc_dst)
-
-    def _accelerations(self, x, u):
-        s = self.system
-        self._inputs_to_engine(u)
-        q, v = x[:s.nq], x[s.nq:]
-        return s.forward_dynamics(q, v, self._tau, self._node_forces if s.nnodes else None,
-                                  self._prescribed if self._has_prescribed else None)
-
-    def state_outputs(self, t, x, z, u, p, y):
-        s = self.system
-        q, v = x[:s.nq], x[s.nq:]
-        y[self._q_out] = q
-        y[self._u_out] = v
-        for out, sl in self._hinge_q_out:
-            y[out] = q[sl]
-        for out, sl in self._hinge_u_out:
-            y[out] = v[sl]
-        if s.nnodes:
-            kin = s.node_kinematics(q, v)
-            _node_outputs(kin.rotation, kin.position, kin.angular_velocity, kin.linear_velocity, y,
-                          self._node_offsets)
-
-    def feedthrough_outputs(self, t, x, z, u, p, y):
-        s = self.system
-        udot = self._accelerations(x, u)
-        for out, sl in self._hinge_udot_out:
-            y[out] = udot[sl]
-        if s.nnodes:
-            kin = s.node_kinematics(x[:s.nq], x[s.nq:], udot)
-            for n in range(s.nnodes):
-                a, b = self._node_accel_offsets[n]
-                y[a:a + 3] = kin.angular_acceleration[n]
-                y[b:b + 3] = kin.linear_acceleration[n]
-
-    def derivatives(self, t, x, z, u, p, xdot):
-        s = self.system
-        xdot[s.nq:] = self._accelerations(x, u)
-        xdot[:s.nq] = s.q_dot(x[:s.nq], x[s.nq:])
-
-    def normalize_state(self, x) -> None:
-        """Renormalize hinge quaternions in place (the integrator's normalize hook)."""
-        self.system.normalize_quaternions(x[:self.system.nq])
+    # -- kernels (dynamics.engine under the uniform signature, with the per-run data d) ------------------
+    uses_data = True
+    state_outputs = staticmethod(_engine_state_outputs)
+    feedthrough_outputs = staticmethod(_engine_feedthrough_outputs)
+    derivatives = staticmethod(_engine_derivatives)
+    derivatives_after_feedthrough = staticmethod(_engine_derivatives_after_feedthrough)
+    #: renormalize hinge quaternions in place (the integrator's normalize hook): ``normalize_state(x, d)``
+    normalize_state = staticmethod(_engine_normalize)
 
     def quaternion_w_indices(self) -> list[int]:
         """Positions in this model's state of each hinge quaternion's w (for the integrator's error norm)."""

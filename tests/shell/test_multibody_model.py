@@ -50,8 +50,9 @@ def test_constant_torque_spin_up_matches_the_analytic_rotation(scene, tmp_path):
 
 def test_derivative_plan_skips_engine_outputs_nobody_reads_continuously(scene):
     sim = scene(SPINUP)
-    assert [entry[0].path for entry in sim._output_plan] == ["thruster_pair"]
-    assert {entry[0].path for entry in sim._output_plan_full} == {"multibody", "thruster_pair"}
+    d = sim.diagram
+    assert [d.models[s.model].path for s in d.derivative_stages] == ["thruster_pair"]
+    assert {d.models[s.model].path for s in d.output_order} == {"multibody", "thruster_pair"}
 
 
 def test_attaching_an_assembly_binds_node_signals(scene, tmp_path):
