@@ -72,10 +72,10 @@ def engine_data(system) -> EngineData:
     if system.is_flexible:
         flex = (system.flex_index, system.flex_data, system.node_shape, system.fw_psi, system.fw_vec,
                 system.fw_mat, system.fw_tmp, system.fw_scratch)
-    else:
-        flex = (np.zeros((nb, FK.N_FX), dtype=np.int64), np.zeros(1), np.zeros((nn, 6, 1)),
-                np.zeros((1, 1, 1)), np.zeros((1, 1, 1)), np.zeros((1, 1, 1, 1)), np.zeros((8, 3)),
-                np.zeros((4, 6, 6)))
+    else:  # placeholders of the same types (read-only like a flexible system's), so both kinds share code
+        flex = (_readonly(np.zeros((nb, FK.N_FX), dtype=np.int64)), _readonly(np.zeros(1)),
+                _readonly(np.zeros((nn, 6, 1))), np.zeros((1, 1, 1)), np.zeros((1, 1, 1)), np.zeros((1, 1, 1, 1)),
+                np.zeros((8, 3)), np.zeros((4, 6, 6)))
     flex_index, flex_data, node_shape, psi, fv, fm, tmp, scratch = flex
     return EngineData(
         bool(system.is_flexible), system.topology, system.hinge_dofs, system.joint_rot, system.joint_vec,
@@ -83,6 +83,11 @@ def engine_data(system) -> EngineData:
         np.ascontiguousarray(system.quaternion_q_indices, dtype=np.int64), system.spatial_inertia, flex_index,
         flex_data, node_shape, system.ws_rot, system.ws_vec, system.ws_mat, psi, fv, fm, tmp, scratch,
         np.zeros((nb, 6)), np.zeros((nb, 6)))
+
+
+def _readonly(a):
+    a.setflags(write=False)
+    return a
 
 
 @njit(cache=True)

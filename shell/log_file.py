@@ -89,6 +89,29 @@ class LogWriter:
         elif _time.perf_counter() - self._last_flush > self.flush_seconds:
             self.flush()
 
+    def append_rows(self, group_name: str, times: np.ndarray, rows: np.ndarray) -> None:
+        """Append ``len(times)`` samples at once; ``rows`` (k, width) holds each sample's signals flattened
+        and concatenated in the group's signal order (the compiled loop's log buffers)."""
+        buffer = self.buffers[group_name]
+        self._write(buffer)
+        k = len(times)
+        if k == 0:
+            return
+        start, stop = buffer.written, buffer.written + k
+        ds = buffer.group["time"]
+        ds.resize((stop,))
+        ds[start:stop] = times
+        column = 0
+        for s in buffer.signals:
+            size = int(np.prod(s.shape, dtype=np.int64))
+            d = buffer.group[s.name]
+            d.resize((stop, *s.shape))
+            d[start:stop] = rows[:, column:column + size].reshape(k, *s.shape)
+            column += size
+        buffer.written = stop
+        if _time.perf_counter() - self._last_flush > self.flush_seconds:
+            self._flush_file()
+
     def _write(self, buffer: _GroupBuffer) -> None:
         n = buffer.count
         if n == 0:

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import gc
 import json
+import math
+import warnings
 import time as _time
 import weakref
 from dataclasses import dataclass
@@ -29,12 +31,18 @@ from fractions import Fraction
 import h5py
 import numpy as np
 
+from shell import compiled_loop as CL
 from shell.assembly import Assembly
+from shell.compiled_plan import compile_plan
 from shell.diagram import AlgebraicLoopError, Diagram, EvaluationError, WiringError, gather_inputs
 from shell.integrators import locate_events, make_integrator, quaternion_gauge
 from shell.log_file import LoggedSignal, LogWriter
 from shell.model import ModelError, parse_period
 from shell.units import format_unit
+
+
+class SimulationWarning(UserWarning):
+    """Allowed but worth knowing: a scene that runs interpreted, a Python model in the compiled loop."""
 
 
 class SimulationError(RuntimeError):
@@ -83,7 +91,8 @@ class Simulation:
 
     def __init__(self, root: Assembly, *, integrator: str = "rk4", step: float | None = 0.01,
                  integrator_options: dict | None = None, seed=0, stop_events=(), event_tol: float = 1e-10,
-                 event_detection: str = "subdivided", t_start: float = 0.0, diagram: Diagram | None = None):
+                 event_detection: str = "subdivided", t_start: float = 0.0, diagram: Diagram | None = None,
+                 mode: str = "compiled"):
         self.seed = seed
         self.event_tol = float(event_tol)
         if event_detection not in ("sign_change", "subdivided"):
@@ -114,10 +123,23 @@ class Simulation:
         self.integrator_options = dict(integrator_options or {})
         if step is not None:
             self.integrator_options["step"] = step
-        #: the integrator's right-hand side f(t, x)
-        self.rhs = self.derivative
+        if mode not in ("compiled", "interpreted"):
+            raise ModelError(f"simulation mode {mode!r}: expected 'compiled' (the default: the scene runs in "
+                             "flexshell's compiled loop) or 'interpreted' (every kernel called from Python: the "
+                             "reference, and the fallback for scenes with Python kernels)")
+        self._plan, self.interpreted_reason = None, None
+        if mode == "compiled":
+            self._plan, self.interpreted_reason = compile_plan(d, self.context)
+            if self._plan is None:
+                warnings.warn(f"the scene runs interpreted (every kernel called from Python, slower): "
+                              f"{self.interpreted_reason}", SimulationWarning, stacklevel=2)
+        #: "compiled" or "interpreted" (see ``interpreted_reason``)
+        self.mode = "compiled" if self._plan is not None else "interpreted"
+        #: the integrator's right-hand side f(t, x): compiled, or the interpreted reference ``derivative``
+        self.rhs = self._plan.derivative if self._plan is not None else self.derivative
         self._integrator = None
         self._integrator_stale = True
+        self._stepper = None
         self._event_functions = [_EventFunction(self, j, zc.direction, d.zero_crossing_terminal[j])
                                  for j, (_, _, zc) in enumerate(d.zero_crossing_owner)]
         self._last_events: tuple[float, set] = (-np.inf, set())
@@ -269,7 +291,10 @@ class Simulation:
         try:
             self._initialize()
             end = Fraction(t_final).limit_denominator(10**9)
-            while True:
+            compiled = self._compiled_run(end, writer, progress) if self._compiled_loop_applies() else None
+            if compiled is not None:
+                status, reason = compiled
+            while compiled is None:
                 instant = self._next_instant(end)
                 target = float(instant)
                 if target > self.t:
@@ -305,6 +330,176 @@ class Simulation:
                           self.counters["nfev"] - start_counters["nfev"],
                           self.counters["events"] - start_counters["events"],
                           self.counters["updates"] - start_counters["updates"])
+
+    # ------------------------------------------------------------------------------------------------
+    # the compiled loop (shell.compiled_loop): the same instants, updates, steps and log rows as below
+    def _compiled_loop_applies(self) -> bool:
+        """Fixed-step explicit integration without zero crossings runs in the compiled loop; adaptive and
+        implicit methods and scenes with zero crossings run the Python loop on the compiled derivative."""
+        from shell.integrators import INTEGRATORS
+        from shell.integrators.fixed import FixedStepRungeKutta
+
+        cls = INTEGRATORS.get(str(self.integrator_name).lower())
+        return (self._plan is not None and cls is not None and issubclass(cls, FixedStepRungeKutta)
+                and self.diagram.n_zero_crossings == 0 and self.integrator_options.get("step") is not None)
+
+    def _time_base(self, end: Fraction):
+        """Common denominator of every instant of this run, or None when ticks would exceed 2**53."""
+        fractions = [end, Fraction(self.t).limit_denominator(10**9)]
+        fractions += [f for f in self.context.next_sample if f is not None]
+        fractions += [p for p in self.diagram.periods if p is not None]
+        for group in self._log_groups.values():
+            fractions += [group["period"], self._next_log_time(group)]
+        den = 1
+        for f in fractions:
+            den = den * f.denominator // math.gcd(den, f.denominator)
+        limit = 2 ** 53
+        if den >= limit or max(abs(f) for f in fractions) * den >= limit:
+            return None
+        return den
+
+    def _compiled_stepper(self):
+        from shell.integrators import INTEGRATORS
+
+        cls = INTEGRATORS[str(self.integrator_name).lower()]
+        options = self.integrator_options
+        step = float(options["step"])
+        if not (step > 0.0 and math.isfinite(step)):
+            raise ModelError(f"integrator step must be a positive number of seconds, got {options['step']!r}")
+        h = min(step, float(options.get("max_step", np.inf)))
+        if self._stepper is None or self._stepper.h != h or self._stepper.A is not cls.tableau.A:
+            tb, n = cls.tableau, self.x.size
+            self._stepper = CL.Stepper(tb.A, tb.b, tb.c, tb.n_stages, h, self.x.copy(), np.zeros(n),
+                                       np.zeros((tb.n_stages, n)), np.zeros(n), np.zeros(n))
+            self._integrator_stale = True
+        return self._stepper
+
+    def _compiled_run(self, end: Fraction, writer, progress):
+        """Run to ``end`` in the compiled loop; None when its time base does not fit (the caller then runs
+        the Python loop)."""
+        den = self._time_base(end)
+        if den is None:
+            return None
+        d, context, plan = self.diagram, self.context, self._plan
+        stepper = self._compiled_stepper()
+        n_models = len(self.models)
+        next_tick = np.full(n_models, -1, dtype=np.int64)
+        period = np.zeros(n_models, dtype=np.int64)
+        for i in d.update_order:
+            next_tick[i] = int(context.next_sample[i] * den)
+            period[i] = int(d.periods[i] * den)
+        groups = list(self._log_groups.values())
+        kinds, indices, starts = [], [], [0]
+        for group in groups:
+            for signal, kind, sl in group["signals"]:
+                kinds += [{"signal": 0, "x": 1, "z": 2}[kind]] * (sl.stop - sl.start)
+                indices += list(range(sl.start, sl.stop))
+            starts.append(len(kinds))
+        widths = [starts[g + 1] - starts[g] for g in range(len(groups))]
+        capacity = 512
+        schedule = CL.Schedule(
+            den, int(end * den), next_tick, period, np.asarray(d.update_order, dtype=np.int64),
+            np.asarray([int(self._next_log_time(g) * den) for g in groups], dtype=np.int64),
+            np.asarray([int(g["period"] * den) for g in groups], dtype=np.int64),
+            np.asarray(kinds, dtype=np.int64), np.asarray(indices, dtype=np.int64), np.asarray(starts, dtype=np.int64),
+            np.zeros((len(groups), capacity)), np.zeros((len(groups), capacity, max(widths, default=0))),
+            np.zeros(len(groups), dtype=np.int64))
+        ints = np.zeros(CL.N_INTS, dtype=np.int64)
+        reals = np.zeros(CL.N_REALS)
+        reals[CL.R_T] = self.t
+        ints[CL.I_F_VALID] = 0 if self._integrator_stale else 1
+        ints[CL.I_NOW] = int(Fraction(self.t).limit_denominator(10**9) * den)
+        names = list(self._log_groups)
+
+        def flush():
+            for g, group in enumerate(groups):
+                count = int(schedule.log_count[g])
+                if count and writer is not None:
+                    writer.append_rows(names[g], schedule.log_times[g, :count],
+                                       schedule.log_rows[g, :count, :widths[g]])
+                schedule.log_count[g] = 0
+
+        def sync():
+            self.t = float(reals[CL.R_T])
+            for i in d.update_order:
+                context.next_sample[i] = Fraction(int(next_tick[i]), den)
+            for g, group in enumerate(groups):
+                group["next"] = Fraction(int(schedule.log_next[g]), den)
+            done = ints[[CL.I_STEPS, CL.I_NFEV, CL.I_UPDATES]]
+            self.counters["steps"] += int(done[0])
+            self.counters["nfev"] += int(done[1])
+            self.counters["updates"] += int(done[2])
+            ints[[CL.I_STEPS, CL.I_NFEV, CL.I_UPDATES]] = 0
+            self._integrator_stale = ints[CL.I_F_VALID] == 0
+
+        budget = 64
+        integrate = self.x.size > 0
+        b = plan.buffers
+        try:
+            while True:
+                started = _time.perf_counter()
+                status = CL.advance(plan.kernels, plan.engine, plan.rngs, b, stepper, schedule, ints, reals, budget,
+                                    writer is not None, integrate)
+                elapsed = _time.perf_counter() - started
+                if status == CL.DONE:
+                    break
+                if status == CL.PYTHON_UPDATE:
+                    self._python_updates(ints, reals, next_tick, period)
+                elif status == CL.LOG_FULL:
+                    flush()
+                elif status == CL.BUDGET:
+                    budget = int(min(max(budget * 0.1 / max(elapsed, 1e-6), 16), 1 << 20))
+                else:
+                    sync()
+                    self._raise_compiled_failure(status, stepper, reals)
+                if progress is not None and status != CL.PYTHON_UPDATE:
+                    self.t = float(reals[CL.R_T])
+                    progress(self.t)
+        finally:
+            flush()
+            sync()
+        if progress is not None:
+            progress(self.t)
+        return "completed", "reached t_final"
+
+    def _python_updates(self, ints, reals, next_tick, period) -> None:
+        """The updates at the current instant when a Python-only model is due (all due models, in order)."""
+        t = float(reals[CL.R_T])
+        self.t = t
+        now = int(ints[CL.I_NOW])
+        for i in self.diagram.update_order:
+            if next_tick[i] != now:
+                continue
+            try:
+                self.diagram.update(self.context, i, t)
+            except EvaluationError as exc:
+                raise SimulationError(str(exc)) from exc.__cause__
+            next_tick[i] += period[i]
+            ints[CL.I_UPDATES] += 1
+        self._check_finite_state(f"the discrete updates at t = {t:.9g} s")
+        ints[CL.I_F_VALID] = 0
+
+    def _raise_compiled_failure(self, status, stepper, reals) -> None:
+        t = float(reals[CL.R_T])
+        if status == CL.UPDATE_FAILED:
+            self._check_finite_state(f"the discrete updates at t = {t:.9g} s")
+        if status == CL.START_FAILED:
+            self.derivative(t, self.x.copy())
+            culprit = self._name_nonfinite(self.xdot, self.x_states(), what="derivative of")
+            raise SimulationError(f"{culprit or 'a non-finite derivative'} at t = {t:.9g} s")
+        failed_t = float(reals[CL.R_FAILED_T])
+        bad_y = stepper.YN.copy()
+        self.x[:] = stepper.Y
+        culprit = self._name_nonfinite(bad_y, self.x_states())
+        if culprit is None:
+            self.derivative(failed_t, bad_y)
+            culprit = self._name_nonfinite(self.xdot, self.x_states(), what="derivative of")
+            self.x[:] = stepper.Y
+        message = (f"{culprit or 'a non-finite value'} at t = {failed_t:.9g} s; the run stopped there (last good "
+                   f"state at t = {t:.9g} s). Integrator: {self.integrator_name} with step {stepper.h:.6g} s; "
+                   "if the state grew without bound the step may exceed the explicit stability limit: reduce "
+                   "the step, remove fast modes, or use an implicit method")
+        raise SimulationError(message)
 
     def _next_instant(self, end: Fraction) -> Fraction:
         candidates = [s for s in self.context.next_sample if s is not None]
@@ -432,7 +627,11 @@ class Simulation:
         bad = []
         for (path, name), sl, _ in states:
             if not np.all(np.isfinite(values[sl])):
-                bad.append(f"model {path} {what} {name} = {np.array2string(values[sl], precision=4)}")
+                entry = f"model {path} {what} {name} = {np.array2string(values[sl], precision=4)}"
+                i = self.model_index[path]
+                explain = getattr(self.models[i], "failure_message", None)
+                reason = explain(self.context.data[i]) if explain is not None else None
+                bad.append(entry + (f" ({reason})" if reason else ""))
         return "non-finite " + "; ".join(bad) if bad else None
 
     def _check_finite_state(self, when: str) -> None:

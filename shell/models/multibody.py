@@ -257,6 +257,17 @@ def _node_outputs(rotation, position, velocity, y, offsets):
             y[o[4] + a] = velocity[n, 3 + a]
 
 
+def probe_engine_data():
+    """The data tuple of a one-body engine model: its numba type is that of every engine model's data
+    (the compiled loop's signature), and it stands in where a scene has no engine."""
+    from dynamics import Multibody
+
+    builder = Multibody()
+    builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
+    builder.add_node("probe_node", "probe")
+    return MultibodyModel("probe", builder.compile()).create_data()[1]
+
+
 def _private_system(system):
     """A copy of ``system`` with its own workspace and its own mass-property arrays (a run that changes
     mass properties must not change another run's)."""

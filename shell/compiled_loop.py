@@ -1,0 +1,427 @@
+"""One compiled loop that runs any scene: the diagram's plan as arrays, the model kernels as function pointers.
+
+The interpreted loop (:mod:`shell.diagram`, :mod:`shell.simulation`) calls each model kernel from Python:
+about a microsecond of dispatch per kernel, many per derivative. Here the same sequence runs inside numba:
+
+* the plan (evaluation order, gather ranges, each model's slices of ``x``, ``z``, the signal buffer and
+  the packed parameters) is encoded as integer *op* tables (:class:`shell.compiled_plan.CompiledPlan`);
+* every model kernel of the uniform signature is passed as a function pointer (the addresses numba
+  gives a compiled function, in an int64 table) and called through it: an indirect call of ~10 ns,
+  no Python; the engine model's kernels, which also take the engine's arrays (:mod:`dynamics.engine`,
+  one data tuple of a fixed type), are called the same way;
+* :func:`advance` integrates with a fixed-step explicit Runge-Kutta method from one sample instant to the
+  next, runs the sampled models' updates at integer ticks of a common time base (their noise drawn from
+  each model's own ``numpy.random.Generator``, bit-identical to the interpreted draws), writes log rows
+  into preallocated buffers, and returns to Python only to run Python-only models, flush full log
+  buffers, report progress, or report a failure.
+
+Because the plan and the kernels are data (arrays of offsets and of addresses), this module is compiled
+once per installation (numba's on-disk cache) and serves every scene: a new scene costs no compilation,
+and the loop's compiled code does not contain the engine or any model (each is compiled and cached on
+its own). The arithmetic is that of the interpreted path
+operation for operation (same kernels, same Runge-Kutta combinations from
+:mod:`shell.integrators.kernels`, same quaternion normalization, instants ``k / den`` rounded as Python's
+``float(Fraction)``), so the two give the same numbers; tests check it.
+
+Op table columns (int64): ``KIND, FN, G0, G1, X0, X1, Z0, Z1, U0, U1, P0, P1, O0, O1, N0, N1, RNG``:
+the kind of call, the function or engine index, the feedthrough gather range, the model's slices of
+``x``, ``z``, the signal buffer (inputs), the parameters, its output range (outputs in the signal buffer,
+derivatives in ``xdot``, zero crossings in ``g``), the noise buffer range and random stream of a noisy
+update.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from numba import typeof, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+from shell.integrators.kernels import all_finite, propagate, stage_state
+from shell.models.multibody import probe_engine_data
+
+_ARRAY = types.float64[::1]
+#: output, derivative and zero-crossing kernels, and updates with noise: kernel(t, x, z, u, p, out)
+KERNEL_SIGNATURE = types.void(types.float64, _ARRAY, _ARRAY, _ARRAY, _ARRAY, _ARRAY)
+#: updates without noise: update(t, x, z, u, p)
+UPDATE_SIGNATURE = types.void(types.float64, _ARRAY, _ARRAY, _ARRAY, _ARRAY)
+#: the engine model's data (dynamics.engine.EngineData, ports, work) as numba types it
+ENGINE_DATA = typeof(probe_engine_data())
+#: the engine model's kernels: kernel(t, x, z, u, p, d, out)
+ENGINE_SIGNATURE = types.void(types.float64, _ARRAY, _ARRAY, _ARRAY, _ARRAY, ENGINE_DATA, _ARRAY)
+#: the engine model's quaternion normalization: normalize(x, d)
+NORMALIZE_SIGNATURE = types.void(_ARRAY, ENGINE_DATA)
+#: slots of the random-stream tuple (models with noise_size in one scene)
+MAX_NOISY_MODELS = 8
+# rows of the engine pointer table
+E_STATE, E_FEEDTHROUGH, E_DERIVATIVES, E_DERIVATIVES_REUSE, E_NORMALIZE = range(5)
+
+
+def _pointer_intrinsic(signature):
+    """An intrinsic turning (cfunc wrapper address, numba entry address) into a callable first-class
+    function of ``signature`` (numba's FunctionType struct; the call goes through the numba entry)."""
+    function_type = types.FunctionType(signature)
+
+    @intrinsic
+    def as_function(typingctx, c_address, jit_address):
+        def codegen(context, builder, sig, args):
+            value = cgutils.create_struct_proxy(function_type)(context, builder)
+            pointer = context.get_value_type(types.voidptr)
+            value.c_addr = builder.inttoptr(args[0], pointer)
+            value.py_addr = cgutils.get_null_value(pointer)
+            value.jit_addr = builder.inttoptr(args[1], pointer)
+            return value._getvalue()
+
+        return function_type(types.int64, types.int64), codegen
+
+    return as_function
+
+
+_kernel = _pointer_intrinsic(KERNEL_SIGNATURE)
+_update_kernel = _pointer_intrinsic(UPDATE_SIGNATURE)
+_engine_kernel = _pointer_intrinsic(ENGINE_SIGNATURE)
+_normalize_kernel = _pointer_intrinsic(NORMALIZE_SIGNATURE)
+
+# op table columns
+KIND, FN, G0, G1, X0, X1, Z0, Z1, U0, U1, P0, P1, O0, O1, N0, N1, RNG = range(17)
+OP_COLUMNS = 17
+
+# op kinds
+PLAIN = 0                # fns[FN](t, x, z, u, p, out)
+ENGINE_STATE = 1         # engine state outputs
+ENGINE_FEEDTHROUGH = 2   # engine feedthrough outputs (forward dynamics, node accelerations)
+ENGINE_DERIVATIVES = 3
+ENGINE_DERIVATIVES_REUSE = 4  # after the engine's feedthrough stage in the same evaluation
+UPDATE = 5               # update_fns[FN](t, x, z, u, p)
+UPDATE_NOISE = 6         # noise from rngs[RNG] into noise[N0:N1], then fns[FN](t, x, z, u, p, noise)
+UPDATE_PYTHON = 7        # the update runs in Python: advance returns to the caller
+
+# advance status
+DONE = 0
+PYTHON_UPDATE = 1        # a Python-only model is due at the current instant (no update done there yet)
+LOG_FULL = 2             # a log buffer is full (after logging at the current instant)
+BUDGET = 3               # the instant budget of this call is spent (after a whole instant)
+STEP_FAILED = 4          # a step produced a non-finite state or derivative
+START_FAILED = 5         # the derivative at the start of an interval is not finite
+UPDATE_FAILED = 6        # a discrete update left a non-finite state
+
+# integer registers of advance (ints array)
+I_NOW, I_F_VALID, I_STEPS, I_NFEV, I_UPDATES, I_PHASE, I_FAILED_STAGE = range(7)
+N_INTS = 7
+# float registers (reals array)
+R_T, R_FAILED_T, R_T_OLD = range(3)
+N_REALS = 3
+
+
+class Buffers(NamedTuple):
+    """The context's buffers and the plan's op tables (arrays only: a fast argument for numba)."""
+
+    X: np.ndarray
+    Z: np.ndarray
+    S: np.ndarray
+    P: np.ndarray
+    XD: np.ndarray
+    G: np.ndarray
+    noise: np.ndarray
+    src: np.ndarray
+    dst: np.ndarray
+    fac: np.ndarray
+    full_ops: np.ndarray        # every output stage, in order
+    derivative_ops: np.ndarray  # output stages the derivatives need, then one op per derivative kernel
+    n_derivative_stages: int
+    zc_ops: np.ndarray
+    update_ops: np.ndarray      # one row per model (KIND -1: not sampled)
+    normalize_ops: np.ndarray   # engine index, x0 of each engine model with quaternions
+
+
+class Stepper(NamedTuple):
+    """A fixed-step explicit Runge-Kutta method and its work arrays."""
+
+    A: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    n_stages: int
+    h: float
+    Y: np.ndarray
+    F: np.ndarray
+    K: np.ndarray
+    YS: np.ndarray
+    YN: np.ndarray
+
+
+class Schedule(NamedTuple):
+    """Sample instants as integer ticks of 1/den s: per model (-1: not sampled) and per log group."""
+
+    den: int
+    end: int
+    next_tick: np.ndarray
+    period: np.ndarray
+    order: np.ndarray          # sampled models in update order
+    log_next: np.ndarray
+    log_period: np.ndarray
+    log_kind: np.ndarray       # per logged element: 0 signal, 1 x, 2 z
+    log_index: np.ndarray
+    log_start: np.ndarray      # group g owns log_kind[log_start[g]:log_start[g + 1]]
+    log_times: np.ndarray      # (groups, capacity)
+    log_rows: np.ndarray       # (groups, capacity, widest group)
+    log_count: np.ndarray
+
+
+class Kernels(NamedTuple):
+    """Function pointers ([cfunc wrapper address, numba entry address] rows) of the plan's kernels."""
+
+    fns: np.ndarray          # (n, 2) KERNEL_SIGNATURE
+    update_fns: np.ndarray   # (m, 2) UPDATE_SIGNATURE
+    engine_fns: np.ndarray   # (5, 2) the engine model's kernels (E_STATE ... E_NORMALIZE)
+
+
+@njit(cache=True)
+def run_stages(ops, n_ops, k, engine, t, b, src, fac):
+    """Output stages ``ops[:n_ops]``: gather each model's feedthrough inputs, then call its kernel."""
+    S = b.S
+    dst = b.dst
+    for r in range(n_ops):
+        for g in range(ops[r, G0], ops[r, G1]):
+            S[dst[g]] = fac[g] * S[src[g]]
+        kind = ops[r, KIND]
+        x = b.X[ops[r, X0]:ops[r, X1]]
+        z = b.Z[ops[r, Z0]:ops[r, Z1]]
+        u = S[ops[r, U0]:ops[r, U1]]
+        p = b.P[ops[r, P0]:ops[r, P1]]
+        y = S[ops[r, O0]:ops[r, O1]]
+        if kind == PLAIN:
+            f = ops[r, FN]
+            _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, y)
+        else:
+            e = E_STATE if kind == ENGINE_STATE else E_FEEDTHROUGH
+            _engine_kernel(k.engine_fns[e, 0], k.engine_fns[e, 1])(t, x, z, u, p, engine, y)
+
+
+@njit(cache=True)
+def gather_all(b, src, fac):
+    S = b.S
+    dst = b.dst
+    for g in range(dst.shape[0]):
+        S[dst[g]] = fac[g] * S[src[g]]
+
+
+@njit(cache=True)
+def evaluate_full(k, engine, t, b, src, fac):
+    """Every output, then every input (the interpreted ``Diagram.evaluate``)."""
+    run_stages(b.full_ops, b.full_ops.shape[0], k, engine, t, b, src, fac)
+    gather_all(b, src, fac)
+
+
+@njit(cache=True)
+def derivatives(k, engine, t, b, src, fac):
+    """``b.XD = f(t, b.X)`` (the interpreted ``Diagram.derivatives``)."""
+    ops = b.derivative_ops
+    n_stages = b.n_derivative_stages
+    run_stages(ops, n_stages, k, engine, t, b, src, fac)
+    gather_all(b, src, fac)
+    S = b.S
+    for r in range(n_stages, ops.shape[0]):
+        kind = ops[r, KIND]
+        x = b.X[ops[r, X0]:ops[r, X1]]
+        z = b.Z[ops[r, Z0]:ops[r, Z1]]
+        u = S[ops[r, U0]:ops[r, U1]]
+        p = b.P[ops[r, P0]:ops[r, P1]]
+        xdot = b.XD[ops[r, O0]:ops[r, O1]]
+        if kind == PLAIN:
+            f = ops[r, FN]
+            _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, xdot)
+        else:
+            e = E_DERIVATIVES if kind == ENGINE_DERIVATIVES else E_DERIVATIVES_REUSE
+            _engine_kernel(k.engine_fns[e, 0], k.engine_fns[e, 1])(t, x, z, u, p, engine, xdot)
+
+
+@njit(cache=True)
+def derivative_at(k, engine, t, y, b, src, fac):
+    """``f(t, y)`` into ``b.XD`` (``b.X`` is overwritten with ``y``)."""
+    b.X[:] = y
+    derivatives(k, engine, t, b, src, fac)
+
+
+@njit(cache=True)
+def zero_crossings(k, engine, t, b, src, fac):
+    """Every zero-crossing function into ``b.G`` after a full evaluation."""
+    evaluate_full(k, engine, t, b, src, fac)
+    ops = b.zc_ops
+    S = b.S
+    for r in range(ops.shape[0]):
+        f = ops[r, FN]
+        _kernel(k.fns[f, 0], k.fns[f, 1])(t, b.X[ops[r, X0]:ops[r, X1]], b.Z[ops[r, Z0]:ops[r, Z1]],
+                                          S[ops[r, U0]:ops[r, U1]], b.P[ops[r, P0]:ops[r, P1]],
+                                          b.G[ops[r, O0]:ops[r, O1]])
+
+
+@njit(cache=True)
+def update_model(i, k, engine, rngs, t, b):
+    """Evaluate the scene, then run compiled sampled model ``i``'s update (drawing its noise first)."""
+    evaluate_full(k, engine, t, b, b.src, b.fac)
+    ops = b.update_ops
+    x = b.X[ops[i, X0]:ops[i, X1]]
+    z = b.Z[ops[i, Z0]:ops[i, Z1]]
+    u = b.S[ops[i, U0]:ops[i, U1]]
+    p = b.P[ops[i, P0]:ops[i, P1]]
+    f = ops[i, FN]
+    if ops[i, KIND] == UPDATE:
+        _update_kernel(k.update_fns[f, 0], k.update_fns[f, 1])(t, x, z, u, p)
+    else:
+        noise = b.noise[ops[i, N0]:ops[i, N1]]
+        rng = rngs[ops[i, RNG]]
+        for n in range(noise.shape[0]):
+            noise[n] = rng.standard_normal()
+        _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, noise)
+
+
+@njit(cache=True)
+def normalize(k, engine, b, y):
+    """Renormalize the hinge quaternions of state ``y`` (the interpreted ``Diagram.normalize``)."""
+    ops = b.normalize_ops
+    for r in range(ops.shape[0]):
+        _normalize_kernel(k.engine_fns[E_NORMALIZE, 0], k.engine_fns[E_NORMALIZE, 1])(y[ops[r, 1]:ops[r, 2]],
+                                                                                     engine)
+
+
+@njit(cache=True)
+def _instant_time(tick, den):
+    # float(Fraction(tick, den)): both exact in binary64 (checked by the caller), the quotient correctly rounded
+    return float(tick) / float(den)
+
+
+@njit(cache=True)
+def _integrate(k, engine, b, st, target, ints, reals):
+    """Fixed-step Runge-Kutta from reals[R_T] to ``target`` (FixedStepRungeKutta._step_impl, the same
+    arithmetic); returns 0 or a failure status."""
+    Y, F, K, YS, YN = st.Y, st.F, st.K, st.YS, st.YN
+    t = reals[R_T]
+    if ints[I_F_VALID] == 0:  # a restart from the context's state: Integrator.reset (normalize, derivative)
+        Y[:] = b.X
+        normalize(k, engine, b, Y)
+        derivative_at(k, engine, t, Y, b, b.src, b.fac)
+        ints[I_NFEV] += 1
+        if not all_finite(b.XD):
+            return START_FAILED
+        F[:] = b.XD
+        ints[I_F_VALID] = 1
+    h = st.h
+    s = st.n_stages
+    while t < target:
+        remaining = target - t
+        hh = h
+        last = remaining <= h * (1.0 + 1e-9)
+        if last:
+            hh = remaining
+        K[0, :] = F
+        for i in range(1, s):
+            stage_state(Y, K, st.A[i], i, hh, YS)
+            derivative_at(k, engine, t + st.c[i] * hh, YS, b, b.src, b.fac)
+            K[i, :] = b.XD
+        ints[I_NFEV] += s - 1
+        t_new = target if last else t + hh
+        if not propagate(Y, K, st.b, s, hh, YN):
+            reals[R_FAILED_T] = t_new
+            reals[R_T_OLD] = t
+            reals[R_T] = t
+            ints[I_FAILED_STAGE] = 0
+            return STEP_FAILED
+        normalize(k, engine, b, YN)
+        derivative_at(k, engine, t_new, YN, b, b.src, b.fac)
+        ints[I_NFEV] += 1
+        if not all_finite(b.XD):
+            reals[R_FAILED_T] = t_new
+            reals[R_T_OLD] = t
+            reals[R_T] = t
+            ints[I_FAILED_STAGE] = 1
+            return STEP_FAILED
+        Y[:] = YN
+        F[:] = b.XD
+        reals[R_T_OLD] = t
+        t = t_new
+        ints[I_STEPS] += 1
+        if t >= target:
+            t = target
+    reals[R_T] = t
+    b.X[:] = Y
+    return 0
+
+
+@njit(cache=True)
+def _log_instant(k, engine, b, sc, ints, reals, write):
+    """Rows of the log groups due at the current instant (one full evaluation first)."""
+    now = ints[I_NOW]
+    t = reals[R_T]
+    evaluated = False
+    for g in range(sc.log_next.shape[0]):
+        if sc.log_next[g] != now:
+            continue
+        if write:
+            if not evaluated:
+                evaluate_full(k, engine, t, b, b.src, b.fac)
+                evaluated = True
+            row = sc.log_count[g]
+            sc.log_times[g, row] = t
+            width = 0
+            for e in range(sc.log_start[g], sc.log_start[g + 1]):
+                kind = sc.log_kind[e]
+                j = sc.log_index[e]
+                value = b.S[j] if kind == 0 else (b.X[j] if kind == 1 else b.Z[j])
+                sc.log_rows[g, row, width] = value
+                width += 1
+            sc.log_count[g] = row + 1
+        sc.log_next[g] += sc.log_period[g]
+
+
+@njit(cache=True)
+def advance(k, engine, rngs, b, st, sc, ints, reals, budget, write_logs, integrate):
+    """Run instants until the end tick, a return to Python, or ``budget`` instants (see the module docstring).
+
+    ``ints[I_PHASE]`` 1: the updates at the current instant were done by the caller; continue with its
+    logging. ``integrate``: the scene has continuous states."""
+    instants = 0
+    while True:
+        if ints[I_PHASE] == 0:
+            nxt = sc.end
+            for i in sc.order:
+                if sc.next_tick[i] < nxt:
+                    nxt = sc.next_tick[i]
+            for g in range(sc.log_next.shape[0]):
+                if sc.log_next[g] < nxt:
+                    nxt = sc.log_next[g]
+            target = _instant_time(nxt, sc.den)
+            if integrate and target > reals[R_T]:
+                status = _integrate(k, engine, b, st, target, ints, reals)
+                if status != 0:
+                    return status
+            reals[R_T] = target
+            ints[I_NOW] = nxt
+            for i in sc.order:
+                if sc.next_tick[i] == nxt and b.update_ops[i, KIND] == UPDATE_PYTHON:
+                    ints[I_PHASE] = 1
+                    return PYTHON_UPDATE
+            updated = False
+            for i in sc.order:
+                if sc.next_tick[i] == nxt:
+                    update_model(i, k, engine, rngs, target, b)
+                    sc.next_tick[i] += sc.period[i]
+                    ints[I_UPDATES] += 1
+                    updated = True
+            if updated:
+                ints[I_F_VALID] = 0
+                if not (all_finite(b.X) and all_finite(b.Z)):
+                    return UPDATE_FAILED
+        ints[I_PHASE] = 0
+        _log_instant(k, engine, b, sc, ints, reals, write_logs)
+        instants += 1
+        if ints[I_NOW] >= sc.end:
+            return DONE
+        for g in range(sc.log_count.shape[0]):
+            if sc.log_count[g] == sc.log_times.shape[1]:
+                return LOG_FULL
+        if instants >= budget:
+            return BUDGET

@@ -1,0 +1,216 @@
+"""The diagram's plan in the form :mod:`shell.compiled_loop` runs: op tables and kernel pointers.
+
+:func:`compile_plan` checks that a scene can run compiled and says why not; :class:`CompiledPlan` binds a
+:class:`shell.diagram.Diagram` and one :class:`shell.diagram.Context` (its buffers are the context's own
+arrays, so the compiled and the interpreted path see and change the same state) and offers the compiled
+evaluation to Python callers (``derivative`` for adaptive and implicit integrators, ``evaluate``,
+``zero_crossings``, ``update``).
+
+What runs compiled: every model kernel that is a numba function of the uniform signature
+``kernel(t, x, z, u, p, out)`` (update: ``update(t, x, z, u, p)``, or ``update(t, x, z, u, p, noise)``
+with ``noise_size``), and the engine model (:class:`shell.models.multibody.MultibodyModel`). A model
+whose output, derivative or zero-crossing kernel is plain Python makes the whole scene run interpreted
+(the message names it). A sampled model whose update is plain Python (``UserFunction``, the thruster
+cluster's minimum-fuel allocation, ``MassDepletion``) keeps the loop compiled: it returns to Python at
+that model's sample instants.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import typeof
+from numba.core.registry import CPUDispatcher
+from numba.experimental.function_type import _get_jit_address, _get_wrapper_address
+
+from shell import compiled_loop as L
+from shell.models.multibody import (
+    MultibodyModel,
+    _engine_derivatives,
+    _engine_derivatives_after_feedthrough,
+    _engine_feedthrough_outputs,
+    _engine_normalize,
+    _engine_state_outputs,
+)
+
+
+class NotCompilable(Exception):
+    """The scene cannot run in the compiled loop; the message says which model and why."""
+
+
+def _pointer(fn, signature, model=None, what=""):
+    """[cfunc wrapper address, numba entry address] of ``fn`` compiled for ``signature``."""
+    if not isinstance(fn, CPUDispatcher):
+        raise NotCompilable(f"model {model.path} ({type(model).__name__}): its {what} kernel is Python, not a "
+                            "numba function")
+    try:
+        fn.compile(signature)
+        return [_get_wrapper_address(fn, signature), _get_jit_address(fn, signature)]
+    except Exception as exc:  # a kernel that does not fit the uniform signature
+        where = f"model {model.path} ({type(model).__name__}): its {what} kernel" if model else f"kernel {fn}"
+        raise NotCompilable(f"{where} does not compile for the uniform signature {signature}: "
+                            f"{type(exc).__name__}: {str(exc).splitlines()[0][:200]}") from None
+
+
+_ENGINE_POINTERS: list = []
+_PROBE: list = []
+
+
+def _engine_pointers():
+    if not _ENGINE_POINTERS:
+        for fn in (_engine_state_outputs, _engine_feedthrough_outputs, _engine_derivatives,
+                   _engine_derivatives_after_feedthrough):
+            _ENGINE_POINTERS.append(_pointer(fn, L.ENGINE_SIGNATURE))
+        _ENGINE_POINTERS.append(_pointer(_engine_normalize, L.NORMALIZE_SIGNATURE))
+    return np.asarray(_ENGINE_POINTERS, dtype=np.int64)
+
+
+def _probe():
+    if not _PROBE:
+        from shell.models.multibody import probe_engine_data
+
+        _PROBE.append(probe_engine_data())
+        _PROBE.append(np.random.default_rng(0))
+    return _PROBE
+
+
+def _op(kind, fn, gather, x, z, u, p, out, noise=(0, 0), rng=0):
+    return [kind, fn, gather[0], gather[1], x.start, x.stop, z.start, z.stop, u.start, u.stop, p.start, p.stop,
+            out.start, out.stop, noise[0], noise[1], rng]
+
+
+def _table(rows):
+    return np.asarray(rows, dtype=np.int64).reshape(-1, L.OP_COLUMNS)
+
+
+class CompiledPlan:
+    """The compiled form of ``diagram`` bound to ``context``; see the module docstring."""
+
+    def __init__(self, diagram, context):
+        self.diagram, self.context = diagram, context
+        models = diagram.models
+        fns, update_fns, rngs = [], [], []
+        self.python_updates = []
+        fn_index: dict = {}
+        engine_models: list = []
+
+        def plain(fn, model, what):
+            key = id(fn)
+            if key not in fn_index:
+                fns.append(_pointer(fn, L.KERNEL_SIGNATURE, model, what))
+                fn_index[key] = len(fns) - 1
+            return fn_index[key]
+
+        def engine(i):
+            if i not in engine_models:
+                if engine_models:
+                    raise NotCompilable(f"models {models[engine_models[0]].path} and {models[i].path}: the compiled "
+                                        "loop runs one engine model per scene")
+                if typeof(context.data[i]) != L.ENGINE_DATA:
+                    raise NotCompilable(f"model {models[i].path}: its engine data has numba type "
+                                        f"{typeof(context.data[i])}, the compiled loop expects {L.ENGINE_DATA}")
+                engine_models.append(i)
+            return 0
+
+        def is_engine(m):
+            if isinstance(m, MultibodyModel):
+                return True
+            if m.uses_data:
+                raise NotCompilable(f"model {m.path} ({type(m).__name__}) keeps per-run data the compiled loop "
+                                    "does not know (only the engine model's)")
+            return False
+
+        def stage_op(stage):
+            i, m = stage.model, models[stage.model]
+            block = (diagram.x_block[i], diagram.z_block[i], diagram.u_block[i], diagram.p_block[i],
+                     diagram.y_block[i])
+            if is_engine(m):
+                kind = L.ENGINE_STATE if stage.kind == "state" else L.ENGINE_FEEDTHROUGH
+                return _op(kind, engine(i), stage.gather, *block)
+            fn = m.state_outputs if stage.kind == "state" else m.feedthrough_outputs
+            return _op(L.PLAIN, plain(fn, m, f"{stage.kind}-outputs"), stage.gather, *block)
+
+        full = [stage_op(s) for s in diagram.output_order]
+        derivative = [stage_op(s) for s in diagram.derivative_stages]
+        reuse = diagram.feedthrough_precedes_derivatives(diagram.derivative_stages)
+        for i in diagram.derivative_models:
+            m = models[i]
+            block = (diagram.x_block[i], diagram.z_block[i], diagram.u_block[i], diagram.p_block[i],
+                     diagram.x_block[i])
+            if is_engine(m):
+                kind = L.ENGINE_DERIVATIVES_REUSE if reuse[i] else L.ENGINE_DERIVATIVES
+                derivative.append(_op(kind, engine(i), (0, 0), *block))
+            else:
+                derivative.append(_op(L.PLAIN, plain(m.derivatives, m, "derivatives"), (0, 0), *block))
+        zc = []
+        for i, sl in diagram.zero_crossing_models:
+            m = models[i]
+            if is_engine(m):
+                raise NotCompilable(f"model {m.path}: engine zero crossings are not compiled")
+            zc.append(_op(L.PLAIN, plain(m.zero_crossing_values, m, "zero-crossing"), (0, 0), diagram.x_block[i],
+                          diagram.z_block[i], diagram.u_block[i], diagram.p_block[i], sl))
+        updates, noise_offset = [], 0
+        for i, m in enumerate(models):
+            block = (diagram.x_block[i], diagram.z_block[i], diagram.u_block[i], diagram.p_block[i], slice(0, 0))
+            if m.period is None:
+                updates.append(_op(-1, 0, (0, 0), *block))
+                continue
+            fn = m.update
+            if not isinstance(fn, CPUDispatcher):
+                self.python_updates.append(i)
+                updates.append(_op(L.UPDATE_PYTHON, 0, (0, 0), *block))
+            elif m.noise_size:
+                if len(rngs) == L.MAX_NOISY_MODELS:
+                    raise NotCompilable(f"model {m.path}: more than {L.MAX_NOISY_MODELS} models with noise")
+                rngs.append(context.rngs[i])
+                noise = (noise_offset, noise_offset + int(m.noise_size))
+                noise_offset += int(m.noise_size)
+                updates.append(_op(L.UPDATE_NOISE, plain(fn, m, "update"), (0, 0), *block, noise=noise,
+                                   rng=len(rngs) - 1))
+            else:
+                update_fns.append(_pointer(fn, L.UPDATE_SIGNATURE, m, "update"))
+                updates.append(_op(L.UPDATE, len(update_fns) - 1, (0, 0), *block))
+        normalizers = []
+        for i in diagram.normalizers:
+            if not is_engine(models[i]):
+                raise NotCompilable(f"model {models[i].path}: only the engine's quaternions are normalized compiled")
+            normalizers.append([engine(i), diagram.x_block[i].start, diagram.x_block[i].stop])
+        probe_engine, probe_rng = _probe()
+        self.kernels = L.Kernels(np.asarray(fns, dtype=np.int64).reshape(-1, 2),
+                                 np.asarray(update_fns, dtype=np.int64).reshape(-1, 2), _engine_pointers())
+        #: the engine model's data (a stand-in when the scene has none) and the random streams of noisy models
+        self.engine = context.data[engine_models[0]] if engine_models else probe_engine
+        self.rngs = tuple(rngs) + (probe_rng,) * (L.MAX_NOISY_MODELS - len(rngs))
+        self.noise = np.zeros(max(noise_offset, 1))
+        self.buffers = L.Buffers(
+            context.x, context.z, context.signals, context.p, context.xdot, context.g, self.noise,
+            diagram.gather_source, diagram.gather_destination, diagram.gather_factor, _table(full), _table(derivative),
+            len(diagram.derivative_stages), _table(zc), _table(updates),
+            np.asarray(normalizers, dtype=np.int64).reshape(-1, 3))
+
+    # -- compiled evaluation for Python callers -------------------------------------------------------
+    def derivative(self, t: float, y: np.ndarray) -> np.ndarray:
+        """f(t, y), a new array (the right-hand side for adaptive and implicit integrators)."""
+        b = self.buffers
+        L.derivative_at(self.kernels, self.engine, float(t), np.asarray(y, dtype=np.float64), b, b.src, b.fac)
+        return b.XD.copy()
+
+    def evaluate(self, t: float) -> None:
+        b = self.buffers
+        L.evaluate_full(self.kernels, self.engine, float(t), b, b.src, b.fac)
+
+    def zero_crossings(self, t: float, y: np.ndarray) -> np.ndarray:
+        b = self.buffers
+        b.X[:] = y
+        L.zero_crossings(self.kernels, self.engine, float(t), b, b.src, b.fac)
+        return b.G.copy()
+
+    def normalize(self, y: np.ndarray) -> None:
+        L.normalize(self.kernels, self.engine, self.buffers, y)
+
+
+def compile_plan(diagram, context):
+    """``(CompiledPlan, None)``, or ``(None, reason)`` when the scene must run interpreted."""
+    try:
+        return CompiledPlan(diagram, context), None
+    except NotCompilable as exc:
+        return None, str(exc)
