@@ -214,3 +214,39 @@ def compile_plan(diagram, context):
         return CompiledPlan(diagram, context), None
     except NotCompilable as exc:
         return None, str(exc)
+
+
+def loop_is_cached() -> bool:
+    """True when numba's disk cache holds the compiled loop (a run starts in about a second); False on the
+    first run after installing or changing flexshell, which compiles it (about a minute, once)."""
+    cache = getattr(L.advance, "_cache", None)
+    try:
+        from pathlib import Path
+
+        return (Path(cache._cache_path) / cache._index_name).exists()
+    except AttributeError:  # numba internals moved: say nothing rather than something wrong
+        return True
+
+
+def prepare() -> float:
+    """Compile (first run) or load the compiled loop and the engine kernels by running a one-step scene;
+    returns the seconds it took."""
+    import time
+
+    from dynamics import Multibody
+    from shell.assembly import Assembly
+    from shell.models.blocks import Constant
+    from shell.simulation import Simulation
+
+    started = time.perf_counter()
+    builder = Multibody()
+    builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
+    builder.add_node("probe_node", "probe")
+    root = Assembly("probe")
+    root.add(MultibodyModel("multibody", builder.compile()))
+    root.add(Constant("zero", unit="N*m", shape=(3,), value=[0.0, 0.0, 0.0]))
+    root.connect("zero.y", "multibody.probe_node.torque")
+    simulation = Simulation(root, step=0.01)
+    simulation.log(["multibody.probe_node.angular_velocity"], "100 Hz")
+    simulation.run(0.01)
+    return time.perf_counter() - started

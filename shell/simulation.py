@@ -200,12 +200,17 @@ class Simulation:
 
     def evaluate(self, t: float | None = None) -> None:
         """Compute every output and input at the current state (used at sample and log instants)."""
+        if self._plan is not None:
+            self._plan.evaluate(self.t if t is None else t)
+            return
         try:
             self.diagram.evaluate(self.context, t)
         except EvaluationError as exc:
             raise SimulationError(str(exc)) from exc.__cause__
 
     def _zero_crossing_vector(self, t: float, y: np.ndarray) -> np.ndarray:
+        if self._plan is not None:
+            return self._plan.zero_crossings(t, y)
         try:
             return self.diagram.zero_crossings(self.context, t, y)
         except EvaluationError as exc:

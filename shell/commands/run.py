@@ -50,11 +50,26 @@ class ProgressBar:
             sys.stderr.write("\n")
 
 
+def announce_compilation(quiet: bool) -> None:
+    """The first run after installing flexshell compiles its loop (numba); say so instead of a silent minute."""
+    from shell.compiled_plan import loop_is_cached, prepare
+
+    if loop_is_cached():
+        return
+    if not quiet:
+        print("flexshell: compiling the simulation loop (first run after installing or updating flexshell; "
+              "cached for every later run and scene)...", file=sys.stderr, flush=True)
+    seconds = prepare()
+    if not quiet:
+        print(f"flexshell: compiled in {seconds:.0f} s", file=sys.stderr, flush=True)
+
+
 def run(args) -> int:
     from shell.scenario import ScenarioError, build_simulation, load_scenario
     from shell.simulation import SimulationError
     from shell.units import UnitError, to_magnitude
 
+    announce_compilation(args.quiet)
     try:
         scenario = load_scenario(args.scenario, args.overrides)
         t_final = scenario.t_final
