@@ -92,24 +92,28 @@ _DECLARATION_KINDS = {"p": "parameters", "u": "inputs", "y": "outputs", "x": "co
 def check_named_offsets(model) -> None:
     """Refuse a model whose kernels' named offsets (class attribute ``offsets``: array letter ->
     named tuple from :func:`named_offsets`, ``None`` for an offset the kernel derives from array
-    sizes) disagree with its actual declarations: different names, order or offsets."""
+    sizes) disagree with its actual declarations: other names, another order or other offsets."""
     where = f"model {model.path}: {type(model).__name__}"
+    advice = ("a subclass or configure that changes a declaration tuple needs kernels written for the new "
+              "layout (their own named_offsets)")
     for key, expected in model.offsets.items():
         if key not in _DECLARATION_KINDS:
             raise ModelError(f"{where}: offsets key {key!r}: expected one of {sorted(_DECLARATION_KINDS)}")
         kind = _DECLARATION_KINDS[key]
         actual = Layout.of(getattr(model, kind))
         compiled = list(getattr(expected, "_fields", ()))
-        if compiled != actual.names:
-            raise ModelError(f"{where}: {kind} are declared as {actual.names} but its kernels were written for "
-                             f"{compiled}; a subclass that changes a declaration tuple needs kernels that read "
-                             "the new one (its own named_offsets)")
+        missing, extra = sorted(set(compiled) - set(actual.names)), sorted(set(actual.names) - set(compiled))
+        if missing or extra:
+            raise ModelError(f"{where}: {kind} {actual.names} differ from the {compiled} its kernels read "
+                             f"(not declared: {missing}, not read: {extra}); {advice}")
         for name, offset in zip(compiled, expected):
             if offset is not None and offset != actual.offsets[name]:
                 raise ModelError(f"{where}: {kind[:-1].replace('_', ' ')} {name!r} is at offset "
                                  f"{actual.offsets[name]} of the declarations but its kernels read it at offset "
-                                 f"{offset}; a subclass that changes a declaration's shape needs kernels that "
-                                 "read the new layout (its own named_offsets)")
+                                 f"{offset}; {advice}")
+        if compiled != actual.names:
+            raise ModelError(f"{where}: {kind} are declared in the order {actual.names} but its kernels derive "
+                             f"their offsets from the order {compiled}; {advice}")
 
 
 def _shape(shape) -> tuple[int, ...]:

@@ -156,7 +156,8 @@ class NonnegativeAllocator(PseudoInverseAllocator):
 
     def declare(self):
         super().declare()
-        self.parameters = (self.parameters[0], Parameter(
+        effectiveness = next(d for d in self.parameters if d.name == "effectiveness")
+        self.parameters = (effectiveness, Parameter(
             "max_command", self.command_unit, 0.0, (), (0.0, None),
             "largest single command; a solution above it is scaled down along the demand (0: no limit)"))
         self.inputs = (InputPort("demand", self.demand_unit, (self.n_demand,), "demanded vector d"),)

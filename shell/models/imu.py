@@ -35,9 +35,10 @@ Array layouts are named throughout: the module-level declarations give ``P``, ``
 each channel's parameters are gathered by name (``GYRO``, ``ACCEL``: a ``ChannelParameters`` named tuple
 of offsets into p); the parts of the per-channel error states and of the 24 standard normals drawn
 each sample (``noise_size``; gyro channel first, in the order of ``NOISE_PARTS``, the order the draws
-have always had) are named offsets of their part declarations. The output shift register ``records``
-is the last discrete state (its length depends on the latency): one record has the layout of the
-outputs, the newest first, the oldest (what the outputs show) last.
+have always had) and of the last sampled integrals are named offsets of their ``*_PARTS`` declarations,
+fixed whatever the order of the model's declarations. The output shift register ``records``
+is the last discrete state (its length depends on the latency): records of ``RECORD_PARTS`` (the
+outputs of one sample), the newest first, the oldest (what the outputs show) last.
 """
 
 from __future__ import annotations
@@ -118,6 +119,8 @@ OUTPUTS = (
 )
 CONTINUOUS = (State("angle_integral", "rad", (3,), None, "integral of the true angular velocity"),
               State("velocity_integral", "m/s", (3,), None, "integral of the true specific force"))
+#: inside the discrete state last_integrals
+LAST_INTEGRAL_PARTS = (State("angle", "rad", (3,)), State("velocity", "m/s", (3,)))
 #: per channel, inside the discrete state error_states (gyro channel first)
 CHANNEL_STATE_PARTS = (State("bias_random_walk", "", (3,), None, "random-walk bias"),
                        State("bias_gauss_markov", "", (3,), None, "Gauss-Markov bias"),
@@ -127,12 +130,15 @@ CHANNEL_STATE_PARTS = (State("bias_random_walk", "", (3,), None, "random-walk bi
 NOISE_PARTS = (State("random_walk", "", (3,)), State("bias_random_walk", "", (3,)),
                State("gauss_markov", "", (3,)), State("white", "", (3,)))
 CHANNEL_STATE_SIZE, CHANNEL_NOISE_SIZE = Layout.of(CHANNEL_STATE_PARTS).size, Layout.of(NOISE_PARTS).size
-#: one record of the output shift register: the outputs of one sample, in output layout
-RECORD_SIZE = Layout.of(OUTPUTS).size
+#: one record of the output shift register: the outputs of one sample
+RECORD_PARTS = (State("angular_rate", "rad/s", (3,)), State("specific_force", "m/s^2", (3,)),
+                State("delta_angle", "rad", (3,)), State("delta_velocity", "m/s", (3,)),
+                State("delta_angle_counts", "", (3,)), State("delta_velocity_counts", "", (3,)))
+RECORD_SIZE = Layout.of(RECORD_PARTS).size
 DISCRETE = (
     State("sample_period", "s", (), None, "the sample period (from the rate)"),
-    State("last_integrals", "", (Layout.of(CONTINUOUS).size,), None,
-          "angle and velocity integrals at the last sample (layout of the continuous states)"),
+    State("last_integrals", "", (Layout.of(LAST_INTEGRAL_PARTS).size,), None,
+          "angle and velocity integrals at the last sample"),
     State("error_states", "", (2 * CHANNEL_STATE_SIZE,), None,
           "per channel: random-walk bias, Gauss-Markov bias, last white noise, quantizer carry"),
 )
@@ -141,7 +147,8 @@ RECORDS = State("records", "", (RECORD_SIZE,), None, "output shift register (lat
 
 P, U, Y, X = (named_offsets(d) for d in (PARAMETERS, INPUTS, OUTPUTS, CONTINUOUS))
 Z = named_offsets(DISCRETE + (RECORDS,))
-S, N = named_offsets(CHANNEL_STATE_PARTS), named_offsets(NOISE_PARTS)
+S, N, R = named_offsets(CHANNEL_STATE_PARTS), named_offsets(NOISE_PARTS), named_offsets(RECORD_PARTS)
+LAST = named_offsets(LAST_INTEGRAL_PARTS)
 X_SIZE, U_SIZE = Layout.of(CONTINUOUS).size, Layout.of(INPUTS).size
 
 ChannelParameters = namedtuple("ChannelParameters", [p.name[len("gyro_"):] for p in _channel_parameters(
@@ -197,7 +204,7 @@ def imu_sample(t, x, z, u, p, noise):
     record on, both channels' measurements into the newest record."""
     period = z[Z.sample_period]
     t_prev = t - period
-    angle, velocity = Z.last_integrals + X.angle_integral, Z.last_integrals + X.velocity_integral
+    angle, velocity = Z.last_integrals + LAST.angle, Z.last_integrals + LAST.velocity
     d_angle = (x[X.angle_integral] - z[angle], x[X.angle_integral + 1] - z[angle + 1],
                x[X.angle_integral + 2] - z[angle + 2])
     d_velocity = (x[X.velocity_integral] - z[velocity], x[X.velocity_integral + 1] - z[velocity + 1],
@@ -210,19 +217,24 @@ def imu_sample(t, x, z, u, p, noise):
         for m in range(RECORD_SIZE):
             z[r0 + k * RECORD_SIZE + m] = z[r0 + (k - 1) * RECORD_SIZE + m]
     channel_increment(d_angle, p, GYRO, z, Z.error_states, noise, 0, t_prev, t,
-                      r0, Y.delta_angle, Y.delta_angle_counts)
+                      r0, R.delta_angle, R.delta_angle_counts)
     channel_increment(d_velocity, p, ACCEL, z, Z.error_states + CHANNEL_STATE_SIZE, noise, CHANNEL_NOISE_SIZE,
-                      t_prev, t, r0, Y.delta_velocity, Y.delta_velocity_counts)
+                      t_prev, t, r0, R.delta_velocity, R.delta_velocity_counts)
     for i in range(3):
-        z[r0 + Y.angular_rate + i] = z[r0 + Y.delta_angle + i] / period
-        z[r0 + Y.specific_force + i] = z[r0 + Y.delta_velocity + i] / period
+        z[r0 + R.angular_rate + i] = z[r0 + R.delta_angle + i] / period
+        z[r0 + R.specific_force + i] = z[r0 + R.delta_velocity + i] / period
 
 
 @njit(cache=True)
 def _held_outputs(t, x, z, u, p, y):
-    oldest = z.shape[0] - RECORD_SIZE  # a record is in output layout
-    for m in range(RECORD_SIZE):
-        y[m] = z[oldest + m]
+    oldest = z.shape[0] - RECORD_SIZE
+    for i in range(3):
+        y[Y.angular_rate + i] = z[oldest + R.angular_rate + i]
+        y[Y.specific_force + i] = z[oldest + R.specific_force + i]
+        y[Y.delta_angle + i] = z[oldest + R.delta_angle + i]
+        y[Y.delta_velocity + i] = z[oldest + R.delta_velocity + i]
+        y[Y.delta_angle_counts + i] = z[oldest + R.delta_angle_counts + i]
+        y[Y.delta_velocity_counts + i] = z[oldest + R.delta_velocity_counts + i]
 
 
 @njit(cache=True)
@@ -283,8 +295,8 @@ def _static_record(z, p, noise, period, rates):
     for k in range(noise.shape[0]):
         imu_sample((k + 1) * period, x, z, u, p, noise[k])
         for i in range(3):
-            rates[k, i] = z[oldest + Y.angular_rate + i]
-            rates[k, 3 + i] = z[oldest + Y.specific_force + i]
+            rates[k, i] = z[oldest + R.angular_rate + i]
+            rates[k, 3 + i] = z[oldest + R.specific_force + i]
 
 
 def static_record(imu: Imu, samples: int, seed=0) -> np.ndarray:
