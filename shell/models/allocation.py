@@ -180,14 +180,17 @@ class NonnegativeAllocator(PseudoInverseAllocator):
 
     def update(self, t, x, z, u, p):
         a = self.parameter("effectiveness")
-        if not np.any(u):
-            z[:] = 0.0
+        held = slice(Z_NONNEGATIVE.command, Z_NONNEGATIVE.command + self.n_actuators)
+        demand = u[U_PINV.demand:U_PINV.demand + self.n_demand]
+        if not np.any(demand):
+            z[held] = 0.0
             return
-        result = linprog(self._cost, A_eq=a, b_eq=u, bounds=self._bounds, method="highs")
+        result = linprog(self._cost, A_eq=a, b_eq=demand, bounds=self._bounds, method="highs")
         if result.status != 0:
-            raise ModelError(f"model {self.path}: allocation failed at t = {t:.12g} s for demand {u}: {result.message}")
+            raise ModelError(f"model {self.path}: allocation failed at t = {t:.12g} s for demand {demand}: "
+                             f"{result.message}")
         c = np.maximum(result.x, 0.0)
         limit = float(self.parameter("max_command"))
         if limit > 0.0 and c.max() > limit:
             c *= limit / c.max()
-        z[:] = c
+        z[held] = c
