@@ -53,7 +53,7 @@ OUTPUTS = (
     OutputPort("propellant_used", "kg", (), "propellant consumed since t = 0"),
 )
 CONTINUOUS = (State("thrust", "N", (), 0.0, "lagged thrust"),
-                     State("propellant_used", "kg", (), 0.0, "integral of F / (Isp g0)"))
+              State("propellant_used", "kg", (), 0.0, "integral of F / (Isp g0)"))
 ZERO_CROSSINGS = (ZeroCrossing("valve_closes", -1, False, "end of a pulse shorter than the cycle"),)
 #: the command's unit depends on the mode (set in ``declare``), its place does not
 INPUTS = (InputPort("command", "N", (), "demanded (pwm: mean over the cycle) thrust"),)
