@@ -179,6 +179,7 @@ class NonnegativeAllocator(PseudoInverseAllocator):
         self._bounds = [(0.0, None)] * n
 
     def update(self, t, x, z, u, p):
+        """Python (``python_update``): the linear program is scipy's HiGHS (``linprog``)."""
         a = self.parameter("effectiveness")
         held = slice(Z_NONNEGATIVE.command, Z_NONNEGATIVE.command + self.n_actuators)
         demand = u[U_PINV.demand:U_PINV.demand + self.n_demand]

@@ -113,6 +113,7 @@ class MassDepletion(Model):
         z[Z.propellant_used] = used
 
     def update(self, t, x, z, u, p):
+        """Python (``python_update``): the mass properties go into the engine through its Python API."""
         full, empty = float(self.parameter("full_mass")), float(self.parameter("empty_mass"))
         self._apply(min(max(float(u[U.propellant_used]), 0.0), full - empty), z)
 

@@ -120,6 +120,7 @@ class UserFunction(Model):
         self._out_layout = Layout.of(self.outputs)
 
     def update(self, t, x, z, u, p):
+        """Python (``python_update``): calls the user's Python function with named signals."""
         signals = {name: u[self._in_layout.slice(name)].reshape(shape).copy()
                    for name, shape in self._in_layout.shapes.items()}
         try:
