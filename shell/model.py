@@ -31,6 +31,28 @@ tuple of declarations into a named tuple of start offsets (``P = named_offsets(P
 ``p[P.kp + i]`` in the kernel), which numba folds to constants at compile time. Define ``P`` in the
 same module as the kernels that use it: numba's on-disk cache is invalidated when that file changes,
 so reordering a declaration recompiles the kernels with the new offsets.
+
+Writing a model's kernels (the conventions every built-in model follows):
+
+* Declare at module level ``PARAMETERS``, ``INPUTS``, ``OUTPUTS``, ``CONTINUOUS``, ``DISCRETE`` (tuples
+  of declarations), then ``P = named_offsets(PARAMETERS)``, ``U``, ``Y``, ``X``, ``Z`` likewise; the class
+  sets ``parameters = PARAMETERS`` etc. and lists the tuples its kernels read in the class attribute
+  ``offsets = {"p": P, "u": U, "y": Y, "x": X, "z": Z}``. Construction checks each against the instance's
+  actual declarations (:func:`check_named_offsets`): a subclass, or a ``configure``, that reorders,
+  renames, adds or resizes a declaration without new kernels is refused with the model, the
+  declaration and both offsets. A declaration's initial value that depends on configuration is set
+  with ``dataclasses.replace`` on the module-level declaration, which keeps the layout.
+* Declarations whose shapes depend on parameters or configuration (n wheels, a gain file's K) cannot
+  have compile-time offsets: the named tuple holds the fixed leading offsets and ``None`` for each
+  declaration whose offset the kernel derives from array sizes (``y.shape[0]``, ``u.shape[0]``);
+  the check still refuses any change of the names or their order. The module says how it derives them.
+* Kernels allocate nothing: scratch goes in the model's discrete states or in scalars.
+* A sampled model that needs Gaussian noise sets ``noise_size``; the framework fills the update
+  kernel's ``noise`` argument from the model's random stream before each call.
+* ``python_update = True`` marks a model whose ``update`` must stay Python (user code, a scipy linear
+  program, a call into the engine's Python API); its docstring says why. A compiled simulation loop
+  returns to Python at each of that model's sample instants, which costs one interpreter round trip
+  (microseconds) per sample; every other kernel must be ``numba.njit(cache=True)``.
 """
 
 from __future__ import annotations
@@ -61,6 +83,37 @@ def named_offsets(declarations, name: str = "Offsets"):
 
 class ModelError(ValueError):
     """A model declaration or configuration a user must fix; the message names the model path."""
+
+
+_DECLARATION_KINDS = {"p": "parameters", "u": "inputs", "y": "outputs", "x": "continuous_states",
+                      "z": "discrete_states"}
+
+
+def check_named_offsets(model) -> None:
+    """Refuse a model whose kernels' named offsets (class attribute ``offsets``: array letter ->
+    named tuple from :func:`named_offsets`, ``None`` for an offset the kernel derives from array
+    sizes) disagree with its actual declarations: other names, another order or other offsets."""
+    where = f"model {model.path}: {type(model).__name__}"
+    advice = ("a subclass or configure that changes a declaration tuple needs kernels written for the new "
+              "layout (their own named_offsets)")
+    for key, expected in model.offsets.items():
+        if key not in _DECLARATION_KINDS:
+            raise ModelError(f"{where}: offsets key {key!r}: expected one of {sorted(_DECLARATION_KINDS)}")
+        kind = _DECLARATION_KINDS[key]
+        actual = Layout.of(getattr(model, kind))
+        compiled = list(getattr(expected, "_fields", ()))
+        missing, extra = sorted(set(compiled) - set(actual.names)), sorted(set(actual.names) - set(compiled))
+        if missing or extra:
+            raise ModelError(f"{where}: {kind} {actual.names} differ from the {compiled} its kernels read "
+                             f"(not declared: {missing}, not read: {extra}); {advice}")
+        for name, offset in zip(compiled, expected):
+            if offset is not None and offset != actual.offsets[name]:
+                raise ModelError(f"{where}: {kind[:-1].replace('_', ' ')} {name!r} is at offset "
+                                 f"{actual.offsets[name]} of the declarations but its kernels read it at offset "
+                                 f"{offset}; {advice}")
+        if compiled != actual.names:
+            raise ModelError(f"{where}: {kind} are declared in the order {actual.names} but its kernels derive "
+                             f"their offsets from the order {compiled}; {advice}")
 
 
 def _shape(shape) -> tuple[int, ...]:
@@ -260,6 +313,11 @@ class Model:
     #: standard normals the framework draws from the model's stream before each ``update`` call (the
     #: kernel's sixth argument); 0: the update kernel takes the five-argument form
     noise_size: int = 0
+    #: True: ``update`` is Python (user code, a scipy solver, the engine's Python API), so a compiled
+    #: loop returns to Python at this model's sample instants; every other kernel is numba-compiled
+    python_update: bool = False
+    #: named offsets the kernels read, checked at construction (see :func:`check_named_offsets`)
+    offsets: dict = {}
     #: one line shown by ``flexshell models``
     summary: str = ""
 
@@ -287,6 +345,7 @@ class Model:
         self._set_parameters(parameter_values)
         self.configure()
         self._check_declarations()
+        check_named_offsets(self)
         self.period: Fraction | None = None
         self.offset = Fraction(0)
         if self.update is not None:

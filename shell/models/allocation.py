@@ -11,29 +11,50 @@ and an actuator effectiveness matrix A (columns: what one unit command of each a
 the minimum-norm solution of ``A c = d`` (Moore-Penrose, e.g. Wie sec. 7.5 for wheel clusters); the
 pseudo-inverse is formed once at build time. ``NodeLoadSum`` adds the torques and forces of several
 actuators acting at one node, so a cluster attaches to a node with one torque and one force.
+
+Array layouts depend on the numbers of actuators n and demands m (configuration): ``effectiveness``
+(m x n, row-major) starts the parameters and ``pseudo_inverse`` (n x m) follows it at ``m n``; the
+commands are one scalar output (and held state) per actuator in actuator order, ``command_k`` at
+``k - 1``; NodeLoadSum's inputs repeat the block ``LOAD_INPUTS`` (torque, force) once per load, load k
+at ``k * LOAD_SIZE``. Each model sets the named offsets of its instance from these rules, and its
+kernels derive the same from array sizes.
 """
 
 from __future__ import annotations
+
+from collections import namedtuple
+from dataclasses import replace
 
 import numpy as np
 from numba import njit
 
 from scipy.optimize import linprog
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State
+from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets
 from shell.registry import register_model
+
+
+P_PINV = namedtuple("PseudoInverseParameters", "effectiveness pseudo_inverse")(0, None)
+U_PINV = namedtuple("PseudoInverseInputs", "demand")(0)
+P_NONNEGATIVE = namedtuple("NonnegativeParameters", "effectiveness max_command")(0, None)
+Z_NONNEGATIVE = namedtuple("NonnegativeDiscrete", "command")(0)
+
+
+def _command_offsets(n: int):
+    """Named offsets of the n scalar outputs command_1..command_n (actuator order)."""
+    return namedtuple("CommandOutputs", [f"command_{k + 1}" for k in range(n)])(*range(n))
 
 
 @njit(cache=True)
 def _allocate(t, x, z, u, p, y):
-    # p = [A (m x n), A^+ (n x m)] flattened; u demand (m); y the n scalar commands in order
+    # y[k] is command_{k+1}; m demands, n actuators from the array sizes
     n = y.shape[0]
     m = u.shape[0]
-    start = m * n
+    start = P_PINV.effectiveness + m * n  # pseudo_inverse follows the m x n effectiveness
     for i in range(n):
         acc = 0.0
         for j in range(m):
-            acc += p[start + i * m + j] * u[j]
+            acc += p[start + i * m + j] * u[U_PINV.demand + j]
         y[i] = acc
 
 
@@ -63,6 +84,7 @@ class PseudoInverseAllocator(Model):
         self.inputs = (InputPort("demand", self.demand_unit, (m,), "demanded vector d", feedthrough=True),)
         self.outputs = tuple(OutputPort(f"command_{k + 1}", self.command_unit, (), f"command of actuator {k + 1}",
                                         feedthrough=True) for k in range(n))
+        self.offsets = {"p": P_PINV, "u": U_PINV, "y": _command_offsets(n)}
 
     def configure(self):
         a = self.parameter("effectiveness")
@@ -72,12 +94,25 @@ class PseudoInverseAllocator(Model):
         self.parameter("pseudo_inverse")[...] = np.linalg.pinv(a)
 
 
+#: the inputs of one load; NodeLoadSum declares them once per load (torque_k, force_k)
+LOAD_INPUTS = (InputPort("torque", "N*m", (3,), "torque (zero if unconnected)", feedthrough=True, required=False),
+               InputPort("force", "N", (3,), "force (zero if unconnected)", feedthrough=True, required=False))
+LOAD, LOAD_SIZE = named_offsets(LOAD_INPUTS), Layout.of(LOAD_INPUTS).size
+LOAD_SUM_OUTPUTS = (OutputPort("torque", "N*m", (3,), "total torque", feedthrough=True),
+                    OutputPort("force", "N", (3,), "total force", feedthrough=True))
+Y_LOAD_SUM = named_offsets(LOAD_SUM_OUTPUTS)
+
+
 @njit(cache=True)
 def _sum_loads(t, x, z, u, p, y):
-    y[:] = 0.0
-    for k in range(u.shape[0] // 6):
-        for i in range(6):
-            y[i] += u[6 * k + i]
+    for i in range(3):
+        y[Y_LOAD_SUM.torque + i] = 0.0
+        y[Y_LOAD_SUM.force + i] = 0.0
+    for k in range(u.shape[0] // LOAD_SIZE):
+        block = k * LOAD_SIZE
+        for i in range(3):
+            y[Y_LOAD_SUM.torque + i] += u[block + LOAD.torque + i]
+            y[Y_LOAD_SUM.force + i] += u[block + LOAD.force + i]
 
 
 @register_model
@@ -91,21 +126,20 @@ class NodeLoadSum(Model):
         self.count = int(count)
         super().__init__(name, **kwargs)
 
+    outputs = LOAD_SUM_OUTPUTS
+
     def declare(self):
-        inputs = []
-        for k in range(self.count):
-            inputs.append(InputPort(f"torque_{k}", "N*m", (3,), f"torque {k} (zero if unconnected)", feedthrough=True,
-                                    required=False))
-            inputs.append(InputPort(f"force_{k}", "N", (3,), f"force {k} (zero if unconnected)", feedthrough=True,
-                                    required=False))
-        self.inputs = tuple(inputs)
-        self.outputs = (OutputPort("torque", "N*m", (3,), "total torque", feedthrough=True),
-                        OutputPort("force", "N", (3,), "total force", feedthrough=True))
+        self.inputs = tuple(replace(d, name=f"{d.name}_{k}", description=f"{d.name} {k} (zero if unconnected)")
+                            for k in range(self.count) for d in LOAD_INPUTS)
+        names = [f"{name}_{k}" for k in range(self.count) for name in LOAD._fields]
+        offsets = [k * LOAD_SIZE + offset for k in range(self.count) for offset in LOAD]
+        self.offsets = {"u": namedtuple("LoadSumInputs", names)(*offsets), "y": Y_LOAD_SUM}
 
 
 @njit(cache=True)
 def _held_commands(t, x, z, u, p, y):
-    y[:] = z
+    for k in range(y.shape[0]):
+        y[k] = z[Z_NONNEGATIVE.command + k]  # y[k] is command_{k+1}
 
 
 @register_model
@@ -114,18 +148,22 @@ class NonnegativeAllocator(PseudoInverseAllocator):
     PseudoInverseAllocator, plus its period (the thruster cycle)."""
 
     summary = "sampled push-only minimum-fuel allocation for thrusters (linear program; config: demand, actuators)"
+    #: the minimum-fuel linear program is scipy's HiGHS (linprog), called from Python at each sample
+    python_update = True
     feedthrough_outputs = None
     state_outputs = staticmethod(_held_commands)
     default_period = "0.1 s"
 
     def declare(self):
         super().declare()
-        self.parameters = (self.parameters[0], Parameter(
+        effectiveness = next(d for d in self.parameters if d.name == "effectiveness")
+        self.parameters = (effectiveness, Parameter(
             "max_command", self.command_unit, 0.0, (), (0.0, None),
             "largest single command; a solution above it is scaled down along the demand (0: no limit)"))
         self.inputs = (InputPort("demand", self.demand_unit, (self.n_demand,), "demanded vector d"),)
         self.outputs = tuple(OutputPort(o.name, o.unit, o.shape, o.description) for o in self.outputs)
         self.discrete_states = (State("command", self.command_unit, (self.n_actuators,), None, "held commands"),)
+        self.offsets = {"p": P_NONNEGATIVE, "u": U_PINV, "y": _command_offsets(self.n_actuators), "z": Z_NONNEGATIVE}
 
     def configure(self):
         a = self.parameter("effectiveness")
@@ -141,15 +179,19 @@ class NonnegativeAllocator(PseudoInverseAllocator):
         self._bounds = [(0.0, None)] * n
 
     def update(self, t, x, z, u, p):
+        """Python (``python_update``): the linear program is scipy's HiGHS (``linprog``)."""
         a = self.parameter("effectiveness")
-        if not np.any(u):
-            z[:] = 0.0
+        held = slice(Z_NONNEGATIVE.command, Z_NONNEGATIVE.command + self.n_actuators)
+        demand = u[U_PINV.demand:U_PINV.demand + self.n_demand]
+        if not np.any(demand):
+            z[held] = 0.0
             return
-        result = linprog(self._cost, A_eq=a, b_eq=u, bounds=self._bounds, method="highs")
+        result = linprog(self._cost, A_eq=a, b_eq=demand, bounds=self._bounds, method="highs")
         if result.status != 0:
-            raise ModelError(f"model {self.path}: allocation failed at t = {t:.12g} s for demand {u}: {result.message}")
+            raise ModelError(f"model {self.path}: allocation failed at t = {t:.12g} s for demand {demand}: "
+                             f"{result.message}")
         c = np.maximum(result.x, 0.0)
         limit = float(self.parameter("max_command"))
         if limit > 0.0 and c.max() > limit:
             c *= limit / c.max()
-        z[:] = c
+        z[held] = c

@@ -7,9 +7,16 @@ of the orchestration-overhead benchmark. Each block's port unit and shape are ch
 Equations: Constant y = c; Gain y = k u (direct feedthrough); Integrator x' = u, y = x;
 SampleHold z(t_k) = u(t_k), y = z (zero-order hold, TM-2020-5008164 App. D.1 multi-rate models), with a
 sample counter; NoisySampler z(t_k) = u(t_k) + sigma n_k, n_k ~ N(0, 1) from the model's own stream.
+
+Array layouts: a block's port shape is a construction option, so its offsets are not compile-time
+constants beyond the first declaration of each array: the named tuples below hold those (always 0)
+and ``None`` where the kernel derives the offset from array sizes (SampleHold's sample counter follows
+the held sample: at ``Z_HOLD.held + u.shape[0]``). The construction check refuses any other order.
 """
 
 from __future__ import annotations
+
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -18,43 +25,69 @@ from shell.model import InputPort, Model, OutputPort, Parameter, State
 from shell.registry import register_model
 
 
+def _offsets(typename, **offsets):
+    return namedtuple(typename, list(offsets))(*offsets.values())
+
+
+P_CONSTANT, Y_CONSTANT = _offsets("ConstantParameters", value=0), _offsets("ConstantOutputs", y=0)
+P_GAIN, U_GAIN, Y_GAIN = _offsets("GainParameters", k=0), _offsets("GainInputs", u=0), _offsets("GainOutputs", y=0)
+U_INTEGRATOR, Y_INTEGRATOR = _offsets("IntegratorInputs", u=0), _offsets("IntegratorOutputs", y=0)
+X_INTEGRATOR = _offsets("IntegratorStates", x=0)
+U_HOLD, Y_HOLD = _offsets("SampleHoldInputs", u=0), _offsets("SampleHoldOutputs", y=0)
+Z_HOLD = _offsets("SampleHoldDiscrete", held=0, samples=None)
+P_NOISY, U_NOISY, Y_NOISY = (_offsets("NoisySamplerParameters", sigma=0), _offsets("NoisySamplerInputs", u=0),
+                             _offsets("NoisySamplerOutputs", y=0))
+Z_NOISY = _offsets("NoisySamplerDiscrete", held=0)
+
+
 @njit(cache=True)
-def _copy_parameters(t, x, z, u, p, y):
-    y[:] = p
+def _constant(t, x, z, u, p, y):
+    for i in range(y.shape[0]):
+        y[Y_CONSTANT.y + i] = p[P_CONSTANT.value + i]
 
 
 @njit(cache=True)
 def _gain(t, x, z, u, p, y):
     for i in range(y.shape[0]):
-        y[i] = p[0] * u[i]
+        y[Y_GAIN.y + i] = p[P_GAIN.k] * u[U_GAIN.u + i]
 
 
 @njit(cache=True)
-def _copy_state(t, x, z, u, p, y):
-    y[:] = x
+def _integral(t, x, z, u, p, y):
+    for i in range(y.shape[0]):
+        y[Y_INTEGRATOR.y + i] = x[X_INTEGRATOR.x + i]
 
 
 @njit(cache=True)
-def _state_rate_is_input(t, x, z, u, p, xdot):
-    xdot[:] = u
+def _integrand(t, x, z, u, p, xdot):
+    for i in range(xdot.shape[0]):
+        xdot[X_INTEGRATOR.x + i] = u[U_INTEGRATOR.u + i]
 
 
 @njit(cache=True)
-def _hold_output(t, x, z, u, p, y):
-    y[:] = z[:y.shape[0]]
+def _held_sample(t, x, z, u, p, y):
+    for i in range(y.shape[0]):
+        y[Y_HOLD.y + i] = z[Z_HOLD.held + i]
 
 
 @njit(cache=True)
 def _sample(t, x, z, u, p):
     n = u.shape[0]
-    z[:n] = u
-    z[n] += 1.0
+    for i in range(n):
+        z[Z_HOLD.held + i] = u[U_HOLD.u + i]
+    z[Z_HOLD.held + n] += 1.0  # the sample counter follows the n held values
 
 
 @njit(cache=True)
-def _add_noise(z, u, sigma, noise):
+def _held_noisy_sample(t, x, z, u, p, y):
+    for i in range(y.shape[0]):
+        y[Y_NOISY.y + i] = z[Z_NOISY.held + i]
+
+
+@njit(cache=True)
+def _noisy_sample(t, x, z, u, p, noise):
     for i in range(u.shape[0]):
-        z[i] = u[i] + sigma * noise[i]
+        z[Z_NOISY.held + i] = u[U_NOISY.u + i] + p[P_NOISY.sigma] * noise[i]
 
 
 class _Block(Model):
@@ -72,7 +105,8 @@ class Constant(_Block):
     """y = value."""
 
     summary = "constant output (unit and shape under config:)"
-    state_outputs = staticmethod(_copy_parameters)
+    state_outputs = staticmethod(_constant)
+    offsets = {"p": P_CONSTANT, "y": Y_CONSTANT}
 
     def declare(self):
         self.parameters = (Parameter("value", self.unit, 0.0, self.shape, description="the output value"),)
@@ -85,6 +119,7 @@ class Gain(_Block):
 
     summary = "static gain y = k u (direct feedthrough; config: unit, output_unit, shape)"
     feedthrough_outputs = staticmethod(_gain)
+    offsets = {"p": P_GAIN, "u": U_GAIN, "y": Y_GAIN}
 
     def __init__(self, name: str, *, unit: str = "", output_unit: str | None = None, shape=(), **kwargs):
         self.output_unit = unit if output_unit is None else output_unit
@@ -102,8 +137,9 @@ class Integrator(_Block):
     """x' = u, y = x (u in the unit of y per second)."""
 
     summary = "continuous integrator x' = u, y = x"
-    state_outputs = staticmethod(_copy_state)
-    derivatives = staticmethod(_state_rate_is_input)
+    state_outputs = staticmethod(_integral)
+    derivatives = staticmethod(_integrand)
+    offsets = {"u": U_INTEGRATOR, "y": Y_INTEGRATOR, "x": X_INTEGRATOR}
 
     def declare(self):
         self.inputs = (InputPort("u", f"({self.unit or '1'})/s", self.shape, "rate"),)
@@ -116,8 +152,9 @@ class SampleHold(_Block):
     """Zero-order hold: samples u every period, holds it; counts its samples."""
 
     summary = "zero-order hold at its own period, with a sample counter"
-    state_outputs = staticmethod(_hold_output)
+    state_outputs = staticmethod(_held_sample)
     update = staticmethod(_sample)
+    offsets = {"u": U_HOLD, "y": Y_HOLD, "z": Z_HOLD}
 
     def declare(self):
         self.inputs = (InputPort("u", self.unit, self.shape, "sampled signal"),)
@@ -131,15 +168,13 @@ class NoisySampler(_Block):
     """Samples u every period and adds white noise of standard deviation sigma (held between samples)."""
 
     summary = "sampled signal plus Gaussian white noise from the model's random stream"
-    state_outputs = staticmethod(_hold_output)
+    state_outputs = staticmethod(_held_noisy_sample)
+    update = staticmethod(_noisy_sample)
+    offsets = {"p": P_NOISY, "u": U_NOISY, "y": Y_NOISY, "z": Z_NOISY}
 
     def declare(self):
         self.parameters = (Parameter("sigma", self.unit, 0.0, (), (0.0, None), "noise standard deviation"),)
         self.inputs = (InputPort("u", self.unit, self.shape, "sampled signal"),)
         self.outputs = (OutputPort("y", self.unit, self.shape, "noisy held sample"),)
         self.discrete_states = (State("held", self.unit, self.shape, None, "last noisy sample"),)
-        self._noise = np.zeros(self.size)
-
-    def update(self, t, x, z, u, p):
-        self.rng.standard_normal(out=self._noise)
-        _add_noise(z, u, p[0], self._noise)
+        self.noise_size = self.size

@@ -13,42 +13,71 @@ sec. 7.3, quaternion-feedback regulator)::
 time from a file (the default of parameter ``gain``; ``config: {gain_file: ...}``, relative to the working directory or absolute):
 ``.npy``, ``.csv``/``.txt`` (comma or white space separated rows), or ``.h5`` (dataset ``K``, or the
 dataset named by ``gain_dataset``). K fixes the port sizes: ``state`` (n,), ``command`` (m,).
+
+Array layouts: the PID controller's are the module-level declarations (named offsets). The LQR's
+depend on K's shape: its kernel takes m from the size of the held command and n from the size of the
+state input, so ``gain`` (m x n, row-major) starts at ``P_LQR.gain`` and ``state_reference`` right
+after it, at ``P_LQR.gain + m n`` (its offset is ``None`` in ``P_LQR``: derived, order checked).
 """
 
 from __future__ import annotations
 
+from collections import namedtuple
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, parse_period
+from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets, parse_period
 from shell.registry import register_model
 
 
+PID_PARAMETERS = (
+    Parameter("kp", "N*m/rad", (1.0, 1.0, 1.0), (3,), (0.0, None), "proportional gain per axis"),
+    Parameter("ki", "N*m/(rad*s)", (0.0, 0.0, 0.0), (3,), (0.0, None), "integral gain per axis"),
+    Parameter("kd", "N*m*s/rad", (1.0, 1.0, 1.0), (3,), (0.0, None), "derivative gain per axis"),
+    Parameter("integral_limit", "rad*s", (1e3, 1e3, 1e3), (3,), (0.0, None), "anti-windup clamp of the integral"),
+    Parameter("attitude_command", "", (1.0, 0.0, 0.0, 0.0), (4,), (-1.0, 1.0),
+              "commanded quaternion [w, x, y, z], command frame -> world"),
+    Parameter("angular_velocity_command", "rad/s", (0.0, 0.0, 0.0), (3,), None, "commanded rate, node axes"),
+)
+PID_INPUTS = (
+    InputPort("attitude", "", (4,), "measured quaternion [w, x, y, z], node -> world"),
+    InputPort("angular_velocity", "rad/s", (3,), "measured angular velocity, node axes"),
+)
+PID_OUTPUTS = (OutputPort("torque", "N*m", (3,), "commanded torque, node axes (held between samples)"),)
+PID_DISCRETE = (State("torque", "N*m", (3,), None, "held torque command"),
+                State("integral", "rad*s", (3,), None, "integral of the attitude error"),
+                State("period", "s", (), None, "sample period (from the rate)"))
+P_PID, U_PID, Y_PID, Z_PID = (named_offsets(d) for d in (PID_PARAMETERS, PID_INPUTS, PID_OUTPUTS, PID_DISCRETE))
+
+
 @njit(cache=True)
-def _held(t, x, z, u, p, y):
-    for i in range(y.shape[0]):
-        y[i] = z[i]
+def _held_pid_torque(t, x, z, u, p, y):
+    for i in range(3):
+        y[Y_PID.torque + i] = z[Z_PID.torque + i]
 
 
 @njit(cache=True)
 def _pid_update(t, x, z, u, p):
-    # u = [q (4), omega (3)]; p = [kp (3), ki (3), kd (3), integral limit (3), q_c (4), omega_c (3)]
-    # z = [torque (3), integral (3), period]
-    qw, qx, qy, qz = u[0], u[1], u[2], u[3]
-    cw, cx, cy, cz = p[12], -p[13], -p[14], -p[15]
+    P, U, Z = P_PID, U_PID, Z_PID
+    q, c = U.attitude, P.attitude_command
+    qw, qx, qy, qz = u[q], u[q + 1], u[q + 2], u[q + 3]
+    cw, cx, cy, cz = p[c], -p[c + 1], -p[c + 2], -p[c + 3]
     ew = cw * qw - cx * qx - cy * qy - cz * qz
     ex = cw * qx + cx * qw + cy * qz - cz * qy
     ey = cw * qy - cx * qz + cy * qw + cz * qx
     ez = cw * qz + cx * qy - cy * qx + cz * qw
     sign = 1.0 if ew >= 0.0 else -1.0
     error = (2.0 * sign * ex, 2.0 * sign * ey, 2.0 * sign * ez)
-    period = z[6]
+    period = z[Z.period]
     for i in range(3):
-        integral = z[3 + i] + error[i] * period
-        z[3 + i] = min(max(integral, -p[9 + i]), p[9 + i])
-        z[i] = -p[i] * error[i] - p[3 + i] * z[3 + i] - p[6 + i] * (u[4 + i] - p[16 + i])
+        integral = z[Z.integral + i] + error[i] * period
+        limit = p[P.integral_limit + i]
+        z[Z.integral + i] = min(max(integral, -limit), limit)
+        z[Z.torque + i] = (-p[P.kp + i] * error[i] - p[P.ki + i] * z[Z.integral + i]
+                           - p[P.kd + i] * (u[U.angular_velocity + i] - p[P.angular_velocity_command + i]))
 
 
 @register_model
@@ -56,22 +85,13 @@ class PidAttitudeController(Model):
     """Sampled quaternion-feedback PID attitude controller with an anti-windup clamp."""
 
     summary = "sampled PID attitude controller: attitude, angular_velocity in, torque out (held)"
-    parameters = (
-        Parameter("kp", "N*m/rad", (1.0, 1.0, 1.0), (3,), (0.0, None), "proportional gain per axis"),
-        Parameter("ki", "N*m/(rad*s)", (0.0, 0.0, 0.0), (3,), (0.0, None), "integral gain per axis"),
-        Parameter("kd", "N*m*s/rad", (1.0, 1.0, 1.0), (3,), (0.0, None), "derivative gain per axis"),
-        Parameter("integral_limit", "rad*s", (1e3, 1e3, 1e3), (3,), (0.0, None), "anti-windup clamp of the integral"),
-        Parameter("attitude_command", "", (1.0, 0.0, 0.0, 0.0), (4,), (-1.0, 1.0),
-                  "commanded quaternion [w, x, y, z], command frame -> world"),
-        Parameter("angular_velocity_command", "rad/s", (0.0, 0.0, 0.0), (3,), None, "commanded rate, node axes"),
-    )
-    inputs = (
-        InputPort("attitude", "", (4,), "measured quaternion [w, x, y, z], node -> world"),
-        InputPort("angular_velocity", "rad/s", (3,), "measured angular velocity, node axes"),
-    )
-    outputs = (OutputPort("torque", "N*m", (3,), "commanded torque, node axes (held between samples)"),)
+    parameters = PID_PARAMETERS
+    inputs = PID_INPUTS
+    outputs = PID_OUTPUTS
+    discrete_states = PID_DISCRETE
+    offsets = {"p": P_PID, "u": U_PID, "y": Y_PID, "z": Z_PID}
     default_period = "0.1 s"
-    state_outputs = staticmethod(_held)
+    state_outputs = staticmethod(_held_pid_torque)
     update = staticmethod(_pid_update)
 
     def __init__(self, name: str, *, period=None, **kwargs):
@@ -86,9 +106,8 @@ class PidAttitudeController(Model):
                              f"[w, x, y, z], given norm {norm:.12g}")
         period = float(parse_period(self._given_period if self._given_period is not None else self.default_period,
                                     f"model {self.path}: period"))
-        self.discrete_states = (State("torque", "N*m", (3,), None, "held torque command"),
-                                State("integral", "rad*s", (3,), None, "integral of the attitude error"),
-                                State("period", "s", (), period, "sample period (from the rate)"))
+        self.discrete_states = tuple(replace(s, initial=period) if s.name == "period" else s
+                                     for s in PID_DISCRETE)
 
 
 def read_gain_matrix(path, dataset: str = "K") -> np.ndarray:
@@ -122,16 +141,29 @@ def read_gain_matrix(path, dataset: str = "K") -> np.ndarray:
     return gain
 
 
+#: gain at the start, state_reference after it at gain + m n (derived in the kernel); command, state alone
+P_LQR = namedtuple("LqrParameters", "gain state_reference")(0, None)
+U_LQR = namedtuple("LqrInputs", "state")(0)
+Y_LQR = namedtuple("LqrOutputs", "command")(0)
+Z_LQR = namedtuple("LqrDiscrete", "command")(0)
+
+
 @njit(cache=True)
 def _lqr_update(t, x, z, u, p):
-    # p = [K (m x n) row-major, x_ref (n)]
     m = z.shape[0]
     n = u.shape[0]
+    reference = P_LQR.gain + m * n
     for i in range(m):
         acc = 0.0
         for j in range(n):
-            acc += p[i * n + j] * (u[j] - p[m * n + j])
-        z[i] = -acc
+            acc += p[P_LQR.gain + i * n + j] * (u[U_LQR.state + j] - p[reference + j])
+        z[Z_LQR.command + i] = -acc
+
+
+@njit(cache=True)
+def _held_lqr_command(t, x, z, u, p, y):
+    for i in range(y.shape[0]):
+        y[Y_LQR.command + i] = z[Z_LQR.command + i]
 
 
 @register_model
@@ -139,8 +171,9 @@ class LqrStateFeedback(Model):
     """u = -K (x - x_ref), sampled and held; K from a file (config: gain_file, gain_dataset, units)."""
 
     summary = "sampled state feedback u = -K (x - x_ref) with K read from a file (config: gain_file)"
-    state_outputs = staticmethod(_held)
+    state_outputs = staticmethod(_held_lqr_command)
     update = staticmethod(_lqr_update)
+    offsets = {"p": P_LQR, "u": U_LQR, "y": Y_LQR, "z": Z_LQR}
     default_period = "0.1 s"
 
     def __init__(self, name: str, *, gain_file: str | None = None, gain_dataset: str = "K", state_unit: str = "",

@@ -24,42 +24,65 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State
+from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets
 from shell.registry import register_model
 
-# p = [natural_frequency, damping_ratio, max_angle, max_rate, kp, kd]
+PARAMETERS = (
+    Parameter("natural_frequency", "rad/s", 30.0, (), (0.0, None), "prescribed mode: servo bandwidth"),
+    Parameter("damping_ratio", "", 0.7, (), (0.0, None), "prescribed mode: servo damping"),
+    Parameter("max_angle", "rad", np.radians(6.0), (), (0.0, None), "gimbal angle limit"),
+    Parameter("max_rate", "rad/s", np.radians(20.0), (), (0.0, None), "prescribed mode: gimbal rate limit"),
+    Parameter("kp", "N*m/rad", 0.0, (), (0.0, None), "torque mode: servo stiffness"),
+    Parameter("kd", "N*m*s/rad", 0.0, (), (0.0, None), "torque mode: servo damping"),
+)
+INPUTS = (
+    InputPort("angle_command", "rad", (2,), "commanded gimbal angles", feedthrough=True),
+    InputPort("q", "rad", (2,), "gimbal angles (the hinge)", feedthrough=True),
+    InputPort("u", "rad/s", (2,), "gimbal rates (the hinge)", feedthrough=True),
+)
+PRESCRIBED_OUTPUTS = (OutputPort("prescribed_accel", "rad/s^2", (2,), "gimbal accelerations", feedthrough=True),)
+TORQUE_OUTPUTS = (OutputPort("torque", "N*m", (2,), "actuator torque about the gimbal axes", feedthrough=True),)
+#: the parts of the servo-reference state (one state ``reference``, its name kept for logs and restarts)
+REFERENCE_PARTS = (State("angle", "rad", (2,), None, "servo reference angles"),
+                   State("rate", "rad/s", (2,), None, "servo reference rates"))
+PRESCRIBED_CONTINUOUS = (State("reference", "", (Layout.of(REFERENCE_PARTS).size,), None,
+                               "servo reference: angles, rates"),)
+P, U = named_offsets(PARAMETERS), named_offsets(INPUTS)
+Y_PRESCRIBED, Y_TORQUE = named_offsets(PRESCRIBED_OUTPUTS), named_offsets(TORQUE_OUTPUTS)
+X, REFERENCE = named_offsets(PRESCRIBED_CONTINUOUS), named_offsets(REFERENCE_PARTS)
+ANGLE, RATE = X.reference + REFERENCE.angle, X.reference + REFERENCE.rate
 
 
 @njit(cache=True)
-def _reference_acceleration(x, u, p, out):
-    w, zeta, max_angle, max_rate = p[0], p[1], p[2], p[3]
+def _reference_acceleration(t, x, z, u, p, out, start):
+    """Servo reference acceleration of both axes into out[start:start + 2]."""
+    w, zeta, max_angle, max_rate = p[P.natural_frequency], p[P.damping_ratio], p[P.max_angle], p[P.max_rate]
     for i in range(2):
-        command = min(max(u[i], -max_angle), max_angle)
-        acc = w * w * (command - x[i]) - 2.0 * zeta * w * x[2 + i]
-        if (x[2 + i] >= max_rate and acc > 0.0) or (x[2 + i] <= -max_rate and acc < 0.0):
+        command = min(max(u[U.angle_command + i], -max_angle), max_angle)
+        rate = x[RATE + i]
+        acc = w * w * (command - x[ANGLE + i]) - 2.0 * zeta * w * rate
+        if (rate >= max_rate and acc > 0.0) or (rate <= -max_rate and acc < 0.0):
             acc = 0.0
-        out[i] = acc
+        out[start + i] = acc
 
 
 @njit(cache=True)
 def _prescribed_outputs(t, x, z, u, p, y):
-    # u = [angle_command (2), q (2), u (2)]; y = [prescribed_accel (2)]
-    _reference_acceleration(x, u, p, y)
+    _reference_acceleration(t, x, z, u, p, y, Y_PRESCRIBED.prescribed_accel)
 
 
 @njit(cache=True)
 def _reference_derivatives(t, x, z, u, p, xdot):
-    xdot[0] = x[2]
-    xdot[1] = x[3]
-    _reference_acceleration(x, u, p, xdot[2:4])
+    for i in range(2):
+        xdot[ANGLE + i] = x[RATE + i]
+    _reference_acceleration(t, x, z, u, p, xdot, RATE)
 
 
 @njit(cache=True)
 def _servo_torque(t, x, z, u, p, y):
-    # u = [angle_command (2), q (2), u (2)]
     for i in range(2):
-        command = min(max(u[i], -p[2]), p[2])
-        y[i] = p[4] * (command - u[2 + i]) - p[5] * u[4 + i]
+        command = min(max(u[U.angle_command + i], -p[P.max_angle]), p[P.max_angle])
+        y[Y_TORQUE.torque + i] = p[P.kp] * (command - u[U.q + i]) - p[P.kd] * u[U.u + i]
 
 
 @register_model
@@ -67,14 +90,8 @@ class GimbalActuator(Model):
     """Two-axis engine gimbal: prescribed servo reference or servo torque (config: mode)."""
 
     summary = "engine gimbal actuator on a ujoint hinge: prescribed (K_LT = 0) or torque (K_LT = 1) mode"
-    parameters = (
-        Parameter("natural_frequency", "rad/s", 30.0, (), (0.0, None), "prescribed mode: servo bandwidth"),
-        Parameter("damping_ratio", "", 0.7, (), (0.0, None), "prescribed mode: servo damping"),
-        Parameter("max_angle", "rad", np.radians(6.0), (), (0.0, None), "gimbal angle limit"),
-        Parameter("max_rate", "rad/s", np.radians(20.0), (), (0.0, None), "prescribed mode: gimbal rate limit"),
-        Parameter("kp", "N*m/rad", 0.0, (), (0.0, None), "torque mode: servo stiffness"),
-        Parameter("kd", "N*m*s/rad", 0.0, (), (0.0, None), "torque mode: servo damping"),
-    )
+    parameters = PARAMETERS
+    inputs = INPUTS
 
     def __init__(self, name: str, *, mode: str = "prescribed", **kwargs):
         if mode not in ("prescribed", "torque"):
@@ -83,17 +100,13 @@ class GimbalActuator(Model):
         super().__init__(name, **kwargs)
 
     def declare(self):
-        self.inputs = (
-            InputPort("angle_command", "rad", (2,), "commanded gimbal angles", feedthrough=True),
-            InputPort("q", "rad", (2,), "gimbal angles (the hinge)", feedthrough=True),
-            InputPort("u", "rad/s", (2,), "gimbal rates (the hinge)", feedthrough=True),
-        )
         if self.mode == "prescribed":
-            self.outputs = (OutputPort("prescribed_accel", "rad/s^2", (2,), "gimbal accelerations", feedthrough=True),)
-            self.continuous_states = (State("reference", "", (4,), None, "servo reference: angles, rates"),)
-            self.feedthrough_outputs = staticmethod(_prescribed_outputs)
-            self.derivatives = staticmethod(_reference_derivatives)
+            self.outputs = PRESCRIBED_OUTPUTS
+            self.continuous_states = PRESCRIBED_CONTINUOUS
+            self.feedthrough_outputs = _prescribed_outputs
+            self.derivatives = _reference_derivatives
+            self.offsets = {"p": P, "u": U, "y": Y_PRESCRIBED, "x": X}
         else:
-            self.outputs = (OutputPort("torque", "N*m", (2,), "actuator torque about the gimbal axes",
-                                       feedthrough=True),)
-            self.feedthrough_outputs = staticmethod(_servo_torque)
+            self.outputs = TORQUE_OUTPUTS
+            self.feedthrough_outputs = _servo_torque
+            self.offsets = {"p": P, "u": U, "y": Y_TORQUE}

@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, OutputPort, Parameter
+from shell.model import InputPort, Model, OutputPort, Parameter, named_offsets
 from shell.registry import register_model
 
 EARTH_MU = 3.986004418e14        # m^3/s^2, WGS 84 / EGM 2008
@@ -85,22 +85,49 @@ def gravity_gradient_torque(r_node, inertia, mu, out):
     out[2] = k * (x * j1 - y * j0)
 
 
+PARAMETERS = (
+    Parameter("mu", "m^3/s^2", EARTH_MU, (), (0.0, None), "gravitational parameter (default Earth)"),
+    Parameter("radius", "m", EARTH_RADIUS, (), (0.0, None), "reference radius of J2"),
+    Parameter("j2", "", EARTH_J2, (), None, "second zonal harmonic (0: point mass)"),
+    Parameter("mass", "kg", None, (), (0.0, None), "mass of the body"),
+    Parameter("inertia", "kg*m^2", np.zeros((3, 3)), (3, 3), None,
+              "inertia about the center of mass in node axes (gravity-gradient torque)"),
+    Parameter("gravity_gradient", "", 1.0, (), (0.0, 1.0), "1: apply the gravity-gradient torque, 0: not"),
+    Parameter("j3", "", 0.0, (), None, f"third zonal harmonic (Earth {EARTH_J3:g})"),
+    Parameter("j4", "", 0.0, (), None, f"fourth zonal harmonic (Earth {EARTH_J4:g})"),
+)
+INPUTS = (
+    InputPort("position", "m", (3,), "node origin (the center of mass) from the planet center, world",
+              feedthrough=True),
+    InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
+)
+OUTPUTS = (
+    OutputPort("force", "N", (3,), "gravitational force, node axes", feedthrough=True),
+    OutputPort("torque", "N*m", (3,), "gravity-gradient torque about the node, node axes", feedthrough=True),
+    OutputPort("gravitational_acceleration", "m/s^2", (3,), "gravitational acceleration, node axes",
+               feedthrough=True),
+)
+P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
+
+
 @njit(cache=True)
 def _gravity_outputs(t, x, z, u, p, y):
-    # u = [position (3, world), rotation (9, node -> world)]
-    # p = [mu, radius, j2, mass, inertia (9), gravity_gradient, j3, j4]; y = [force, torque, acceleration]
-    # (y[0:3] holds g in world axes and y[3:6] the position in node axes until they are overwritten)
-    central_body_acceleration(u[0:3], p[0], p[1], p[2], y[0:3], p[14], p[15])
+    # the force block holds g in world axes and the torque block the position in node axes until
+    # they are overwritten (no scratch arrays)
+    r, rotation = U.position, U.rotation
+    g, torque, acceleration = Y.force, Y.torque, Y.gravitational_acceleration
+    central_body_acceleration(u[r:r + 3], p[P.mu], p[P.radius], p[P.j2], y[g:g + 3], p[P.j3], p[P.j4])
     for i in range(3):
-        y[6 + i] = u[3 + i] * y[0] + u[6 + i] * y[1] + u[9 + i] * y[2]       # R^T g
-        y[3 + i] = u[3 + i] * u[0] + u[6 + i] * u[1] + u[9 + i] * u[2]       # R^T r
+        c0, c1, c2 = rotation + i, rotation + 3 + i, rotation + 6 + i  # column i of R (row-major)
+        y[acceleration + i] = u[c0] * y[g] + u[c1] * y[g + 1] + u[c2] * y[g + 2]       # R^T g
+        y[torque + i] = u[c0] * u[r] + u[c1] * u[r + 1] + u[c2] * u[r + 2]             # R^T r
     for i in range(3):
-        y[i] = p[3] * y[6 + i]
-    if p[13] != 0.0:
-        gravity_gradient_torque(y[3:6], p[4:13], p[0], y[3:6])
+        y[Y.force + i] = p[P.mass] * y[acceleration + i]
+    if p[P.gravity_gradient] != 0.0:
+        gravity_gradient_torque(y[torque:torque + 3], p[P.inertia:P.inertia + 9], p[P.mu], y[torque:torque + 3])
     else:
         for i in range(3):
-            y[3 + i] = 0.0
+            y[torque + i] = 0.0
 
 
 @register_model
@@ -108,26 +135,8 @@ class CentralBodyGravity(Model):
     """Point-mass + J2 gravity force and gravity-gradient torque at a body's center-of-mass node."""
 
     summary = "central-body gravity (mu, J2) force and gravity-gradient torque at a center-of-mass node"
-    parameters = (
-        Parameter("mu", "m^3/s^2", EARTH_MU, (), (0.0, None), "gravitational parameter (default Earth)"),
-        Parameter("radius", "m", EARTH_RADIUS, (), (0.0, None), "reference radius of J2"),
-        Parameter("j2", "", EARTH_J2, (), None, "second zonal harmonic (0: point mass)"),
-        Parameter("mass", "kg", None, (), (0.0, None), "mass of the body"),
-        Parameter("inertia", "kg*m^2", np.zeros((3, 3)), (3, 3), None,
-                  "inertia about the center of mass in node axes (gravity-gradient torque)"),
-        Parameter("gravity_gradient", "", 1.0, (), (0.0, 1.0), "1: apply the gravity-gradient torque, 0: not"),
-        Parameter("j3", "", 0.0, (), None, f"third zonal harmonic (Earth {EARTH_J3:g})"),
-        Parameter("j4", "", 0.0, (), None, f"fourth zonal harmonic (Earth {EARTH_J4:g})"),
-    )
-    inputs = (
-        InputPort("position", "m", (3,), "node origin (the center of mass) from the planet center, world",
-                  feedthrough=True),
-        InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
-    )
-    outputs = (
-        OutputPort("force", "N", (3,), "gravitational force, node axes", feedthrough=True),
-        OutputPort("torque", "N*m", (3,), "gravity-gradient torque about the node, node axes", feedthrough=True),
-        OutputPort("gravitational_acceleration", "m/s^2", (3,), "gravitational acceleration, node axes",
-                   feedthrough=True),
-    )
+    parameters = PARAMETERS
+    inputs = INPUTS
+    outputs = OUTPUTS
+    offsets = {"p": P, "u": U, "y": Y}
     feedthrough_outputs = staticmethod(_gravity_outputs)

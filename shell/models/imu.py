@@ -30,14 +30,26 @@ quantization noise is sqrt(3) (lsb/sqrt(12)) / tau in Allan deviation). Outputs 
 
 Datasheet units work directly: ``"0.15 deg/hour**0.5"`` (ARW), ``"0.5 deg/hour"`` (bias instability),
 ``"100 ppm"``, ``"20 arcsec"``, ``"0.05 m/s/hour**0.5"`` (VRW), ``"50e-6 g_0"``.
+
+Array layouts are named throughout: the module-level declarations give ``P``, ``U``, ``Y``, ``X``, ``Z``;
+each channel's parameters are gathered by name (``GYRO``, ``ACCEL``: a ``ChannelParameters`` named tuple
+of offsets into p); the parts of the per-channel error states and of the 24 standard normals drawn
+each sample (``noise_size``; gyro channel first, in the order of ``NOISE_PARTS``, the order the draws
+have always had) and of the last sampled integrals are named offsets of their ``*_PARTS`` declarations,
+fixed whatever the order of the model's declarations. The output shift register ``records``
+is the last discrete state (its length depends on the latency): records of ``RECORD_PARTS`` (the
+outputs of one sample), the newest first, the oldest (what the outputs show) last.
 """
 
 from __future__ import annotations
 
+from collections import namedtuple
+from dataclasses import replace
+
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, parse_period
+from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets, parse_period
 from shell.registry import register_model
 
 #: ratio of the Gauss-Markov sigma to the datasheet bias instability B: 0.664 B (the 1/f Allan floor,
@@ -57,101 +69,6 @@ def _gauss_markov_peak() -> float:
 
 
 GAUSS_MARKOV_PEAK = _gauss_markov_peak()  # 0.6199 sigma
-
-# channel parameter block: 7 scalars + 3 turn-on bias + 3 scale factors + 9 misalignment = 22 values
-_CHANNEL_SIZE = 22
-# per-channel discrete state: random-walk bias, Gauss-Markov bias, previous white-angle noise, carry
-_CHANNEL_STATE = 12
-_RECORD = 18  # rate, specific force, delta angle, delta velocity, angle counts, velocity counts
-
-
-@njit(cache=True)
-def channel_increment(d_true, p, c, z, s, noise, n0, t_prev, t_now, out):
-    """One sample of one sensor channel (gyro or accelerometer), see the module docstring.
-
-    p[c:c+22]: random_walk N, bias_instability B, correlation_time Tc, bias_random_walk K, ramp R,
-    white_noise Q, lsb, turn-on bias (3), scale factor (3), misalignment (3x3).
-    z[s:s+12]: random-walk bias (3), Gauss-Markov bias (3), previous white noise (3), carry (3).
-    noise[n0:n0+12]: standard normals (random walk, bias walk, Gauss-Markov, white).
-    out[0:3] measured increment (quantized), out[3:6] integer counts (0 when lsb = 0).
-    """
-    period = t_now - t_prev
-    sq = np.sqrt(period)
-    arw, b_inst, tc, rrw, ramp, white, lsb = p[c], p[c + 1], p[c + 2], p[c + 3], p[c + 4], p[c + 5], p[c + 6]
-    sigma_gm = FLICKER_FLOOR * b_inst / GAUSS_MARKOV_PEAK
-    phi = np.exp(-period / tc)
-    gm_drive = sigma_gm * np.sqrt(1.0 - phi * phi)
-    t_start = max(t_prev, 0.0)  # the ramp starts at t = 0
-    ramp_integral = 0.5 * ramp * (t_now * t_now - t_start * t_start)
-    for i in range(3):
-        aligned = d_true[i]
-        for j in range(3):
-            aligned += p[c + 13 + 3 * i + j] * d_true[j]
-        z[s + i] += rrw * sq * noise[n0 + 3 + i]
-        z[s + 3 + i] = phi * z[s + 3 + i] + gm_drive * noise[n0 + 6 + i]
-        w = white * noise[n0 + 9 + i]
-        value = ((1.0 + p[c + 10 + i]) * aligned + (p[c + 7 + i] + z[s + i] + z[s + 3 + i]) * period
-                 + ramp_integral + arw * sq * noise[n0 + i] + w - z[s + 6 + i])
-        z[s + 6 + i] = w
-        if lsb > 0.0:
-            total = value + z[s + 9 + i]
-            counts = np.floor(total / lsb + 0.5)
-            z[s + 9 + i] = total - counts * lsb
-            out[i] = counts * lsb
-            out[3 + i] = counts
-        else:
-            out[i] = value
-            out[3 + i] = 0.0
-
-
-@njit(cache=True)
-def imu_sample(t, x, z, u, p, noise):
-    """Discrete update at t. z = [sample period, last angle and velocity integrals (6), channel error
-    states (2 x 12), output shift register (records of 18 values, newest first)]."""
-    period = z[0]
-    t_prev = t - period
-    d_angle = np.empty(3)
-    d_velocity = np.empty(3)
-    for i in range(3):
-        d_angle[i] = x[i] - z[1 + i]
-        d_velocity[i] = x[3 + i] - z[4 + i]
-        z[1 + i] = x[i]
-        z[4 + i] = x[3 + i]
-    gyro = np.empty(6)
-    accel = np.empty(6)
-    channel_increment(d_angle, p, 0, z, 7, noise, 0, t_prev, t, gyro)
-    channel_increment(d_velocity, p, _CHANNEL_SIZE, z, 7 + _CHANNEL_STATE, noise, 12, t_prev, t, accel)
-    r0 = 7 + 2 * _CHANNEL_STATE
-    n_records = (z.shape[0] - r0) // _RECORD
-    for k in range(n_records - 1, 0, -1):
-        for m in range(_RECORD):
-            z[r0 + k * _RECORD + m] = z[r0 + (k - 1) * _RECORD + m]
-    for i in range(3):
-        z[r0 + i] = gyro[i] / period
-        z[r0 + 3 + i] = accel[i] / period
-        z[r0 + 6 + i] = gyro[i]
-        z[r0 + 9 + i] = accel[i]
-        z[r0 + 12 + i] = gyro[3 + i]
-        z[r0 + 15 + i] = accel[3 + i]
-
-
-@njit(cache=True)
-def _held_outputs(t, x, z, u, p, y):
-    start = z.shape[0] - _RECORD
-    for m in range(_RECORD):
-        y[m] = z[start + m]
-
-
-@njit(cache=True)
-def _true_increments(t, x, z, u, p, xdot):
-    # u = [angular_velocity (3), linear_acceleration (3), rotation (9), gravitational_acceleration (3)]
-    for i in range(3):
-        xdot[i] = u[i]
-        g_node = 0.0
-        for j in range(3):
-            g_node += u[6 + 3 * j + i] * p[2 * _CHANNEL_SIZE + j]  # R^T g: column i of R
-        xdot[3 + i] = u[3 + i] - g_node - u[15 + i]
-
 
 def _channel_parameters(prefix, quantity, rate_unit, increment_unit):
     """Parameter declarations of one channel; ``rate_unit`` is the sensed quantity's unit."""
@@ -178,37 +95,175 @@ def _channel_parameters(prefix, quantity, rate_unit, increment_unit):
     )
 
 
+PARAMETERS = (
+    *_channel_parameters("gyro", "angle", "rad/s", "rad"),
+    *_channel_parameters("accel", "velocity", "m/s^2", "m/s"),
+    Parameter("gravity", "m/s^2", (0.0, 0.0, 0.0), (3,), None,
+              "uniform gravitational field, world axes (the engine's multibody gravity)"),
+    Parameter("latency", "s", 0.0, (), (0.0, None), "output latency, a whole number of sample periods"),
+)
+INPUTS = (
+    InputPort("angular_velocity", "rad/s", (3,), "inertial angular velocity of the node, node axes"),
+    InputPort("linear_acceleration", "m/s^2", (3,), "classical acceleration of the node, node axes"),
+    InputPort("rotation", "", (3, 3), "rotation node -> world"),
+    InputPort("gravitational_acceleration", "m/s^2", (3,), "gravity not in the engine, node axes",
+              required=False),
+)
+OUTPUTS = (
+    OutputPort("angular_rate", "rad/s", (3,), "measured angular rate (delta angle / period)"),
+    OutputPort("specific_force", "m/s^2", (3,), "measured specific force (delta velocity / period)"),
+    OutputPort("delta_angle", "rad", (3,), "quantized delta angle of the last sample"),
+    OutputPort("delta_velocity", "m/s", (3,), "quantized delta velocity of the last sample"),
+    OutputPort("delta_angle_counts", "", (3,), "integer delta-angle counts (0 without lsb)"),
+    OutputPort("delta_velocity_counts", "", (3,), "integer delta-velocity counts (0 without lsb)"),
+)
+CONTINUOUS = (State("angle_integral", "rad", (3,), None, "integral of the true angular velocity"),
+              State("velocity_integral", "m/s", (3,), None, "integral of the true specific force"))
+#: inside the discrete state last_integrals
+LAST_INTEGRAL_PARTS = (State("angle", "rad", (3,)), State("velocity", "m/s", (3,)))
+#: per channel, inside the discrete state error_states (gyro channel first)
+CHANNEL_STATE_PARTS = (State("bias_random_walk", "", (3,), None, "random-walk bias"),
+                       State("bias_gauss_markov", "", (3,), None, "Gauss-Markov bias"),
+                       State("white_noise", "", (3,), None, "previous white noise (its difference is the output)"),
+                       State("quantizer_carry", "", (3,), None, "remainder carried by the increment counter"))
+#: per channel, the standard normals of one sample, in draw order (gyro channel first)
+NOISE_PARTS = (State("random_walk", "", (3,)), State("bias_random_walk", "", (3,)),
+               State("gauss_markov", "", (3,)), State("white", "", (3,)))
+CHANNEL_STATE_SIZE, CHANNEL_NOISE_SIZE = Layout.of(CHANNEL_STATE_PARTS).size, Layout.of(NOISE_PARTS).size
+#: one record of the output shift register: the outputs of one sample
+RECORD_PARTS = (State("angular_rate", "rad/s", (3,)), State("specific_force", "m/s^2", (3,)),
+                State("delta_angle", "rad", (3,)), State("delta_velocity", "m/s", (3,)),
+                State("delta_angle_counts", "", (3,)), State("delta_velocity_counts", "", (3,)))
+RECORD_SIZE = Layout.of(RECORD_PARTS).size
+DISCRETE = (
+    State("sample_period", "s", (), None, "the sample period (from the rate)"),
+    State("last_integrals", "", (Layout.of(LAST_INTEGRAL_PARTS).size,), None,
+          "angle and velocity integrals at the last sample"),
+    State("error_states", "", (2 * CHANNEL_STATE_SIZE,), None,
+          "per channel: random-walk bias, Gauss-Markov bias, last white noise, quantizer carry"),
+)
+#: the output shift register, appended after DISCRETE with (latency samples + 1) records
+RECORDS = State("records", "", (RECORD_SIZE,), None, "output shift register (latency)")
+
+P, U, Y, X = (named_offsets(d) for d in (PARAMETERS, INPUTS, OUTPUTS, CONTINUOUS))
+Z = named_offsets(DISCRETE + (RECORDS,))
+S, N, R = named_offsets(CHANNEL_STATE_PARTS), named_offsets(NOISE_PARTS), named_offsets(RECORD_PARTS)
+LAST = named_offsets(LAST_INTEGRAL_PARTS)
+X_SIZE, U_SIZE = Layout.of(CONTINUOUS).size, Layout.of(INPUTS).size
+
+ChannelParameters = namedtuple("ChannelParameters", [p.name[len("gyro_"):] for p in _channel_parameters(
+    "gyro", "", "", "")])
+GYRO = ChannelParameters(*(getattr(P, "gyro_" + name) for name in ChannelParameters._fields))
+ACCEL = ChannelParameters(*(getattr(P, "accel_" + name) for name in ChannelParameters._fields))
+
+
+@njit(cache=True)
+def channel_increment(d_true, p, c, z, s, noise, n0, t_prev, t_now, r, increment, counts):
+    """One sample of one sensor channel (gyro or accelerometer), see the module docstring.
+
+    d_true: the true increments (3-tuple); c: the channel's parameter offsets (ChannelParameters);
+    z[s:]: the channel's error states (CHANNEL_STATE_PARTS); noise[n0:]: its standard normals
+    (NOISE_PARTS). Writes the measured increment (quantized) at z[r + increment:] and the integer
+    counts (0 when lsb = 0) at z[r + counts:].
+    """
+    period = t_now - t_prev
+    sq = np.sqrt(period)
+    arw, b_inst, tc = p[c.random_walk], p[c.bias_instability], p[c.bias_correlation_time]
+    rrw, ramp, white, lsb = p[c.bias_random_walk], p[c.ramp], p[c.white_noise], p[c.lsb]
+    sigma_gm = FLICKER_FLOOR * b_inst / GAUSS_MARKOV_PEAK
+    phi = np.exp(-period / tc)
+    gm_drive = sigma_gm * np.sqrt(1.0 - phi * phi)
+    t_start = max(t_prev, 0.0)  # the ramp starts at t = 0
+    ramp_integral = 0.5 * ramp * (t_now * t_now - t_start * t_start)
+    walk, markov, last_white, carry = s + S.bias_random_walk, s + S.bias_gauss_markov, s + S.white_noise, \
+        s + S.quantizer_carry
+    for i in range(3):
+        aligned = d_true[i]
+        for j in range(3):
+            aligned += p[c.misalignment + 3 * i + j] * d_true[j]
+        z[walk + i] += rrw * sq * noise[n0 + N.bias_random_walk + i]
+        z[markov + i] = phi * z[markov + i] + gm_drive * noise[n0 + N.gauss_markov + i]
+        w = white * noise[n0 + N.white + i]
+        value = ((1.0 + p[c.scale_factor + i]) * aligned + (p[c.bias + i] + z[walk + i] + z[markov + i]) * period
+                 + ramp_integral + arw * sq * noise[n0 + N.random_walk + i] + w - z[last_white + i])
+        z[last_white + i] = w
+        if lsb > 0.0:
+            total = value + z[carry + i]
+            n_counts = np.floor(total / lsb + 0.5)
+            z[carry + i] = total - n_counts * lsb
+            z[r + increment + i] = n_counts * lsb
+            z[r + counts + i] = n_counts
+        else:
+            z[r + increment + i] = value
+            z[r + counts + i] = 0.0
+
+
+@njit(cache=True)
+def imu_sample(t, x, z, u, p, noise):
+    """Discrete update at t: true increments since the last sample, the shift register moved one
+    record on, both channels' measurements into the newest record."""
+    period = z[Z.sample_period]
+    t_prev = t - period
+    angle, velocity = Z.last_integrals + LAST.angle, Z.last_integrals + LAST.velocity
+    d_angle = (x[X.angle_integral] - z[angle], x[X.angle_integral + 1] - z[angle + 1],
+               x[X.angle_integral + 2] - z[angle + 2])
+    d_velocity = (x[X.velocity_integral] - z[velocity], x[X.velocity_integral + 1] - z[velocity + 1],
+                  x[X.velocity_integral + 2] - z[velocity + 2])
+    for i in range(3):
+        z[angle + i] = x[X.angle_integral + i]
+        z[velocity + i] = x[X.velocity_integral + i]
+    r0 = Z.records
+    for k in range((z.shape[0] - r0) // RECORD_SIZE - 1, 0, -1):
+        for m in range(RECORD_SIZE):
+            z[r0 + k * RECORD_SIZE + m] = z[r0 + (k - 1) * RECORD_SIZE + m]
+    channel_increment(d_angle, p, GYRO, z, Z.error_states, noise, 0, t_prev, t,
+                      r0, R.delta_angle, R.delta_angle_counts)
+    channel_increment(d_velocity, p, ACCEL, z, Z.error_states + CHANNEL_STATE_SIZE, noise, CHANNEL_NOISE_SIZE,
+                      t_prev, t, r0, R.delta_velocity, R.delta_velocity_counts)
+    for i in range(3):
+        z[r0 + R.angular_rate + i] = z[r0 + R.delta_angle + i] / period
+        z[r0 + R.specific_force + i] = z[r0 + R.delta_velocity + i] / period
+
+
+@njit(cache=True)
+def _held_outputs(t, x, z, u, p, y):
+    oldest = z.shape[0] - RECORD_SIZE
+    for i in range(3):
+        y[Y.angular_rate + i] = z[oldest + R.angular_rate + i]
+        y[Y.specific_force + i] = z[oldest + R.specific_force + i]
+        y[Y.delta_angle + i] = z[oldest + R.delta_angle + i]
+        y[Y.delta_velocity + i] = z[oldest + R.delta_velocity + i]
+        y[Y.delta_angle_counts + i] = z[oldest + R.delta_angle_counts + i]
+        y[Y.delta_velocity_counts + i] = z[oldest + R.delta_velocity_counts + i]
+
+
+@njit(cache=True)
+def _true_increments(t, x, z, u, p, xdot):
+    rotation = U.rotation
+    for i in range(3):
+        xdot[X.angle_integral + i] = u[U.angular_velocity + i]
+        g_node = 0.0
+        for j in range(3):
+            g_node += u[rotation + 3 * j + i] * p[P.gravity + j]  # R^T g: column i of R
+        xdot[X.velocity_integral + i] = (u[U.linear_acceleration + i] - g_node
+                                         - u[U.gravitational_acceleration + i])
+
+
 @register_model
 class Imu(Model):
     """Gyro + accelerometer triad at a node with the IEEE 952 error model; see the module docstring."""
 
     summary = "IMU at a node: ARW, bias instability, RRW, ramp, white angle noise, quantization, SF, misalignment"
-    parameters = (_channel_parameters("gyro", "angle", "rad/s", "rad")
-                  + _channel_parameters("accel", "velocity", "m/s^2", "m/s")
-                  + (Parameter("gravity", "m/s^2", (0.0, 0.0, 0.0), (3,), None,
-                               "uniform gravitational field, world axes (the engine's multibody gravity)"),
-                     Parameter("latency", "s", 0.0, (), (0.0, None),
-                               "output latency, a whole number of sample periods")))
-    inputs = (
-        InputPort("angular_velocity", "rad/s", (3,), "inertial angular velocity of the node, node axes"),
-        InputPort("linear_acceleration", "m/s^2", (3,), "classical acceleration of the node, node axes"),
-        InputPort("rotation", "", (3, 3), "rotation node -> world"),
-        InputPort("gravitational_acceleration", "m/s^2", (3,), "gravity not in the engine, node axes",
-                  required=False),
-    )
-    outputs = (
-        OutputPort("angular_rate", "rad/s", (3,), "measured angular rate (delta angle / period)"),
-        OutputPort("specific_force", "m/s^2", (3,), "measured specific force (delta velocity / period)"),
-        OutputPort("delta_angle", "rad", (3,), "quantized delta angle of the last sample"),
-        OutputPort("delta_velocity", "m/s", (3,), "quantized delta velocity of the last sample"),
-        OutputPort("delta_angle_counts", "", (3,), "integer delta-angle counts (0 without lsb)"),
-        OutputPort("delta_velocity_counts", "", (3,), "integer delta-velocity counts (0 without lsb)"),
-    )
-    continuous_states = (State("angle_integral", "rad", (3,), None, "integral of the true angular velocity"),
-                         State("velocity_integral", "m/s", (3,), None, "integral of the true specific force"))
+    parameters = PARAMETERS
+    inputs = INPUTS
+    outputs = OUTPUTS
+    continuous_states = CONTINUOUS
+    offsets = {"p": P, "u": U, "y": Y, "x": X, "z": Z}
+    noise_size = 2 * CHANNEL_NOISE_SIZE
     default_period = "0.01 s"
     state_outputs = staticmethod(_held_outputs)
     derivatives = staticmethod(_true_increments)
+    update = staticmethod(imu_sample)
 
     def __init__(self, name: str, *, period=None, offset=0.0, **parameter_values):
         self._given_period = period
@@ -227,37 +282,28 @@ class Imu(Model):
         if abs(samples * float(period) - latency) > 1e-9 * max(1.0, latency):
             raise ModelError(f"model {self.path}: parameter latency: expected a whole number of sample periods "
                              f"({float(period):g} s), given {latency:g} s")
-        self.discrete_states = (
-            State("sample_period", "s", (), float(period), "the sample period (from the rate)"),
-            State("last_integrals", "", (6,), None, "angle and velocity integrals at the last sample"),
-            State("error_states", "", (2 * _CHANNEL_STATE,), None,
-                  "per channel: random-walk bias, Gauss-Markov bias, last white noise, quantizer carry"),
-            State("records", "", ((samples + 1) * _RECORD,), None, "output shift register (latency)"),
-        )
-        self._noise = np.zeros(24)
-
-    def update(self, t, x, z, u, p):
-        self.rng.standard_normal(out=self._noise)
-        imu_sample(t, x, z, u, p, self._noise)
+        self.discrete_states = (tuple(replace(d, initial=float(period)) if d.name == "sample_period" else d
+                                      for d in DISCRETE)
+                                + (replace(RECORDS, shape=((samples + 1) * RECORD_SIZE,)),))
 
 
 @njit(cache=True)
 def _static_record(z, p, noise, period, rates):
-    x = np.zeros(6)
-    u = np.zeros(18)
-    r0 = z.shape[0] - _RECORD
+    x = np.zeros(X_SIZE)
+    u = np.zeros(U_SIZE)
+    oldest = z.shape[0] - RECORD_SIZE
     for k in range(noise.shape[0]):
         imu_sample((k + 1) * period, x, z, u, p, noise[k])
         for i in range(3):
-            rates[k, i] = z[r0 + i]
-            rates[k, 3 + i] = z[r0 + 3 + i]
+            rates[k, i] = z[oldest + R.angular_rate + i]
+            rates[k, 3 + i] = z[oldest + R.specific_force + i]
 
 
 def static_record(imu: Imu, samples: int, seed=0) -> np.ndarray:
     """Measured (angular rate, specific force) of ``imu`` at rest in zero gravity for ``samples``
     periods, from the same kernel as a simulation (for Allan-deviation studies). Shape (samples, 6)."""
     z = imu.initial_discrete_state()
-    noise = np.random.default_rng(seed).standard_normal((samples, 24))
+    noise = np.random.default_rng(seed).standard_normal((samples, imu.noise_size))
     rates = np.empty((samples, 6))
     _static_record(z, imu.p, noise, float(imu.period), rates)
     return rates

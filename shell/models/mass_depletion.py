@@ -16,18 +16,43 @@ Config: ``body`` (the engine body to deplete), ``engine`` (the engine model's na
 ``multibody``). Parameters are the full and empty mass properties. The engine's mass properties are
 set again from the restored state the moment a run is restored (``Model.restored``), so a restart
 continues bit-identically, also between two samples.
+
+The update stays Python (``python_update``): it sets the body's mass properties through the engine's
+Python API (``set_mass_properties``), which a compiled kernel cannot call.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State
+from numba import njit
+
+from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
 from shell.registry import register_model
 
 
+PARAMETERS = (
+    Parameter("full_mass", "kg", None, (), (0.0, None), "body mass with full tanks"),
+    Parameter("empty_mass", "kg", None, (), (0.0, None), "body mass with empty tanks"),
+    Parameter("full_com", "m", (0.0, 0.0, 0.0), (3,), None, "center of mass, full, body frame"),
+    Parameter("empty_com", "m", (0.0, 0.0, 0.0), (3,), None, "center of mass, empty, body frame"),
+    Parameter("full_inertia", "kg*m^2", None, (3, 3), None, "inertia about the COM, full, body axes"),
+    Parameter("empty_inertia", "kg*m^2", None, (3, 3), None, "inertia about the COM, empty, body axes"),
+)
+INPUTS = (InputPort("propellant_used", "kg", (), "propellant consumed since t = 0"),)
+OUTPUTS = (OutputPort("mass", "kg", (), "current body mass"),
+           OutputPort("propellant_remaining", "kg", (), "propellant left"))
+DISCRETE = (State("mass", "kg", (), None, "current body mass"),
+            State("propellant_remaining", "kg", (), None, "propellant left"),
+            State("propellant_used", "kg", (), 0.0, "propellant used at the last sample "
+                  "(kept exactly, so a restore re-applies the same mass properties)"))
+P, U, Y, Z = (named_offsets(d) for d in (PARAMETERS, INPUTS, OUTPUTS, DISCRETE))
+
+
+@njit(cache=True)
 def _held(t, x, z, u, p, y):
-    y[0] = z[0]
-    y[1] = z[1]
+    y[Y.mass] = z[Z.mass]
+    y[Y.propellant_remaining] = z[Z.propellant_remaining]
 
 
 @register_model
@@ -35,17 +60,12 @@ class MassDepletion(Model):
     """Sets a body's mass, center of mass and inertia from the propellant used (config: body, engine)."""
 
     summary = "propellant consumption -> body mass properties in the engine (config: body, engine)"
-    parameters = (
-        Parameter("full_mass", "kg", None, (), (0.0, None), "body mass with full tanks"),
-        Parameter("empty_mass", "kg", None, (), (0.0, None), "body mass with empty tanks"),
-        Parameter("full_com", "m", (0.0, 0.0, 0.0), (3,), None, "center of mass, full, body frame"),
-        Parameter("empty_com", "m", (0.0, 0.0, 0.0), (3,), None, "center of mass, empty, body frame"),
-        Parameter("full_inertia", "kg*m^2", None, (3, 3), None, "inertia about the COM, full, body axes"),
-        Parameter("empty_inertia", "kg*m^2", None, (3, 3), None, "inertia about the COM, empty, body axes"),
-    )
-    inputs = (InputPort("propellant_used", "kg", (), "propellant consumed since t = 0"),)
-    outputs = (OutputPort("mass", "kg", (), "current body mass"),
-               OutputPort("propellant_remaining", "kg", (), "propellant left"))
+    parameters = PARAMETERS
+    inputs = INPUTS
+    outputs = OUTPUTS
+    discrete_states = DISCRETE
+    offsets = {"p": P, "u": U, "y": Y, "z": Z}
+    python_update = True
     default_period = "0.1 s"
     state_outputs = staticmethod(_held)
 
@@ -60,10 +80,9 @@ class MassDepletion(Model):
         if not empty < full:
             raise ModelError(f"model {self.path}: parameters empty_mass ({empty:g} kg) must be below full_mass "
                              f"({full:g} kg)")
-        self.discrete_states = (State("mass", "kg", (), full, "current body mass"),
-                                State("propellant_remaining", "kg", (), full - empty, "propellant left"),
-                                State("propellant_used", "kg", (), 0.0, "propellant used at the last sample "
-                                      "(kept exactly, so a restore re-applies the same mass properties)"))
+        initial = {"mass": full, "propellant_remaining": full - empty}
+        self.discrete_states = tuple(replace(d, initial=initial[d.name]) if d.name in initial else d
+                                     for d in DISCRETE)
         self._system = None
 
     def _engine_system(self):
@@ -90,14 +109,15 @@ class MassDepletion(Model):
         com = (1 - f) * self.parameter("full_com") + f * self.parameter("empty_com")
         inertia = (1 - f) * self.parameter("full_inertia") + f * self.parameter("empty_inertia")
         self._system.set_mass_properties(self.body, full - used, com, inertia)
-        z[0] = full - used
-        z[1] = full - empty - used
-        z[2] = used
+        z[Z.mass] = full - used
+        z[Z.propellant_remaining] = full - empty - used
+        z[Z.propellant_used] = used
 
     def update(self, t, x, z, u, p):
+        """Python (``python_update``): the mass properties go into the engine through its Python API."""
         full, empty = float(self.parameter("full_mass")), float(self.parameter("empty_mass"))
-        self._apply(min(max(float(u[0]), 0.0), full - empty), z)
+        self._apply(min(max(float(u[U.propellant_used]), 0.0), full - empty), z)
 
     def restored(self, t, x, z, p):
         # the engine still holds whatever mass it had before the restore: set the restored one now
-        self._apply(float(z[2]), z)
+        self._apply(float(z[Z.propellant_used]), z)

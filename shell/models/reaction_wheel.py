@@ -33,10 +33,39 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State
+from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
 from shell.registry import register_model
 
-# p = [axis (3), spin_inertia, max_torque, max_speed, coulomb, smoothing speed, viscous, U_s, U_d]
+WHEEL_PARAMETERS = (
+    Parameter("spin_axis", "", (0.0, 0.0, 1.0), (3,), (-1.0, 1.0), "unit spin axis, node axes"),
+    Parameter("spin_inertia", "kg*m^2", None, (), (1e-12, None), "wheel inertia about its spin axis"),
+    Parameter("max_torque", "N*m", 0.2, (), (0.0, None), "motor torque limit"),
+    Parameter("max_speed", "rad/s", 6000 * np.pi / 30, (), (0.0, None), "speed limit (e.g. 6000 rpm)"),
+    Parameter("coulomb_friction", "N*m", 0.0, (), (0.0, None), "Coulomb friction torque"),
+    Parameter("coulomb_smoothing_speed", "rad/s", 0.1, (), (1e-9, None),
+              "speed over which the Coulomb torque reaches its level (tanh regularization)"),
+    Parameter("viscous_friction", "N*m*s/rad", 0.0, (), (0.0, None), "viscous friction coefficient"),
+    Parameter("static_imbalance", "kg*m", 0.0, (), (0.0, None), "static imbalance U_s (datasheet g*cm)"),
+    Parameter("dynamic_imbalance", "kg*m^2", 0.0, (), (0.0, None), "dynamic imbalance U_d (g*cm^2)"),
+)
+WHEEL_INPUTS = (
+    InputPort("torque_command", "N*m", (), "commanded motor torque about the spin axis", feedthrough=True),
+    InputPort("angular_velocity", "rad/s", (3,), "inertial angular velocity of the node, node axes",
+              feedthrough=True),
+)
+WHEEL_OUTPUTS = (
+    OutputPort("torque", "N*m", (3,), "torque on the node: reaction, gyroscopic, dynamic imbalance",
+               feedthrough=True),
+    OutputPort("force", "N", (3,), "static-imbalance force on the node", feedthrough=True),
+    OutputPort("wheel_speed", "rad/s", (), "spin speed relative to the node", feedthrough=True),
+    OutputPort("motor_torque", "N*m", (), "applied motor torque after limits", feedthrough=True),
+)
+WHEEL_CONTINUOUS = (
+    State("momentum", "N*m*s", (), 0.0, "absolute spin momentum J_w (a . omega + Omega)"),
+    State("angle", "rad", (), 0.0, "wheel angle relative to the node (imbalance phase)"),
+)
+P_WHEEL, U_WHEEL, Y_WHEEL = named_offsets(WHEEL_PARAMETERS), named_offsets(WHEEL_INPUTS), named_offsets(WHEEL_OUTPUTS)
+X_WHEEL = named_offsets(WHEEL_CONTINUOUS)
 
 
 @njit(cache=True)
@@ -52,51 +81,64 @@ def perpendicular_basis(a0, a1, a2):
 
 @njit(cache=True)
 def wheel_speed(x, u, p):
-    """Relative spin speed Omega = h / J_w - a . omega (u[1:4] the node angular velocity)."""
-    return x[0] / p[3] - (p[0] * u[1] + p[1] * u[2] + p[2] * u[3])
+    """Relative spin speed Omega = h / J_w - a . omega."""
+    P, U, a, w = P_WHEEL, U_WHEEL, P_WHEEL.spin_axis, U_WHEEL.angular_velocity
+    return x[X_WHEEL.momentum] / p[P.spin_inertia] - (p[a] * u[w] + p[a + 1] * u[w + 1] + p[a + 2] * u[w + 2])
 
 
 @njit(cache=True)
-def motor_torque(command, speed, p):
-    tau = min(max(command, -p[4]), p[4])
-    if (speed >= p[5] and tau > 0.0) or (speed <= -p[5] and tau < 0.0):
+def motor_torque(command, speed, max_torque, max_speed):
+    """The command clipped to max_torque, zero when it would spin the wheel beyond max_speed."""
+    tau = min(max(command, -max_torque), max_torque)
+    if (speed >= max_speed and tau > 0.0) or (speed <= -max_speed and tau < 0.0):
         tau = 0.0
     return tau
 
 
 @njit(cache=True)
-def friction_torque(speed, p):
-    return p[6] * np.tanh(speed / p[7]) + p[8] * speed
+def friction_torque(speed, coulomb, smoothing_speed, viscous):
+    return coulomb * np.tanh(speed / smoothing_speed) + viscous * speed
+
+
+@njit(cache=True)
+def _wheel_motor_torque(x, u, p, speed):
+    return motor_torque(u[U_WHEEL.torque_command], speed, p[P_WHEEL.max_torque], p[P_WHEEL.max_speed])
+
+
+@njit(cache=True)
+def _wheel_friction(p, speed):
+    return friction_torque(speed, p[P_WHEEL.coulomb_friction], p[P_WHEEL.coulomb_smoothing_speed],
+                           p[P_WHEEL.viscous_friction])
 
 
 @njit(cache=True)
 def _wheel_loads(t, x, z, u, p, y):
-    # u = [torque_command, angular_velocity (3)]; y = [torque (3), force (3), speed, motor torque]
+    P, U, Y = P_WHEEL, U_WHEEL, Y_WHEEL
     speed = wheel_speed(x, u, p)
-    tau_m = motor_torque(u[0], speed, p)
-    net = tau_m - friction_torque(speed, p)
-    h = x[0]
-    a0, a1, a2 = p[0], p[1], p[2]
-    w0, w1, w2 = u[1], u[2], u[3]
+    tau_m = _wheel_motor_torque(x, u, p, speed)
+    net = tau_m - _wheel_friction(p, speed)
+    h = x[X_WHEEL.momentum]
+    a0, a1, a2 = p[P.spin_axis], p[P.spin_axis + 1], p[P.spin_axis + 2]
+    w0, w1, w2 = u[U.angular_velocity], u[U.angular_velocity + 1], u[U.angular_velocity + 2]
     e1, e2 = perpendicular_basis(a0, a1, a2)
-    c, s = np.cos(x[1]), np.sin(x[1])
+    c, s = np.cos(x[X_WHEEL.angle]), np.sin(x[X_WHEEL.angle])
     s2 = speed * speed
-    y[0] = -net * a0 - h * (w1 * a2 - w2 * a1)
-    y[1] = -net * a1 - h * (w2 * a0 - w0 * a2)
-    y[2] = -net * a2 - h * (w0 * a1 - w1 * a0)
+    y[Y.torque] = -net * a0 - h * (w1 * a2 - w2 * a1)
+    y[Y.torque + 1] = -net * a1 - h * (w2 * a0 - w0 * a2)
+    y[Y.torque + 2] = -net * a2 - h * (w0 * a1 - w1 * a0)
     for i, (b1, b2) in enumerate(((e1[0], e2[0]), (e1[1], e2[1]), (e1[2], e2[2]))):
         direction = c * b1 + s * b2
-        y[i] += p[10] * s2 * direction
-        y[3 + i] = p[9] * s2 * direction
-    y[6] = speed
-    y[7] = tau_m
+        y[Y.torque + i] += p[P.dynamic_imbalance] * s2 * direction
+        y[Y.force + i] = p[P.static_imbalance] * s2 * direction
+    y[Y.wheel_speed] = speed
+    y[Y.motor_torque] = tau_m
 
 
 @njit(cache=True)
 def _wheel_derivatives(t, x, z, u, p, xdot):
     speed = wheel_speed(x, u, p)
-    xdot[0] = motor_torque(u[0], speed, p) - friction_torque(speed, p)
-    xdot[1] = speed
+    xdot[X_WHEEL.momentum] = _wheel_motor_torque(x, u, p, speed) - _wheel_friction(p, speed)
+    xdot[X_WHEEL.angle] = speed
 
 
 @register_model
@@ -104,34 +146,11 @@ class ReactionWheel(Model):
     """One reaction wheel at a node (momentum representation); see the module docstring."""
 
     summary = "reaction wheel at a node: torque command in; reaction torque, imbalance force, speed out"
-    parameters = (
-        Parameter("spin_axis", "", (0.0, 0.0, 1.0), (3,), (-1.0, 1.0), "unit spin axis, node axes"),
-        Parameter("spin_inertia", "kg*m^2", None, (), (1e-12, None), "wheel inertia about its spin axis"),
-        Parameter("max_torque", "N*m", 0.2, (), (0.0, None), "motor torque limit"),
-        Parameter("max_speed", "rad/s", 6000 * np.pi / 30, (), (0.0, None), "speed limit (e.g. 6000 rpm)"),
-        Parameter("coulomb_friction", "N*m", 0.0, (), (0.0, None), "Coulomb friction torque"),
-        Parameter("coulomb_smoothing_speed", "rad/s", 0.1, (), (1e-9, None),
-                  "speed over which the Coulomb torque reaches its level (tanh regularization)"),
-        Parameter("viscous_friction", "N*m*s/rad", 0.0, (), (0.0, None), "viscous friction coefficient"),
-        Parameter("static_imbalance", "kg*m", 0.0, (), (0.0, None), "static imbalance U_s (datasheet g*cm)"),
-        Parameter("dynamic_imbalance", "kg*m^2", 0.0, (), (0.0, None), "dynamic imbalance U_d (g*cm^2)"),
-    )
-    inputs = (
-        InputPort("torque_command", "N*m", (), "commanded motor torque about the spin axis", feedthrough=True),
-        InputPort("angular_velocity", "rad/s", (3,), "inertial angular velocity of the node, node axes",
-                  feedthrough=True),
-    )
-    outputs = (
-        OutputPort("torque", "N*m", (3,), "torque on the node: reaction, gyroscopic, dynamic imbalance",
-                   feedthrough=True),
-        OutputPort("force", "N", (3,), "static-imbalance force on the node", feedthrough=True),
-        OutputPort("wheel_speed", "rad/s", (), "spin speed relative to the node", feedthrough=True),
-        OutputPort("motor_torque", "N*m", (), "applied motor torque after limits", feedthrough=True),
-    )
-    continuous_states = (
-        State("momentum", "N*m*s", (), 0.0, "absolute spin momentum J_w (a . omega + Omega)"),
-        State("angle", "rad", (), 0.0, "wheel angle relative to the node (imbalance phase)"),
-    )
+    parameters = WHEEL_PARAMETERS
+    inputs = WHEEL_INPUTS
+    outputs = WHEEL_OUTPUTS
+    continuous_states = WHEEL_CONTINUOUS
+    offsets = {"p": P_WHEEL, "u": U_WHEEL, "y": Y_WHEEL, "x": X_WHEEL}
     feedthrough_outputs = staticmethod(_wheel_loads)
     derivatives = staticmethod(_wheel_derivatives)
 
@@ -142,15 +161,32 @@ class ReactionWheel(Model):
             raise ModelError(f"model {self.path}: parameter spin_axis: expected a unit vector, given norm {norm:.12g}")
 
 
+MOTOR_PARAMETERS = (
+    Parameter("max_torque", "N*m", 0.2, (), (0.0, None), "motor torque limit"),
+    Parameter("max_speed", "rad/s", 6000 * np.pi / 30, (), (0.0, None), "speed limit"),
+    Parameter("coulomb_friction", "N*m", 0.0, (), (0.0, None), "Coulomb friction torque"),
+    Parameter("coulomb_smoothing_speed", "rad/s", 0.1, (), (1e-9, None), "tanh regularization speed"),
+    Parameter("viscous_friction", "N*m*s/rad", 0.0, (), (0.0, None), "viscous friction coefficient"),
+)
+MOTOR_INPUTS = (
+    InputPort("torque_command", "N*m", (), "commanded motor torque", feedthrough=True),
+    InputPort("u", "rad/s", (1,), "wheel speed relative to the bus (the hinge rate)", feedthrough=True),
+)
+MOTOR_OUTPUTS = (
+    OutputPort("torque", "N*m", (1,), "hinge torque: motor minus friction", feedthrough=True),
+    OutputPort("motor_torque", "N*m", (), "applied motor torque after limits", feedthrough=True),
+)
+P_MOTOR, U_MOTOR, Y_MOTOR = named_offsets(MOTOR_PARAMETERS), named_offsets(MOTOR_INPUTS), named_offsets(MOTOR_OUTPUTS)
+
+
 @njit(cache=True)
 def _motor_torque(t, x, z, u, p, y):
-    # u = [torque_command, hinge rate (1)]; p = [max_torque, max_speed, coulomb, smoothing, viscous]
-    speed = u[1]
-    tau = min(max(u[0], -p[0]), p[0])
-    if (speed >= p[1] and tau > 0.0) or (speed <= -p[1] and tau < 0.0):
-        tau = 0.0
-    y[0] = tau - (p[2] * np.tanh(speed / p[3]) + p[4] * speed)
-    y[1] = tau
+    P = P_MOTOR
+    speed = u[U_MOTOR.u]
+    tau = motor_torque(u[U_MOTOR.torque_command], speed, p[P.max_torque], p[P.max_speed])
+    y[Y_MOTOR.torque] = tau - friction_torque(speed, p[P.coulomb_friction], p[P.coulomb_smoothing_speed],
+                                              p[P.viscous_friction])
+    y[Y_MOTOR.motor_torque] = tau
 
 
 @register_model
@@ -158,19 +194,8 @@ class ReactionWheelMotor(Model):
     """Motor of a wheel body on a revolute hinge (body representation); see the module docstring."""
 
     summary = "reaction-wheel motor on a revolute hinge of a wheel body: limits, friction (attach: {hinge: ...})"
-    parameters = (
-        Parameter("max_torque", "N*m", 0.2, (), (0.0, None), "motor torque limit"),
-        Parameter("max_speed", "rad/s", 6000 * np.pi / 30, (), (0.0, None), "speed limit"),
-        Parameter("coulomb_friction", "N*m", 0.0, (), (0.0, None), "Coulomb friction torque"),
-        Parameter("coulomb_smoothing_speed", "rad/s", 0.1, (), (1e-9, None), "tanh regularization speed"),
-        Parameter("viscous_friction", "N*m*s/rad", 0.0, (), (0.0, None), "viscous friction coefficient"),
-    )
-    inputs = (
-        InputPort("torque_command", "N*m", (), "commanded motor torque", feedthrough=True),
-        InputPort("u", "rad/s", (1,), "wheel speed relative to the bus (the hinge rate)", feedthrough=True),
-    )
-    outputs = (
-        OutputPort("torque", "N*m", (1,), "hinge torque: motor minus friction", feedthrough=True),
-        OutputPort("motor_torque", "N*m", (), "applied motor torque after limits", feedthrough=True),
-    )
+    parameters = MOTOR_PARAMETERS
+    inputs = MOTOR_INPUTS
+    outputs = MOTOR_OUTPUTS
+    offsets = {"p": P_MOTOR, "u": U_MOTOR, "y": Y_MOTOR}
     feedthrough_outputs = staticmethod(_motor_torque)

@@ -20,26 +20,51 @@ hinge: ``attach: {hinge: <slosh body>}``.
 
 Parameters from a tank's fill level (upright cylinder): :func:`dynamics.slosh_tank.cylindrical_tank_slosh`
 or ``flexshell slosh``, which prints the pendulum bodies and these dampers as scenario YAML.
+
+Array layout: every declaration has the shape (n,) of the hinge's degrees of freedom (config), so the
+offsets are multiples of n: with ``P`` and ``U`` the named offsets of the declarations at shape ()
+(module level), declaration ``k`` starts at ``n * k`` and the kernel reads ``p[n * P.damping + i]``.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter
+from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, named_offsets
 from shell.registry import register_model
 
-UNITS = {"rotational": ("rad", "rad/s", "N*m", "N*m/rad", "N*m*s/rad"),
-         "translational": ("m", "m/s", "N", "N/m", "N*s/m")}
+#: unit of each declaration by kind of hinge
+UNITS = {"rotational": {"q": "rad", "u": "rad/s", "torque": "N*m", "stiffness": "N*m/rad", "damping": "N*m*s/rad",
+                        "neutral": "rad"},
+         "translational": {"q": "m", "u": "m/s", "torque": "N", "stiffness": "N/m", "damping": "N*s/m",
+                           "neutral": "m"}}
+
+#: declarations per degree of freedom (units and shapes are set per instance from config: kind, dofs)
+PARAMETERS = (
+    Parameter("stiffness", "", 0.0, (), (0.0, None), "spring per DOF (0 for a pendulum)"),
+    Parameter("damping", "", 0.0, (), (0.0, None), "damper per DOF"),
+    Parameter("neutral", "", 0.0, (), None, "unstretched position q_0"),
+)
+INPUTS = (InputPort("q", "", (), "hinge coordinates", feedthrough=True),
+          InputPort("u", "", (), "hinge rates", feedthrough=True))
+OUTPUTS = (OutputPort("torque", "", (), "generalized force on the hinge", feedthrough=True),)
+P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
+
+
+def _scaled(offsets, n: int):
+    """Offsets of declarations of shape (n,) each: n times those of the scalar declarations."""
+    return type(offsets)(*(n * k for k in offsets))
 
 
 @njit(cache=True)
 def _spring_damper(t, x, z, u, p, y):
-    # u = [q (n), u (n)]; p = [k (n), c (n), q0 (n)]
     n = y.shape[0]
     for i in range(n):
-        y[i] = -p[i] * (u[i] - p[2 * n + i]) - p[n + i] * u[n + i]
+        y[n * Y.torque + i] = (-p[n * P.stiffness + i] * (u[n * U.q + i] - p[n * P.neutral + i])
+                               - p[n * P.damping + i] * u[n * U.u + i])
 
 
 @register_model
@@ -56,13 +81,8 @@ class SloshSpringDamper(Model):
         super().__init__(name, **kwargs)
 
     def declare(self):
-        n = self.dofs
-        uq, uu, uf, uk, uc = UNITS[self.kind]
-        self.parameters = (
-            Parameter("stiffness", uk, np.zeros(n), (n,), (0.0, None), "spring per DOF (0 for a pendulum)"),
-            Parameter("damping", uc, np.zeros(n), (n,), (0.0, None), "damper per DOF"),
-            Parameter("neutral", uq, np.zeros(n), (n,), None, "unstretched position q_0"),
-        )
-        self.inputs = (InputPort("q", uq, (n,), "hinge coordinates", feedthrough=True),
-                       InputPort("u", uu, (n,), "hinge rates", feedthrough=True))
-        self.outputs = (OutputPort("torque", uf, (n,), "generalized force on the hinge", feedthrough=True),)
+        n, units = self.dofs, UNITS[self.kind]
+        self.parameters = tuple(replace(d, unit=units[d.name], default=np.zeros(n), shape=(n,)) for d in PARAMETERS)
+        self.inputs = tuple(replace(d, unit=units[d.name], shape=(n,)) for d in INPUTS)
+        self.outputs = tuple(replace(d, unit=units[d.name], shape=(n,)) for d in OUTPUTS)
+        self.offsets = {"p": _scaled(P, n), "u": _scaled(U, n), "y": _scaled(Y, n)}

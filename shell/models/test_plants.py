@@ -12,25 +12,38 @@ from __future__ import annotations
 
 from numba import njit
 
-from shell.model import Model, OutputPort, Parameter, State, ZeroCrossing
+from shell.model import Model, OutputPort, Parameter, State, ZeroCrossing, named_offsets
 from shell.registry import register_model
+
+
+BALL_PARAMETERS = (
+    Parameter("gravity", "m/s^2", 9.81, (), (0.0, None), "gravitational acceleration"),
+    Parameter("restitution", "", 0.8, (), (0.0, 1.0), "coefficient of restitution e"),
+)
+BALL_OUTPUTS = (OutputPort("height", "m", (), "height above the ground"),
+                OutputPort("velocity", "m/s", (), "vertical velocity (up positive)"))
+BALL_CONTINUOUS = (State("height", "m", (), 10.0, "height above the ground"),
+                   State("velocity", "m/s", (), 0.0, "vertical velocity"))
+BALL_DISCRETE = (State("bounces", "", (), 0.0, "number of contacts so far"),)
+P_BALL, Y_BALL = named_offsets(BALL_PARAMETERS), named_offsets(BALL_OUTPUTS)
+X_BALL, Z_BALL = named_offsets(BALL_CONTINUOUS), named_offsets(BALL_DISCRETE)
 
 
 @njit(cache=True)
 def _ball_outputs(t, x, z, u, p, y):
-    y[0] = x[0]
-    y[1] = x[1]
+    y[Y_BALL.height] = x[X_BALL.height]
+    y[Y_BALL.velocity] = x[X_BALL.velocity]
 
 
 @njit(cache=True)
 def _ball_derivatives(t, x, z, u, p, xdot):
-    xdot[0] = x[1]
-    xdot[1] = -p[0]
+    xdot[X_BALL.height] = x[X_BALL.velocity]
+    xdot[X_BALL.velocity] = -p[P_BALL.gravity]
 
 
 @njit(cache=True)
 def _ball_height(t, x, z, u, p, g):
-    g[0] = x[0]
+    g[0] = x[X_BALL.height]  # the one zero crossing, ground_contact
 
 
 @register_model
@@ -38,34 +51,35 @@ class BouncingBall(Model):
     """Point mass in uniform gravity bouncing on the plane h = 0 with restitution e."""
 
     summary = "falling mass bouncing on h = 0 (event test plant)"
-    parameters = (
-        Parameter("gravity", "m/s^2", 9.81, (), (0.0, None), "gravitational acceleration"),
-        Parameter("restitution", "", 0.8, (), (0.0, 1.0), "coefficient of restitution e"),
-    )
-    outputs = (OutputPort("height", "m", (), "height above the ground"),
-               OutputPort("velocity", "m/s", (), "vertical velocity (up positive)"))
-    continuous_states = (State("height", "m", (), 10.0, "height above the ground"),
-                         State("velocity", "m/s", (), 0.0, "vertical velocity"))
-    discrete_states = (State("bounces", "", (), 0.0, "number of contacts so far"),)
+    parameters = BALL_PARAMETERS
+    outputs = BALL_OUTPUTS
+    continuous_states = BALL_CONTINUOUS
+    discrete_states = BALL_DISCRETE
+    offsets = {"p": P_BALL, "y": Y_BALL, "x": X_BALL, "z": Z_BALL}
     zero_crossings = (ZeroCrossing("ground_contact", direction=-1, description="height reaches zero falling"),)
     state_outputs = staticmethod(_ball_outputs)
     derivatives = staticmethod(_ball_derivatives)
     zero_crossing_values = staticmethod(_ball_height)
 
     def on_event(self, index, t, x, z, p):
-        x[0] = 0.0
-        x[1] = -p[1] * x[1]
-        z[0] += 1.0
+        x[X_BALL.height] = 0.0
+        x[X_BALL.velocity] = -p[P_BALL.restitution] * x[X_BALL.velocity]
+        z[Z_BALL.bounces] += 1.0
+
+
+ESCAPE_OUTPUTS = (OutputPort("x", "", (), "the escaping state"),)
+ESCAPE_CONTINUOUS = (State("x", "", (), 1.0, "state"),)
+Y_ESCAPE, X_ESCAPE = named_offsets(ESCAPE_OUTPUTS), named_offsets(ESCAPE_CONTINUOUS)
 
 
 @njit(cache=True)
 def _escape_outputs(t, x, z, u, p, y):
-    y[0] = x[0]
+    y[Y_ESCAPE.x] = x[X_ESCAPE.x]
 
 
 @njit(cache=True)
 def _escape_derivatives(t, x, z, u, p, xdot):
-    xdot[0] = x[0] * x[0]
+    xdot[X_ESCAPE.x] = x[X_ESCAPE.x] * x[X_ESCAPE.x]
 
 
 @register_model
@@ -73,7 +87,8 @@ class FiniteEscape(Model):
     """x' = x^2: escapes to infinity at t = 1/x0 (failure-handling test plant)."""
 
     summary = "x' = x^2, blows up at t = 1/x0 (failure test plant)"
-    outputs = (OutputPort("x", "", (), "the escaping state"),)
-    continuous_states = (State("x", "", (), 1.0, "state"),)
+    outputs = ESCAPE_OUTPUTS
+    continuous_states = ESCAPE_CONTINUOUS
+    offsets = {"y": Y_ESCAPE, "x": X_ESCAPE}
     state_outputs = staticmethod(_escape_outputs)
     derivatives = staticmethod(_escape_derivatives)

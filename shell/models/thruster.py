@@ -24,76 +24,120 @@ node, so the torque about the node is ``position x F d`` (several thrusters can 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numba import njit
 
-from shell.model import (InputPort, Model, ModelError, OutputPort, Parameter, State, ZeroCrossing,
-                         parse_period)
+from shell.model import (InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, ZeroCrossing,
+                         named_offsets, parse_period)
 from shell.registry import register_model
 
 G0 = 9.80665
 MODES = {"pwm": 0, "on_off": 1, "proportional": 2}
+ON_OFF, PROPORTIONAL = float(MODES["on_off"]), float(MODES["proportional"])  # mode codes for the kernels
 
-# p = [direction (3), position (3), max_thrust, isp, min_on_time, rise_time, fall_time]
-# z = [valve level (N), closing time, closing scheduled (0/1), pulses fired, mode code, cycle period]
+PARAMETERS = (
+    Parameter("direction", "", (0.0, 0.0, 1.0), (3,), (-1.0, 1.0), "unit force direction, node axes"),
+    Parameter("position", "m", (0.0, 0.0, 0.0), (3,), None, "point of application from the node, node axes"),
+    Parameter("max_thrust", "N", None, (), (0.0, None), "thrust with the valve open"),
+    Parameter("isp", "s", None, (), (1e-9, None), "specific impulse"),
+    Parameter("min_on_time", "s", 0.0, (), (0.0, None), "shortest valve opening (minimum impulse bit / F)"),
+    Parameter("rise_time", "s", 0.0, (), (0.0, None), "time constant of the thrust rise (0: instant)"),
+    Parameter("fall_time", "s", 0.0, (), (0.0, None), "time constant of the thrust decay (0: instant)"),
+)
+OUTPUTS = (
+    OutputPort("torque", "N*m", (3,), "torque about the node, node axes"),
+    OutputPort("force", "N", (3,), "force, node axes"),
+    OutputPort("thrust", "N", (), "thrust magnitude"),
+    OutputPort("propellant_used", "kg", (), "propellant consumed since t = 0"),
+)
+CONTINUOUS = (State("thrust", "N", (), 0.0, "lagged thrust"),
+              State("propellant_used", "kg", (), 0.0, "integral of F / (Isp g0)"))
+ZERO_CROSSINGS = (ZeroCrossing("valve_closes", -1, False, "end of a pulse shorter than the cycle"),)
+#: the command's unit depends on the mode (set in ``declare``), its place does not
+INPUTS = (InputPort("command", "N", (), "demanded (pwm: mean over the cycle) thrust"),)
+#: parts of the two discrete states (each one state, names kept for logs and restarts)
+VALVE_PARTS = (State("level", "N", (), None, "valve level: thrust the valve lets through"),
+               State("closing_time", "s", (), None, "time at which the open valve closes"),
+               State("closing_scheduled", "", (), None, "1: the valve closes at closing_time in this cycle"),
+               State("pulses", "", (), None, "pulses fired"))
+CYCLE_PARTS = (State("mode", "", (), None, "mode code (MODES)"),
+               State("period", "s", (), None, "cycle period (from config)"))
+DISCRETE = (State("valve", "", (Layout.of(VALVE_PARTS).size,), None,
+                  "valve level N, closing time, closing scheduled, pulses fired"),
+            State("cycle", "", (Layout.of(CYCLE_PARTS).size,), None, "mode code and cycle period (from config)"))
+P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
+X, Z = named_offsets(CONTINUOUS), named_offsets(DISCRETE)
+_VALVE, _CYCLE = named_offsets(VALVE_PARTS), named_offsets(CYCLE_PARTS)
+LEVEL, CLOSING_TIME = Z.valve + _VALVE.level, Z.valve + _VALVE.closing_time
+CLOSING_SCHEDULED, PULSES = Z.valve + _VALVE.closing_scheduled, Z.valve + _VALVE.pulses
+MODE, PERIOD = Z.cycle + _CYCLE.mode, Z.cycle + _CYCLE.period
+
+
+@njit(cache=True)
+def _lagged(p):
+    return p[P.rise_time] > 0.0 or p[P.fall_time] > 0.0
 
 
 @njit(cache=True)
 def _thrust(x, z, p):
-    if p[9] > 0.0 or p[10] > 0.0:
-        return x[0]
-    return z[0]  # no lag: the valve level itself (x[0] stays unused)
+    if _lagged(p):
+        return x[X.thrust]
+    return z[LEVEL]  # no lag: the valve level itself (the thrust state stays unused)
 
 
 @njit(cache=True)
 def _thruster_outputs(t, x, z, u, p, y):
     f = _thrust(x, z, p)
+    d, r, force, torque = P.direction, P.position, Y.force, Y.torque
     for i in range(3):
-        y[3 + i] = f * p[i]
-    y[0] = p[4] * y[5] - p[5] * y[4]
-    y[1] = p[5] * y[3] - p[3] * y[5]
-    y[2] = p[3] * y[4] - p[4] * y[3]
-    y[6] = f
-    y[7] = x[1]
+        y[force + i] = f * p[d + i]
+    y[torque] = p[r + 1] * y[force + 2] - p[r + 2] * y[force + 1]      # position x force
+    y[torque + 1] = p[r + 2] * y[force] - p[r] * y[force + 2]
+    y[torque + 2] = p[r] * y[force + 1] - p[r + 1] * y[force]
+    y[Y.thrust] = f
+    y[Y.propellant_used] = x[X.propellant_used]
 
 
 @njit(cache=True)
 def _thruster_derivatives(t, x, z, u, p, xdot):
-    if p[9] > 0.0 or p[10] > 0.0:
-        tau = p[9] if z[0] > x[0] else p[10]
-        xdot[0] = (z[0] - x[0]) / tau if tau > 0.0 else 0.0
+    if _lagged(p):
+        tau = p[P.rise_time] if z[LEVEL] > x[X.thrust] else p[P.fall_time]
+        xdot[X.thrust] = (z[LEVEL] - x[X.thrust]) / tau if tau > 0.0 else 0.0
     else:
-        xdot[0] = 0.0
-    xdot[1] = _thrust(x, z, p) / (p[7] * G0)
+        xdot[X.thrust] = 0.0
+    xdot[X.propellant_used] = _thrust(x, z, p) / (p[P.isp] * G0)
 
 
 @njit(cache=True)
 def _valve_update(t, x, z, u, p):
-    f_max, period, mode = p[6], z[5], z[4]
-    command = u[0]
-    z[2] = 0.0
-    if mode == 2.0:
-        z[0] = min(max(command, 0.0), f_max)
+    f_max, period, mode = p[P.max_thrust], z[PERIOD], z[MODE]
+    command = u[U.command]
+    z[CLOSING_SCHEDULED] = 0.0
+    if mode == PROPORTIONAL:
+        z[LEVEL] = min(max(command, 0.0), f_max)
         return
-    if mode == 1.0:
+    if mode == ON_OFF:
         on_time = period if command >= 0.5 else 0.0
     else:
         on_time = period * min(max(command, 0.0) / f_max, 1.0)
-        if on_time < p[8]:
+        if on_time < p[P.min_on_time]:
             on_time = 0.0
     if on_time > 0.0:
-        z[0] = f_max
-        z[3] += 1.0
+        z[LEVEL] = f_max
+        z[PULSES] += 1.0
         if on_time < period:
-            z[1] = t + on_time
-            z[2] = 1.0
+            z[CLOSING_TIME] = t + on_time
+            z[CLOSING_SCHEDULED] = 1.0
     else:
-        z[0] = 0.0
+        z[LEVEL] = 0.0
 
 
 @njit(cache=True)
 def _valve_closing(t, x, z, u, p, g):
-    g[0] = z[1] - t if z[2] != 0.0 else 1.0
+    # the one zero crossing, valve_closes
+    g[0] = z[CLOSING_TIME] - t if z[CLOSING_SCHEDULED] != 0.0 else 1.0
 
 
 @register_model
@@ -101,24 +145,13 @@ class Thruster(Model):
     """One thruster (config: mode = pwm | on_off | proportional); see the module docstring."""
 
     summary = "thruster at a node: pwm / on_off / proportional, min impulse, rise/fall lag, Isp propellant flow"
-    parameters = (
-        Parameter("direction", "", (0.0, 0.0, 1.0), (3,), (-1.0, 1.0), "unit force direction, node axes"),
-        Parameter("position", "m", (0.0, 0.0, 0.0), (3,), None, "point of application from the node, node axes"),
-        Parameter("max_thrust", "N", None, (), (0.0, None), "thrust with the valve open"),
-        Parameter("isp", "s", None, (), (1e-9, None), "specific impulse"),
-        Parameter("min_on_time", "s", 0.0, (), (0.0, None), "shortest valve opening (minimum impulse bit / F)"),
-        Parameter("rise_time", "s", 0.0, (), (0.0, None), "time constant of the thrust rise (0: instant)"),
-        Parameter("fall_time", "s", 0.0, (), (0.0, None), "time constant of the thrust decay (0: instant)"),
-    )
-    outputs = (
-        OutputPort("torque", "N*m", (3,), "torque about the node, node axes"),
-        OutputPort("force", "N", (3,), "force, node axes"),
-        OutputPort("thrust", "N", (), "thrust magnitude"),
-        OutputPort("propellant_used", "kg", (), "propellant consumed since t = 0"),
-    )
-    continuous_states = (State("thrust", "N", (), 0.0, "lagged thrust"),
-                         State("propellant_used", "kg", (), 0.0, "integral of F / (Isp g0)"))
-    zero_crossings = (ZeroCrossing("valve_closes", -1, False, "end of a pulse shorter than the cycle"),)
+    parameters = PARAMETERS
+    inputs = INPUTS
+    outputs = OUTPUTS
+    continuous_states = CONTINUOUS
+    discrete_states = DISCRETE
+    zero_crossings = ZERO_CROSSINGS
+    offsets = {"p": P, "u": U, "y": Y, "x": X, "z": Z}
     default_period = "0.1 s"
     state_outputs = staticmethod(_thruster_outputs)
     derivatives = staticmethod(_thruster_derivatives)
@@ -134,9 +167,8 @@ class Thruster(Model):
 
     def declare(self):
         if self.mode == "on_off":
-            self.inputs = (InputPort("command", "", (), "valve flag: >= 0.5 open for the cycle"),)
-        else:
-            self.inputs = (InputPort("command", "N", (), "demanded (pwm: mean over the cycle) thrust"),)
+            self.inputs = tuple(replace(d, unit="", description="valve flag: >= 0.5 open for the cycle")
+                                for d in INPUTS)
 
     def configure(self):
         direction = self.parameter("direction")
@@ -152,11 +184,10 @@ class Thruster(Model):
             raise ModelError(f"model {self.path}: parameters rise_time and fall_time: give both (lagged thrust) or "
                              f"neither (instant), given {float(self.parameter('rise_time')):g} s and "
                              f"{float(self.parameter('fall_time')):g} s")
-        self.discrete_states = (
-            State("valve", "", (4,), None, "valve level N, closing time, closing scheduled, pulses fired"),
-            State("cycle", "", (2,), (float(MODES[self.mode]), period), "mode code and cycle period (from config)"),
-        )
+        cycle = np.zeros(Layout.of(CYCLE_PARTS).size)
+        cycle[_CYCLE.mode], cycle[_CYCLE.period] = MODES[self.mode], period
+        self.discrete_states = tuple(replace(d, initial=cycle) if d.name == "cycle" else d for d in DISCRETE)
 
     def on_event(self, index, t, x, z, p):
-        z[0] = 0.0
-        z[2] = 0.0
+        z[LEVEL] = 0.0
+        z[CLOSING_SCHEDULED] = 0.0

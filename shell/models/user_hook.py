@@ -21,18 +21,23 @@ holds until the next sample (zero-order hold, like a flight computer's output re
 A file path is relative to the working directory (``flexshell run`` resolves it as given). The object
 named may be any callable; a class instance keeps the software's own state between calls. Outputs are
 checked (missing names, shapes, non-finite values) and refused with the model path and the time.
-This hook runs interpreted Python at its sample rate; everything else stays compiled.
+This hook runs interpreted Python at its sample rate (``python_update``: a compiled loop returns to
+Python at each of its samples); everything else stays compiled. Its layout is the user's: the held
+outputs are its discrete states, one per output in the same order and shape, so the output kernel
+copies z to y; the update packs and unpacks by name through the instance's layouts.
 """
 
 from __future__ import annotations
 
 import importlib
 import importlib.util
+from collections import namedtuple
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, State
+from shell.model import InputPort, Layout, Model, ModelError, OutputPort, State
 from shell.registry import register_model
 
 
@@ -76,11 +81,20 @@ def _port_specs(specs, kind, where):
     return out
 
 
+@njit(cache=True)
+def _held_outputs(t, x, z, u, p, y):
+    for i in range(y.shape[0]):
+        y[i] = z[i]  # output k is held in discrete state k: same names, order and shapes (declare)
+
+
 @register_model
 class UserFunction(Model):
     """Calls a user Python function at its rate: named inputs in, named outputs out (held)."""
 
     summary = "user flight-software hook: function(t, inputs) -> outputs at a discrete rate (config: function, inputs, outputs)"
+    #: the user's function is arbitrary Python
+    python_update = True
+    state_outputs = staticmethod(_held_outputs)
 
     def __init__(self, name: str, *, function: str | None = None, inputs=None, outputs=None, **kwargs):
         where = f"model {name}"
@@ -97,18 +111,16 @@ class UserFunction(Model):
         self.outputs = tuple(OutputPort(n, u, s, d or "output of the user function (held)")
                              for n, u, s, d in self._output_specs)
         self.discrete_states = tuple(State(n, u, s, None, "held output") for n, u, s, d in self._output_specs)
+        held = Layout.of(self.outputs)  # the output kernel copies z to y: the two layouts must be one
+        self.offsets = {key: namedtuple(f"UserFunction{kind}", held.names)(*held.offsets.values())
+                        for key, kind in (("y", "Outputs"), ("z", "Discrete"))}
 
     def configure(self):
-        from shell.model import Layout
-
         self._in_layout = Layout.of(self.inputs)
         self._out_layout = Layout.of(self.outputs)
 
-    @staticmethod
-    def state_outputs(t, x, z, u, p, y):
-        y[:] = z
-
     def update(self, t, x, z, u, p):
+        """Python (``python_update``): calls the user's Python function with named signals."""
         signals = {name: u[self._in_layout.slice(name)].reshape(shape).copy()
                    for name, shape in self._in_layout.shapes.items()}
         try:
