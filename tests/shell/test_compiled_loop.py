@@ -56,6 +56,7 @@ def test_every_shipped_config_runs_compiled_and_interpreted_identically(name, tm
         runs[mode] = (sim, log if scenario.log_signals else None)
     (a, log_a), (b, log_b) = runs["interpreted"], runs["compiled"]
     assert a.mode == "interpreted"
+    assert b.mode == "compiled", b.interpreted_reason
     _assert_same_run(a, b, log_a, log_b)
 
 
