@@ -82,14 +82,14 @@ def _table(rows):
     return np.asarray(rows, dtype=np.int64).reshape(-1, L.OP_COLUMNS)
 
 
-class CompiledPlan:
-    """The compiled form of ``diagram`` bound to ``context``; see the module docstring."""
+class _Tables:
+    """What the compiled form of a diagram needs that does not depend on the run: op tables, kernel
+    pointers, which model is the engine, which models draw noise (built once per diagram)."""
 
-    def __init__(self, diagram, context):
-        self.diagram, self.context = diagram, context
+    def __init__(self, diagram):
         models = diagram.models
-        fns, update_fns, rngs = [], [], []
-        self.python_updates = []
+        fns, update_fns = [], []
+        self.python_updates, self.noisy = [], []
         fn_index: dict = {}
         engine_models: list = []
 
@@ -105,9 +105,6 @@ class CompiledPlan:
                 if engine_models:
                     raise NotCompilable(f"models {models[engine_models[0]].path} and {models[i].path}: the compiled "
                                         "loop runs one engine model per scene")
-                if typeof(context.data[i]) != L.ENGINE_DATA:
-                    raise NotCompilable(f"model {models[i].path}: its engine data has numba type "
-                                        f"{typeof(context.data[i])}, the compiled loop expects {L.ENGINE_DATA}")
                 engine_models.append(i)
             return 0
 
@@ -159,13 +156,13 @@ class CompiledPlan:
                 self.python_updates.append(i)
                 updates.append(_op(L.UPDATE_PYTHON, 0, (0, 0), *block))
             elif m.noise_size:
-                if len(rngs) == L.MAX_NOISY_MODELS:
+                if len(self.noisy) == L.MAX_NOISY_MODELS:
                     raise NotCompilable(f"model {m.path}: more than {L.MAX_NOISY_MODELS} models with noise")
-                rngs.append(context.rngs[i])
+                self.noisy.append(i)
                 noise = (noise_offset, noise_offset + int(m.noise_size))
                 noise_offset += int(m.noise_size)
                 updates.append(_op(L.UPDATE_NOISE, plain(fn, m, "update"), (0, 0), *block, noise=noise,
-                                   rng=len(rngs) - 1))
+                                   rng=len(self.noisy) - 1))
             else:
                 update_fns.append(_pointer(fn, L.UPDATE_SIGNATURE, m, "update"))
                 updates.append(_op(L.UPDATE, len(update_fns) - 1, (0, 0), *block))
@@ -174,18 +171,43 @@ class CompiledPlan:
             if not is_engine(models[i]):
                 raise NotCompilable(f"model {models[i].path}: only the engine's quaternions are normalized compiled")
             normalizers.append([engine(i), diagram.x_block[i].start, diagram.x_block[i].stop])
-        probe_engine, probe_rng = _probe()
+        self.engine_model = engine_models[0] if engine_models else None
+        self.noise_size = max(noise_offset, 1)
         self.kernels = L.Kernels(np.asarray(fns, dtype=np.int64).reshape(-1, 2),
                                  np.asarray(update_fns, dtype=np.int64).reshape(-1, 2), _engine_pointers())
+        self.tables = (_table(full), _table(derivative), len(diagram.derivative_stages), _table(zc), _table(updates),
+                       np.asarray(normalizers, dtype=np.int64).reshape(-1, 3))
+
+
+def _tables(diagram) -> _Tables:
+    tables = getattr(diagram, "_compiled_tables", None)
+    if tables is None:
+        tables = diagram._compiled_tables = _Tables(diagram)
+    return tables
+
+
+class CompiledPlan:
+    """The compiled form of ``diagram`` bound to ``context``; see the module docstring."""
+
+    def __init__(self, diagram, context):
+        self.diagram, self.context = diagram, context
+        tables = _tables(diagram)
+        self.kernels = tables.kernels
+        self.python_updates = tables.python_updates
+        probe_engine, probe_rng = _probe()
+        if tables.engine_model is not None:
+            data = context.data[tables.engine_model]
+            if typeof(data) != L.ENGINE_DATA:
+                raise NotCompilable(f"model {diagram.models[tables.engine_model].path}: its engine data has numba "
+                                    f"type {typeof(data)}, the compiled loop expects {L.ENGINE_DATA}")
         #: the engine model's data (a stand-in when the scene has none) and the random streams of noisy models
-        self.engine = context.data[engine_models[0]] if engine_models else probe_engine
+        self.engine = context.data[tables.engine_model] if tables.engine_model is not None else probe_engine
+        rngs = [context.rngs[i] for i in tables.noisy]
         self.rngs = tuple(rngs) + (probe_rng,) * (L.MAX_NOISY_MODELS - len(rngs))
-        self.noise = np.zeros(max(noise_offset, 1))
-        self.buffers = L.Buffers(
-            context.x, context.z, context.signals, context.p, context.xdot, context.g, self.noise,
-            diagram.gather_source, diagram.gather_destination, diagram.gather_factor, _table(full), _table(derivative),
-            len(diagram.derivative_stages), _table(zc), _table(updates),
-            np.asarray(normalizers, dtype=np.int64).reshape(-1, 3))
+        self.noise = np.zeros(tables.noise_size)
+        self.buffers = L.Buffers(context.x, context.z, context.signals, context.p, context.xdot, context.g, self.noise,
+                                 diagram.gather_source, diagram.gather_destination, diagram.gather_factor,
+                                 *tables.tables)
 
     # -- compiled evaluation for Python callers -------------------------------------------------------
     def derivative(self, t: float, y: np.ndarray) -> np.ndarray:

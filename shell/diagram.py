@@ -90,6 +90,9 @@ class Diagram:
         self.sampled = tuple(i for i, m in enumerate(self.models) if m.period is not None)
         self.periods = tuple(m.period for m in self.models)
         self.offsets = tuple(m.offset for m in self.models)
+        #: initial continuous and discrete states of the models (their declared or overridden values)
+        self.initial_x = _frozen(np.concatenate([m.initial_continuous_state() for m in self.models]))
+        self.initial_z = _frozen(np.concatenate([m.initial_discrete_state() for m in self.models]))
 
     # ------------------------------------------------------------------------------------------------
     # build
@@ -455,12 +458,12 @@ class Diagram:
         return np.asarray([self.x_block[i].start + k for i in self.normalizers
                            for k in self.models[i].quaternion_w_indices()], dtype=np.int64)
 
-    def first_sample(self, i: int, t_start: float) -> Fraction | None:
-        """The first sample instant of model ``i`` at or after ``t_start`` (exact), None if continuous."""
-        period = self.periods[i]
+    @staticmethod
+    def first_sample(period: Fraction | None, offset: Fraction, t_start: float) -> Fraction | None:
+        """The first sample instant ``offset + k period`` at or after ``t_start`` (exact), None if continuous."""
         if period is None:
             return None
-        first = self.offsets[i]
+        first = offset
         start = Fraction(t_start).limit_denominator(10**9)
         if first < start:
             first += math.ceil((start - first) / period) * period
@@ -530,9 +533,8 @@ class Context:
         for sl, value in diagram.input_defaults:
             self.signals[sl] = value
         models = diagram.models
-        for i, m in enumerate(models):
-            self.x[diagram.x_block[i]] = m.initial_continuous_state()
-            self.z[diagram.z_block[i]] = m.initial_discrete_state()
+        self.x[:] = diagram.initial_x
+        self.z[:] = diagram.initial_z
         #: per model: (host, data) of models with per-run data: ``data`` the tuple its kernels receive,
         #: ``host`` the Python object owning those arrays (the engine's MultibodySystem), else None
         self.hosts, self.data = [], []
@@ -546,7 +548,10 @@ class Context:
                                  self.signals[diagram.u_block[i]], self.p[diagram.p_block[i]],
                                  self.signals[diagram.y_block[i]], self.xdot[diagram.x_block[i]], self.data[i])
                       for i, m in enumerate(models)]
-        self.next_sample = [diagram.first_sample(i, self.t) for i in range(len(models))]
+        #: sample period and offset of each model in this run (a Monte Carlo run may disperse a rate)
+        self.periods = list(diagram.periods)
+        self.offsets = list(diagram.offsets)
+        self.next_sample = [diagram.first_sample(self.periods[i], self.offsets[i], self.t) for i in range(len(models))]
         self._reuse_cache: dict = {}
 
     def reuse_for(self, stages) -> tuple[bool, ...]:

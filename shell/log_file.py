@@ -148,6 +148,45 @@ class LogWriter:
             self.file.close()
 
 
+class MemoryLog:
+    """The :class:`LogWriter` interface kept in memory (Monte Carlo runs keep only what their metrics and
+    kept signals need, without a temporary file): ``signals()`` gives ``{name: (time, values, unit)}``."""
+
+    def __init__(self, groups: dict[str, list[LoggedSignal]]):
+        self.groups = groups
+        self.times: dict[str, list] = {g: [] for g in groups}
+        self.rows: dict[str, list] = {g: [] for g in groups}
+        self.status, self.message = "running", ""
+
+    def append(self, group_name: str, t: float, values: list[np.ndarray]) -> None:
+        self.times[group_name].append(np.array([t]))
+        self.rows[group_name].append(np.concatenate([np.asarray(v, dtype=float).reshape(-1) for v in values])[None])
+
+    def append_rows(self, group_name: str, times: np.ndarray, rows: np.ndarray) -> None:
+        self.times[group_name].append(np.array(times, dtype=float))
+        self.rows[group_name].append(np.array(rows, dtype=float))
+
+    def flush(self) -> None:
+        """Nothing to write: the samples are in memory."""
+
+    def close(self, status: str = "completed", message: str = "") -> None:
+        self.status, self.message = status, message
+
+    def signals(self) -> dict:
+        out = {}
+        for g, signals in self.groups.items():
+            time = np.concatenate(self.times[g]) if self.times[g] else np.zeros(0)
+            width = sum(int(np.prod(s.shape, dtype=np.int64)) for s in signals)
+            rows = np.concatenate(self.rows[g]) if self.rows[g] else np.zeros((0, width))
+            column = 0
+            for s in signals:
+                size = int(np.prod(s.shape, dtype=np.int64))
+                if s.name not in out:
+                    out[s.name] = (time, rows[:, column:column + size].reshape(len(time), *s.shape), s.unit)
+                column += size
+        return out
+
+
 def read_log(path) -> dict[str, np.ndarray]:
     """Every dataset of a log as numpy arrays, keyed by signal name.
 

@@ -556,35 +556,10 @@ def _add_members(container: Assembly, section: dict, where: _Where, classes: dic
     models_where = where.child(section, "models")
     for name, entry in models.items():
         here = models_where.child(models, name)
-        cls = classes.get(entry["type"]) or lookup(entry["type"])
-        kwargs = dict(entry.get("config", {}) or {})
-        kwargs.update(entry.get("parameters", {}) or {})
-        kwargs = container.child_parameters(name, **kwargs)
-        for key in ("rate", "period"):
-            if key in entry:
-                kwargs["period"] = entry[key]
-        if "offset" in entry:
-            kwargs["offset"] = entry["offset"]
-        try:
-            member = cls(name, **kwargs)
-        except ScenarioError as exc:  # inside an assembly type: also say where it is used
-            raise ScenarioError(f"{exc}\n  in {entry['type']} {name!r} used at {here.file}:{here.line}") from None
-        except (ModelError, UnitError) as exc:
-            raise _locate_error(here, entry, exc) from None
-        except TypeError as exc:
-            raise here.error(f"cannot construct {entry['type']}: {exc}") from None
+        member = build_member(container, name, entry, here, classes)
         if name in container.children:
             raise here.error(f"the name {name!r} is taken (the multibody engine model is named {name!r})")
         container.add(member)
-        for state, value in (entry.get("initial", {}) or {}).items():
-            if not isinstance(member, Model):
-                raise here.child(entry, "initial").error("initial values are set on models, not assemblies")
-            try:
-                member.set_initial(state, value)
-                member.initial_continuous_state()
-                member.initial_discrete_state()
-            except (ModelError, UnitError) as exc:
-                raise here.child(entry, "initial").child(entry["initial"], state).error(str(exc)) from None
         if "attach" in entry:
             attach = entry["attach"]
             try:
@@ -599,6 +574,39 @@ def _add_members(container: Assembly, section: dict, where: _Where, classes: dic
         here = where.child(connections, k)
         source, destination = _connection_ends(item, here)
         container.connect(source, destination, origin=f"{here.file}:{here.line}")
+
+
+def build_member(container: Assembly, name: str, entry: dict, here: _Where, classes: dict):
+    """One model or assembly of a models: section, constructed from its entry (type, config, parameters,
+    rate/period/offset, initial); ``container`` gives parent assembly parameters. Monte Carlo runs call it
+    again with an entry carrying a run's dispersed values."""
+    cls = classes.get(entry["type"]) or lookup(entry["type"])
+    kwargs = dict(entry.get("config", {}) or {})
+    kwargs.update(entry.get("parameters", {}) or {})
+    kwargs = container.child_parameters(name, **kwargs)
+    for key in ("rate", "period"):
+        if key in entry:
+            kwargs["period"] = entry[key]
+    if "offset" in entry:
+        kwargs["offset"] = entry["offset"]
+    try:
+        member = cls(name, **kwargs)
+    except ScenarioError as exc:  # inside an assembly type: also say where it is used
+        raise ScenarioError(f"{exc}\n  in {entry['type']} {name!r} used at {here.file}:{here.line}") from None
+    except (ModelError, UnitError) as exc:
+        raise _locate_error(here, entry, exc) from None
+    except TypeError as exc:
+        raise here.error(f"cannot construct {entry['type']}: {exc}") from None
+    for state, value in (entry.get("initial", {}) or {}).items():
+        if not isinstance(member, Model):
+            raise here.child(entry, "initial").error("initial values are set on models, not assemblies")
+        try:
+            member.set_initial(state, value)
+            member.initial_continuous_state()
+            member.initial_discrete_state()
+        except (ModelError, UnitError) as exc:
+            raise here.child(entry, "initial").child(entry["initial"], state).error(str(exc)) from None
+    return member
 
 
 def _assembly_class(name: str, spec: dict, where: _Where, scenario: Scenario) -> type:

@@ -36,7 +36,7 @@ from shell.assembly import Assembly
 from shell.compiled_plan import compile_plan
 from shell.diagram import AlgebraicLoopError, Diagram, EvaluationError, WiringError, gather_inputs
 from shell.integrators import locate_events, make_integrator, quaternion_gauge
-from shell.log_file import LoggedSignal, LogWriter
+from shell.log_file import LoggedSignal, LogWriter, MemoryLog
 from shell.model import ModelError, parse_period
 from shell.units import format_unit
 
@@ -92,7 +92,7 @@ class Simulation:
     def __init__(self, root: Assembly, *, integrator: str = "rk4", step: float | None = 0.01,
                  integrator_options: dict | None = None, seed=0, stop_events=(), event_tol: float = 1e-10,
                  event_detection: str = "subdivided", t_start: float = 0.0, diagram: Diagram | None = None,
-                 mode: str = "compiled"):
+                 mode: str = "compiled", context=None):
         self.seed = seed
         self.event_tol = float(event_tol)
         if event_detection not in ("sign_change", "subdivided"):
@@ -107,15 +107,20 @@ class Simulation:
         self.models, self.connections, self.model_index = d.models, d.connections, d.model_index
         self.port_slices, self.port_info, self.state_slices, self.driver = (d.port_slices, d.port_info,
                                                                             d.state_slices, d.driver)
-        for m in self.models:  # a model's random stream and engine workspace serve one simulation
-            owner = getattr(m, "_simulation", None)
-            if owner is not None and owner() is not None:
-                gc.collect()  # a discarded simulation may still be waiting in a reference cycle
-            if owner is not None and owner() is not None:
-                raise ModelError(f"model {m.path} already belongs to another Simulation (its random stream and "
-                                 "workspace would be shared); build the scene again for a second simulation")
+        if context is None:
+            for m in self.models:  # the first context shares the models' own data (the engine's workspace)
+                owner = getattr(m, "_simulation", None)
+                if owner is not None and owner() is not None:
+                    gc.collect()  # a discarded simulation may still be waiting in a reference cycle
+                if owner is not None and owner() is not None:
+                    raise ModelError(f"model {m.path} already belongs to another Simulation (its random stream and "
+                                     "workspace would be shared); build the scene again for a second simulation, "
+                                     "or run another context of the same diagram (Diagram.create_context(own_data="
+                                     "True), Simulation(diagram=..., context=...))")
+        elif context.diagram is not d:
+            raise ModelError("Simulation: the context belongs to another diagram")
         #: the state of this run (time, states, signals, parameters, per-model data, random streams)
-        self.context = d.create_context(seed, t_start)
+        self.context = d.create_context(seed, t_start) if context is None else context
         for i, m in enumerate(self.models):
             m.rng = self.context.rngs[i]
             m._simulation = weakref.ref(self)
@@ -238,6 +243,10 @@ class Simulation:
             entries["signals"].append((LoggedSignal(name, tuple(decl.shape), format_unit(decl.unit),
                                                     decl.description), kind, sl))
 
+    def log_groups(self) -> dict:
+        """{group name: [LoggedSignal, ...]} of what :meth:`log` requested (a writer's layout)."""
+        return {g: [s for s, _, _ in e["signals"]] for g, e in self._log_groups.items()}
+
     def _next_log_time(self, group: dict) -> Fraction:
         if group["next"] is None:
             start = Fraction(self.t).limit_denominator(10**9)
@@ -286,9 +295,11 @@ class Simulation:
             if not self._log_groups:
                 raise ModelError("nothing to log: call Simulation.log(signals, rate) (or list log: signals "
                                  "in the scenario) before running with a log file")
-            attrs = {"seed": json.dumps(self.seed)} | dict(log_attributes or {})
-            writer = LogWriter(log_path, {g: [s for s, _, _ in e["signals"]] for g, e in self._log_groups.items()},
-                               attrs)
+            if isinstance(log_path, MemoryLog):
+                writer = log_path
+            else:
+                attrs = {"seed": json.dumps(self.seed)} | dict(log_attributes or {})
+                writer = LogWriter(log_path, self.log_groups(), attrs)
         start_counters = dict(self.counters)
         t_start = self.t
         wall_start = _time.perf_counter()
@@ -352,7 +363,7 @@ class Simulation:
         """Common denominator of every instant of this run, or None when ticks would exceed 2**53."""
         fractions = [end, Fraction(self.t).limit_denominator(10**9)]
         fractions += [f for f in self.context.next_sample if f is not None]
-        fractions += [p for p in self.diagram.periods if p is not None]
+        fractions += [p for p in self.context.periods if p is not None]
         for group in self._log_groups.values():
             fractions += [group["period"], self._next_log_time(group)]
         den = 1
@@ -392,7 +403,7 @@ class Simulation:
         period = np.zeros(n_models, dtype=np.int64)
         for i in d.update_order:
             next_tick[i] = int(context.next_sample[i] * den)
-            period[i] = int(d.periods[i] * den)
+            period[i] = int(context.periods[i] * den)
         groups = list(self._log_groups.values())
         kinds, indices, starts = [], [], [0]
         for group in groups:
@@ -656,7 +667,7 @@ class Simulation:
                 self.diagram.update(self.context, i, t)
             except EvaluationError as exc:
                 raise SimulationError(str(exc)) from exc.__cause__
-            schedule[i] += self.models[i].period
+            schedule[i] += self.context.periods[i]
             self.counters["updates"] += 1
         self._check_finite_state(f"the discrete updates at t = {t:.9g} s")
         self._integrator_stale = True  # derivatives may depend on the new discrete states

@@ -496,9 +496,8 @@ class MultibodyModel(Model):
                 if flexible:
                     builder.add_flexible_body(body_name, parent, **_flexible_options(body, here), **kwargs)
                 else:
-                    builder.add_body(body_name, parent, mass=float(_vector(body, "mass", "kg", (), here)),
-                                     inertia=_matrix_or_diagonal(body, here),
-                                     com=_vector(body, "com", "m", (3,), here, (0, 0, 0)), **kwargs)
+                    mass, com, inertia = rigid_mass_properties(body, here)
+                    builder.add_body(body_name, parent, mass=mass, inertia=inertia, com=com, **kwargs)
             except (ModelDefinitionError, OSError, KeyError) as exc:
                 raise here.error(str(exc.args[0] if isinstance(exc, KeyError) else exc)) from None
             for add in pending_nodes.pop(body_name, []):
@@ -511,12 +510,37 @@ class MultibodyModel(Model):
             system = builder.compile()
         except ModelDefinitionError as exc:
             raise where.error(str(exc)) from None
-        q0, u0 = system.neutral_configuration(), np.zeros(system.nu)
-        for b, (body_name, spec, here, body) in enumerate(initial):
-            if spec is not None:
-                _apply_initial(system, b, spec, here.child(body, "initial"), q0, u0)
-        system.normalize_quaternions(q0)
+        q0, u0 = initial_state(system, [(spec, here, body) for _, spec, here, body in initial])
         return cls(name, system, initial_q=q0, initial_u=u0)
+
+
+def rigid_mass_properties(body, where):
+    """(mass, com, inertia about the COM) of a rigid body's scenario entry, SI."""
+    return (float(_vector(body, "mass", "kg", (), where)), _vector(body, "com", "m", (3,), where, (0, 0, 0)),
+            _matrix_or_diagonal(body, where))
+
+
+def initial_state(system, entries):
+    """(q0, u0) from each body's ``initial:`` entry (``entries``: (spec or None, where, body entry) in body
+    order), quaternions normalized."""
+    q0, u0 = system.neutral_configuration(), np.zeros(system.nu)
+    for b, (spec, here, body) in enumerate(entries):
+        if spec is not None:
+            _apply_initial(system, b, spec, here.child(body, "initial"), q0, u0)
+    system.normalize_quaternions(q0)
+    return q0, u0
+
+
+def body_entries(description, where):
+    """[(body entry, where)] of the multibody: section, in order, ``where`` naming each body."""
+    from shell.scenario import _expect_list
+
+    bodies = _expect_list(description["bodies"], where.child(description, "bodies"), "bodies")
+    out = []
+    for k, body in enumerate(bodies):
+        here = where.child(description, "bodies").child(bodies, k)
+        out.append((body, _rename(here, str(body.get("name"))) if isinstance(body, dict) else here))
+    return out
 
 
 def _flexible_options(body, where) -> dict:

@@ -362,6 +362,11 @@ class Campaign:
     metrics: list
     keep: list
     log_rate: object = None
+    #: run each run as a new context of the scene built once per process (shell.montecarlo.reuse); False:
+    #: rebuild the scene from the overrides for every run (the reference)
+    reuse_scene: bool = True
+    #: why the last run rebuilt its scene (None: it reused the process's scene)
+    rebuild_reason: object = None
 
     @property
     def fingerprint(self) -> str:
@@ -409,6 +414,25 @@ class Campaign:
                 simulation.log([signal], rate)  # refuses unknown signals, naming the model's ports
         return scenario, simulation
 
+    def _scene(self, run: int, draws: dict, log_path):
+        """(scenario, simulation, in-memory log or None) of run ``run``: a new context of the scene built
+        once per process (:mod:`shell.montecarlo.reuse`), or the scene rebuilt from the overrides when the
+        dispersions change its structure."""
+        from shell.log_file import MemoryLog
+        from shell.montecarlo.reuse import Structural, scene_for
+
+        scene = scene_for(self) if self.reuse_scene else "disabled"
+        if not isinstance(scene, str):
+            try:
+                scenario, simulation = scene.simulation(run, draws)
+                return scenario, simulation, MemoryLog(simulation.log_groups()) if log_path is None else None
+            except Structural as exc:
+                self.rebuild_reason = str(exc)
+        else:
+            self.rebuild_reason = scene
+        scenario, simulation = self.build(run, draws)
+        return scenario, simulation, None
+
     def run(self, run: int, log_path=None) -> RunRecord:
         """Run ``run`` of the campaign; never raises for a failing scene (the record says why).
 
@@ -420,27 +444,29 @@ class Campaign:
         row = np.concatenate([draws[d.path] for d in self.dispersions]) if self.dispersions else np.zeros(0)
         record = RunRecord(run, "failed", "", float("nan"), row, np.full(len(self.metric_columns), np.nan),
                            worker=f"{socket.gethostname()}:{os.getpid()}")
-        temporary = log_path is None
-        if temporary:
-            handle, log_path = tempfile.mkstemp(prefix=f"flexshell_run{run}_", suffix=".h5")
-            os.close(handle)
+        temporary = []
         try:
-            self._simulate(run, draws, str(log_path), record)
+            self._simulate(run, draws, None if log_path is None else str(log_path), record, temporary)
         finally:
-            if temporary:
-                Path(log_path).unlink(missing_ok=True)
+            for path in temporary:
+                Path(path).unlink(missing_ok=True)
         record.compiled_kernels = _numba_compilations() - compiled_before
         record.wall_time = time.perf_counter() - wall_start
         record.cpu_time = time.process_time() - cpu_start
         return record
 
-    def _simulate(self, run: int, draws: dict, log_path: str, record: RunRecord) -> None:
+    def _simulate(self, run: int, draws: dict, log_path: str | None, record: RunRecord, temporary: list) -> None:
         from shell.model import ModelError
         from shell.simulation import SimulationError
 
         simulation = None
+        memory = None
         try:
-            scenario, simulation = self.build(run, draws)
+            scenario, simulation, memory = self._scene(run, draws, log_path)
+            if memory is None and log_path is None:  # a rebuilt scene logs to a temporary file
+                handle, log_path = tempfile.mkstemp(prefix=f"flexshell_run{run}_", suffix=".h5")
+                os.close(handle)
+                temporary.append(log_path)
             if scenario.t_final is None:
                 raise CampaignError(f"{self.scenario_file}: no stop time; add stop: {{time: ...}} to the scenario "
                                     "or set: {stop.time: ...} to the campaign")
@@ -451,8 +477,8 @@ class Campaign:
                     raise RunTimeout(f"run {run} exceeded the campaign timeout of {self.timeout:g} s "
                                      f"(wall time) at t = {t:.6g} s")
 
-            summary = simulation.run(scenario.t_final, log_path=log_path, progress=check_deadline,
-                                     log_attributes={"campaign": self.name, "run": run})
+            summary = simulation.run(scenario.t_final, log_path=memory if memory is not None else log_path,
+                                     progress=check_deadline, log_attributes={"campaign": self.name, "run": run})
             record.simulation_time = summary.wall_time
             record.status, record.message, record.t_end = summary.status, summary.reason, summary.t_end
         except SimulationError as exc:
@@ -464,8 +490,8 @@ class Campaign:
             record.status, record.message = "failed", f"the run does not build: {exc}"
             return
         try:
-            logged = _read_log(log_path, self.signals)
-        except (OSError, KeyError) as exc:
+            logged = memory.signals() if memory is not None else _read_log(log_path, self.signals)
+        except (OSError, KeyError, TypeError) as exc:
             record.status, record.message = "failed", f"cannot read the run's log: {exc}"
             return
         record.kept = {s: logged[s] for s in self.keep if s in logged}
