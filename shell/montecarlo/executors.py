@@ -5,13 +5,13 @@ Every executor calls the same function, :func:`run_campaign_member` (``Campaign.
 results file stores row i at index i, so the table does not depend on the order). A run's result
 depends only on (campaign, i), hence serial, pool and Dask give identical tables.
 
-Compiled kernels: the numba kernels of flexshell are ``cache=True``, so the coordinator compiles (or
-loads) them once when the campaign is validated (a few steps of the median scene), which writes
-numba's on-disk cache; workers then load the machine code from that cache instead of compiling. On
-Linux the pool forks the coordinator, so its workers even start with the kernels in memory; Dask
-workers are fresh processes and load from the cache (each record counts the kernels its worker
-had to compile: 0 when the cache was used; on other machines of a cluster the cache directory must be
-shared, or each machine compiles once).
+Workers start warm (:func:`start_worker`, the pool's initializer and ``Client.run`` on Dask): each caps
+its BLAS/OpenMP threads at one (threadpoolctl; the runs are the parallelism, and more threads per
+worker oversubscribe the cores), loads the compiled loop from numba's on-disk cache and builds the
+campaign's scene once (:mod:`shell.montecarlo.reuse`); a run is then a new context of that scene. The
+coordinator compiles (or loads) every kernel when the campaign is validated, which writes numba's
+cache; each record counts the kernels its worker had to compile (0 when the cache was used; on other
+machines of a cluster the cache directory must be shared, or each machine compiles once).
 
 Dask: ``--scheduler ADDRESS`` connects to a running ``dask scheduler`` (workers started with
 ``dask worker ADDRESS`` where flexshell is installed and the campaign's files are readable);
@@ -35,9 +35,34 @@ def run_campaign_member(campaign: Campaign, run: int) -> RunRecord:
     return campaign.run(run)
 
 
+def start_worker(campaign: Campaign) -> str:
+    """Make a worker process ready before its first run: one BLAS/OpenMP thread (the runs are the
+    parallelism; more threads per worker oversubscribe the cores), the compiled loop loaded, the
+    campaign's scene built (:mod:`shell.montecarlo.reuse`). Returns the worker's name."""
+    import socket
+
+    from threadpoolctl import threadpool_limits
+
+    from shell.compiled_plan import prepare
+    from shell.montecarlo.reuse import scene_for
+
+    global _THREAD_LIMIT
+    _THREAD_LIMIT = threadpool_limits(1)
+    prepare()
+    if campaign.reuse_scene:
+        scene_for(campaign)
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+_THREAD_LIMIT = None
+
+
 def run_serial(campaign: Campaign, runs):
-    for i in runs:
-        yield campaign.run(i)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1):  # as in the workers: the same arithmetic, the same speed per run
+        for i in runs:
+            yield campaign.run(i)
 
 
 def run_pool(campaign: Campaign, runs, workers: int | None = None):
@@ -45,7 +70,8 @@ def run_pool(campaign: Campaign, runs, workers: int | None = None):
     workers = workers or os.cpu_count() or 1
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     pending_runs = list(runs)
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method)) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
+                             initializer=start_worker, initargs=(campaign,)) as pool:
         in_flight = set()
         try:
             while pending_runs or in_flight:
@@ -73,6 +99,7 @@ def run_dask(campaign: Campaign, runs, scheduler: str | None = None, workers: in
     else:
         client = Client(scheduler, timeout=timeout)
     try:
+        client.run(start_worker, campaign)  # every worker warm before the first run is submitted
         shipped = client.scatter(campaign, broadcast=True)
         futures = [client.submit(run_campaign_member, shipped, i, pure=False, key=f"{campaign.name}-{campaign.fingerprint[:12]}-run-{i}")
                    for i in runs]
