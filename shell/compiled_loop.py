@@ -41,7 +41,7 @@ from numba import typeof, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from shell.integrators.kernels import all_finite, propagate, stage_state
+from shell.integrators.kernels import all_finite, hermite_cubic, propagate, stage_state
 from shell.models.multibody import probe_engine_data
 
 _ARRAY = types.float64[::1]
@@ -108,13 +108,20 @@ BUDGET = 3               # the instant budget of this call is spent (after a who
 STEP_FAILED = 4          # a step produced a non-finite state or derivative
 START_FAILED = 5         # the derivative at the start of an interval is not finite
 UPDATE_FAILED = 6        # a discrete update left a non-finite state
+EVENT_CANDIDATE = 7      # a zero-crossing function may cross inside the last step: Python locates it
+
+# zero-crossing detection modes
+NO_EVENTS = 0
+SIGN_CHANGE = 1          # search a step when a function changes sign between its ends
+SUBDIVIDED = 2           # search every step on its dense output (shell.integrators.events)
+SUBDIVISIONS = 8         # the subdivisions of shell.integrators.locate_events
 
 # integer registers of advance (ints array)
 I_NOW, I_F_VALID, I_STEPS, I_NFEV, I_UPDATES, I_PHASE, I_FAILED_STAGE = range(7)
 N_INTS = 7
 # float registers (reals array)
-R_T, R_FAILED_T, R_T_OLD = range(3)
-N_REALS = 3
+R_T, R_FAILED_T, R_T_OLD, R_LAST_EVENT = range(4)
+N_REALS = 4
 
 
 class Buffers(NamedTuple):
@@ -151,6 +158,20 @@ class Stepper(NamedTuple):
     K: np.ndarray
     YS: np.ndarray
     YN: np.ndarray
+
+
+class Events(NamedTuple):
+    """Zero-crossing detection: the mode, each function's direction, values at the ends of the last step
+    and at the subdivision samples, the last step's start (for its dense output)."""
+
+    mode: int
+    direction: np.ndarray    # (m,) int64: +1 rising only, -1 falling only, 0 both
+    g_old: np.ndarray        # (m,)
+    g_new: np.ndarray        # (m,)
+    samples: np.ndarray      # (SUBDIVISIONS + 1, m)
+    y_old: np.ndarray        # state and slope at the start of the last step
+    f_old: np.ndarray
+    y_mid: np.ndarray        # scratch: the dense output at a sample
 
 
 class Schedule(NamedTuple):
@@ -295,9 +316,85 @@ def _instant_time(tick, den):
 
 
 @njit(cache=True)
-def _integrate(k, engine, b, st, target, ints, reals):
+def _zero_crossings_at(k, engine, t, y, b, out):
+    b.X[:] = y
+    zero_crossings(k, engine, t, b, b.src, b.fac)
+    out[:] = b.G
+
+
+@njit(cache=True)
+def _candidate_pair(a, c, direction):
+    """The check of locate_events on one pair of consecutive samples: a root is reported there."""
+    if a == 0.0 or np.isnan(a) or np.isnan(c):
+        return False
+    if c == 0.0:
+        crossing = -1.0 if a > 0.0 else 1.0
+    elif (a < 0.0) != (c < 0.0):
+        crossing = 1.0 if c > 0.0 else -1.0
+    else:
+        return False
+    return direction == 0 or direction == crossing
+
+
+@njit(cache=True)
+def _parabola_flags(g0, g1, g2, t0, t1, t2):
+    """The condition under which locate_events samples a parabola's extremum between three same-sign
+    samples (it may hide two roots): Python then decides."""
+    same_sign = (g0 > 0 and g1 > 0 and g2 > 0) or (g0 < 0 and g1 < 0 and g2 < 0)
+    if not same_sign:
+        return False
+    d01 = (g1 - g0) / (t1 - t0)
+    d12 = (g2 - g1) / (t2 - t1)
+    curv = (d12 - d01) / (t2 - t0)
+    if curv == 0.0:
+        return False
+    t_ext = 0.5 * (t0 + t1) - d01 / (2.0 * curv)
+    if not (t0 < t_ext < t2 and t_ext != t1):
+        return False
+    model = g0 + d01 * (t_ext - t0) + curv * (t_ext - t0) * (t_ext - t1)
+    return np.sign(model) != np.sign(g1) or abs(model) < 0.1 * min(abs(g0), abs(g1), abs(g2))
+
+
+@njit(cache=True)
+def _event_candidate(k, engine, b, ev, t_old, t_new, y_new, f_new, subdivided):
+    """Would shell.integrators.locate_events report a crossing in this step (before the simulation's
+    filter of just-handled events)? The same samples, the same tests; the parabola test answers yes
+    whenever Python would evaluate the extremum."""
+    m = ev.g_old.shape[0]
+    if not subdivided:  # Simulation._crossed: a sign change between the ends, in a counted direction
+        for j in range(m):
+            a, c = ev.g_old[j], ev.g_new[j]
+            if a == 0.0:
+                continue
+            if c == 0.0 or (a < 0.0) != (c < 0.0):
+                rising = c > a
+                if ev.direction[j] == 0 or (ev.direction[j] > 0) == rising:
+                    return True
+        return False
+    n = SUBDIVISIONS
+    h = t_new - t_old
+    step = (t_new - t_old) / n  # numpy.linspace(t_old, t_new, n + 1)
+    ev.samples[0, :] = ev.g_old
+    ev.samples[n, :] = ev.g_new
+    for j in range(1, n):
+        t_j = j * step + t_old
+        hermite_cubic((t_j - t_old) / h, h, ev.y_old, ev.f_old, y_new, f_new, ev.y_mid)
+        _zero_crossings_at(k, engine, t_j, ev.y_mid, b, ev.samples[j])
+    for f in range(m):
+        for j in range(n):
+            if _candidate_pair(ev.samples[j, f], ev.samples[j + 1, f], ev.direction[f]):
+                return True
+        for j in range(n - 1):
+            if _parabola_flags(ev.samples[j, f], ev.samples[j + 1, f], ev.samples[j + 2, f], j * step + t_old,
+                               (j + 1) * step + t_old, (t_new if j + 2 == n else (j + 2) * step + t_old)):
+                return True
+    return False
+
+
+@njit(cache=True)
+def _integrate(k, engine, b, st, ev, target, ints, reals):
     """Fixed-step Runge-Kutta from reals[R_T] to ``target`` (FixedStepRungeKutta._step_impl, the same
-    arithmetic); returns 0 or a failure status."""
+    arithmetic), with the zero-crossing checks of Simulation._advance; returns 0 or a status."""
     Y, F, K, YS, YN = st.Y, st.F, st.K, st.YS, st.YN
     t = reals[R_T]
     if ints[I_F_VALID] == 0:  # a restart from the context's state: Integrator.reset (normalize, derivative)
@@ -309,6 +406,8 @@ def _integrate(k, engine, b, st, target, ints, reals):
             return START_FAILED
         F[:] = b.XD
         ints[I_F_VALID] = 1
+    if ev.mode != NO_EVENTS:
+        _zero_crossings_at(k, engine, t, Y, b, ev.g_old)
     h = st.h
     s = st.n_stages
     while t < target:
@@ -339,13 +438,25 @@ def _integrate(k, engine, b, st, target, ints, reals):
             reals[R_T] = t
             ints[I_FAILED_STAGE] = 1
             return STEP_FAILED
+        if ev.mode != NO_EVENTS:
+            ev.y_old[:] = Y
+            ev.f_old[:] = F
         Y[:] = YN
         F[:] = b.XD
         reals[R_T_OLD] = t
+        t_old = t
         t = t_new
         ints[I_STEPS] += 1
         if t >= target:
             t = target
+        if ev.mode != NO_EVENTS:
+            _zero_crossings_at(k, engine, t, Y, b, ev.g_new)
+            search = ev.mode == SUBDIVIDED or t_old == reals[R_LAST_EVENT]
+            if _event_candidate(k, engine, b, ev, t_old, t, Y, F, search):
+                reals[R_T] = t
+                b.X[:] = Y
+                return EVENT_CANDIDATE
+            ev.g_old[:] = ev.g_new
     reals[R_T] = t
     b.X[:] = Y
     return 0
@@ -378,7 +489,7 @@ def _log_instant(k, engine, b, sc, ints, reals, write):
 
 
 @njit(cache=True)
-def advance(k, engine, rngs, b, st, sc, ints, reals, budget, write_logs, integrate):
+def advance(k, engine, rngs, b, st, ev, sc, ints, reals, budget, write_logs, integrate):
     """Run instants until the end tick, a return to Python, or ``budget`` instants (see the module docstring).
 
     ``ints[I_PHASE]`` 1: the updates at the current instant were done by the caller; continue with its
@@ -395,7 +506,7 @@ def advance(k, engine, rngs, b, st, sc, ints, reals, budget, write_logs, integra
                     nxt = sc.log_next[g]
             target = _instant_time(nxt, sc.den)
             if integrate and target > reals[R_T]:
-                status = _integrate(k, engine, b, st, target, ints, reals)
+                status = _integrate(k, engine, b, st, ev, target, ints, reals)
                 if status != 0:
                     return status
             reals[R_T] = target

@@ -45,6 +45,20 @@ class SimulationWarning(UserWarning):
     """Allowed but worth knowing: a scene that runs interpreted, a Python model in the compiled loop."""
 
 
+_WARNED_PYTHON_UPDATES: set = set()
+
+
+def _warn_python_updates(models) -> None:
+    """Once per model type and rate: the compiled loop returns to Python at these models' samples."""
+    new = [m for m in models if (type(m).__name__, m.period) not in _WARNED_PYTHON_UPDATES]
+    if not new:
+        return
+    _WARNED_PYTHON_UPDATES.update((type(m).__name__, m.period) for m in new)
+    listed = ", ".join(f"{m.path} ({type(m).__name__}, every {float(m.period):g} s)" for m in new)
+    warnings.warn(f"the compiled loop returns to Python at the samples of {listed}: their updates are Python "
+                  "(python_update); everything else stays compiled", SimulationWarning, stacklevel=3)
+
+
 class SimulationError(RuntimeError):
     """A run that could not continue; the message names the model and the time."""
 
@@ -140,6 +154,8 @@ class Simulation:
                               f"{self.interpreted_reason}", SimulationWarning, stacklevel=2)
         #: "compiled" or "interpreted" (see ``interpreted_reason``)
         self.mode = "compiled" if self._plan is not None else "interpreted"
+        if self._plan is not None and self._plan.python_updates:
+            _warn_python_updates([self.models[i] for i in self._plan.python_updates])
         #: the integrator's right-hand side f(t, x): compiled, or the interpreted reference ``derivative``
         self.rhs = self._plan.derivative if self._plan is not None else self.derivative
         self._integrator = None
@@ -356,8 +372,11 @@ class Simulation:
         from shell.integrators.fixed import FixedStepRungeKutta
 
         cls = INTEGRATORS.get(str(self.integrator_name).lower())
-        return (self._plan is not None and cls is not None and issubclass(cls, FixedStepRungeKutta)
-                and self.diagram.n_zero_crossings == 0 and self.integrator_options.get("step") is not None)
+        if self._plan is None or cls is None or not issubclass(cls, FixedStepRungeKutta):
+            return False
+        # events are located on the dense output: the compiled loop evaluates the cubic Hermite one
+        hermite = cls.name in ("euler", "heun", "rk4")
+        return self.integrator_options.get("step") is not None and (self.diagram.n_zero_crossings == 0 or hermite)
 
     def _time_base(self, end: Fraction):
         """Common denominator of every instant of this run, or None when ticks would exceed 2**53."""
@@ -451,11 +470,19 @@ class Simulation:
         budget = 64
         integrate = self.x.size > 0
         b = plan.buffers
+        n_g, n_x = self.diagram.n_zero_crossings, self.x.size
+        mode = CL.NO_EVENTS if n_g == 0 else (CL.SUBDIVIDED if self.event_detection == "subdivided" else
+                                             CL.SIGN_CHANGE)
+        events = CL.Events(mode, np.asarray([f.direction for f in self._event_functions], dtype=np.int64), np.zeros(n_g),
+                           np.zeros(n_g), np.zeros((CL.SUBDIVISIONS + 1, n_g)), np.zeros(n_x), np.zeros(n_x),
+                           np.zeros(n_x))
+        reals[CL.R_LAST_EVENT] = self._last_events[0]
+        stop_reason = None
         try:
             while True:
                 started = _time.perf_counter()
-                status = CL.advance(plan.kernels, plan.engine, plan.rngs, b, stepper, schedule, ints, reals, budget,
-                                    writer is not None, integrate)
+                status = CL.advance(plan.kernels, plan.engine, plan.rngs, b, stepper, events, schedule, ints, reals,
+                                    budget, writer is not None, integrate)
                 elapsed = _time.perf_counter() - started
                 if status == CL.DONE:
                     break
@@ -465,6 +492,10 @@ class Simulation:
                     flush()
                 elif status == CL.BUDGET:
                     budget = int(min(max(budget * 0.1 / max(elapsed, 1e-6), 16), 1 << 20))
+                elif status == CL.EVENT_CANDIDATE:
+                    stop_reason = self._compiled_event(events, stepper, ints, reals)
+                    if stop_reason is not None:
+                        break
                 else:
                     sync()
                     self._raise_compiled_failure(status, stepper, reals)
@@ -474,9 +505,30 @@ class Simulation:
         finally:
             flush()
             sync()
+        if stop_reason is not None:
+            self._sample_logs(writer, force=True)
+            return "stopped", stop_reason
         if progress is not None:
             progress(self.t)
         return "completed", "reached t_final"
+
+    def _compiled_event(self, events, stepper, ints, reals) -> str | None:
+        """A step of the compiled loop that may contain a crossing: locate it on the step's cubic Hermite
+        dense output (as the fixed-step integrators' ``dense_output``) and handle it; the loop restarts at
+        the event (or, with no crossing after all, goes on from the step's end)."""
+        from shell.integrators.base import HermiteDenseOutput
+
+        t_old, t_new = float(reals[CL.R_T_OLD]), float(reals[CL.R_T])
+        sol = HermiteDenseOutput(t_old, t_new, events.y_old, events.f_old, stepper.Y, stepper.F)
+        handled, stop = self._locate_and_handle(sol, t_old, t_new, events.g_old.copy(), events.g_new.copy(),
+                                                self._plan.normalize)
+        if handled:
+            reals[CL.R_T] = self.t
+            reals[CL.R_LAST_EVENT] = self.t
+            ints[CL.I_F_VALID] = 0
+        else:
+            self.x[:] = stepper.Y
+        return stop
 
     def _python_updates(self, ints, reals, next_tick, period) -> None:
         """The updates at the current instant when a Python-only model is due (all due models, in order)."""
@@ -564,19 +616,31 @@ class Simulation:
         return False
 
     def _handle_events(self, integ, g_old, g_new, target) -> str | None:
-        sol = integ.dense_output()
-        hits = locate_events(self._event_functions, sol, integ.t_old, integ.t, g_old, g_new, xtol=self.event_tol,
+        handled, stop = self._locate_and_handle(integ.dense_output(), integ.t_old, integ.t, g_old, g_new,
+                                                integ.normalize)
+        if not handled:
+            return None
+        self._integrator_stale = True
+        if stop is not None:
+            return stop
+        self._restart_integrator(target)
+        return None
+
+    def _locate_and_handle(self, sol, t_old, t_new, g_old, g_new, normalize) -> tuple[bool, str | None]:
+        """Locate the crossings of one step on its dense output ``sol`` and run the handlers of the first;
+        returns (an event was handled, the stop reason of a terminal one or None)."""
+        hits = locate_events(self._event_functions, sol, t_old, t_new, g_old, g_new, xtol=self.event_tol,
                              all_values=self._zero_crossing_vector)
         # a crossing just handled leaves its function at zero up to round-off, which may read as a new
         # sign change right after the restart: the same function within the tolerance is not a new event
         t_last, handled = self._last_events
         hits = [(t, j) for t, j in hits if not (j in handled and t - t_last <= 4 * self.event_tol)]
         if not hits:
-            return None
+            return False, None
         t_event = hits[0][0]
         y_event = np.array(sol(t_event), dtype=np.float64)
-        if integ.normalize is not None:
-            integ.normalize(y_event)
+        if normalize is not None:
+            normalize(y_event)
         self.t = t_event
         self.x[:] = y_event
         self.evaluate(t_event)
@@ -598,12 +662,7 @@ class Simulation:
                 stop = f"event {model.path}.{zc.name} at t = {t_event:.12g} s"
         self._check_finite_state(f"after the event at t = {t_event:.12g} s")
         self.evaluate(t_event)  # outputs reflect the state after the handlers
-        if stop is not None:
-            self._integrator_stale = True
-            return stop
-        self._integrator_stale = True
-        self._restart_integrator(target)
-        return None
+        return True, stop
 
     def _restart_integrator(self, target: float):
         """The integrator positioned at (self.t, self.x) heading for target; reset only after a jump."""

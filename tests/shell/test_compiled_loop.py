@@ -137,3 +137,27 @@ def test_python_output_kernels_run_interpreted_and_say_why():
                                                r"kernel is Python"):
         sim = Simulation(root)
     assert sim.mode == "interpreted" and "table" in sim.interpreted_reason
+
+
+@pytest.mark.parametrize("detection", ["subdivided", "sign_change"])
+@pytest.mark.parametrize("stop", [(), ("ball.ground_contact",)])
+def test_zero_crossings_are_found_and_handled_like_the_interpreted_loop(detection, stop, tmp_path):
+    """A bouncing ball (12 contacts in 12 s, located to 1e-12 s, state reset by the handler), logged at a
+    rate that is not a multiple of the step; with a terminal event the run stops at the first contact."""
+    from shell.models.test_plants import BouncingBall
+
+    runs = []
+    for mode in ("interpreted", "compiled"):
+        root = Assembly("root")
+        ball = root.add(BouncingBall("ball", gravity=9.81, restitution=0.8))
+        ball.set_initial("height", 10.0)
+        sim = Simulation(root, step=0.037, stop_events=stop, event_tol=1e-12, event_detection=detection, mode=mode)
+        sim.log(["ball.height"], "30 Hz")
+        log = tmp_path / f"{mode}.h5"
+        summary = sim.run(12.0, log_path=log)
+        runs.append((sim, log, summary))
+    (a, log_a, sa), (b, log_b, sb) = runs
+    assert b.mode == "compiled" and b._compiled_loop_applies()
+    assert a.events == b.events and len(a.events) == (1 if stop else 12)
+    assert (sa.status, sa.reason) == (sb.status, sb.reason)
+    _assert_same_run(a, b, log_a, log_b)
