@@ -63,6 +63,9 @@ def run(args) -> int:
     from shell.montecarlo.executors import run_campaign
     from shell.montecarlo.results import ResultsError
 
+    from shell.commands.run import announce_compilation
+
+    announce_compilation(getattr(args, "quiet", False))
     try:
         campaign = load_campaign(args.campaign)
     except CampaignError as exc:
