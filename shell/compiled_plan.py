@@ -126,18 +126,24 @@ class _Tables:
             fn = m.state_outputs if stage.kind == "state" else m.feedthrough_outputs
             return _op(L.PLAIN, plain(fn, m, f"{stage.kind}-outputs"), stage.gather, *block)
 
+        def derivative_rows(stages):
+            rows = [stage_op(s) for s in stages]
+            reuse = diagram.feedthrough_precedes_derivatives(stages)
+            for i in diagram.derivative_models:
+                m = models[i]
+                block = (diagram.x_block[i], diagram.z_block[i], diagram.u_block[i], diagram.p_block[i],
+                         diagram.x_block[i])
+                if is_engine(m):
+                    kind = L.ENGINE_DERIVATIVES_REUSE if reuse[i] else L.ENGINE_DERIVATIVES
+                    rows.append(_op(kind, engine(i), (0, 0), *block))
+                else:
+                    rows.append(_op(L.PLAIN, plain(m.derivatives, m, "derivatives"), (0, 0), *block))
+            return rows
+
+        #: op table of a derivative evaluation that runs ``stages`` first (linearization's subsets)
+        self.derivative_table = lambda stages: _table(derivative_rows(stages))
         full = [stage_op(s) for s in diagram.output_order]
-        derivative = [stage_op(s) for s in diagram.derivative_stages]
-        reuse = diagram.feedthrough_precedes_derivatives(diagram.derivative_stages)
-        for i in diagram.derivative_models:
-            m = models[i]
-            block = (diagram.x_block[i], diagram.z_block[i], diagram.u_block[i], diagram.p_block[i],
-                     diagram.x_block[i])
-            if is_engine(m):
-                kind = L.ENGINE_DERIVATIVES_REUSE if reuse[i] else L.ENGINE_DERIVATIVES
-                derivative.append(_op(kind, engine(i), (0, 0), *block))
-            else:
-                derivative.append(_op(L.PLAIN, plain(m.derivatives, m, "derivatives"), (0, 0), *block))
+        derivative = derivative_rows(diagram.derivative_stages)
         zc = []
         for i, sl in diagram.zero_crossing_models:
             m = models[i]
@@ -208,6 +214,7 @@ class CompiledPlan:
         self.buffers = L.Buffers(context.x, context.z, context.signals, context.p, context.xdot, context.g, self.noise,
                                  diagram.gather_source, diagram.gather_destination, diagram.gather_factor,
                                  *tables.tables)
+        self._variants: dict = {}
 
     # -- compiled evaluation for Python callers -------------------------------------------------------
     def derivative(self, t: float, y: np.ndarray) -> np.ndarray:
@@ -228,6 +235,20 @@ class CompiledPlan:
 
     def normalize(self, y: np.ndarray) -> None:
         L.normalize(self.kernels, self.engine, self.buffers, y)
+
+    def derivatives_into(self, t: float, stages, source=None, factor=None) -> None:
+        """Derivatives at the context's ``x`` into its ``xdot``, running only the output ``stages`` first,
+        with the gather arrays ``source``/``factor`` (an opened diagram's): the compiled form of
+        ``OpenedDiagram.derivatives_into``, for linearization and trim."""
+        key = (id(stages), id(source))
+        cached = self._variants.get(key)
+        if cached is None or cached[0] is not stages:
+            table = _tables(self.diagram).derivative_table(stages)
+            buffers = self.buffers._replace(derivative_ops=table, n_derivative_stages=len(stages))
+            cached = self._variants[key] = (stages, buffers)
+        b = cached[1]
+        L.derivatives(self.kernels, self.engine, float(t), b, b.src if source is None else source,
+                      b.fac if factor is None else factor)
 
 
 def compile_plan(diagram, context):

@@ -170,6 +170,11 @@ class Simulation:
         #: (time, "model.zero_crossing") of every handled event, in order
         self.events: list[tuple[float, str]] = []
 
+    @property
+    def plan(self):
+        """The compiled form of this run (:class:`shell.compiled_plan.CompiledPlan`), None when interpreted."""
+        return self._plan
+
     # the current run's buffers (views of the context)
     @property
     def t(self) -> float:

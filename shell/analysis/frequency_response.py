@@ -68,7 +68,7 @@ def small_signal_response(sim, model: LinearModel, input_name: str, output_name:
         def rhs(t, x):
             context.signals[ins.positions] = u0 + amplitude * np.sin(w * (t - t0))
             context.x[:] = x
-            evaluate.opened.derivatives_into(context, t, evaluate.stages)
+            evaluate.derivatives_into(t)
             return context.xdot.copy()
 
         period = 2.0 * np.pi / w

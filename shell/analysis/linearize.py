@@ -300,8 +300,16 @@ class _Evaluator:
         x = self.states.retract(xi)
         context.signals[self.inputs.positions] = u0 + v
         context.x[:] = x
-        self.opened.derivatives_into(context, t, self.stages)
+        self.derivatives_into(t)
         return np.concatenate((self.states.tangent_rate(xi, x, context.xdot), self.outputs.read(self.sim)))
+
+    def derivatives_into(self, t) -> None:
+        """Derivatives at the context's state into its xdot: compiled when the scene is (the same numbers)."""
+        plan = self.sim.plan
+        if plan is not None:
+            plan.derivatives_into(t, self.stages, self.opened.gather_source, self.opened.gather_factor)
+        else:
+            self.opened.derivatives_into(self.sim.context, t, self.stages)
 
 
 def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4, richardson: bool = True,
