@@ -392,7 +392,7 @@ def _event_candidate(k, engine, b, ev, t_old, t_new, y_new, f_new, subdivided):
 
 
 @njit(cache=True)
-def _integrate(k, engine, b, st, ev, target, ints, reals):
+def _integrate(k, engine, b, st, ev, target, ints, reals, skip_final):
     """Fixed-step Runge-Kutta from reals[R_T] to ``target`` (FixedStepRungeKutta._step_impl, the same
     arithmetic), with the zero-crossing checks of Simulation._advance; returns 0 or a status."""
     Y, F, K, YS, YN = st.Y, st.F, st.K, st.YS, st.YN
@@ -430,6 +430,13 @@ def _integrate(k, engine, b, st, ev, target, ints, reals):
             ints[I_FAILED_STAGE] = 0
             return STEP_FAILED
         normalize(k, engine, b, YN)
+        if last and skip_final:  # an update follows at target, then a restart: no slope at the end
+            Y[:] = YN
+            reals[R_T_OLD] = t
+            t = target
+            ints[I_STEPS] += 1
+            ints[I_F_VALID] = 0
+            break
         derivative_at(k, engine, t_new, YN, b, b.src, b.fac)
         ints[I_NFEV] += 1
         if not all_finite(b.XD):
@@ -506,7 +513,11 @@ def advance(k, engine, rngs, b, st, ev, sc, ints, reals, budget, write_logs, int
                     nxt = sc.log_next[g]
             target = _instant_time(nxt, sc.den)
             if integrate and target > reals[R_T]:
-                status = _integrate(k, engine, b, st, ev, target, ints, reals)
+                update_due = False
+                for i in sc.order:
+                    if sc.next_tick[i] == nxt:
+                        update_due = True
+                status = _integrate(k, engine, b, st, ev, target, ints, reals, update_due and ev.mode == NO_EVENTS)
                 if status != 0:
                     return status
             reals[R_T] = target

@@ -335,7 +335,8 @@ class Simulation:
                 instant = self._next_instant(end)
                 target = float(instant)
                 if target > self.t:
-                    stopped = self._advance(target)
+                    update_due = any(s == instant for s in self.context.next_sample if s is not None)
+                    stopped = self._advance(target, update_due)
                     if stopped is not None:
                         status, reason = "stopped", stopped
                         self._sample_logs(writer, force=True)
@@ -579,12 +580,18 @@ class Simulation:
         candidates += [self._next_log_time(g) for g in self._log_groups.values()]
         return min(candidates + [end])
 
-    def _advance(self, target: float) -> str | None:
-        """Integrate the continuous states from self.t to target; returns a stop reason or None."""
+    def _advance(self, target: float, update_due: bool = False) -> str | None:
+        """Integrate the continuous states from self.t to target; returns a stop reason or None.
+
+        ``update_due``: a sampled model updates at ``target``, after which the integrator restarts; a
+        fixed-step method then skips the slope at the end of its last step (it would be recomputed
+        with the new discrete states anyway), unless zero crossings need that step's dense output."""
         if self.x.size == 0:
             return None
         integ = self._restart_integrator(target)
         have_events = bool(self._event_functions)
+        if hasattr(integ, "skip_final_slope"):
+            integ.skip_final_slope = update_due and not have_events
         g_old = self._zero_crossing_vector(self.t, integ.y) if have_events else None
         while integ.status == "running":
             nfev_before = integ.nfev

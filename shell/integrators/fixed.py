@@ -15,10 +15,17 @@ from .base import HermiteDenseOutput, Integrator
 
 
 class FixedStepRungeKutta(Integrator):
-    """Explicit Runge-Kutta method with a constant step ``step`` (the last step may be shorter)."""
+    """Explicit Runge-Kutta method with a constant step ``step`` (the last step may be shorter).
+
+    ``skip_final_slope``: set by a caller that will ``reset`` the integrator at ``t_bound`` (a discrete
+    update changes the right-hand side there): the last step before ``t_bound`` then does not evaluate
+    the slope at its end, which the reset recomputes anyway (a step of a model sampled at the step rate
+    costs s evaluations, not s + 1). That step has no dense output.
+    """
 
     fixed_step = True
     tableau = None
+    skip_final_slope = False
 
     def _setup(self):
         tb = self.tableau
@@ -49,6 +56,10 @@ class FixedStepRungeKutta(Integrator):
                               self._stability_suggestion(h))
         if self.normalize is not None:
             self.normalize(y_new)
+        if last and self.skip_final_slope:
+            self.t_old, self.y_old, self.f_old = t, y, self.f
+            self.t, self.y, self.f = t_new, y_new, None
+            return True
         f_new = np.array(fun(t_new, y_new), dtype=np.float64)
         self.nfev += 1
         if not kernels.all_finite(f_new):
@@ -64,6 +75,8 @@ class FixedStepRungeKutta(Integrator):
         return True
 
     def _dense_output_impl(self):
+        if self.f is None:
+            raise RuntimeError(f"{self.name}: no dense output for a step taken with skip_final_slope")
         return HermiteDenseOutput(self.t_old, self.t, self.y_old, self.f_old, self.y, self.f)
 
     def _stability_suggestion(self, h):
