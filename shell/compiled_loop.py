@@ -42,6 +42,11 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from shell.integrators.kernels import all_finite, hermite_cubic, propagate, stage_state
+from shell.models.multibody import DERIVATIVES as E_DERIVATIVES
+from shell.models.multibody import DERIVATIVES_AFTER_FEEDTHROUGH as E_DERIVATIVES_REUSE
+from shell.models.multibody import FEEDTHROUGH_OUTPUTS as E_FEEDTHROUGH
+from shell.models.multibody import NORMALIZE as E_NORMALIZE
+from shell.models.multibody import STATE_OUTPUTS as E_STATE
 from shell.models.multibody import probe_engine_data
 
 _ARRAY = types.float64[::1]
@@ -51,14 +56,10 @@ KERNEL_SIGNATURE = types.void(types.float64, _ARRAY, _ARRAY, _ARRAY, _ARRAY, _AR
 UPDATE_SIGNATURE = types.void(types.float64, _ARRAY, _ARRAY, _ARRAY, _ARRAY)
 #: the engine model's data (dynamics.engine.EngineData, ports, work) as numba types it
 ENGINE_DATA = typeof(probe_engine_data())
-#: the engine model's kernels: kernel(t, x, z, u, p, d, out)
-ENGINE_SIGNATURE = types.void(types.float64, _ARRAY, _ARRAY, _ARRAY, _ARRAY, ENGINE_DATA, _ARRAY)
-#: the engine model's quaternion normalization: normalize(x, d)
-NORMALIZE_SIGNATURE = types.void(_ARRAY, ENGINE_DATA)
+#: the engine model's kernel: engine_kernel(op, t, x, z, u, p, d, out) (shell.models.multibody)
+ENGINE_SIGNATURE = types.void(types.int64, types.float64, _ARRAY, _ARRAY, _ARRAY, _ARRAY, ENGINE_DATA, _ARRAY)
 #: slots of the random-stream tuple (models with noise_size in one scene)
 MAX_NOISY_MODELS = 8
-# rows of the engine pointer table
-E_STATE, E_FEEDTHROUGH, E_DERIVATIVES, E_DERIVATIVES_REUSE, E_NORMALIZE = range(5)
 
 
 def _pointer_intrinsic(signature):
@@ -84,7 +85,6 @@ def _pointer_intrinsic(signature):
 _kernel = _pointer_intrinsic(KERNEL_SIGNATURE)
 _update_kernel = _pointer_intrinsic(UPDATE_SIGNATURE)
 _engine_kernel = _pointer_intrinsic(ENGINE_SIGNATURE)
-_normalize_kernel = _pointer_intrinsic(NORMALIZE_SIGNATURE)
 
 # op table columns
 KIND, FN, G0, G1, X0, X1, Z0, Z1, U0, U1, P0, P1, O0, O1, N0, N1, RNG = range(17)
@@ -197,7 +197,7 @@ class Kernels(NamedTuple):
 
     fns: np.ndarray          # (n, 2) KERNEL_SIGNATURE
     update_fns: np.ndarray   # (m, 2) UPDATE_SIGNATURE
-    engine_fns: np.ndarray   # (5, 2) the engine model's kernels (E_STATE ... E_NORMALIZE)
+    engine_fn: np.ndarray    # (2,) the engine model's kernel
 
 
 @njit(cache=True)
@@ -218,8 +218,8 @@ def run_stages(ops, n_ops, k, engine, t, b, src, fac):
             f = ops[r, FN]
             _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, y)
         else:
-            e = E_STATE if kind == ENGINE_STATE else E_FEEDTHROUGH
-            _engine_kernel(k.engine_fns[e, 0], k.engine_fns[e, 1])(t, x, z, u, p, engine, y)
+            _engine_kernel(k.engine_fn[0], k.engine_fn[1])(E_STATE if kind == ENGINE_STATE else E_FEEDTHROUGH, t, x,
+                                                           z, u, p, engine, y)
 
 
 @njit(cache=True)
@@ -256,8 +256,8 @@ def derivatives(k, engine, t, b, src, fac):
             f = ops[r, FN]
             _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, xdot)
         else:
-            e = E_DERIVATIVES if kind == ENGINE_DERIVATIVES else E_DERIVATIVES_REUSE
-            _engine_kernel(k.engine_fns[e, 0], k.engine_fns[e, 1])(t, x, z, u, p, engine, xdot)
+            _engine_kernel(k.engine_fn[0], k.engine_fn[1])(E_DERIVATIVES if kind == ENGINE_DERIVATIVES else
+                                                           E_DERIVATIVES_REUSE, t, x, z, u, p, engine, xdot)
 
 
 @njit(cache=True)
@@ -305,8 +305,8 @@ def normalize(k, engine, b, y):
     """Renormalize the hinge quaternions of state ``y`` (the interpreted ``Diagram.normalize``)."""
     ops = b.normalize_ops
     for r in range(ops.shape[0]):
-        _normalize_kernel(k.engine_fns[E_NORMALIZE, 0], k.engine_fns[E_NORMALIZE, 1])(y[ops[r, 1]:ops[r, 2]],
-                                                                                     engine)
+        x = y[ops[r, 1]:ops[r, 2]]
+        _engine_kernel(k.engine_fn[0], k.engine_fn[1])(E_NORMALIZE, 0.0, x, x, x, x, engine, x)
 
 
 @njit(cache=True)

@@ -23,14 +23,7 @@ from numba.core.registry import CPUDispatcher
 from numba.experimental.function_type import _get_jit_address, _get_wrapper_address
 
 from shell import compiled_loop as L
-from shell.models.multibody import (
-    MultibodyModel,
-    _engine_derivatives,
-    _engine_derivatives_after_feedthrough,
-    _engine_feedthrough_outputs,
-    _engine_normalize,
-    _engine_state_outputs,
-)
+from shell.models.multibody import MultibodyModel, engine_kernel
 
 
 class NotCompilable(Exception):
@@ -57,10 +50,7 @@ _PROBE: list = []
 
 def _engine_pointers():
     if not _ENGINE_POINTERS:
-        for fn in (_engine_state_outputs, _engine_feedthrough_outputs, _engine_derivatives,
-                   _engine_derivatives_after_feedthrough):
-            _ENGINE_POINTERS.append(_pointer(fn, L.ENGINE_SIGNATURE))
-        _ENGINE_POINTERS.append(_pointer(_engine_normalize, L.NORMALIZE_SIGNATURE))
+        _ENGINE_POINTERS.extend(_pointer(engine_kernel, L.ENGINE_SIGNATURE))
     return np.asarray(_ENGINE_POINTERS, dtype=np.int64)
 
 

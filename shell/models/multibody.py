@@ -190,56 +190,68 @@ def _copy_blocks(source, blocks, y):
             y[y0 + k] = source[s0 + k]
 
 
+# operations of engine_kernel
+STATE_OUTPUTS, FEEDTHROUGH_OUTPUTS, DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, NORMALIZE = range(5)
+
+
 @njit(cache=True)
-def _engine_state_outputs(t, x, z, u, p, d, y):
+def engine_kernel(op, t, x, z, u, p, d, out):
+    """Every kernel of the engine model in one compiled function (``op`` selects it), so the engine's
+    code is compiled once, not once per kernel: state outputs, feedthrough outputs (forward dynamics and
+    node accelerations), derivatives (solving, or reusing the feedthrough stage's accelerations), and the
+    quaternion normalization of ``x`` (``out`` unused)."""
     engine, ports, work = d
     nq, nu = ports.nq, ports.nu
-    for k in range(nq):
-        y[ports.q_out + k] = x[k]
-    for k in range(nu):
-        y[ports.u_out + k] = x[nq + k]
-    _copy_blocks(x, ports.hinge_q, y)
-    _copy_blocks(x[nq:], ports.hinge_u, y)
-    if ports.node_offsets.shape[0]:
-        E.node_kinematics(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
-                          work.acceleration)
-        _node_outputs(work.rotation, work.position, work.velocity, y, ports.node_offsets)
+    if op == STATE_OUTPUTS:
+        for k in range(nq):
+            out[ports.q_out + k] = x[k]
+        for k in range(nu):
+            out[ports.u_out + k] = x[nq + k]
+        _copy_blocks(x, ports.hinge_q, out)
+        _copy_blocks(x[nq:], ports.hinge_u, out)
+        if ports.node_offsets.shape[0]:
+            E.node_kinematics(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
+                              work.acceleration)
+            _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets)
+    elif op == FEEDTHROUGH_OUTPUTS:
+        _solve_accelerations(x, u, d)
+        _copy_blocks(work.udot, ports.hinge_udot, out)
+        if ports.accel_offsets.shape[0]:
+            E.node_kinematics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position, work.velocity,
+                              work.acceleration)
+            for n in range(ports.accel_offsets.shape[0]):
+                a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
+                for k in range(3):
+                    out[a + k] = work.acceleration[n, k]
+                    out[b + k] = work.acceleration[n, 3 + k]
+    elif op == DERIVATIVES or op == DERIVATIVES_AFTER_FEEDTHROUGH:
+        if op == DERIVATIVES:
+            _solve_accelerations(x, u, d)
+        for k in range(nu):
+            out[nq + k] = work.udot[k]
+        E.coordinate_rates(engine, x[:nq], x[nq:], out[:nq])
+    else:
+        E.normalize_quaternions(engine, x)
 
 
-@njit(cache=True)
+def _engine_state_outputs(t, x, z, u, p, d, y):
+    engine_kernel(STATE_OUTPUTS, t, x, z, u, p, d, y)
+
+
 def _engine_feedthrough_outputs(t, x, z, u, p, d, y):
-    engine, ports, work = d
-    nq = ports.nq
-    _solve_accelerations(x, u, d)
-    _copy_blocks(work.udot, ports.hinge_udot, y)
-    if ports.accel_offsets.shape[0]:
-        E.node_kinematics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position, work.velocity,
-                          work.acceleration)
-        for n in range(ports.accel_offsets.shape[0]):
-            a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
-            for k in range(3):
-                y[a + k] = work.acceleration[n, k]
-                y[b + k] = work.acceleration[n, 3 + k]
+    engine_kernel(FEEDTHROUGH_OUTPUTS, t, x, z, u, p, d, y)
 
 
-@njit(cache=True)
-def _engine_derivatives_after_feedthrough(t, x, z, u, p, d, xdot):
-    engine, ports, work = d
-    nq = ports.nq
-    for k in range(ports.nu):
-        xdot[nq + k] = work.udot[k]
-    E.coordinate_rates(engine, x[:nq], x[nq:], xdot[:nq])
-
-
-@njit(cache=True)
 def _engine_derivatives(t, x, z, u, p, d, xdot):
-    _solve_accelerations(x, u, d)
-    _engine_derivatives_after_feedthrough(t, x, z, u, p, d, xdot)
+    engine_kernel(DERIVATIVES, t, x, z, u, p, d, xdot)
 
 
-@njit(cache=True)
+def _engine_derivatives_after_feedthrough(t, x, z, u, p, d, xdot):
+    engine_kernel(DERIVATIVES_AFTER_FEEDTHROUGH, t, x, z, u, p, d, xdot)
+
+
 def _engine_normalize(x, d):
-    E.normalize_quaternions(d[0], x)
+    engine_kernel(NORMALIZE, 0.0, x, x, x, x, d, x)
 
 
 @njit(cache=True)
