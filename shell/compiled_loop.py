@@ -40,6 +40,7 @@ from numba import njit
 from numba import typeof, types
 from numba.core import cgutils
 from numba.extending import intrinsic
+from numba.np.arrayobj import make_array, populate_array
 
 from shell.integrators.kernels import all_finite, hermite_cubic, propagate, stage_state
 from shell.models.multibody import DERIVATIVES as E_DERIVATIVES
@@ -80,6 +81,28 @@ def _pointer_intrinsic(signature):
         return function_type(types.int64, types.int64), codegen
 
     return as_function
+
+
+@intrinsic
+def _view(typingctx, array, start, stop):
+    """``array[start:stop]`` (1-D, contiguous) without reference counting: the loop passes views of the
+    context's buffers, which outlive every call, to kernels behind function pointers, where numba's own
+    slices cost an atomic increment and decrement each (measured: 55 ns per call with five slices, 7-17
+    ns with these views)."""
+    if not (isinstance(array, types.Array) and array.ndim == 1):
+        return None
+    view_type = types.Array(array.dtype, 1, "C")
+
+    def codegen(context, builder, sig, args):
+        source = make_array(sig.args[0])(context, builder, args[0])
+        view = make_array(view_type)(context, builder)
+        itemsize = source.itemsize
+        populate_array(view, data=builder.gep(source.data, [args[1]]),
+                       shape=cgutils.pack_array(builder, [builder.sub(args[2], args[1])]),
+                       strides=cgutils.pack_array(builder, [itemsize]), itemsize=itemsize, meminfo=None)
+        return view._getvalue()
+
+    return view_type(array, types.intp, types.intp), codegen
 
 
 _kernel = _pointer_intrinsic(KERNEL_SIGNATURE)
@@ -209,11 +232,11 @@ def run_stages(ops, n_ops, k, engine, t, b, src, fac):
         for g in range(ops[r, G0], ops[r, G1]):
             S[dst[g]] = fac[g] * S[src[g]]
         kind = ops[r, KIND]
-        x = b.X[ops[r, X0]:ops[r, X1]]
-        z = b.Z[ops[r, Z0]:ops[r, Z1]]
-        u = S[ops[r, U0]:ops[r, U1]]
-        p = b.P[ops[r, P0]:ops[r, P1]]
-        y = S[ops[r, O0]:ops[r, O1]]
+        x = _view(b.X, ops[r, X0], ops[r, X1])
+        z = _view(b.Z, ops[r, Z0], ops[r, Z1])
+        u = _view(S, ops[r, U0], ops[r, U1])
+        p = _view(b.P, ops[r, P0], ops[r, P1])
+        y = _view(S, ops[r, O0], ops[r, O1])
         if kind == PLAIN:
             f = ops[r, FN]
             _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, y)
@@ -247,11 +270,11 @@ def derivatives(k, engine, t, b, src, fac):
     S = b.S
     for r in range(n_stages, ops.shape[0]):
         kind = ops[r, KIND]
-        x = b.X[ops[r, X0]:ops[r, X1]]
-        z = b.Z[ops[r, Z0]:ops[r, Z1]]
-        u = S[ops[r, U0]:ops[r, U1]]
-        p = b.P[ops[r, P0]:ops[r, P1]]
-        xdot = b.XD[ops[r, O0]:ops[r, O1]]
+        x = _view(b.X, ops[r, X0], ops[r, X1])
+        z = _view(b.Z, ops[r, Z0], ops[r, Z1])
+        u = _view(S, ops[r, U0], ops[r, U1])
+        p = _view(b.P, ops[r, P0], ops[r, P1])
+        xdot = _view(b.XD, ops[r, O0], ops[r, O1])
         if kind == PLAIN:
             f = ops[r, FN]
             _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, xdot)
@@ -275,9 +298,9 @@ def zero_crossings(k, engine, t, b, src, fac):
     S = b.S
     for r in range(ops.shape[0]):
         f = ops[r, FN]
-        _kernel(k.fns[f, 0], k.fns[f, 1])(t, b.X[ops[r, X0]:ops[r, X1]], b.Z[ops[r, Z0]:ops[r, Z1]],
-                                          S[ops[r, U0]:ops[r, U1]], b.P[ops[r, P0]:ops[r, P1]],
-                                          b.G[ops[r, O0]:ops[r, O1]])
+        _kernel(k.fns[f, 0], k.fns[f, 1])(t, _view(b.X, ops[r, X0], ops[r, X1]), _view(b.Z, ops[r, Z0], ops[r, Z1]),
+                                          _view(S, ops[r, U0], ops[r, U1]), _view(b.P, ops[r, P0], ops[r, P1]),
+                                          _view(b.G, ops[r, O0], ops[r, O1]))
 
 
 @njit(cache=True)
@@ -285,15 +308,15 @@ def update_model(i, k, engine, rngs, t, b):
     """Evaluate the scene, then run compiled sampled model ``i``'s update (drawing its noise first)."""
     evaluate_full(k, engine, t, b, b.src, b.fac)
     ops = b.update_ops
-    x = b.X[ops[i, X0]:ops[i, X1]]
-    z = b.Z[ops[i, Z0]:ops[i, Z1]]
-    u = b.S[ops[i, U0]:ops[i, U1]]
-    p = b.P[ops[i, P0]:ops[i, P1]]
+    x = _view(b.X, ops[i, X0], ops[i, X1])
+    z = _view(b.Z, ops[i, Z0], ops[i, Z1])
+    u = _view(b.S, ops[i, U0], ops[i, U1])
+    p = _view(b.P, ops[i, P0], ops[i, P1])
     f = ops[i, FN]
     if ops[i, KIND] == UPDATE:
         _update_kernel(k.update_fns[f, 0], k.update_fns[f, 1])(t, x, z, u, p)
     else:
-        noise = b.noise[ops[i, N0]:ops[i, N1]]
+        noise = _view(b.noise, ops[i, N0], ops[i, N1])
         rng = rngs[ops[i, RNG]]
         for n in range(noise.shape[0]):
             noise[n] = rng.standard_normal()
@@ -305,7 +328,7 @@ def normalize(k, engine, b, y):
     """Renormalize the hinge quaternions of state ``y`` (the interpreted ``Diagram.normalize``)."""
     ops = b.normalize_ops
     for r in range(ops.shape[0]):
-        x = y[ops[r, 1]:ops[r, 2]]
+        x = _view(y, ops[r, 1], ops[r, 2])
         _engine_kernel(k.engine_fn[0], k.engine_fn[1])(E_NORMALIZE, 0.0, x, x, x, x, engine, x)
 
 
