@@ -126,6 +126,9 @@ SCENES = {
     "rw": ROOT / "configs" / "rw_attitude.yaml",
     "slosh_panels": ROOT / "configs" / "rw_attitude_slosh_panels.yaml",
 }
+#: the attitude error the settling time is measured to: the appendages add ~400 kg m^2 and their
+#: momentum, so that scene reaches 1 deg only after ~700 s (5 deg at ~480 s)
+SETTLE_DEG = {"rw": 1.0, "slosh_panels": 5.0}
 
 
 @dataclass
@@ -421,13 +424,13 @@ def settling_time(t, angle_deg, threshold=1.0) -> float:
     return float(t[k] + (t[k + 1] - t[k]) * (a - threshold) / (a - b))
 
 
-def answers(result: Result, window: float = 10.0) -> dict:
+def answers(result: Result, settle_deg: float, window: float = 10.0) -> dict:
     """Final attitude error (mean over the last ``window`` s, which averages the gyro noise), settling
-    time to 1 deg, peak and final wheel speeds."""
+    time to ``settle_deg``, peak and final wheel speeds."""
     tail = result.t >= result.t[-1] - window
     return {
         f"final attitude error (deg, mean of last {window:g} s)": float(result.angle_deg[tail].mean()),
-        "settling time to 1 deg (s)": settling_time(result.t, result.angle_deg),
+        f"settling time to {settle_deg:g} deg (s)": settling_time(result.t, result.angle_deg, settle_deg),
         **{f"peak |wheel {k + 1}| (rpm)": float(np.abs(result.wheel_rpm[:, k]).max()) for k in range(3)},
         **{f"final wheel {k + 1} (rpm)": float(result.wheel_rpm[-1, k]) for k in range(3)},
     }
@@ -500,7 +503,7 @@ def verify(scene: str, duration: float, workdir: Path, orbit: bool = True):
                      / np.abs(theirs.extra["panel_theta"]).max(), tolerance["panels"]))
         rows.append(("panel rates / max |theta_dot|", np.abs(theta_dot - theirs.extra["panel_theta_dot"]).max()
                      / np.abs(theirs.extra["panel_theta_dot"]).max(), tolerance["panels"]))
-    return rows, answers(ours), answers(theirs)
+    return rows, answers(ours, SETTLE_DEG[scene]), answers(theirs, SETTLE_DEG[scene])
 
 
 # ------------------------------------------------------------------------------------------------
@@ -521,7 +524,7 @@ def race(scene: str, duration: float, pairs: int, workdir: Path):
             else:
                 theirs = run_basilisk(scene, duration)
         rows.append((ours.per_step_us, theirs.per_step_us, ours.steps, theirs.steps))
-    return rows, answers(ours), answers(theirs)
+    return rows, answers(ours, SETTLE_DEG[scene]), answers(theirs, SETTLE_DEG[scene])
 
 
 def print_answers(title: str, ours: dict, theirs: dict) -> None:
@@ -530,7 +533,10 @@ def print_answers(title: str, ours: dict, theirs: dict) -> None:
     print("| --- | ---: | ---: | ---: |")
     for key in ours:
         a, b = ours[key], theirs[key]
-        print(f"| {key} | {a:.4f} | {b:.4f} | {(a - b) / abs(b):+.2e} |")
+        if not (np.isfinite(a) and np.isfinite(b)):
+            print(f"| {key} | {a:.4f} | {b:.4f} | (not reached within the run) |")
+        else:
+            print(f"| {key} | {a:.4f} | {b:.4f} | {(a - b) / abs(b):+.2e} |")
 
 
 def main(argv=None) -> int:
