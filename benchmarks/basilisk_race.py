@@ -320,7 +320,6 @@ def build_basilisk(scene: str, duration: float, gyro_noise: bool = True, verify:
             result.extra["omega_BN_B"] = np.asarray(state_log.omega_BN_B)
             result.extra["r_BN_N"] = np.asarray(state_log.r_BN_N)
             result.extra["v_BN_N"] = np.asarray(state_log.v_BN_N)
-            result.extra["torque_command"] = np.asarray(command_log.torqueRequestBody)
             if panel_logs:
                 result.extra["panel_theta"] = np.column_stack([np.asarray(p.theta) for p in panel_logs])
                 result.extra["panel_theta_dot"] = np.column_stack([np.asarray(p.thetaDot) for p in panel_logs])
@@ -404,8 +403,7 @@ def verification_scene_text(scene: str, initial_translation=None) -> str:
     signals = ["multibody.acs.attitude", "multibody.acs.angular_velocity", "multibody.acs.position",
                "rw1.wheel_speed", "rw2.wheel_speed", "rw3.wheel_speed"]
     if scene == "slosh_panels":
-        signals += ["multibody.panel1.q", "multibody.panel2.q", "multibody.panel1.u", "multibody.panel2.u",
-                    "multibody.particle1.q", "multibody.particle2.q"]
+        signals += ["multibody.panel1.q", "multibody.panel2.q", "multibody.panel1.u", "multibody.panel2.u"]
     document["log"] = {"rate": "10 Hz", "signals": signals}
     return yaml.safe_dump(document, sort_keys=False)
 
