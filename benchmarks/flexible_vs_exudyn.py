@@ -305,7 +305,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--modes", type=int, nargs="+", default=[20, 100], help="flexible modes kept")
     parser.add_argument("--durations", type=float, nargs="+", default=[10.0, 2.0],
-                        help="simulated seconds per run, one per --modes entry (100 modes: ~60 ms/step here)")
+                        help="simulated seconds per run, one per --modes entry (100 modes: ~40 ms per flexshell step here)")
     parser.add_argument("--pairs", type=int, default=5, help="interleaved flexshell/Exudyn pairs per mode count")
     parser.add_argument("--order", type=int, default=2, choices=(0, 1, 2),
                         help="flexshell's modal-integral order (2 is exact for point masses, as Exudyn)")
