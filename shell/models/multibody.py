@@ -305,6 +305,13 @@ class MultibodyModel(Model):
         """Renormalize hinge quaternions in place (the integrator's normalize hook)."""
         self.system.normalize_quaternions(x[:self.system.nq])
 
+    def stiff_linear_part(self, x):
+        """(indices into this model's [q; u], L): the linear modal dynamics at the configuration of ``x`` that
+        an exponential integrator propagates exactly (:func:`dynamics.modal_linear_part.modal_linear_part`)."""
+        from dynamics.modal_linear_part import modal_linear_part
+
+        return modal_linear_part(self.system, x[:self.system.nq])
+
     def quaternion_w_indices(self) -> list[int]:
         """Positions in this model's state of each hinge quaternion's w (for the integrator's error norm)."""
         return [int(k) for k in self.system.quaternion_q_indices]
