@@ -237,14 +237,18 @@ def remainder_stiffness(N2, N3, Y2, Y3, indices, L_norm):
 
 @njit(cache=True)
 def _term_vectors(coefficients, y, N, h, W):
-    """W[t] = C[t, 0] y + h sum_j C[t, j + 1] N[j]."""
+    """W[t] = C[t, 0] y + h sum_j C[t, j + 1] N[j], reading only the rows with a non-zero coefficient (the
+    stages not yet computed in this step hold the previous step's values)."""
     n = y.shape[0]
     for t in range(coefficients.shape[0]):
+        c0 = coefficients[t, 0]
         for i in range(n):
-            acc = 0.0
-            for j in range(N.shape[0]):
-                acc += coefficients[t, j + 1] * N[j, i]
-            W[t, i] = coefficients[t, 0] * y[i] + h * acc
+            W[t, i] = c0 * y[i] if c0 != 0.0 else 0.0
+        for j in range(N.shape[0]):
+            c = h * coefficients[t, j + 1]
+            if c != 0.0:
+                for i in range(n):
+                    W[t, i] += c * N[j, i]
 
 
 @njit(cache=True)
