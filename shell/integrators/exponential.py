@@ -71,10 +71,14 @@ import scipy.linalg
 from numba import njit
 
 from . import kernels
-from .base import DenseOutput, Integrator
+from .base import EPS, DenseOutput, Integrator
 
 #: h * rho(N) above which the remainder is treated as stiff (module docstring)
 STIFF_REMAINDER_BOUND = 1.0
+#: relative change ||L(y) - L||_F / ||L||_F of a callable linear part that triggers its recomputation
+DRIFT_TOLERANCE = 1e-3
+#: longest interval, in steps, between two evaluations of a callable linear part that has not moved
+MAX_CHECK_INTERVAL = 64
 #: largest difference between the eigen-decomposition's exponential and scipy's expm (balanced coordinates,
 #: where the exponential's entries are O(1)) accepted as working accuracy
 EXPM_AGREEMENT = 1e-9
@@ -392,6 +396,8 @@ class ExponentialRK4(Integrator):
         self.no_base = np.empty(0)
         self.warned_stiff = False
         self.last_rho = 0.0
+        self.check_interval = 1
+        self.steps_since_check = 0
         self._set_linear_part(self.t, self.y)
 
     def _set_linear_part(self, t, y):
@@ -399,11 +405,21 @@ class ExponentialRK4(Integrator):
         indices, L = option(t, y.copy()) if callable(option) else option
         self.njev += 1
         part = LinearPart(indices, L, self.n, self.name)
-        part.check_exponential(self.h)
+        self.base_indices, self.base_L = part.indices, part.L
         self.nlu += 1
         if part.m == 0:
             warnings.warn(f"{self.name}: the linear part is empty (no flexible modes); the method is the classical "
                           f"rk4 at a higher cost per step", stacklevel=4)
+        else:
+            rows, coupling = self._driven_coupling(t, y, part)
+            if rows.size:
+                m, r = part.m, rows.size
+                L_ext = np.zeros((m + r, m + r))
+                L_ext[:m, :m] = part.L
+                L_ext[m:, :m] = coupling
+                part = LinearPart(np.concatenate([part.indices, rows]), L_ext, self.n, self.name)
+                self.nlu += 1
+        part.check_exponential(self.h)
         self.part = part
         self.y_lin = np.empty(part.m)
         self.w_lin = np.empty(part.m)
@@ -411,6 +427,49 @@ class ExponentialRK4(Integrator):
         self.Phi = part.real_functions(self.h)
         self.phi_diag_h = None
         self.phi_diag = None
+
+    def _check_drift(self, t, y, force):
+        """Re-evaluate a callable linear part (every ``check_interval`` steps, doubling up to
+        MAX_CHECK_INTERVAL while it does not move, or now when ``force``) and rebuild the matrix functions when
+        it moved by more than DRIFT_TOLERANCE. Returns True if it was rebuilt."""
+        self.steps_since_check += 1
+        if not force and self.steps_since_check < self.check_interval:
+            return False
+        self.steps_since_check = 0
+        indices, L = self.linear_part_option(t, y.copy())
+        self.njev += 1
+        L = np.asarray(L, dtype=np.float64)
+        scale = np.linalg.norm(self.base_L)
+        same_shape = L.shape == self.base_L.shape and np.array_equal(np.asarray(indices), self.base_indices)
+        drift = np.linalg.norm(L - self.base_L) / scale if same_shape and scale > 0.0 else np.inf
+        if drift <= DRIFT_TOLERANCE:
+            if drift <= 0.25 * DRIFT_TOLERANCE:
+                self.check_interval = min(2 * self.check_interval, MAX_CHECK_INTERVAL)
+            return False
+        self.check_interval = 1
+        self._set_linear_part(t, y)
+        return True
+
+    def _driven_coupling(self, t, y, part):
+        """(rows, C): the components outside the linear part whose derivative depends on it (an IMU integrating
+        a node's rate and acceleration, a wheel angle measured against the structure), and their coupling
+        ``C = (df/dy)[rows, linear] P`` to its oscillating modes (module docstring); forward differences over the
+        m linear components (m evaluations of fun, exact up to round-off for a linear dependence)."""
+        f = np.asarray(self.fun(t, y), dtype=np.float64)
+        J = np.empty((self.n, part.m))
+        y_pert = y.copy()
+        for k, i in enumerate(part.indices):
+            delta = np.sqrt(EPS) * max(1.0, abs(y[i]))
+            y_pert[i] = y[i] + delta
+            J[:, k] = (np.asarray(self.fun(t, y_pert), dtype=np.float64) - f) / delta
+            y_pert[i] = y[i]
+        self.nfev += part.m + 1
+        rows = np.flatnonzero(~part.is_linear & np.any(J != 0.0, axis=1))
+        # spectral projector on the non-zero eigenvalues: the zero ones (rigid-body velocities) are not stiff,
+        # and coupling a driven row to them would make the extended matrix defective (a Jordan block)
+        moving = np.abs(part.lam) > 1e3 * EPS * np.abs(part.lam).max()
+        P = ((part.V * moving) @ part.Vinv).real
+        return rows, J[rows] @ P
 
     def _stage(self, k, h, nominal, out):
         base_index, functions, coefficients = STAGES[k]
@@ -441,6 +500,8 @@ class ExponentialRK4(Integrator):
         h = remaining if last else self.h
         nominal = abs(h - self.h) <= 1e-12 * self.h
         t_new = self.t_bound if last else t + h
+        if callable(self.linear_part_option):
+            self._check_drift(t, self.y, force=False)
         refreshed = False
         while True:
             remainder(self.f, self.y, self.part.indices, self.part.L, self.y_lin, self.N[0])
@@ -456,9 +517,7 @@ class ExponentialRK4(Integrator):
                 if k == 1 and not refreshed and self._remainder_is_stiff(h):
                     if not callable(self.linear_part_option):
                         self._warn_stiff(h)
-                    else:
-                        self._set_linear_part(t, self.y)
-                        nominal = abs(h - self.h) <= 1e-12 * self.h
+                    elif self._check_drift(t, self.y, force=True):
                         refreshed = True
                         self.nrejected += 1
                         break
