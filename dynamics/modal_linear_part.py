@@ -43,12 +43,14 @@ When the configuration changes (refresh or not): ``L`` depends on ``q`` only thr
   array, a gimbaled flexible boom) change ``M_ff(q)`` and hence the system modes. The stiff term
   ``(M_ff(q)^-1 - M_ff(q0)^-1) K_aug eta`` then sits in ``N`` and is integrated explicitly: stable and
   accurate only while ``h ||L(q) - L(q0)||`` stays small. The exponential integrator
-  (:mod:`shell.integrators.exponential`) measures that stiffness of ``N`` on every step and, when it
-  grows past its threshold, re-evaluates this function at the current configuration (the shell passes it
-  as a callable) and recomputes its matrix functions; a fixed ``(indices, L)`` makes it warn instead.
+  (:mod:`shell.integrators.exponential`) therefore takes this function as a callable (the shell passes it
+  so), re-evaluates it every few steps (with back-off while it does not move) and recomputes its matrix
+  functions when ``L`` has moved by more than 0.1 %; it also watches the stiffness of ``N`` on every step
+  (and warns if it was given a fixed ``(indices, L)``). The observatory never triggers a rebuild.
 
 Cost: one mass matrix (composite-body algorithm) and one Cholesky solve with ``n_modes + 1`` right-hand
-sides per flexible body, ``O(nu^3)``: negligible against the matrix functions computed from ``L``.
+sides, ``O(nu^3)``: 0.7 ms for the 60-mode observatory (a fifth of one derivative evaluation), negligible
+against the matrix functions computed from ``L``.
 """
 
 from __future__ import annotations
