@@ -208,6 +208,12 @@ class LinearPart:
             out[f] = ((self.V * values) @ self.Vinv).real
         return out
 
+    def stage_matrices(self, h):
+        """For each stage of :data:`STAGES`, its phi matrices side by side (m x n_terms m, C order)."""
+        phi = self.real_functions(h)
+        return tuple(np.ascontiguousarray(np.hstack([phi[f] for f in functions])) if self.m else
+                     np.zeros((0, 0)) for _, functions, _ in STAGES)
+
     def diagonal_functions(self, h):
         """phi_k(c h lambda) of :data:`FUNCTIONS`, (len(FUNCTIONS), m) complex (eigenbasis steps)."""
         out = np.empty((len(FUNCTIONS), self.m), dtype=np.complex128)
@@ -217,18 +223,18 @@ class LinearPart:
 
 
 @njit(cache=True)
-def remainder(f, y, indices, L, y_lin, out):
-    """out = f - L y on the linear components, f elsewhere (N = f - L y); y_lin is scratch (m,)."""
+def remainder(f, y, indices, L, y_lin, product, out):
+    """out = f - L y on the linear components, f elsewhere (N = f - L y); y_lin, product are scratch (m,)."""
     for i in range(f.shape[0]):
         out[i] = f[i]
     m = indices.shape[0]
+    if m == 0:
+        return
     for a in range(m):
         y_lin[a] = y[indices[a]]
+    np.dot(L, y_lin, product)  # BLAS gemv
     for a in range(m):
-        acc = 0.0
-        for b in range(m):
-            acc += L[a, b] * y_lin[b]
-        out[indices[a]] -= acc
+        out[indices[a]] -= product[a]
 
 
 @njit(cache=True)
@@ -268,9 +274,12 @@ def _term_vectors(coefficients, y, N, h, W):
 
 
 @njit(cache=True)
-def stage_real(Phi, phi_at_zero, functions, coefficients, y, N, h, base, indices, is_linear, out, W, w_lin):
+def stage_real(Phi_stage, phi_at_zero, functions, coefficients, y, N, h, base, indices, is_linear, out, W, w_stack,
+               product):
     """One stage with the real matrices: out = base + sum_t Phi[f_t] W_t on the linear components and
-    base + sum_t phi_{f_t}(0) W_t elsewhere; ``base`` may be empty (zero). Returns True if out is finite."""
+    base + sum_t phi_{f_t}(0) W_t elsewhere; ``base`` may be empty (zero). ``Phi_stage`` holds the stage's
+    matrices side by side (m x n_terms m), so the linear components cost one BLAS gemv. Returns True if out is
+    finite."""
     n = y.shape[0]
     n_terms = functions.shape[0]
     _term_vectors(coefficients, y, N, h, W)
@@ -282,23 +291,21 @@ def stage_real(Phi, phi_at_zero, functions, coefficients, y, N, h, base, indices
                 acc += phi_at_zero[functions[t]] * W[t, i]
         out[i] = acc
     m = indices.shape[0]
-    for t in range(n_terms):
-        for b in range(m):
-            w_lin[b] = W[t, indices[b]]
-        P = Phi[functions[t]]
-        for a in range(m):
-            acc = 0.0
+    if m:
+        for t in range(n_terms):
             for b in range(m):
-                acc += P[a, b] * w_lin[b]
-            out[indices[a]] += acc
+                w_stack[t * m + b] = W[t, indices[b]]
+        np.dot(Phi_stage, w_stack[:n_terms * m], product)
+        for a in range(m):
+            out[indices[a]] += product[a]
     return kernels.all_finite(out)
 
 
 @njit(cache=True)
 def stage_eigen(V, Vinv, phi_diag, phi_at_zero, functions, coefficients, y, N, h, base, indices, is_linear, out,
-                W, z_acc):
+                W, z_acc, z_in, z_out):
     """As :func:`stage_real` with the linear components in the eigenbasis:
-    out_lin = base_lin + Re(V sum_t phi_{f_t} (Vinv W_t,lin))."""
+    out_lin = base_lin + Re(V sum_t phi_{f_t} (Vinv W_t,lin)) (complex BLAS gemv; z_* are (m,) scratch)."""
     n = y.shape[0]
     n_terms = functions.shape[0]
     _term_vectors(coefficients, y, N, h, W)
@@ -310,20 +317,20 @@ def stage_eigen(V, Vinv, phi_diag, phi_at_zero, functions, coefficients, y, N, h
                 acc += phi_at_zero[functions[t]] * W[t, i]
         out[i] = acc
     m = indices.shape[0]
+    if m == 0:
+        return kernels.all_finite(out)
     for a in range(m):
         z_acc[a] = 0.0
     for t in range(n_terms):
+        for b in range(m):
+            z_in[b] = W[t, indices[b]]
+        np.dot(Vinv, z_in, z_out)
         d = phi_diag[functions[t]]
         for a in range(m):
-            acc = 0.0j
-            for b in range(m):
-                acc += Vinv[a, b] * W[t, indices[b]]
-            z_acc[a] += d[a] * acc
+            z_acc[a] += d[a] * z_out[a]
+    np.dot(V, z_acc, z_out)
     for a in range(m):
-        acc = 0.0j
-        for b in range(m):
-            acc += V[a, b] * z_acc[b]
-        out[indices[a]] += acc.real
+        out[indices[a]] += z_out[a].real
     return kernels.all_finite(out)
 
 
@@ -434,9 +441,12 @@ class ExponentialRK4(Integrator):
         part.check_exponential(self.h)
         self.part = part
         self.y_lin = np.empty(part.m)
-        self.w_lin = np.empty(part.m)
+        self.product = np.empty(part.m)
+        self.w_stack = np.empty(3 * part.m)
         self.z_acc = np.empty(part.m, dtype=np.complex128)
-        self.Phi = part.real_functions(self.h)
+        self.z_in = np.empty(part.m, dtype=np.complex128)
+        self.z_out = np.empty(part.m, dtype=np.complex128)
+        self.Phi_stages = part.stage_matrices(self.h)
         self.phi_diag_h = None
         self.phi_diag = None
 
@@ -489,20 +499,20 @@ class ExponentialRK4(Integrator):
         part = self.part
         W = self.W[:functions.shape[0]]
         if nominal:
-            return stage_real(self.Phi, PHI_AT_ZERO, functions, coefficients, self.y, self.N, h, base,
-                              part.indices, part.is_linear, out, W, self.w_lin)
+            return stage_real(self.Phi_stages[k], PHI_AT_ZERO, functions, coefficients, self.y, self.N, h, base,
+                              part.indices, part.is_linear, out, W, self.w_stack, self.product)
         if self.phi_diag_h != h:
             self.phi_diag = part.diagonal_functions(h)
             self.phi_diag_h = h
         return stage_eigen(part.V, part.Vinv, self.phi_diag, PHI_AT_ZERO, functions, coefficients, self.y, self.N,
-                           h, base, part.indices, part.is_linear, out, W, self.z_acc)
+                           h, base, part.indices, part.is_linear, out, W, self.z_acc, self.z_in, self.z_out)
 
     def _evaluate_remainder(self, j, t, y):
         f = np.asarray(self.fun(t, y), dtype=np.float64)
         self.nfev += 1
         if not kernels.all_finite(f):
             return f
-        remainder(f, y, self.part.indices, self.part.L, self.y_lin, self.N[j])
+        remainder(f, y, self.part.indices, self.part.L, self.y_lin, self.product, self.N[j])
         return None
 
     def _step_impl(self):
@@ -516,7 +526,7 @@ class ExponentialRK4(Integrator):
             self._check_drift(t, self.y, force=False)
         refreshed = False
         while True:
-            remainder(self.f, self.y, self.part.indices, self.part.L, self.y_lin, self.N[0])
+            remainder(self.f, self.y, self.part.indices, self.part.L, self.y_lin, self.product, self.N[0])
             for k in range(3):
                 if not self._stage(k, h, nominal, self.Y[k]):
                     return self._fail(self._nonfinite_reason(f"stage {k + 2}", t + C_NODES[k] * h, self.Y[k]),
