@@ -27,17 +27,19 @@ and of stiff order 3 for any ``L`` generating a bounded semigroup (Hochbruck & O
 Anal. 43:1069-1090, 2005). With ``L = 0`` it is the classical RK4, which is what the components outside the
 linear part (attitude quaternions, positions, hinge angles) see.
 
-Choice by measurement (``benchmarks/observatory.py``, docs/integrators.md): on the observatory scene (190
-modes up to 1943 Hz, IMU rate, attitude and modal coordinates after 0.05 s with smooth wheel and thruster
-loads, against RK4 at 25 us) Lawson's integrating-factor RK4 (``e^{-tL}`` transformation, Lawson 1967),
-Cox & Matthews' ETDRK4 (J. Comput. Phys. 176:430-455, 2002), Krogstad's scheme and the five-stage stiff-order-4
-method of Hochbruck & Ostermann (2005) were run at h = 2, 1, 0.5 ms. Lawson's error in the IMU rate is 1e4
-times the ETD schemes' (1.4e-4 against 1.7e-8 rad/s at 2 ms): it is not exact for constant forcing, so
-every quasi-static modal response carries an O(h omega) error. The three ETD schemes agree to three digits;
-Hochbruck & Ostermann's costs a fifth stage for no measurable gain; Krogstad's has the better stiff order of
-the two four-stage schemes at the same cost. A Rosenbrock (linearly implicit) method with the modal Jacobian
-was not retained: its stability function damps or phase-shifts modes with h omega >> 1 (L-stable: the top
-mode disappears, A-stable: it is aliased), where the exponential is exact, for the same O(m^2) work per stage.
+Choice by measurement (a numpy prototype of four schemes, not kept, on the 190-mode observatory of
+benchmarks/linearize_speed.py: modes to 1943 Hz, open loop with smooth wheel and thruster loads, 50 ms, against
+RK4 at 25 us): Lawson's integrating-factor RK4 (``e^{-tL}`` transformation, Lawson 1967), Cox & Matthews'
+ETDRK4 (J. Comput. Phys. 176:430-455, 2002), Krogstad's scheme and the five-stage stiff-order-4 method of
+Hochbruck & Ostermann (2005) at h = 2, 1, 0.5 ms. Lawson's error in the IMU node's rate was 1.4e-4, 1.8e-5 and
+4.3e-6 rad/s, the three ETD schemes' 1.7e-8 at every step, which is the reference's own error: Lawson's
+method is not exact for constant forcing, so every quasi-static modal response carries an O(h omega) error.
+The ETD schemes could not be told apart (attitude within 2.6e-13 of each other); Hochbruck & Ostermann's costs
+a fifth stage, and of the two four-stage schemes Krogstad's has the better stiff order in theory (3 against
+2, Hochbruck & Ostermann 2005) at the same cost, hence this one. A Rosenbrock (linearly implicit) method with
+the modal Jacobian was not measured: its stability function damps or phase-shifts the modes with
+h omega >> 1 (L-stable: the top mode disappears; A-stable: it is aliased) that the exponential propagates
+exactly, for the same O(m^2) work per stage.
 
 Matrix functions: ``L`` is balanced (``D^-1 L D``, Parlett & Reinsch 1969, scipy.linalg.matrix_balance) and
 diagonalized, ``L = (D V) diag(lambda) (D V)^-1``; the phi_k of each eigenvalue come from their Taylor series
@@ -45,8 +47,9 @@ for |z| < 1 and from the recurrence above otherwise. The exponential obtained th
 scipy.linalg.expm (Pade with scaling and squaring, an independent algorithm) at every (re)computation; a
 linear part that is not diagonalizable to working accuracy (a critically damped or zero-frequency mode with
 a free rate) is refused with that message. For the nominal step the real matrices ``phi_k(c h L)`` are
-formed once (7 matrices of m x m); a shortened step (the last one before ``t_bound``, after an event) works
-in the eigenbasis instead (O(m) functions, two complex m x m products per term).
+formed once and stored side by side per stage (8 m x m blocks, one BLAS product per stage); a shortened step
+(the last one before ``t_bound``, after an event) works in the eigenbasis instead (O(m) functions, one complex
+m x m product per term and one back).
 
 Dense output: the continuous extension of the same quadrature, exact for the linear part,
 ``y(t + theta h) = phi_0(theta h L) y + theta h [phi_1 n0 + theta phi_2 n1 + 2 theta^2 phi_3 n2](theta h L)``

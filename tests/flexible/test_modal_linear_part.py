@@ -77,8 +77,8 @@ def test_linear_part_is_the_engine_jacobian_at_rest(structure):
     np.testing.assert_array_equal(L[:n_eta], expected_top)
     J = engine_jacobian(system, q0, indices)
     scale = np.abs(L[n_eta:]).max()
-    # eta columns: O(delta^2 |d3 f|) of the order-2 modal integrals and round-off eps |f| / delta; measured 3e-10
-    assert np.abs(J - L[n_eta:]).max() <= 1e-8 * scale, np.abs(J - L[n_eta:]).max() / scale
+    # eta columns: O(delta^2 |d3 f|) of the order-2 modal integrals (delta = 1e-6) and round-off; measured 9.5e-16
+    assert np.abs(J - L[n_eta:]).max() <= 1e-11 * scale, np.abs(J - L[n_eta:]).max() / scale
 
 
 def test_eigenvalues_are_the_system_modes(structure):
@@ -156,6 +156,7 @@ def test_energy_and_momentum_of_a_free_flexible_body(structure):
         drift[h] = (abs(energy(integ.y) / energy(x0) - 1.0),
                     np.linalg.norm(momentum(integ.y) - momentum(x0)) / np.linalg.norm(momentum(x0)))
         assert integ.nlu == 2  # the linear part and its driven rows (attitude) once: L does not move
+    # measured 2026-11-23: energy 8.0e-6 / 2.6e-8, momentum 3.8e-6 / 1.9e-8 at 2 / 1 ms (ratios 310, 200)
     assert drift[1e-3][0] < 1e-7 and drift[1e-3][1] < 1e-7, drift
     assert drift[2e-3][0] / drift[1e-3][0] > 16 and drift[2e-3][1] / drift[1e-3][1] > 16, drift
     # RK4 at the same step: the 827 Hz mode (h omega = 5.2 > 2.83) grows until the deformed body's mass matrix
