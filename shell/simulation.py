@@ -35,7 +35,7 @@ from shell import compiled_loop as CL
 from shell.assembly import Assembly
 from shell.compiled_plan import compile_plan
 from shell.diagram import AlgebraicLoopError, Diagram, EvaluationError, WiringError, gather_inputs
-from shell.integrators import locate_events, make_integrator, quaternion_gauge
+from shell.integrators import INTEGRATORS, locate_events, make_integrator, quaternion_gauge
 from shell.log_file import LoggedSignal, LogWriter, MemoryLog
 from shell.model import ModelError, parse_period
 from shell.units import format_unit
@@ -292,6 +292,24 @@ class Simulation:
         if w_indices.size and "error_exclude" not in options:
             # quaternion norms are fixed by normalize; their error along the quaternion is gauge, not error
             options["error_exclude"] = quaternion_gauge(w_indices)
+        # exponential integrators get the stiff linear part of every model that has one
+        method = INTEGRATORS.get(str(self.integrator_name).lower(), self.integrator_name)
+        if getattr(method, "uses_linear_part", False) and "linear_part" not in options:
+            parts = [(self.diagram.x_block[i], m, self.context.hosts[i]) for i, m in enumerate(self.models)
+                     if hasattr(m, "stiff_linear_part")]
+
+            def linear_part(t, y):
+                """Block-diagonal union of the models' (local indices, L), offset to the full state."""
+                pieces = [(block.start, *model.stiff_linear_part(y[block], host)) for block, model, host in parts]
+                indices = [start + np.asarray(local, dtype=np.int64) for start, local, _ in pieces]
+                m = sum(index.size for index in indices)
+                L = np.zeros((m, m))
+                k = 0
+                for (_, _, block_L), index in zip(pieces, indices):
+                    L[k:k + index.size, k:k + index.size] = block_L
+                    k += index.size
+                return (np.concatenate(indices) if indices else np.zeros(0, dtype=np.int64)), L
+            options["linear_part"] = linear_part
         return make_integrator(self.integrator_name, self.rhs, self.t, self.x.copy(), t_bound,
                                normalize=normalize, **options)
 

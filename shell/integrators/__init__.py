@@ -13,18 +13,20 @@ from .adaptive import DOP853, BogackiShampine32, DormandPrince54, EmbeddedRungeK
 from .base import DenseOutput, Integrator, quaternion_gauge
 from .driver import IntegrationResult, integrate
 from .events import event, locate_events
+from .exponential import ExponentialRK4, StiffRemainderWarning
 from .implicit import Radau5
 from .fixed import RK4, RK8, ExplicitEuler, FixedStepRungeKutta, Heun
 
 INTEGRATORS = {cls.name: cls for cls in (ExplicitEuler, Heun, RK4, RK8, BogackiShampine32, DormandPrince54,
-                                         DOP853, Radau5)}
+                                         DOP853, Radau5, ExponentialRK4)}
 
 
 def make_integrator(method, fun, t0, y0, t_bound, **options):
     """Construct the integrator named ``method`` (a key of ``INTEGRATORS``) or given as a class.
 
     Options: ``step`` (fixed-step methods: the step; adaptive: initial step guess), ``rtol``, ``atol``,
-    ``max_step``, ``normalize``, ``error_exclude``, and ``jac`` for implicit methods.
+    ``max_step``, ``normalize``, ``error_exclude``, ``jac`` for implicit methods, and ``linear_part`` for the
+    exponential method (classes with ``uses_linear_part``).
     """
     if isinstance(method, type) and issubclass(method, Integrator):
         cls = method
@@ -44,4 +46,5 @@ def make_integrator(method, fun, t0, y0, t_bound, **options):
 __all__ = ["INTEGRATORS", "make_integrator", "Integrator", "DenseOutput", "quaternion_gauge",
            "locate_events", "event", "integrate", "IntegrationResult",
            "FixedStepRungeKutta", "ExplicitEuler", "Heun", "RK4", "RK8",
-           "EmbeddedRungeKutta", "BogackiShampine32", "DormandPrince54", "DOP853", "StiffnessWarning", "Radau5"]
+           "EmbeddedRungeKutta", "BogackiShampine32", "DormandPrince54", "DOP853", "StiffnessWarning", "Radau5",
+           "ExponentialRK4", "StiffRemainderWarning"]

@@ -76,12 +76,14 @@ BODY_KEYS = {
     "parent_node": "node of a flexible parent the hinge attaches at",
     "body_file": "flexible body file (HDF5, from flexshell fem2modal), relative to the scenario",
     "modes": "indices of the body file's modes to keep (default all)",
+    "max_frequency": "keep the body file's modes at or below this frequency, e.g. 100 Hz (with modes: the listed "
+                     "modes below it)",
     "modal_integrals_order": "0, 1 or 2: order of the deformation-dependent modal integrals (default 2)",
     "damping_ratio": "modal damping ratio overriding the body file's",
     "integrals": "general or point_mass modal integrals (default general)",
     "child_grid": "grid of this flexible body that the hinge holds (its deforming interface grid)",
 }
-FLEXIBLE_ONLY = ("modes", "modal_integrals_order", "damping_ratio", "integrals", "child_grid")
+FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "damping_ratio", "integrals", "child_grid")
 INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
     "q": ("", "all"), "u": ("", "all"),
     "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
@@ -429,6 +431,15 @@ class MultibodyModel(Model):
     #: renormalize hinge quaternions in place (the integrator's normalize hook): ``normalize_state(x, d)``
     normalize_state = staticmethod(_engine_normalize)
 
+    def stiff_linear_part(self, x, system=None):
+        """(indices into this model's [q; u], L): the linear modal dynamics at the configuration of ``x`` that
+        an exponential integrator propagates exactly (:func:`dynamics.modal_linear_part.modal_linear_part`);
+        ``system``: the run's engine system (a Monte Carlo context's own mass properties), default the model's."""
+        from dynamics.modal_linear_part import modal_linear_part
+
+        system = self.system if system is None else system
+        return modal_linear_part(system, x[:system.nq])
+
     def quaternion_w_indices(self) -> list[int]:
         """Positions in this model's state of each hinge quaternion's w (for the integrator's error norm)."""
         return [int(k) for k in self.system.quaternion_q_indices]
@@ -569,6 +580,8 @@ def _flexible_options(body, where) -> dict:
         if not isinstance(modes, list) or not all(isinstance(m, int) and not isinstance(m, bool) for m in modes):
             raise where.child(body, "modes").error(f"expected a list of mode indices, given {modes!r}")
         options["modes"] = list(modes)
+    if "max_frequency" in body:
+        options.update(_max_frequency_options(body, where, path, options.get("modes")))
     if "modal_integrals_order" in body:
         order = body["modal_integrals_order"]
         if order not in (0, 1, 2):
@@ -586,6 +599,40 @@ def _flexible_options(body, where) -> dict:
             raise where.child(body, "child_grid").error(f"expected an FE grid id (integer), given {grid!r}")
         options["child_grid"] = grid
     return options
+
+
+def _max_frequency_options(body, where, path, modes) -> dict:
+    """``modal`` (the body file, read once) and ``modes`` kept by the ``max_frequency:`` cutoff
+    (:func:`dynamics.mode_selection.select_modes`); the value must carry a cyclic-frequency unit."""
+    import warnings
+
+    from dynamics.flex.body_file import read_body_file
+    from dynamics.mode_selection import select_modes
+
+    from shell.units import ureg
+
+    here = where.child(body, "max_frequency")
+    value = body["max_frequency"]
+    f_max = float(_vector(body, "max_frequency", "Hz", (), where))  # refuses what is not a frequency
+    if isinstance(value, dict):
+        quantity = ureg.Quantity(1.0, value["unit"])
+    else:
+        quantity = ureg.Quantity(value) if isinstance(value, str) else None
+    if quantity is None or quantity.unitless:
+        raise here.error(f"expected a frequency with its unit, e.g. '100 Hz', given {value!r}")
+    if "radian" in str(quantity.to_root_units().units):  # pint takes rad as 1: 628 rad/s would pass as 628 Hz
+        raise here.error(f"max_frequency is a cyclic frequency: give it in Hz, not in an angular unit (given "
+                         f"{value!r}, i.e. {f_max / (2 * np.pi):.6g} Hz)")
+    modal = read_body_file(path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            keep = select_modes(modal.frequencies_hz, modes, f_max)
+        except ValueError as exc:
+            raise here.error(str(exc).replace("select_modes: ", "")) from None
+    for warning in caught:
+        warnings.warn(f"{here}: {str(warning.message).replace('select_modes: ', '')}", stacklevel=2)
+    return {"modal": modal, "modes": keep.tolist()}
 
 
 def _rename(where, body_name):

@@ -1,0 +1,591 @@
+"""Exponential Runge-Kutta integrator of order 4 (Krogstad's ETDRK4): flexible modes propagated exactly.
+
+A flexible scene ``y' = f(t, y)`` is split as ``y' = L y + N(t, y)`` with ``L`` the linear modal part
+(:func:`dynamics.modal_linear_part.modal_linear_part`: stiffness and damping through the mass matrix at a
+configuration, all the high frequencies) and ``N = f - L y`` the rest (rigid-body motion, gyroscopic terms,
+actuators; slow). The method integrates ``L`` exactly through the matrix functions
+
+    phi_0(z) = e^z,   phi_{k+1}(z) = (phi_k(z) - 1/k!) / z,   i.e.  phi_k(hL) = int_0^1 e^{(1-s)hL} s^{k-1}/(k-1)! ds,
+
+and treats ``N`` explicitly; its step is limited by how fast ``N`` varies, not by the top mode
+(Hochbruck & Ostermann, "Exponential integrators", Acta Numerica 19:209-286, 2010, Sec. 2.3).
+
+Method: Krogstad's four-stage scheme (S. Krogstad, "Generalized integrating factor methods for stiff
+PDEs", J. Comput. Phys. 203:72-88, 2005; Hochbruck & Ostermann 2010 eq. 2.39), with ``phi_{k,c} =
+phi_k(c h L)``, ``N_i = N(t + c_i h, Y_i)``, c = (0, 1/2, 1/2, 1):
+
+    Y2 = phi_{0,1/2} y + h/2 phi_{1,1/2} N1
+    Y3 = Y2 + h phi_{2,1/2} (N2 - N1)
+    Y4 = phi_0 y + h phi_1 N1 + 2h phi_2 (N3 - N1)
+    y1 = Y4 + h phi_2 (-N1 + 2 N2 - N4) + 4h phi_3 (N1 - N2 - N3 + N4)
+
+(the last line is Krogstad's ``y1 = phi_0 y + h [b1 N1 + b2 N2 + b3 N3 + b4 N4]``, ``b1 = phi_1 - 3 phi_2 +
+4 phi_3``, ``b2 = b3 = 2 phi_2 - 4 phi_3``, ``b4 = 4 phi_3 - phi_2``, written from Y4 so that each step
+costs 8 products with an m x m matrix, m = size of the linear part). It is exact for ``y' = L y + c``
+(constant forcing: a static deflection under a held actuator command comes out exact), of classical order 4,
+and of stiff order 3 for any ``L`` generating a bounded semigroup (Hochbruck & Ostermann, SIAM J. Numer.
+Anal. 43:1069-1090, 2005). With ``L = 0`` it is the classical RK4, which is what the components outside the
+linear part (attitude quaternions, positions, hinge angles) see.
+
+Choice by measurement (a numpy prototype of four schemes, not kept, on the 190-mode observatory of
+benchmarks/linearize_speed.py: modes to 1943 Hz, open loop with smooth wheel and thruster loads, 50 ms, against
+RK4 at 25 us): Lawson's integrating-factor RK4 (``e^{-tL}`` transformation, Lawson 1967), Cox & Matthews'
+ETDRK4 (J. Comput. Phys. 176:430-455, 2002), Krogstad's scheme and the five-stage stiff-order-4 method of
+Hochbruck & Ostermann (2005) at h = 2, 1, 0.5 ms. Lawson's error in the IMU node's rate was 1.4e-4, 1.8e-5 and
+4.3e-6 rad/s, the three ETD schemes' 1.7e-8 at every step, which is the reference's own error: Lawson's
+method is not exact for constant forcing, so every quasi-static modal response carries an O(h omega) error.
+The ETD schemes could not be told apart (attitude within 2.6e-13 of each other); Hochbruck & Ostermann's costs
+a fifth stage, and of the two four-stage schemes Krogstad's has the better stiff order in theory (3 against
+2, Hochbruck & Ostermann 2005) at the same cost, hence this one. A Rosenbrock (linearly implicit) method with
+the modal Jacobian was not measured: its stability function damps or phase-shifts the modes with
+h omega >> 1 (L-stable: the top mode disappears; A-stable: it is aliased) that the exponential propagates
+exactly, for the same O(m^2) work per stage.
+
+Matrix functions: ``L`` is balanced (``D^-1 L D``, Parlett & Reinsch 1969, scipy.linalg.matrix_balance) and
+diagonalized, ``L = (D V) diag(lambda) (D V)^-1``; the phi_k of each eigenvalue come from their Taylor series
+for |z| < 1 and from the recurrence above otherwise. The exponential obtained this way is checked against
+scipy.linalg.expm (Pade with scaling and squaring, an independent algorithm) at every (re)computation; a
+linear part that is not diagonalizable to working accuracy (a critically damped or zero-frequency mode with
+a free rate) is refused with that message. For the nominal step the real matrices ``phi_k(c h L)`` are
+formed once and stored side by side per stage (8 m x m blocks, one BLAS product per stage); a shortened step
+(the last one before ``t_bound``, after an event) works in the eigenbasis instead (O(m) functions, one complex
+m x m product per term and one back).
+
+Dense output: the continuous extension of the same quadrature, exact for the linear part,
+``y(t + theta h) = phi_0(theta h L) y + theta h [phi_1 n0 + theta phi_2 n1 + 2 theta^2 phi_3 n2](theta h L)``
+with ``n0 + n1 s + n2 s^2`` the quadratic through N1, (N2 + N3)/2 and N4 at s = 0, 1/2, 1 (third order;
+equal to the step at theta = 1; for ``L = 0`` it is RK4's standard cubic continuous extension), evaluated
+in the eigenbasis.
+
+Driven components: states outside the linear part whose derivative depends on it (an IMU integrating its
+node's rate and acceleration, a wheel angle measured against the structure, the attitude quaternion) would see
+the fast modes only through RK4's quadrature nodes, which alias a mode with h omega >> 1 (measured on the
+observatory: 23 % error in the IMU rate at 1 ms). When the linear part is set, the columns ``df/dy`` over its
+m components are taken by forward differences (m evaluations of ``fun``); the rows outside it that depend on
+them join the linear part with their coupling ``C P`` to its oscillating modes (``P`` the spectral projector
+on the non-zero eigenvalues; the rigid-body directions are not stiff and would make the extended matrix
+defective) and zero columns, so their integrals of the modal motion are exact too (IMU rate error 9e-5).
+
+Changing configuration: ``L`` is built at the configuration where the integrator starts. If hinged parts
+then rotate far enough to change the mass matrix, the difference ``(L(q) - L(q0)) y`` is a stiff term inside
+``N`` that the explicit part integrates badly. With a callable ``linear_part(t, y)`` (what the shell passes)
+the integrator re-evaluates it after 1, 2, 4, ... up to MAX_CHECK_INTERVAL steps while it does not move (a
+mass matrix and a Cholesky solve: ~0.7 ms for the 60-mode observatory, a fifth of one derivative) and rebuilds
+the matrix functions and the driven rows when ``||L(y) - L||_F / ||L||_F > DRIFT_TOLERANCE``; the check starts
+again every step after a rebuild. Independently, each step estimates the stiffness of ``N`` from its two stages
+at c = 1/2 (``rho = ||N3 - N2|| / ||Y3 - Y2||``, the Rayleigh-quotient estimate of HNW I Sec. IV.2, skipped
+when ``||Y3 - Y2||`` is within round-off of ``L Y``); when ``h rho > 1`` (a third of RK4's explicit stability
+radius 2.83) a callable is checked at once (and the step retaken after a rebuild), a fixed ``(indices, L)``
+gives a :class:`StiffRemainderWarning`.
+"""
+import math
+import warnings
+
+import numpy as np
+import scipy.linalg
+from numba import njit
+
+from . import kernels
+from .base import EPS, DenseOutput, Integrator
+
+#: h * rho(N) above which the remainder is treated as stiff (module docstring)
+STIFF_REMAINDER_BOUND = 1.0
+#: relative change ||L(y) - L||_F / ||L||_F of a callable linear part that triggers its recomputation
+DRIFT_TOLERANCE = 1e-3
+#: longest interval, in steps, between two evaluations of a callable linear part that has not moved
+MAX_CHECK_INTERVAL = 64
+#: largest difference between the eigen-decomposition's exponential and scipy's expm (balanced coordinates,
+#: where the exponential's entries are O(1)) accepted as working accuracy
+EXPM_AGREEMENT = 1e-9
+#: phi functions: (c, k) of the real matrices formed for the nominal step, in the order of the stage terms
+FUNCTIONS = ((0.5, 0), (0.5, 1), (0.5, 2), (1.0, 0), (1.0, 1), (1.0, 2), (1.0, 3))
+PHI_AT_ZERO = np.array([1.0 / math.factorial(k) for _, k in FUNCTIONS])
+
+# Stage table. Each stage is (base, terms): Y = base + sum_t Phi[function_t] @ (C_t[0] y + h sum_j C_t[j] N_j)
+# with base -1 (none) or an earlier stage state (0: Y2, 2: Y4); columns of C: y, N1, N2, N3, N4.
+_STAGE2 = (-1, ((0, (1.0, 0.0, 0.0, 0.0, 0.0)), (1, (0.0, 0.5, 0.0, 0.0, 0.0))))
+_STAGE3 = (0, ((2, (0.0, -1.0, 1.0, 0.0, 0.0)),))
+_STAGE4 = (-1, ((3, (1.0, 0.0, 0.0, 0.0, 0.0)), (4, (0.0, 1.0, 0.0, 0.0, 0.0)), (5, (0.0, -2.0, 0.0, 2.0, 0.0))))
+_FINAL = (2, ((5, (0.0, -1.0, 2.0, 0.0, -1.0)), (6, (0.0, 4.0, -4.0, -4.0, 4.0))))
+
+
+def _table(stage):
+    base, terms = stage
+    return (base, np.array([t[0] for t in terms], dtype=np.int64),
+            np.array([t[1] for t in terms], dtype=np.float64))
+
+
+STAGES = tuple(_table(s) for s in (_STAGE2, _STAGE3, _STAGE4, _FINAL))
+C_NODES = (0.5, 0.5, 1.0)  # times of stages 2, 3, 4
+
+
+class StiffRemainderWarning(UserWarning):
+    """The part of the dynamics outside the linear part has become stiff (the configuration moved away from
+    the one the linear part was built at)."""
+
+
+def phi_functions(z, k_max):
+    """``phi_0(z) .. phi_{k_max}(z)`` of a complex array z, shape (k_max + 1, z.size).
+
+    Taylor series ``phi_k(z) = sum_j z^j / (j + k)!`` for |z| < 1 (30 terms: truncation below 1e-32), the
+    recurrence ``phi_{k+1} = (phi_k - 1/k!) / z`` from ``e^z`` otherwise (cancellation bounded by 1/|z|^k <= 1).
+    """
+    z = np.asarray(z, dtype=np.complex128).ravel()
+    out = np.empty((k_max + 1, z.size), dtype=np.complex128)
+    small = np.abs(z) < 1.0
+    zs = z[small]
+    for k in range(k_max + 1):
+        acc = np.zeros_like(zs)
+        for j in range(29, -1, -1):  # Horner in z
+            acc = acc * zs + 1.0 / math.factorial(j + k)
+        out[k, small] = acc
+    zl = z[~small]
+    value = np.exp(zl)
+    out[0, ~small] = value
+    for k in range(k_max):
+        value = (value - 1.0 / math.factorial(k)) / zl
+        out[k + 1, ~small] = value
+    return out
+
+
+class LinearPart:
+    """The linear part over ``indices`` of an n-state system and its eigen-decomposition (module docstring)."""
+
+    def __init__(self, indices, L, n, name):
+        indices = np.asarray(indices)
+        if indices.ndim != 1 or (indices.size and not np.issubdtype(indices.dtype, np.integer)):
+            raise ValueError(f"{name}: linear_part indices must be a 1-D integer array, got {indices!r}")
+        indices = indices.astype(np.int64)
+        if indices.size and (indices.min() < 0 or indices.max() >= n):
+            raise ValueError(f"{name}: linear_part indices must lie in [0, {n}), got range "
+                             f"[{indices.min()}, {indices.max()}]")
+        if np.unique(indices).size != indices.size:
+            raise ValueError(f"{name}: linear_part indices repeat a state component")
+        L = np.array(L, dtype=np.float64)
+        m = indices.size
+        if L.shape != (m, m):
+            raise ValueError(f"{name}: linear_part L must be square over its {m} indices, got shape {L.shape}")
+        if not np.all(np.isfinite(L)):
+            raise ValueError(f"{name}: linear_part L has non-finite entries")
+        self.name = name
+        self.indices = indices
+        self.L = np.ascontiguousarray(L)
+        self.m = m
+        self.L_norm = float(np.abs(L).sum(axis=1).max()) if m else 0.0
+        self.is_linear = np.zeros(n, dtype=np.bool_)
+        self.is_linear[indices] = True
+        if m:
+            balanced, (scale, _) = scipy.linalg.matrix_balance(L, permute=False, separate=True)
+            lam, V = np.linalg.eig(balanced)
+            self.lam = lam
+            self.scale = scale
+            self.V_balanced = V
+            self.Vinv_balanced = np.linalg.inv(V)
+            self.balanced = balanced
+            self.V = np.ascontiguousarray(scale[:, None] * V)
+            self.Vinv = np.ascontiguousarray(self.Vinv_balanced / scale[None, :])
+        else:
+            self.lam = np.zeros(0, dtype=np.complex128)
+            self.V = self.Vinv = np.zeros((0, 0), dtype=np.complex128)
+
+    def check_exponential(self, h):
+        """Refuse a decomposition whose exponential e^{hL} disagrees with scipy's expm (module docstring)."""
+        if not self.m:
+            return
+        E_eig = (self.V_balanced * np.exp(h * self.lam)) @ self.Vinv_balanced
+        E_ref = scipy.linalg.expm(h * self.balanced)
+        diff = float(np.abs(E_eig - E_ref).max())
+        if not diff <= EXPM_AGREEMENT * max(1.0, float(np.abs(E_ref).max())):
+            raise ValueError(
+                f"{self.name}: the linear part is not diagonalizable to working accuracy (its exponential over "
+                f"h = {h:.6g} s from the eigen-decomposition differs from scipy.linalg.expm by {diff:.3g}; "
+                f"condition number of the eigenvectors {np.linalg.cond(self.V_balanced):.3g}). A critically damped "
+                f"mode or a zero-frequency mode makes L defective; remove that mode (modes:/max_frequency:) or use "
+                f"rk4 with a step below the stability limit, or radau5")
+
+    def real_functions(self, h):
+        """The real matrices phi_k(c h L) of :data:`FUNCTIONS`, stacked (len(FUNCTIONS), m, m), original axes."""
+        out = np.empty((len(FUNCTIONS), self.m, self.m))
+        for f, (c, k) in enumerate(FUNCTIONS):
+            values = phi_functions(c * h * self.lam, k)[k]
+            out[f] = ((self.V * values) @ self.Vinv).real
+        return out
+
+    def stage_matrices(self, h):
+        """For each stage of :data:`STAGES`, its phi matrices side by side (m x n_terms m, C order)."""
+        phi = self.real_functions(h)
+        return tuple(np.ascontiguousarray(np.hstack([phi[f] for f in functions])) if self.m else
+                     np.zeros((0, 0)) for _, functions, _ in STAGES)
+
+    def diagonal_functions(self, h):
+        """phi_k(c h lambda) of :data:`FUNCTIONS`, (len(FUNCTIONS), m) complex (eigenbasis steps)."""
+        out = np.empty((len(FUNCTIONS), self.m), dtype=np.complex128)
+        for f, (c, k) in enumerate(FUNCTIONS):
+            out[f] = phi_functions(c * h * self.lam, k)[k]
+        return out
+
+
+@njit(cache=True)
+def remainder(f, y, indices, L, y_lin, product, out):
+    """out = f - L y on the linear components, f elsewhere (N = f - L y); y_lin, product are scratch (m,)."""
+    for i in range(f.shape[0]):
+        out[i] = f[i]
+    m = indices.shape[0]
+    if m == 0:
+        return
+    for a in range(m):
+        y_lin[a] = y[indices[a]]
+    np.dot(L, y_lin, product)  # BLAS gemv
+    for a in range(m):
+        out[indices[a]] -= product[a]
+
+
+@njit(cache=True)
+def remainder_stiffness(N2, N3, Y2, Y3, indices, L_norm):
+    """(rho, noise): rho = ||N3 - N2|| / ||Y3 - Y2|| (HNW I Sec. IV.2) and the same quotient for a difference
+    N3 - N2 made of round-off alone, 64 eps (||N3|| + ||L|| ||Y3_lin||) / ||Y3 - Y2|| (inf when Y3 = Y2)."""
+    dn = 0.0
+    dy = 0.0
+    n3 = 0.0
+    for i in range(N2.shape[0]):
+        dn += (N3[i] - N2[i]) ** 2
+        dy += (Y3[i] - Y2[i]) ** 2
+        n3 += N3[i] ** 2
+    y3 = 0.0
+    for a in range(indices.shape[0]):
+        y3 += Y3[indices[a]] ** 2
+    if dy == 0.0:
+        return 0.0, np.inf
+    dy = np.sqrt(dy)
+    return np.sqrt(dn) / dy, 64.0 * 2.220446049250313e-16 * (np.sqrt(n3) + L_norm * np.sqrt(y3)) / dy
+
+
+@njit(cache=True)
+def _term_vectors(coefficients, y, N, h, W):
+    """W[t] = C[t, 0] y + h sum_j C[t, j + 1] N[j], reading only the rows with a non-zero coefficient (the
+    stages not yet computed in this step hold the previous step's values)."""
+    n = y.shape[0]
+    for t in range(coefficients.shape[0]):
+        c0 = coefficients[t, 0]
+        for i in range(n):
+            W[t, i] = c0 * y[i] if c0 != 0.0 else 0.0
+        for j in range(N.shape[0]):
+            c = h * coefficients[t, j + 1]
+            if c != 0.0:
+                for i in range(n):
+                    W[t, i] += c * N[j, i]
+
+
+@njit(cache=True)
+def stage_real(Phi_stage, phi_at_zero, functions, coefficients, y, N, h, base, indices, is_linear, out, W, w_stack,
+               product):
+    """One stage with the real matrices: out = base + sum_t Phi[f_t] W_t on the linear components and
+    base + sum_t phi_{f_t}(0) W_t elsewhere; ``base`` may be empty (zero). ``Phi_stage`` holds the stage's
+    matrices side by side (m x n_terms m), so the linear components cost one BLAS gemv. Returns True if out is
+    finite."""
+    n = y.shape[0]
+    n_terms = functions.shape[0]
+    _term_vectors(coefficients, y, N, h, W)
+    has_base = base.shape[0] == n
+    for i in range(n):
+        acc = base[i] if has_base else 0.0
+        if not is_linear[i]:
+            for t in range(n_terms):
+                acc += phi_at_zero[functions[t]] * W[t, i]
+        out[i] = acc
+    m = indices.shape[0]
+    if m:
+        for t in range(n_terms):
+            for b in range(m):
+                w_stack[t * m + b] = W[t, indices[b]]
+        np.dot(Phi_stage, w_stack[:n_terms * m], product)
+        for a in range(m):
+            out[indices[a]] += product[a]
+    return kernels.all_finite(out)
+
+
+@njit(cache=True)
+def stage_eigen(V, Vinv, phi_diag, phi_at_zero, functions, coefficients, y, N, h, base, indices, is_linear, out,
+                W, z_acc, z_in, z_out):
+    """As :func:`stage_real` with the linear components in the eigenbasis:
+    out_lin = base_lin + Re(V sum_t phi_{f_t} (Vinv W_t,lin)) (complex BLAS gemv; z_* are (m,) scratch)."""
+    n = y.shape[0]
+    n_terms = functions.shape[0]
+    _term_vectors(coefficients, y, N, h, W)
+    has_base = base.shape[0] == n
+    for i in range(n):
+        acc = base[i] if has_base else 0.0
+        if not is_linear[i]:
+            for t in range(n_terms):
+                acc += phi_at_zero[functions[t]] * W[t, i]
+        out[i] = acc
+    m = indices.shape[0]
+    if m == 0:
+        return kernels.all_finite(out)
+    for a in range(m):
+        z_acc[a] = 0.0
+    for t in range(n_terms):
+        for b in range(m):
+            z_in[b] = W[t, indices[b]]
+        np.dot(Vinv, z_in, z_out)
+        d = phi_diag[functions[t]]
+        for a in range(m):
+            z_acc[a] += d[a] * z_out[a]
+    np.dot(V, z_acc, z_out)
+    for a in range(m):
+        out[indices[a]] += z_out[a].real
+    return kernels.all_finite(out)
+
+
+class ExponentialDenseOutput(DenseOutput):
+    """Continuous extension of one ETDRK4 step (module docstring), exact for the linear part."""
+
+    def __init__(self, t_old, t, y_old, N, part):
+        super().__init__(t_old, t)
+        self.h = t - t_old
+        self.y_old = y_old.copy()
+        mid = 0.5 * (N[1] + N[2])
+        self.n0 = N[0].copy()
+        self.n1 = -3.0 * N[0] + 4.0 * mid - N[3]
+        self.n2 = 2.0 * N[0] - 4.0 * mid + 2.0 * N[3]
+        self.part = part
+        idx = part.indices
+        self.z = np.stack([part.Vinv @ v[idx] for v in (self.y_old, self.n0, self.n1, self.n2)])
+
+    def _one(self, theta):
+        h = self.h
+        out = self.y_old + theta * h * (self.n0 + theta * self.n1 / 2.0 + theta * theta * self.n2 / 3.0)
+        part = self.part
+        if part.m:
+            phi = phi_functions(theta * h * part.lam, 3)
+            modal = (phi[0] * self.z[0] + theta * h * (phi[1] * self.z[1] + theta * phi[2] * self.z[2]
+                                                       + 2.0 * theta * theta * phi[3] * self.z[3]))
+            out[part.indices] = (part.V @ modal).real
+        return out
+
+    def _evaluate(self, t):
+        theta = (t - self.t_min) / self.h
+        if t.ndim == 0:
+            return self._one(float(theta))
+        return np.stack([self._one(float(th)) for th in theta], axis=1)
+
+
+class ExponentialRK4(Integrator):
+    """Krogstad's exponential RK4 with a fixed step; the linear part is propagated exactly (module docstring).
+
+    Options: ``step`` (required), ``linear_part`` (required): ``(indices, L)`` over the state vector, or a
+    callable ``linear_part(t, y) -> (indices, L)`` re-evaluated when the remainder becomes stiff.
+    Counters: ``njev`` evaluations of the linear part, ``nlu`` eigen-decompositions.
+    """
+
+    name = "etdrk4"
+    order = 4
+    fixed_step = True
+    #: the simulation passes ``linear_part`` (from the models' ``stiff_linear_part``)
+    uses_linear_part = True
+
+    def __init__(self, fun, t0, y0, t_bound, *, linear_part=None, **options):
+        if linear_part is None:
+            raise ValueError(f"{self.name} needs linear_part=(indices, L) or a callable linear_part(t, y) -> "
+                             f"(indices, L): the stiff linear dynamics it propagates exactly (a flexible scene's "
+                             f"shell.Simulation supplies it from dynamics.modal_linear_part)")
+        if not callable(linear_part):
+            if not isinstance(linear_part, (tuple, list)) or len(linear_part) != 2:
+                raise ValueError(f"{self.name}: linear_part must be (indices, L) or a callable, got "
+                                 f"{type(linear_part).__name__}")
+        self.linear_part_option = linear_part
+        self._f = None
+        super().__init__(fun, t0, y0, t_bound, **options)
+
+    # the derivative at (t, y) is needed only when a step starts without a reset in between (a reset
+    # computes it anyway); evaluating it lazily saves one evaluation per step of a sampled closed loop
+    @property
+    def f(self):
+        if self._f is None:
+            self._f = self._initial_derivative(self.t, self.y)
+        return self._f
+
+    @f.setter
+    def f(self, value):
+        self._f = value
+
+    def _setup(self):
+        self.h = min(self.step_option, self.max_step)
+        n = self.n
+        self.N = np.empty((4, n))
+        self.Y = np.empty((4, n))  # stage states Y2, Y3, Y4 and the new state
+        self.W = np.empty((3, n))
+        self.no_base = np.empty(0)
+        self.warned_stiff = False
+        self.last_rho = 0.0
+        self.check_interval = 1
+        self.steps_since_check = 0
+        self._set_linear_part(self.t, self.y)
+
+    def _set_linear_part(self, t, y):
+        option = self.linear_part_option
+        indices, L = option(t, y.copy()) if callable(option) else option
+        self.njev += 1
+        part = LinearPart(indices, L, self.n, self.name)
+        self.base_indices, self.base_L = part.indices, part.L
+        self.nlu += 1
+        if part.m == 0:
+            warnings.warn(f"{self.name}: the linear part is empty (no flexible modes); the method is the classical "
+                          f"rk4 at a higher cost per step", stacklevel=4)
+        else:
+            rows, coupling = self._driven_coupling(t, y, part)
+            if rows.size:
+                m, r = part.m, rows.size
+                L_ext = np.zeros((m + r, m + r))
+                L_ext[:m, :m] = part.L
+                L_ext[m:, :m] = coupling
+                part = LinearPart(np.concatenate([part.indices, rows]), L_ext, self.n, self.name)
+                self.nlu += 1
+        part.check_exponential(self.h)
+        self.part = part
+        self.y_lin = np.empty(part.m)
+        self.product = np.empty(part.m)
+        self.w_stack = np.empty(3 * part.m)
+        self.z_acc = np.empty(part.m, dtype=np.complex128)
+        self.z_in = np.empty(part.m, dtype=np.complex128)
+        self.z_out = np.empty(part.m, dtype=np.complex128)
+        self.Phi_stages = part.stage_matrices(self.h)
+        self.phi_diag_h = None
+        self.phi_diag = None
+
+    def _check_drift(self, t, y, force):
+        """Re-evaluate a callable linear part (every ``check_interval`` steps, doubling up to
+        MAX_CHECK_INTERVAL while it does not move, or now when ``force``) and rebuild the matrix functions when
+        it moved by more than DRIFT_TOLERANCE. Returns True if it was rebuilt."""
+        self.steps_since_check += 1
+        if not force and self.steps_since_check < self.check_interval:
+            return False
+        self.steps_since_check = 0
+        indices, L = self.linear_part_option(t, y.copy())
+        self.njev += 1
+        L = np.asarray(L, dtype=np.float64)
+        scale = np.linalg.norm(self.base_L)
+        same_shape = L.shape == self.base_L.shape and np.array_equal(np.asarray(indices), self.base_indices)
+        drift = np.linalg.norm(L - self.base_L) / scale if same_shape and scale > 0.0 else np.inf
+        if drift <= DRIFT_TOLERANCE:
+            if drift <= 0.25 * DRIFT_TOLERANCE:
+                self.check_interval = min(2 * self.check_interval, MAX_CHECK_INTERVAL)
+            return False
+        self.check_interval = 1
+        self._set_linear_part(t, y)
+        return True
+
+    def _driven_coupling(self, t, y, part):
+        """(rows, C): the components outside the linear part whose derivative depends on it (an IMU integrating
+        a node's rate and acceleration, a wheel angle measured against the structure), and their coupling
+        ``C = (df/dy)[rows, linear] P`` to its oscillating modes (module docstring); forward differences over the
+        m linear components (m evaluations of fun, exact up to round-off for a linear dependence)."""
+        f = np.asarray(self.fun(t, y), dtype=np.float64)
+        J = np.empty((self.n, part.m))
+        y_pert = y.copy()
+        for k, i in enumerate(part.indices):
+            delta = np.sqrt(EPS) * max(1.0, abs(y[i]))
+            y_pert[i] = y[i] + delta
+            J[:, k] = (np.asarray(self.fun(t, y_pert), dtype=np.float64) - f) / delta
+            y_pert[i] = y[i]
+        self.nfev += part.m + 1
+        rows = np.flatnonzero(~part.is_linear & np.any(J != 0.0, axis=1))
+        # spectral projector on the non-zero eigenvalues: the zero ones (rigid-body velocities) are not stiff,
+        # and coupling a driven row to them would make the extended matrix defective (a Jordan block)
+        moving = np.abs(part.lam) > 1e3 * EPS * np.abs(part.lam).max()
+        P = ((part.V * moving) @ part.Vinv).real
+        return rows, J[rows] @ P
+
+    def _stage(self, k, h, nominal, out):
+        base_index, functions, coefficients = STAGES[k]
+        base = self.no_base if base_index < 0 else self.Y[base_index]
+        part = self.part
+        W = self.W[:functions.shape[0]]
+        if nominal:
+            return stage_real(self.Phi_stages[k], PHI_AT_ZERO, functions, coefficients, self.y, self.N, h, base,
+                              part.indices, part.is_linear, out, W, self.w_stack, self.product)
+        if self.phi_diag_h != h:
+            self.phi_diag = part.diagonal_functions(h)
+            self.phi_diag_h = h
+        return stage_eigen(part.V, part.Vinv, self.phi_diag, PHI_AT_ZERO, functions, coefficients, self.y, self.N,
+                           h, base, part.indices, part.is_linear, out, W, self.z_acc, self.z_in, self.z_out)
+
+    def _evaluate_remainder(self, j, t, y):
+        f = np.asarray(self.fun(t, y), dtype=np.float64)
+        self.nfev += 1
+        if not kernels.all_finite(f):
+            return f
+        remainder(f, y, self.part.indices, self.part.L, self.y_lin, self.product, self.N[j])
+        return None
+
+    def _step_impl(self):
+        t = self.t
+        remaining = self.t_bound - t
+        last = remaining <= self.h * (1.0 + 1e-9)
+        h = remaining if last else self.h
+        nominal = abs(h - self.h) <= 1e-12 * self.h
+        t_new = self.t_bound if last else t + h
+        if callable(self.linear_part_option):
+            self._check_drift(t, self.y, force=False)
+        refreshed = False
+        while True:
+            remainder(self.f, self.y, self.part.indices, self.part.L, self.y_lin, self.product, self.N[0])
+            for k in range(3):
+                if not self._stage(k, h, nominal, self.Y[k]):
+                    return self._fail(self._nonfinite_reason(f"stage {k + 2}", t + C_NODES[k] * h, self.Y[k]),
+                                      t + C_NODES[k] * h, self.Y[k], self._suggestion(h))
+                bad = self._evaluate_remainder(k + 1, t + C_NODES[k] * h, self.Y[k])
+                if bad is not None:
+                    return self._fail(self._nonfinite_reason("the derivative fun(t, y)", t + C_NODES[k] * h, bad),
+                                      t + C_NODES[k] * h, self.Y[k], "Check the model at that state; "
+                                      + self._suggestion(h))
+                if k == 1 and not refreshed and self._remainder_is_stiff(h):
+                    if not callable(self.linear_part_option):
+                        self._warn_stiff(h)
+                    elif self._check_drift(t, self.y, force=True):
+                        refreshed = True
+                        self.nrejected += 1
+                        break
+            else:
+                break
+        if not self._stage(3, h, nominal, self.Y[3]):
+            return self._fail(self._nonfinite_reason("the new state", t_new, self.Y[3]), t_new, self.Y[3],
+                              self._suggestion(h))
+        y_new = self.Y[3].copy()
+        if self.normalize is not None:
+            self.normalize(y_new)
+        self.t_old = t
+        self.y_old = self.y
+        self.f_old = self._f
+        self.t = t_new
+        self.y = y_new
+        self._f = None
+        return True
+
+    def _remainder_is_stiff(self, h):
+        """h rho(N) > STIFF_REMAINDER_BOUND from the two stages at c = 1/2, when they differ beyond round-off."""
+        rho, noise = remainder_stiffness(self.N[1], self.N[2], self.Y[0], self.Y[1], self.part.indices,
+                                         self.part.L_norm)
+        # N3 - N2 carries the round-off of f and L Y: a quotient at that level measures nothing
+        if h * noise > 0.1 * STIFF_REMAINDER_BOUND:
+            return False
+        self.last_rho = rho
+        return h * rho > STIFF_REMAINDER_BOUND
+
+    def _warn_stiff(self, h):
+        if self.warned_stiff:
+            return
+        self.warned_stiff = True
+        warnings.warn(f"{self.name}: the dynamics outside the linear part became stiff near t={self.t:.6g} s "
+                      f"(h rho = {h * self.last_rho:.3g} > {STIFF_REMAINDER_BOUND}); the linear part no longer "
+                      f"describes the fast modes (the configuration moved away from the one L was built at). "
+                      f"Pass linear_part as a callable (t, y) -> (indices, L) so that it is re-evaluated, or "
+                      f"reduce the step", StiffRemainderWarning, stacklevel=4)
+
+    def _suggestion(self, h):
+        return (f"The linear part is propagated exactly, so a blow-up comes from the remainder N = f - L y "
+                f"(last stiffness estimate h rho = {h * self.last_rho:.3g}): reduce the step, or make sure the "
+                f"linear part describes the scene's fast modes at this configuration")
+
+    def _dense_output_impl(self):
+        return ExponentialDenseOutput(self.t_old, self.t, self.y_old, self.N, self.part)

@@ -1,0 +1,312 @@
+"""Exponential RK4 (``etdrk4``): phi functions, exactness on linear systems, order, stability, energy, refusals.
+
+References: phi_k from their integral definition evaluated in 40-digit arithmetic (mpmath); the exponential of a
+linear system from scipy.linalg.expm and from the closed-form oscillator; a stiff oscillator driven by the
+solution of p' = -p^2 in closed form (sine and cosine integrals); the flexible body's energy and momentum
+conservation laws.
+"""
+
+import math
+import warnings
+
+import mpmath
+import numpy as np
+import pytest
+import scipy.linalg
+from scipy.integrate import solve_ivp
+from scipy.special import sici
+
+from shell.integrators import INTEGRATORS, StiffRemainderWarning, make_integrator
+from shell.integrators.exponential import LinearPart, phi_functions
+
+
+def run(method, fun, y0, t_end, step, **options):
+    integ = make_integrator(method, fun, 0.0, y0, t_end, step=step, **options)
+    while integ.status == "running":
+        integ.step()
+    assert integ.status == "finished", integ.message
+    return integ
+
+
+# --- phi functions -----------------------------------------------------------------------------------------
+def phi_reference(z, k):
+    """phi_k(z) = 1/(k-1)! int_0^1 e^{(1-s) z} s^(k-1) ds (k >= 1), e^z (k = 0), in 40 digits."""
+    mpmath.mp.dps = 40
+    z = mpmath.mpc(z)
+    if k == 0:
+        return complex(mpmath.exp(z))
+    value = mpmath.quad(lambda s: mpmath.exp((1 - s) * z) * s ** (k - 1), [0, 1]) / mpmath.factorial(k - 1)
+    return complex(value)
+
+
+@pytest.mark.parametrize("z", [0.0, 1e-8, 0.3 + 0.2j, -0.99, 0.999j, 1.0, -1.5 + 2.0j, 12j, -40.0 + 300j, -700.0,
+                               5.0 - 0.1j])
+def test_phi_functions_match_their_integral_definition(z):
+    values = phi_functions(np.array([z]), 3)[:, 0]
+    for k in range(4):
+        ref = phi_reference(z, k)
+        # both branches (Taylor below |z| = 1, recurrence above) are within a few ulps of the 40-digit value
+        assert abs(values[k] - ref) <= 4e-15 * abs(ref) + 1e-300, (k, values[k], ref)
+
+
+# --- linear systems ----------------------------------------------------------------------------------------
+def damped_chain(n=6, seed=3):
+    """Mass-spring-damper chain y = [x; v]: x'' = -M^-1 (K x + C v), with an undamped and a heavily damped mode."""
+    rng = np.random.default_rng(seed)
+    m = rng.uniform(0.5, 2.0, n)
+    k = rng.uniform(1e2, 1e6, n)
+    K = np.diag(k) + np.diag(np.r_[k[1:], 0.0]) - np.diag(k[1:], 1) - np.diag(k[1:], -1)
+    C = 1e-3 * K + 0.1 * np.diag(m)
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = -K / m[:, None]
+    A[n:, n:] = -C / m[:, None]
+    return A
+
+
+@pytest.mark.parametrize("step", [1e-5, 1e-3, 0.1, 2.0])
+def test_linear_system_is_propagated_exactly_for_any_step(step):
+    A = damped_chain()
+    omega_max = np.abs(np.linalg.eigvals(A)).max()
+    y0 = np.linspace(-1.0, 1.0, A.shape[0])
+    t_end = 20 * step
+    integ = run("etdrk4", lambda t, y: A @ y, y0, t_end, step, linear_part=(np.arange(A.shape[0]), A))
+    exact = scipy.linalg.expm(t_end * A) @ y0
+    # 20 steps of h * omega_max up to ~4000: only the rounding of e^{hL} accumulates (scipy's expm is itself
+    # accurate to ~1e-13 relative here)
+    assert np.abs(integ.y - exact).max() <= 1e-11 * max(1.0, np.abs(y0).max()) * max(1.0, omega_max * 1e-3), \
+        (step * omega_max, np.abs(integ.y - exact).max())
+    # dense output inside the last step is exact too
+    sol = integ.dense_output()
+    t_mid = integ.t_old + 0.37 * (integ.t - integ.t_old)
+    np.testing.assert_allclose(sol(t_mid), scipy.linalg.expm(t_mid * A) @ y0, rtol=0,
+                               atol=1e-11 * max(1.0, omega_max * 1e-3))
+
+
+def test_undamped_oscillator_matches_closed_form_at_h_omega_1000():
+    omega = 1e4
+    L = np.array([[0.0, 1.0], [-omega ** 2, 0.0]])
+    integ = run("etdrk4", lambda t, y: L @ y, np.array([1.0, 0.0]), 1.0, 0.1, linear_part=(np.array([0, 1]), L))
+    # cos(omega t) at t = 1 is known to ~omega * eps in absolute terms; the energy norm (x, v / omega)
+    assert abs(integ.y[0] - np.cos(omega)) <= 1e-11
+    assert abs(integ.y[1] / omega + np.sin(omega)) <= 1e-11
+
+
+def test_constant_forcing_is_exact():
+    """y' = L y + c: the static deflection under a held command comes out exact at any step (Lawson's
+    integrating-factor method would not)."""
+    omega = 3e3
+    L = np.array([[0.0, 1.0], [-omega ** 2, -2 * 0.01 * omega]])
+    c = np.array([0.0, 7.0])
+    y0 = np.array([2e-6, -0.3])
+    integ = run("etdrk4", lambda t, y: L @ y + c, y0, 0.5, 0.05, linear_part=(np.array([0, 1]), L))
+    static = -np.linalg.solve(L, c)
+    exact = static + scipy.linalg.expm(0.5 * L) @ (y0 - static)
+    np.testing.assert_allclose(integ.y, exact, rtol=0, atol=1e-15 * omega)
+
+
+# --- order and stability with a nonlinear term --------------------------------------------------------------
+def forced_oscillator(omega):
+    """x'' + omega^2 x = p, p' = -p^2: x driven by the nonlinear p(t) = p0 / (1 + p0 t); closed form below."""
+    L = np.array([[0.0, 1.0], [-omega ** 2, 0.0]])
+
+    def fun(t, y):
+        return np.array([y[1], -omega ** 2 * y[0] + y[2], -y[2] ** 2])
+
+    def exact(t, x0, v0, p0):
+        # x = x_h + (1/omega) int_0^t sin(omega (t - s)) / (c + s) ds, c = 1/p0: sine and cosine integrals
+        c = 1.0 / p0
+        big = omega * (t + c)
+        si1, ci1 = sici(omega * (c + t))
+        si0, ci0 = sici(omega * c)
+        integral = np.sin(big) * (ci1 - ci0) - np.cos(big) * (si1 - si0)
+        d_integral = omega * (np.cos(big) * (ci1 - ci0) + np.sin(big) * (si1 - si0))
+        x = x0 * np.cos(omega * t) + v0 / omega * np.sin(omega * t) + integral / omega
+        v = -x0 * omega * np.sin(omega * t) + v0 * np.cos(omega * t) + d_integral / omega
+        return np.array([x, v, p0 / (1 + p0 * t)])
+
+    return L, fun, exact
+
+
+def energy_norm_error(y, ref, omega):
+    e = np.abs(y - ref)
+    e[1] /= omega
+    return e
+
+
+def test_closed_form_of_the_forced_oscillator_satisfies_its_equation():
+    L, fun, exact = forced_oscillator(50.0)
+    y0 = (1e-3, 0.5, 2.0)
+    t, d = 0.7, 1e-5
+    dy = (exact(t + d, *y0) - exact(t - d, *y0)) / (2 * d)
+    np.testing.assert_allclose(dy, fun(t, exact(t, *y0)), rtol=1e-7, atol=1e-7)  # central difference O(d^2)
+    np.testing.assert_allclose(exact(0.0, *y0), y0, rtol=0, atol=1e-15)
+
+
+def test_observed_order_is_four_when_the_step_resolves_the_mode():
+    omega = 10.0
+    L, fun, exact = forced_oscillator(omega)
+    y0 = np.array([1e-3, 0.5, 2.0])
+    steps = [0.05, 0.025, 0.0125, 0.00625]
+    errors = [energy_norm_error(run("etdrk4", fun, y0, 1.0, h, linear_part=(np.array([0, 1]), L)).y,
+                                exact(1.0, *y0), omega).max() for h in steps]
+    slopes = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    np.testing.assert_allclose(slopes, 4.0, atol=0.1)  # measured 3.98-4.00
+
+
+def test_stiff_regime_error_is_small_and_converges():
+    """h omega from 100 down to 12.5: error at least second order in h (stiff order reduction, Hochbruck &
+    Ostermann 2005) and far below the response; RK4 is unstable at all these steps."""
+    omega = 1000.0
+    L, fun, exact = forced_oscillator(omega)
+    y0 = np.array([1e-3, 0.5, 2.0])
+    steps = [0.1, 0.05, 0.025, 0.0125]
+    errors = np.array([energy_norm_error(run("etdrk4", fun, y0, 1.0, h, linear_part=(np.array([0, 1]), L)).y,
+                                         exact(1.0, *y0), omega)[:2].max() for h in steps])
+    assert errors[0] < 1e-8  # measured 6.3e-9, against an amplitude of 5e-4 (x and v / omega)
+    assert np.all(np.log2(errors[:-1] / errors[1:]) > 1.8)  # measured 2.2, 2.1, 1.9
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        integ = make_integrator("rk4", fun, 0.0, y0, 1.0, step=0.0125)
+        while integ.status == "running":
+            integ.step()
+    # |R_rk4(12.5 i)| = 990: 80 steps multiply the mode by ~1e240
+    assert integ.status == "failed" or energy_norm_error(integ.y, exact(1.0, *y0), omega)[:2].max() > 1e100
+
+
+def test_stability_far_beyond_the_explicit_limit():
+    """h omega = 1000, 350 times RK4's limit, for 10^4 steps with the nonlinear forcing: stays on the solution."""
+    omega = 1e5
+    L, fun, exact = forced_oscillator(omega)
+    y0 = np.array([1e-6, 0.2, 5.0])
+    integ = run("etdrk4", fun, y0, 100.0, 0.01, linear_part=(np.array([0, 1]), L))
+    # amplitude 2e-6 (x and v / omega); measured error 3.2e-12, mostly RK4's error in p
+    assert energy_norm_error(integ.y, exact(100.0, *y0), omega).max() < 1e-11
+
+
+def test_without_linear_part_it_is_rk4():
+    omega = 10.0
+    L, fun, exact = forced_oscillator(omega)
+    y0 = np.array([1e-3, 0.5, 2.0])
+    with pytest.warns(UserWarning, match="linear part is empty"):
+        a = run("etdrk4", fun, y0, 1.0, 0.01, linear_part=(np.zeros(0, dtype=np.int64), np.zeros((0, 0))))
+    b = run("rk4", fun, y0, 1.0, 0.01)
+    # same RK4 weights, summed in another order (y1 written from Y4): equal to a few ulps
+    np.testing.assert_allclose(a.y, b.y, rtol=5e-14, atol=1e-17)
+
+
+# --- components driven by the linear part ------------------------------------------------------------------
+def test_a_quadrature_of_a_stiff_mode_is_exact():
+    """s' = v (an IMU integrating the velocity of a stiff mode) is outside the linear part given by the user;
+    the integrator finds the coupling and integrates s exactly: s(t) = x(t) - x(0)."""
+    omega = 2e3
+    L = np.array([[0.0, 1.0], [-omega ** 2, 0.0]])
+    fun = lambda t, y: np.array([y[1], -omega ** 2 * y[0], y[1]])  # noqa: E731
+    y0 = np.array([1e-3, 0.4, 0.0])
+    integ = run("etdrk4", fun, y0, 0.5, 0.01, linear_part=(np.array([0, 1]), L))
+    assert list(integ.part.indices) == [0, 1, 2]
+    assert abs(integ.y[2] - (integ.y[0] - y0[0])) < 1e-16
+    x_exact = y0[0] * np.cos(omega * 0.5) + y0[1] / omega * np.sin(omega * 0.5)
+    assert abs(integ.y[0] - x_exact) < 1e-15
+
+
+# --- configuration-dependent linear part -------------------------------------------------------------------
+def stiffening_oscillator(omega0=300.0, rate=0.3):
+    """x'' = -omega0^2 (1 + s) x, s' = rate: the stiffness grows by 30 % over 1 s (a configuration that moves)."""
+
+    def fun(t, y):
+        return np.array([y[1], -omega0 ** 2 * (1.0 + y[2]) * y[0], rate])
+
+    def linear_part(t, y):
+        return np.array([0, 1]), np.array([[0.0, 1.0], [-omega0 ** 2 * (1.0 + y[2]), 0.0]])
+
+    return fun, linear_part
+
+
+def test_a_moving_configuration_refreshes_the_callable_linear_part():
+    fun, linear_part = stiffening_oscillator()
+    y0 = np.array([1e-3, 0.0, 0.0])
+    ref = solve_ivp(fun, (0.0, 1.0), y0, method="DOP853", rtol=1e-13, atol=1e-16).y[:, -1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StiffRemainderWarning)
+        integ = run("etdrk4", fun, y0, 1.0, 0.01, linear_part=linear_part)
+        fixed = run("etdrk4", fun, y0, 1.0, 0.01, linear_part=linear_part(0.0, y0))
+    # L moves by 0.3 % per step (h omega = 3.0 .. 3.4): re-evaluated every step, rebuilt when it moved > 0.1 %
+    assert integ.njev == 2 * 100 - 2 and integ.nlu == 99
+    assert abs(integ.y[0] - ref[0]) < 5e-6  # measured 2.9e-6 against the amplitude 1e-3
+    assert abs(fixed.y[0] - ref[0]) > 1e-4  # measured 1.8e-4: the frozen linear part misses the stiffening
+    # at twice the step the frozen part's remainder is stiff: the monitor says so
+    with pytest.warns(StiffRemainderWarning, match="became stiff"):
+        run("etdrk4", fun, y0, 1.0, 0.02, linear_part=linear_part(0.0, y0))
+
+
+def test_a_linear_part_that_does_not_move_is_checked_ever_more_rarely():
+    omega = 300.0
+    L = np.array([[0.0, 1.0], [-omega ** 2, 0.0]])
+    evaluations = []
+
+    def linear_part(t, y):
+        evaluations.append(t)
+        return np.array([0, 1]), L
+
+    integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 10.0, 0.01, linear_part=linear_part)
+    # 1000 steps: one evaluation at the start, checks at steps 1, 3, 7, ..., 127 (intervals 1, 2, ..., 64), then
+    # every 64 steps up to step 959: 1 + 7 + 13
+    assert integ.njev == len(evaluations) == 21 and integ.nlu == 1
+
+
+# --- interface ----------------------------------------------------------------------------------------------
+def test_registered_and_lazy_derivative():
+    assert INTEGRATORS["etdrk4"].uses_linear_part and INTEGRATORS["etdrk4"].fixed_step
+    omega = 50.0
+    L = np.array([[0.0, 1.0], [-omega ** 2, 0.0]])
+    calls = []
+
+    def fun(t, y):
+        calls.append(t)
+        return L @ y
+
+    integ = make_integrator("etdrk4", fun, 0.0, [1.0, 0.0], 0.1, step=0.01, linear_part=(np.array([0, 1]), L))
+    n0 = integ.nfev
+    integ.step()
+    assert integ.nfev - n0 == 3  # three stages; the end derivative is evaluated only if the next step needs it
+    integ.reset(integ.t, integ.y, 0.2)  # a discrete update: the reset evaluates it
+    integ.step()
+    assert integ.nfev - n0 == 7
+    np.testing.assert_allclose(integ.f, L @ integ.y, rtol=1e-15)  # computed on demand
+    assert integ.nfev - n0 == 8 and len(calls) == integ.nfev
+
+
+def test_refusals():
+    L = np.array([[0.0, 1.0], [-4.0, 0.0]])
+    fun = lambda t, y: L @ y  # noqa: E731
+    with pytest.raises(ValueError, match="needs linear_part"):
+        make_integrator("etdrk4", fun, 0.0, [1.0, 0.0], 1.0, step=0.1)
+    with pytest.raises(ValueError, match="fixed-step method"):
+        make_integrator("etdrk4", fun, 0.0, [1.0, 0.0], 1.0, linear_part=(np.array([0, 1]), L))
+    with pytest.raises(ValueError, match=r"indices must lie in \[0, 2\)"):
+        make_integrator("etdrk4", fun, 0.0, [1.0, 0.0], 1.0, step=0.1, linear_part=(np.array([0, 2]), L))
+    with pytest.raises(ValueError, match="repeat a state component"):
+        make_integrator("etdrk4", fun, 0.0, [1.0, 0.0], 1.0, step=0.1, linear_part=(np.array([1, 1]), L))
+    with pytest.raises(ValueError, match=r"square over its 1 indices, got shape \(2, 2\)"):
+        make_integrator("etdrk4", fun, 0.0, [1.0, 0.0], 1.0, step=0.1, linear_part=(np.array([0]), L))
+    with pytest.raises(ValueError, match="must be \\(indices, L\\) or a callable"):
+        make_integrator("etdrk4", fun, 0.0, [1.0, 0.0], 1.0, step=0.1, linear_part=L)
+    jordan = np.array([[0.0, 1.0], [0.0, 0.0]])  # a free rate with no stiffness: defective
+    with pytest.raises(ValueError, match="not diagonalizable to working accuracy"):
+        make_integrator("etdrk4", lambda t, y: jordan @ y, 0.0, [1.0, 1.0], 1.0, step=0.1,
+                        linear_part=(np.array([0, 1]), jordan))
+
+
+def test_linear_part_decomposition_reproduces_expm():
+    A = damped_chain(8, seed=11)
+    part = LinearPart(np.arange(16), A, 16, "test")
+    for k, (c, order) in enumerate(((0.5, 0), (1.0, 0))):
+        phi = part.real_functions(0.01)[3 * k]
+        np.testing.assert_allclose(phi, scipy.linalg.expm(c * 0.01 * A), rtol=0,
+                                   atol=1e-12 * np.abs(phi).max())
+    # phi_1(hA) = (hA)^-1 (e^{hA} - I) for this invertible A
+    phi1 = part.real_functions(0.01)[4]
+    np.testing.assert_allclose(phi1, np.linalg.solve(0.01 * A, scipy.linalg.expm(0.01 * A) - np.eye(16)), rtol=0,
+                               atol=1e-9 * np.abs(phi1).max())
+    assert math.isclose(part.L_norm, np.abs(A).sum(axis=1).max())
