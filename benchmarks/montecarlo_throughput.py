@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 
 from shell.montecarlo.campaign import load_campaign  # noqa: E402
 from shell.montecarlo.executors import run_campaign  # noqa: E402
-from shell.montecarlo.results import open_results, read_results  # noqa: E402
+from shell.montecarlo.results import open_results, read_results, tables_equal  # noqa: E402
 from shell.scenario import build_simulation, parse_scenario  # noqa: E402
 
 
@@ -57,14 +57,16 @@ def main() -> None:
     bare_wall, bare_sim = bare_loop(campaign, args.runs)
     print(f"bare loop (build + run, no log):  {bare_wall:7.2f} s  {60 * args.runs / bare_wall:7.1f} runs/min  "
           f"(Simulation.run {bare_sim / args.runs * 1e3:.1f} ms/run, build {1e3 * (bare_wall - bare_sim) / args.runs:.1f} ms/run)")
-    walls = {}
+    walls, tables = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         for executor in ("serial", "pool", "dask"):
             output = Path(tmp) / f"{executor}.h5"
             start = time.perf_counter()
             run_campaign(campaign, output, executor=executor, workers=args.workers)
             walls[executor] = time.perf_counter() - start
-            timing = read_results(output)["timing"]
+            results_read = read_results(output)
+            tables[executor] = results_read["table"]
+            timing = results_read["timing"]
             in_run = timing["wall_time"] - timing["simulation_time"]
             print(f"{executor:7s} campaign: {walls[executor]:7.2f} s  {60 * args.runs / walls[executor]:7.1f} runs/min  "
                   f"(Simulation.run {np.mean(timing['simulation_time']) * 1e3:.1f} ms/run wall, worker CPU "
@@ -85,6 +87,8 @@ def main() -> None:
         print(f"{executor}: speed-up {walls['serial'] / walls[executor]:.2f}x over serial; "
               f"wall minus ideal parallel time {walls[executor] - ideal:.2f} s (start-up, imports, load imbalance, "
               f"other jobs on the cores)")
+    same = all(tables_equal(tables["serial"], tables[e]) for e in ("pool", "dask"))
+    print(f"tables of serial, pool and Dask identical: {same}")
     print(f"load average after {os.getloadavg()[0]:.2f} (other users' jobs share the cores: compare CPU per run "
           "with wall per run)")
 

@@ -168,6 +168,7 @@ class _Tables:
                 raise NotCompilable(f"model {models[i].path}: only the engine's quaternions are normalized compiled")
             normalizers.append([engine(i), diagram.x_block[i].start, diagram.x_block[i].stop])
         self.engine_model = engine_models[0] if engine_models else None
+        self.engine_type_checked = False
         self.noise_size = max(noise_offset, 1)
         self.kernels = L.Kernels(np.asarray(fns, dtype=np.int64).reshape(-1, 2),
                                  np.asarray(update_fns, dtype=np.int64).reshape(-1, 2), _engine_pointers())
@@ -191,8 +192,9 @@ class CompiledPlan:
         self.kernels = tables.kernels
         self.python_updates = tables.python_updates
         probe_engine, probe_rng = _probe()
-        if tables.engine_model is not None:
+        if tables.engine_model is not None and not tables.engine_type_checked:
             data = context.data[tables.engine_model]
+            tables.engine_type_checked = True  # every context of a diagram has data of the same type
             if typeof(data) != L.ENGINE_DATA:
                 raise NotCompilable(f"model {diagram.models[tables.engine_model].path}: its engine data has numba "
                                     f"type {typeof(data)}, the compiled loop expects {L.ENGINE_DATA}")

@@ -40,8 +40,14 @@ def register_model(cls: type | None = None, *, name: str | None = None):
     return decorate(cls) if cls is not None else decorate
 
 
+_LOADED: list = []
+
+
 def load_builtin() -> None:
-    """Import every module of shell.models and shell.assemblies so their decorators run."""
+    """Import every module of shell.models and shell.assemblies so their decorators run (once)."""
+    if _LOADED:
+        return
+    _LOADED.append(True)
     for package_name in ("shell.models", "shell.assemblies"):
         package = importlib.import_module(package_name)
         for info in pkgutil.walk_packages(package.__path__, prefix=package_name + "."):

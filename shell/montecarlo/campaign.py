@@ -328,18 +328,24 @@ class RunRecord:
     kept: dict = field(default_factory=dict)  # signal -> (time, values, unit)
 
 
+_DISPATCHERS: dict = {}
+
+
 def _numba_compilations() -> int:
     """Kernels of flexshell compiled (not loaded from numba's on-disk cache) in this process so far."""
     from numba.core.dispatcher import Dispatcher
 
+    if _DISPATCHERS.get(None) != len(sys.modules):  # modules seen once; their dispatchers remembered
+        _DISPATCHERS[None] = len(sys.modules)
+        for name, module in list(sys.modules.items()):
+            if module is None or name in _DISPATCHERS or not name.startswith(("shell", "dynamics")):
+                continue
+            _DISPATCHERS[name] = [v for v in list(vars(module).values()) if isinstance(v, Dispatcher)]
     total = 0
-    for name, module in list(sys.modules.items()):
-        if module is None or not name.startswith(("shell", "dynamics")):
-            continue
-        for value in list(vars(module).values()):
-            if isinstance(value, Dispatcher):
-                total += len(value.stats.cache_misses) if value._cache.__class__.__name__ != "NullCache" \
-                    else len(value.overloads)
+    for name, dispatchers in _DISPATCHERS.items():
+        for value in dispatchers if name is not None else ():
+            total += len(value.stats.cache_misses) if value._cache.__class__.__name__ != "NullCache" \
+                else len(value.overloads)
     return total
 
 

@@ -260,3 +260,10 @@ def read_kept(path, run: int) -> dict:
         if group is None:
             return {}
         return {s: (g["time"][:], g["values"][:], str(g["values"].attrs["unit"])) for s, g in group.items()}
+
+
+def tables_equal(a, b) -> bool:
+    """Two campaign tables equal field by field, bit for bit (the message column holds variable-length
+    strings: compared as text)."""
+    return a.dtype == b.dtype and all(
+        list(a[n]) == list(b[n]) if a.dtype[n].kind == "O" else a[n].tobytes() == b[n].tobytes() for n in a.dtype.names)

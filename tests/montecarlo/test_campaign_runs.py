@@ -15,14 +15,8 @@ import pytest
 from shell.cli import main
 from shell.montecarlo.campaign import CampaignError, load_campaign
 from shell.montecarlo.executors import run_campaign
-from shell.montecarlo.results import ResultsError, open_results, read_journal, read_kept, read_results
+from shell.montecarlo.results import ResultsError, open_results, read_journal, read_kept, read_results, tables_equal
 from shell.scenario import build_simulation, parse_scenario
-
-
-def tables_equal(a, b) -> bool:
-    """Field by field (the message column holds variable-length strings: compare them as text)."""
-    return a.dtype == b.dtype and all(
-        list(a[n]) == list(b[n]) if a.dtype[n].kind == "O" else a[n].tobytes() == b[n].tobytes() for n in a.dtype.names)
 
 
 def test_one_run_alone_reproduces_bit_for_bit(ramp_campaign, tmp_path):
