@@ -164,8 +164,10 @@ class Buffers(NamedTuple):
     derivative_ops: np.ndarray  # output stages the derivatives need, then one op per derivative kernel
     n_derivative_stages: int
     zc_ops: np.ndarray
-    update_ops: np.ndarray      # one row per model (KIND -1: not sampled)
+    update_ops: np.ndarray      # one row per model (KIND -1: not sampled); G0:G1 its rows of input_stage_ops
     normalize_ops: np.ndarray   # engine index, x0 of each engine model with quaternions
+    input_stage_ops: np.ndarray  # per sampled model, the stages its inputs need (Diagram.input_stages)
+    zc_stage_ops: np.ndarray    # the stages the zero-crossing functions need
 
 
 class Stepper(NamedTuple):
@@ -213,6 +215,7 @@ class Schedule(NamedTuple):
     log_times: np.ndarray      # (groups, capacity)
     log_rows: np.ndarray       # (groups, capacity, widest group)
     log_count: np.ndarray
+    log_stage_ops: np.ndarray  # the output stages the logged signals need
 
 
 class Kernels(NamedTuple):
@@ -292,8 +295,9 @@ def derivative_at(k, engine, t, y, b, src, fac):
 
 @njit(cache=True)
 def zero_crossings(k, engine, t, b, src, fac):
-    """Every zero-crossing function into ``b.G`` after a full evaluation."""
-    evaluate_full(k, engine, t, b, src, fac)
+    """Every zero-crossing function into ``b.G`` after evaluating the outputs they need."""
+    run_stages(b.zc_stage_ops, b.zc_stage_ops.shape[0], k, engine, t, b, src, fac)
+    gather_all(b, src, fac)
     ops = b.zc_ops
     S = b.S
     for r in range(ops.shape[0]):
@@ -305,9 +309,11 @@ def zero_crossings(k, engine, t, b, src, fac):
 
 @njit(cache=True)
 def update_model(i, k, engine, rngs, t, b):
-    """Evaluate the scene, then run compiled sampled model ``i``'s update (drawing its noise first)."""
-    evaluate_full(k, engine, t, b, b.src, b.fac)
+    """Evaluate the outputs model ``i``'s inputs need, then run its compiled update (drawing its noise
+    first)."""
     ops = b.update_ops
+    run_stages(b.input_stage_ops[ops[i, G0]:ops[i, G1]], ops[i, G1] - ops[i, G0], k, engine, t, b, b.src, b.fac)
+    gather_all(b, b.src, b.fac)
     x = _view(b.X, ops[i, X0], ops[i, X1])
     z = _view(b.Z, ops[i, Z0], ops[i, Z1])
     u = _view(b.S, ops[i, U0], ops[i, U1])
@@ -503,7 +509,8 @@ def _log_instant(k, engine, b, sc, ints, reals, write):
             continue
         if write:
             if not evaluated:
-                evaluate_full(k, engine, t, b, b.src, b.fac)
+                run_stages(sc.log_stage_ops, sc.log_stage_ops.shape[0], k, engine, t, b, b.src, b.fac)
+                gather_all(b, b.src, b.fac)
                 evaluated = True
             row = sc.log_count[g]
             sc.log_times[g, row] = t

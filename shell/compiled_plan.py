@@ -141,27 +141,30 @@ class _Tables:
                 raise NotCompilable(f"model {m.path}: engine zero crossings are not compiled")
             zc.append(_op(L.PLAIN, plain(m.zero_crossing_values, m, "zero-crossing"), (0, 0), diagram.x_block[i],
                           diagram.z_block[i], diagram.u_block[i], diagram.p_block[i], sl))
-        updates, noise_offset = [], 0
+        updates, noise_offset, input_stage_rows = [], 0, []
         for i, m in enumerate(models):
             block = (diagram.x_block[i], diagram.z_block[i], diagram.u_block[i], diagram.p_block[i], slice(0, 0))
             if m.period is None:
                 updates.append(_op(-1, 0, (0, 0), *block))
                 continue
+            start = len(input_stage_rows)
+            input_stage_rows += [stage_op(s) for s in diagram.input_stages[i]]
+            stages = (start, len(input_stage_rows))
             fn = m.update
             if not isinstance(fn, CPUDispatcher):
                 self.python_updates.append(i)
-                updates.append(_op(L.UPDATE_PYTHON, 0, (0, 0), *block))
+                updates.append(_op(L.UPDATE_PYTHON, 0, stages, *block))
             elif m.noise_size:
                 if len(self.noisy) == L.MAX_NOISY_MODELS:
                     raise NotCompilable(f"model {m.path}: more than {L.MAX_NOISY_MODELS} models with noise")
                 self.noisy.append(i)
                 noise = (noise_offset, noise_offset + int(m.noise_size))
                 noise_offset += int(m.noise_size)
-                updates.append(_op(L.UPDATE_NOISE, plain(fn, m, "update"), (0, 0), *block, noise=noise,
+                updates.append(_op(L.UPDATE_NOISE, plain(fn, m, "update"), stages, *block, noise=noise,
                                    rng=len(self.noisy) - 1))
             else:
                 update_fns.append(_pointer(fn, L.UPDATE_SIGNATURE, m, "update"))
-                updates.append(_op(L.UPDATE, len(update_fns) - 1, (0, 0), *block))
+                updates.append(_op(L.UPDATE, len(update_fns) - 1, stages, *block))
         normalizers = []
         for i in diagram.normalizers:
             if not is_engine(models[i]):
@@ -173,7 +176,10 @@ class _Tables:
         self.kernels = L.Kernels(np.asarray(fns, dtype=np.int64).reshape(-1, 2),
                                  np.asarray(update_fns, dtype=np.int64).reshape(-1, 2), _engine_pointers())
         self.tables = (_table(full), _table(derivative), len(diagram.derivative_stages), _table(zc), _table(updates),
-                       np.asarray(normalizers, dtype=np.int64).reshape(-1, 3))
+                       np.asarray(normalizers, dtype=np.int64).reshape(-1, 3), _table(input_stage_rows),
+                       _table([stage_op(s) for s in diagram.zero_crossing_stages]))
+        #: op table of a set of output stages (a log's)
+        self.stage_table = lambda stages: _table([stage_op(s) for s in stages])
 
 
 def _tables(diagram) -> _Tables:
@@ -215,9 +221,22 @@ class CompiledPlan:
         L.derivative_at(self.kernels, self.engine, float(t), np.asarray(y, dtype=np.float64), b, b.src, b.fac)
         return b.XD.copy()
 
-    def evaluate(self, t: float) -> None:
+    def evaluate(self, t: float, stages=None) -> None:
+        """Every output (or those of ``stages``), then every input, at the context's state."""
         b = self.buffers
-        L.evaluate_full(self.kernels, self.engine, float(t), b, b.src, b.fac)
+        if stages is None:
+            L.evaluate_full(self.kernels, self.engine, float(t), b, b.src, b.fac)
+            return
+        table = self.stage_table(stages)
+        L.run_stages(table, table.shape[0], self.kernels, self.engine, float(t), b, b.src, b.fac)
+        L.gather_all(b, b.src, b.fac)
+
+    def stage_table(self, stages):
+        """The op table of ``stages`` (cached per stage tuple)."""
+        cached = self._variants.get(("stages", stages))
+        if cached is None:
+            cached = self._variants[("stages", stages)] = _tables(self.diagram).stage_table(stages)
+        return cached
 
     def zero_crossings(self, t: float, y: np.ndarray) -> np.ndarray:
         b = self.buffers

@@ -232,6 +232,15 @@ class Diagram:
                 self.derivative_models.append(i)
         self.derivative_models = tuple(self.derivative_models)
         self.derivative_stages = self.stages_for(self.stages_needed_by_derivatives())
+        feeding = self.feeding_stages()
+        #: per model: the output stages its inputs need (an update evaluates only these; other outputs
+        #: may be stale in the buffer until the next evaluation that needs them)
+        self.input_stages = tuple(self.stages_for(self.stages_closure([stage for stage, _ in feeding.get(m.path, [])],
+                                                                      feeding)) for m in self.models)
+        zc_paths = [m.path for m in self.models if m.zero_crossings]
+        #: the output stages the zero-crossing functions need
+        self.zero_crossing_stages = self.stages_for(self.stages_closure(
+            [stage for path in zc_paths for stage, _ in feeding.get(path, [])], feeding))
 
     def _stage(self, i: int, kind: str) -> Stage:
         return Stage(i, kind, self.feedthrough_gather[i] if kind == "feedthrough" else (0, 0))
@@ -420,7 +429,7 @@ class Diagram:
     def zero_crossings(self, context: "Context", t: float, x: np.ndarray) -> np.ndarray:
         """Every zero-crossing function at (t, x) after a full evaluation, a new array."""
         context.x[:] = x
-        self.evaluate(context, t)
+        self.evaluate(context, t, self.zero_crossing_stages)
         g = context.g
         for i, sl in self.zero_crossing_models:
             v = context.views[i]
@@ -430,9 +439,27 @@ class Diagram:
                 v.model.zero_crossing_values(t, v.x, v.z, v.u, v.p, v.data, g[sl])
         return g.copy()
 
+    def stages_of_signals(self, names) -> tuple:
+        """The output stages that the ports and states ``names`` need, in evaluation order (a log's)."""
+        feeding, pending = self.feeding_stages(), []
+        for name in names:
+            kind, sl, decl = self.locate(name)
+            if kind != "signal":
+                continue
+            path, _, leaf = self.split_name(name)
+            key = (path, leaf)
+            if key in self.driver:  # an input: its driver's stage
+                c = self.driver[key]
+                port = self.port_info[(c.source_model.path, c.source_port)]
+                pending.append((c.source_model.path, "feedthrough" if port.feedthrough else "state"))
+            elif any(p.name == leaf for p in self.models[self.model_index[path]].outputs):
+                pending.append((path, "feedthrough" if decl.feedthrough else "state"))
+        return self.stages_for(self.stages_closure(pending, feeding))
+
     def update(self, context: "Context", i: int, t: float) -> None:
-        """Evaluate the scene at ``t`` and run sampled model ``i``'s discrete update (drawing its noise)."""
-        self.evaluate(context, t)
+        """Evaluate the outputs model ``i``'s inputs need at ``t``, then run its discrete update (drawing its
+        noise first)."""
+        self.evaluate(context, t, self.input_stages[i])
         v = context.views[i]
         m = v.model
         try:

@@ -165,6 +165,7 @@ class Simulation:
                                  for j, (_, _, zc) in enumerate(d.zero_crossing_owner)]
         self._last_events: tuple[float, set] = (-np.inf, set())
         self._log_groups: dict[str, dict] = {}
+        self._log_stages_key, self._log_stages_value = None, ()
         self._initialized = False
         self.counters = {"steps": 0, "nfev": 0, "events": 0, "updates": 0}
         #: (time, "model.zero_crossing") of every handled event, in order
@@ -233,6 +234,24 @@ class Simulation:
             self.diagram.evaluate(self.context, t)
         except EvaluationError as exc:
             raise SimulationError(str(exc)) from exc.__cause__
+
+    def _evaluate_stages(self, t: float, stages) -> None:
+        """The outputs of ``stages``, then every input (a log's evaluation)."""
+        if self._plan is not None:
+            self._plan.evaluate(t, stages)
+            return
+        try:
+            self.diagram.evaluate(self.context, t, stages)
+        except EvaluationError as exc:
+            raise SimulationError(str(exc)) from exc.__cause__
+
+    def _log_stages(self) -> tuple:
+        """The output stages the logged signals need (computed once per set of logged signals)."""
+        names = tuple(s.name for group in self._log_groups.values() for s, _, _ in group["signals"])
+        if self._log_stages_key != names:
+            self._log_stages_key = names
+            self._log_stages_value = self.diagram.stages_of_signals(names)
+        return self._log_stages_value
 
     def _zero_crossing_vector(self, t: float, y: np.ndarray) -> np.ndarray:
         if self._plan is not None:
@@ -456,13 +475,14 @@ class Simulation:
             starts.append(len(kinds))
         widths = [starts[g + 1] - starts[g] for g in range(len(groups))]
         capacity = 512
+        log_table = plan.stage_table(self._log_stages())
         schedule = CL.Schedule(
             den, int(end * den), next_tick, period, np.asarray(d.update_order, dtype=np.int64),
             np.asarray([int(self._next_log_time(g) * den) for g in groups], dtype=np.int64),
             np.asarray([int(g["period"] * den) for g in groups], dtype=np.int64),
             np.asarray(kinds, dtype=np.int64), np.asarray(indices, dtype=np.int64), np.asarray(starts, dtype=np.int64),
             np.zeros((len(groups), capacity)), np.zeros((len(groups), capacity, max(widths, default=0))),
-            np.zeros(len(groups), dtype=np.int64))
+            np.zeros(len(groups), dtype=np.int64), log_table)
         ints = np.zeros(CL.N_INTS, dtype=np.int64)
         reals = np.zeros(CL.N_REALS)
         reals[CL.R_T] = self.t
@@ -774,7 +794,7 @@ class Simulation:
             if not due:
                 continue
             if not evaluated:
-                self.evaluate(self.t)
+                self._evaluate_stages(self.t, self._log_stages())
                 evaluated = True
             writer.append(name, self.t, self._log_row(group))
             if not force:
