@@ -64,7 +64,7 @@ FX_P_W = 21  # pool: W' = B' E'^-1 (6 x n)
 FX_P_VEC = 22  # pool: N_PV n-vectors (PV_*)
 FX_P_G = 23  # pool: G(eta), its Cholesky factor, or the composite modal inertia (n x n)
 FX_P_F = 24  # pool: force columns of the CRBA (6 x (6 + n))
-FX_P_SMALL = 25  # pool: the Woodbury system (r x r, r x (r + 7), r x 7)
+FX_P_SMALL = 25  # pool: the Woodbury system (V and Q r x r, [C | rhs] r x (r + 7), U and Z r x n)
 FX_RANK = 26  # r = 6 (child attachment nodes) + 12 (when the hinge sits on a node of the body)
 N_FX = 27
 

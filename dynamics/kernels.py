@@ -713,6 +713,51 @@ def _gauss_solve(Aug, r, m):
 
 
 @njit(cache=True)
+def _symmetric_eigen(A, r, V):
+    """Cyclic Jacobi eigen-decomposition of the symmetric ``A`` (r x r): on return ``A`` is diagonal with
+    the eigenvalues and ``A_in = V diag(A) V'`` (accurate to round-off relative to the largest entry)."""
+    for a in range(r):
+        for b in range(r):
+            V[a, b] = 1.0 if a == b else 0.0
+    for sweep in range(60):
+        off = 0.0
+        scale = 0.0
+        for a in range(r):
+            scale += A[a, a] * A[a, a]
+            for b in range(a + 1, r):
+                off += A[a, b] * A[a, b]
+        if off <= 1e-32 * (scale + off):
+            return
+        for p in range(r - 1):
+            for q in range(p + 1, r):
+                apq = A[p, q]
+                if apq == 0.0:
+                    continue
+                theta = (A[q, q] - A[p, p]) / (2.0 * apq)
+                if abs(theta) > 1e150:
+                    t = 0.5 / theta
+                else:
+                    t = (1.0 if theta >= 0.0 else -1.0) / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                c = 1.0 / np.sqrt(t * t + 1.0)
+                s = t * c
+                for k in range(r):
+                    akp = A[k, p]
+                    akq = A[k, q]
+                    A[k, p] = c * akp - s * akq
+                    A[k, q] = s * akp + c * akq
+                for k in range(r):
+                    apk = A[p, k]
+                    aqk = A[q, k]
+                    A[p, k] = c * apk - s * aqk
+                    A[q, k] = s * apk + c * aqk
+                for k in range(r):
+                    vkp = V[k, p]
+                    vkq = V[k, q]
+                    V[k, p] = c * vkp - s * vkq
+                    V[k, q] = s * vkp + c * vkq
+
+
+@njit(cache=True)
 def _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
     """Eliminate the modal DOFs of flexible body i before its hinge DOFs (forward dynamics, pass 2).
 
@@ -725,9 +770,14 @@ def _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
         E' = G + L' Q L,  L = [Psi_1; ...; Psi_m; Pc; M_re],
         Q = [[Y_j on the diagonal, -Y_j against Pc], [-Y_j, A, -I], [0, -I, 0]]
 
-    (rank 6 m, plus 12 with Pc). Woodbury: ``E'^-1 v = G^-1 v - ZL (I + Q K)^-1 Q L G^-1 v`` with
-    ``ZL = G^-1 L'``, ``K = L ZL`` (r x r), where ``G^-1 Psi_j'`` comes from the precomputed ``G^-1 Pi'``
-    in O(n) (:func:`dynamics.flexible_kernels.psi_times_inverse_modal_mass`). Writes ``A''`` into
+    (rank 6 m, plus 12 with Pc). Woodbury in symmetric form: with ``Q = V diag(lam) V'``,
+    ``U = |lam|^1/2 V' L`` and ``S = sign(lam)``, ``E' = G + U' S U`` and
+    ``E'^-1 v = G^-1 v - Z' (S + U Z')^-1 U G^-1 v``, ``Z = U G^-1`` (r x r solve), where
+    ``Psi_j G^-1`` comes from the precomputed ``Pi G^-1`` in O(n)
+    (:func:`dynamics.flexible_kernels.psi_times_inverse_modal_mass`). The symmetric form matters: with
+    heavy children (``|Q K|`` >> 1) the textbook ``(I + Q K)^-1`` is ill-conditioned even when E' is not
+    (a 500 kg mass on a beam tip: condition 6e5, Schur complement wrong in the 11th digit, against 60
+    and the 15th digit here). Writes ``A''`` into
     ``ws_mat[i, MAT_IA]``, the rigid force after the modal elimination ``pA + sum g_j + B' E'^-1 d_m``
     into ``ws_vec[i, VEC_P]`` (so that the rigid hinge step follows unchanged), and keeps
     ``W' = B' E'^-1`` and ``y = E'^-1 d_m`` for the acceleration pass: ``etaddot = y - W' a``.
@@ -827,44 +877,27 @@ def _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
         y[s] = Gd[0, s]
     r = fx[FK.FX_RANK]
     if r > 0:
+        # E' = G + L' Q L = G + U' S U with Q = V diag(lam) V' (Jacobi), U = |lam|^1/2 V' L, S = sign(lam);
+        # E'^-1 v = G^-1 v - Z' C^-1 (U G^-1 v), Z = U G^-1, C = S + U Z' (symmetric, and positive definite
+        # with condition number of the order of E''s when Q is: the children's inertias, no Pc)
         so = fx[FK.FX_P_SMALL]
-        K = _view(pool, so, r, r)
+        Vq = _view(pool, so, r, r)
         Q = _view(pool, so + r * r, r, r)
         Aug = _view(pool, so + 2 * r * r, r, r + 7)
-        T = _view(pool, so + 3 * r * r + 7 * r, r, 7)
-        blocks = r // 6
-        for b1 in range(blocks):
-            L1 = _woodbury_rows(i, b1, topology, nodes, pool, n, False)
-            for b2 in range(b1, blocks):
-                Z2 = _woodbury_rows(i, b2, topology, nodes, pool, n, True)
-                for a in range(6):
-                    for c in range(6):
-                        t = 0.0
-                        for s in range(n):
-                            t += L1[a, s] * Z2[c, s]
-                        K[6 * b1 + a, 6 * b2 + c] = t
-                        K[6 * b2 + c, 6 * b1 + a] = t
-            for a in range(6):
-                for c in range(6):
-                    t = 0.0
-                    for s in range(n):
-                        t += L1[a, s] * W[c, s]
-                    T[6 * b1 + a, c] = t
-                t = 0.0
-                for s in range(n):
-                    t += L1[a, s] * Gd[0, s]
-                T[6 * b1 + a, 6] = t
+        Ut = _view(pool, so + 3 * r * r + 7 * r, r, n)
+        Zt = _view(pool, so + 3 * r * r + 7 * r + r * n, r, n)
         for a in range(r):
             for b in range(r):
                 Q[a, b] = 0.0
+        blocks = r // 6
         m = blocks - 2 if onode >= 0 else blocks
         nd = topology[i, FIRST_SLOT]
         j = 0
         while nd >= 0:
-            so = nodes[nd, NODE_SLOT]
+            sl = nodes[nd, NODE_SLOT]
             for a in range(6):
                 for b in range(6):
-                    y_ = pool[so + SL_Y + 6 * a + b]
+                    y_ = pool[sl + SL_Y + 6 * a + b]
                     Q[6 * j + a, 6 * j + b] = y_
                     if onode >= 0:
                         Q[6 * j + a, 6 * m + b] = -y_
@@ -877,30 +910,49 @@ def _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
                     Q[6 * m + a, 6 * m + b] = A[a, b]
                 Q[6 * m + a, 6 * m + 6 + a] = -1.0
                 Q[6 * m + 6 + a, 6 * m + a] = -1.0
-        for a in range(r):
-            for b in range(r):
-                t = 1.0 if a == b else 0.0
-                for k in range(r):
-                    t += Q[a, k] * K[k, b]
-                Aug[a, b] = t
-            for c in range(7):
-                t = 0.0
-                for k in range(r):
-                    t += Q[a, k] * T[k, c]
-                Aug[a, r + c] = t
-        if not _gauss_solve(Aug, r, 7):
-            return False
+        _symmetric_eigen(Q, r, Vq)
+        for k in range(r):
+            for s in range(n):
+                Ut[k, s] = 0.0
+                Zt[k, s] = 0.0
         for b in range(blocks):
+            Lb = _woodbury_rows(i, b, topology, nodes, pool, n, False)
             Zb = _woodbury_rows(i, b, topology, nodes, pool, n, True)
             for a in range(6):
-                k = 6 * b + a
-                for c in range(6):
-                    x_ = Aug[k, r + c]
-                    for s in range(n):
-                        W[c, s] -= x_ * Zb[a, s]
-                x_ = Aug[k, r + 6]
+                for k in range(r):
+                    v_ = Vq[6 * b + a, k] * np.sqrt(abs(Q[k, k]))
+                    if v_ != 0.0:
+                        for s in range(n):
+                            Ut[k, s] += v_ * Lb[a, s]
+                            Zt[k, s] += v_ * Zb[a, s]
+        for a in range(r):
+            for b in range(a, r):
+                t = 0.0
                 for s in range(n):
-                    y[s] -= x_ * Zb[a, s]
+                    t += Ut[a, s] * Zt[b, s]
+                if a == b:
+                    t += 1.0 if Q[a, a] >= 0.0 else -1.0
+                Aug[a, b] = t
+                Aug[b, a] = t
+            for c in range(6):
+                t = 0.0
+                for s in range(n):
+                    t += Ut[a, s] * W[c, s]
+                Aug[a, r + c] = t
+            t = 0.0
+            for s in range(n):
+                t += Ut[a, s] * Gd[0, s]
+            Aug[a, r + 6] = t
+        if not _gauss_solve(Aug, r, 7):
+            return False
+        for k in range(r):
+            for c in range(6):
+                x_ = Aug[k, r + c]
+                for s in range(n):
+                    W[c, s] -= x_ * Zt[k, s]
+            x_ = Aug[k, r + 6]
+            for s in range(n):
+                y[s] -= x_ * Zt[k, s]
     # A'' = A - B' W'' (symmetric by construction), pA + B' y
     for a in range(6):
         for b in range(a, 6):

@@ -348,7 +348,7 @@ class MultibodySystem:
         fx[FK.FX_P_VEC] = pool.reserve(FK.N_PV * n)
         fx[FK.FX_P_G] = pool.reserve(n * n)
         fx[FK.FX_P_F] = pool.reserve(6 * (6 + n))
-        fx[FK.FX_P_SMALL] = pool.reserve(3 * r * r + 14 * r)
+        fx[FK.FX_P_SMALL] = pool.reserve(3 * r * r + 14 * r + 2 * r * n)
         return kind, inverse
 
     def _allocate_workspace(self):
