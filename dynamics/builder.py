@@ -327,13 +327,16 @@ class Multibody:
                                        f"{HINGE_NAMES[code]} hinge), got {prescribed!r}")
         return flags
 
-    def compile(self):
-        """Freeze the description into a :class:`~dynamics.system.MultibodySystem`."""
+    def compile(self, solver=None):
+        """Freeze the description into a :class:`~dynamics.system.MultibodySystem`.
+
+        ``solver``: "aba" or "dense" forces the forward-dynamics method; by default the cheaper one is
+        chosen (:func:`dynamics.system.choose_solver`) and reported by ``system.summary()``."""
         from dynamics.system import MultibodySystem
 
         if not self.bodies:
             raise ModelDefinitionError("the multibody has no bodies")
-        return MultibodySystem.from_definitions(self.bodies, self.nodes, self.gravity)
+        return MultibodySystem.from_definitions(self.bodies, self.nodes, self.gravity, solver=solver)
 
     # ------------------------------------------------------------------ URDF
     @classmethod
