@@ -35,8 +35,8 @@ from numba import njit
 
 # topology columns for hinges on deforming nodes: the parent node a hinge is attached to (-1: the parent
 # frame) and the node of the body itself that carries the hinge's outboard frame (-1: the body frame)
-PARENT_NODE = 10
-OUTBOARD_NODE = 11
+PARENT_NODE = 24
+OUTBOARD_NODE = 25
 
 # flexible-body columns, relative to dynamics.kernels.FLEX (offsets: -1 when the term is absent)
 FX_ORDER = 0
@@ -66,7 +66,8 @@ FX_P_G = 23  # pool: G(eta), its Cholesky factor, or the composite modal inertia
 FX_P_F = 24  # pool: force columns of the CRBA (6 x (6 + n))
 FX_P_SMALL = 25  # pool: the Woodbury system (V and Q r x r, [C | rhs] r x (r + 7), U and Z r x n)
 FX_RANK = 26  # r = 6 (child attachment nodes) + 12 (when the hinge sits on a node of the body)
-N_FX = 27
+FX_P_MRR = 27  # pool: M_rr(eta) (6 x 6)
+N_FX = 28
 
 # n-vectors of a flexible body in the pool (FX_P_VEC + k n)
 PV_FORCE = 0  # modal bias minus applied modal forces (ABA) / modal body force (RNEA)

@@ -80,12 +80,12 @@ N_MODES = 6
 N_FREE = 7
 N_PRESCRIBED = 8
 OUTBOARD_IDENTITY = 9  # 1 when the hinge outboard frame is the body frame (saves a frame product)
-# 10 PARENT_NODE and 11 OUTBOARD_NODE: hinges on deforming nodes (dynamics.flexible_kernels)
-FLEXIBLE = 12  # 1: the body has modal data (possibly zero modes) and the FLEX columns describe it
-GENERAL = 13  # 1: the augmented path (flexible, or hinged on a deforming node); 0: the rigid fast path
-FREE_DOFS = 14  # 6 columns: local indices of the free hinge DOFs
-PRESCRIBED_DOFS = 20  # 6 columns: local indices of the prescribed hinge DOFs
-INERTIA = 26  # params offset of the constant rigid block M0[:6, :6] (the spatial inertia), 36 numbers
+GENERAL = 10  # 1: the augmented path (flexible, or hinged on a deforming node); 0: the rigid fast path
+INERTIA = 11  # params offset of the constant rigid block M0[:6, :6] (the spatial inertia), 36 numbers
+FREE_DOFS = 12  # 6 columns: local indices of the free hinge DOFs
+PRESCRIBED_DOFS = 18  # 6 columns: local indices of the prescribed hinge DOFs
+# 24 PARENT_NODE and 25 OUTBOARD_NODE: hinges on deforming nodes (dynamics.flexible_kernels)
+FLEXIBLE = 26  # 1: the body has modal data (possibly zero modes) and the FLEX columns describe it
 FIRST_SLOT = 27  # first node of this body that children hang from (chained by NODE_NEXT_SLOT), or -1
 FLEX = 28  # the flexible-body columns dynamics.flexible_kernels.FX_* start here
 TOPOLOGY_COLUMNS = FLEX + FK.N_FX
@@ -158,8 +158,7 @@ MAT_U = 2  # U = IA S_free (ABA) / F = Ic S (CRBA)
 MAT_DINV = 3  # (S^T IA S)^-1 over the free DOFs
 MAT_IAP = 4  # IA - U D^-1 U^T; dM_rr/dt scratch of a flexible body
 MAT_TMP = 5
-MAT_M = 6  # M_rr(eta) of a flexible body
-N_MAT = 7
+N_MAT = 6
 
 
 @njit(cache=True)
@@ -437,14 +436,23 @@ def _general_velocity(i, topology, nodes, joint_vec, u, ws_rot, ws_vec, ws_mat, 
 
 
 @njit(cache=True)
+def _general_kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool,
+                        velocity):
+    """Pose (and, with ``velocity``, velocity and bias) of a body on the augmented path, and the slots of
+    its nodes."""
+    _general_position(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool)
+    if velocity:
+        _general_velocity(i, topology, nodes, joint_vec, u, ws_rot, ws_vec, ws_mat, pool)
+    if topology[i, FLEXIBLE]:
+        _update_slots(i, topology, nodes, params, q, u, pool)
+
+
+@njit(cache=True, inline="always")
 def _kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool, velocity):
-    """Pose (and, with ``velocity``, velocity and bias) of body i, and the slots of its nodes."""
+    """Pose (and velocity and bias) of body i: the rigid fast path inline, the augmented path called."""
     if topology[i, GENERAL]:
-        _general_position(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool)
-        if velocity:
-            _general_velocity(i, topology, nodes, joint_vec, u, ws_rot, ws_vec, ws_mat, pool)
-        if topology[i, FLEXIBLE]:
-            _update_slots(i, topology, nodes, params, q, u, pool)
+        _general_kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool,
+                            velocity)
     else:
         _rigid_position(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat)
         if velocity:
@@ -453,13 +461,13 @@ def _kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, 
 
 @njit(cache=True)
 def _flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, with_bias, form_G):
-    """``M_rr(eta)`` into ``ws_mat[i, MAT_M]``, ``M_re(eta)`` and (``form_G``) ``G(eta)`` into the pool and,
+    """``M_rr(eta)`` into the pool (``FX_P_MRR``), ``M_re(eta)`` and (``form_G``) ``G(eta)`` into the pool and,
     with ``with_bias``, the body forces ``b`` into ``ws_vec[i, VEC_P]`` and the pool (``PV_FORCE``)."""
     n = topology[i, N_MODES]
     qe = topology[i, Q_START] + topology[i, NQ_HINGE]
     ue = topology[i, U_START] + topology[i, NU_HINGE]
     fx = topology[i, FLEX:FLEX + FK.N_FX]
-    Mrr = ws_mat[i, MAT_M]
+    Mrr = _view(pool, topology[i, FLEX + FK.FX_P_MRR], 6, 6)
     o = topology[i, INERTIA]
     for a in range(6):
         for b in range(6):
@@ -503,29 +511,32 @@ def _apply_node_forces(topology, nodes, params, q, node_forces, ws_vec, pool, si
 
 
 @njit(cache=True)
+def _parent_acceleration_modal(i, topology, nodes, udot, ws_rot, ws_vec, pool, A):
+    """A = X_i (a_parent + Psi_i etaddot_parent) for a body hanging from a node of a flexible parent."""
+    parent = topology[i, PARENT]
+    n_p = topology[parent, N_MODES]
+    Ap = ws_vec[parent, VEC_A]
+    tmp = pool[P_V2:P_V2 + 6]
+    Psi = _view(pool, nodes[topology[i, PARENT_NODE], NODE_SLOT] + SL_PSI, 6, n_p)
+    ue = topology[parent, U_START] + topology[parent, NU_HINGE]
+    for a in range(6):
+        s_ = Ap[a]
+        for rr in range(n_p):
+            s_ += Psi[a, rr] * udot[ue + rr]
+        tmp[a] = s_
+    motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], tmp, A)
+
+
+@njit(cache=True, inline="always")
 def _parent_acceleration(i, topology, nodes, ground, udot, ws_rot, ws_vec, pool, A):
     """A = X_i (a_parent + Psi_i etaddot_parent) (the ground's acceleration ``ground`` for a root body)."""
     parent = topology[i, PARENT]
-    R = ws_rot[i, ROT_PB]
-    r = ws_vec[i, VEC_POS]
     if parent < 0:
-        motion_to_child(R, r, ground, A)
-        return
-    jnode = topology[i, PARENT_NODE]
-    n_p = topology[parent, N_MODES]
-    Ap = ws_vec[parent, VEC_A]
-    if jnode >= 0 and n_p > 0:
-        tmp = pool[P_V2:P_V2 + 6]
-        Psi = _view(pool, nodes[jnode, NODE_SLOT] + SL_PSI, 6, n_p)
-        ue = topology[parent, U_START] + topology[parent, NU_HINGE]
-        for a in range(6):
-            s_ = Ap[a]
-            for rr in range(n_p):
-                s_ += Psi[a, rr] * udot[ue + rr]
-            tmp[a] = s_
-        motion_to_child(R, r, tmp, A)
+        motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], ground, A)
+    elif topology[i, PARENT_NODE] >= 0 and topology[parent, N_MODES] > 0:
+        _parent_acceleration_modal(i, topology, nodes, udot, ws_rot, ws_vec, pool, A)
     else:
-        motion_to_child(R, r, Ap, A)
+        motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], ws_vec[parent, VEC_A], A)
 
 
 @njit(cache=True)
@@ -538,7 +549,7 @@ def _accelerations(topology, nodes, ground, udot, ws_rot, ws_vec, ws_mat, pool):
         _add_hinge_acceleration(i, topology, nodes, udot, ws_vec, ws_mat, pool, A)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _add_hinge_acceleration(i, topology, nodes, udot, ws_vec, ws_mat, pool, A):
     """A += c_i + S udot_hinge - Pc etaddot (the rigid rows of c + H udot)."""
     S = ws_mat[i, MAT_S]
@@ -600,7 +611,7 @@ def _spd_inverse(D, n, tol, L, out):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
     """Articulated-body step of body i's free hinge DOFs (RBDA Table 7.1): U = IA S, D = S' U,
     d = tau - S' pA, Ia = IA - U D^-1 U', pa = pA + Ia c + U D^-1 d. False when D is singular."""
@@ -970,22 +981,168 @@ def _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
 
 
 @njit(cache=True)
+def _to_slot(i, topology, nodes, Ia, pa, ws_rot, ws_vec, ws_mat, pool):
+    """Add body i's articulated inertia and force to the slot of the flexible parent's node it hangs from
+    (summed there per node for :func:`_condense_modes`)."""
+    slot = nodes[topology[i, PARENT_NODE], NODE_SLOT]
+    inertia_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], Ia, _view(pool, slot + SL_Y, 6, 6), ws_mat[i, MAT_TMP])
+    force_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], pa, pool[slot + SL_G:slot + SL_G + 6])
+
+
+@njit(cache=True, inline="always")
 def _to_parent(i, topology, nodes, Ia, pa, ws_rot, ws_vec, ws_mat, pool):
     """Add body i's articulated inertia and force to its parent: into the slot of the parent node it
-    hangs from (a flexible parent, see :func:`_condense_modes`), else into the parent's rigid block."""
+    hangs from (a flexible parent), else into the parent's rigid block."""
     parent = topology[i, PARENT]
     if parent < 0:
         return
-    R = ws_rot[i, ROT_PB]
-    r = ws_vec[i, VEC_POS]
-    jnode = topology[i, PARENT_NODE]
-    if jnode >= 0:
-        slot = nodes[jnode, NODE_SLOT]
-        inertia_to_parent_add(R, r, Ia, _view(pool, slot + SL_Y, 6, 6), ws_mat[i, MAT_TMP])
-        force_to_parent_add(R, r, pa, pool[slot + SL_G:slot + SL_G + 6])
+    if topology[i, PARENT_NODE] >= 0:
+        _to_slot(i, topology, nodes, Ia, pa, ws_rot, ws_vec, ws_mat, pool)
     else:
-        inertia_to_parent_add(R, r, Ia, ws_mat[parent, MAT_IA], ws_mat[i, MAT_TMP])
-        force_to_parent_add(R, r, pa, ws_vec[parent, VEC_P])
+        inertia_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], Ia, ws_mat[parent, MAT_IA], ws_mat[i, MAT_TMP])
+        force_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], pa, ws_vec[parent, VEC_P])
+
+
+@njit(cache=True)
+def _modal_accelerations(i, topology, nodes, tau, udot, tau_out, ws_vec, pool):
+    """Forward dynamics, pass 3, flexible body i: modal accelerations ``y - W' a`` (``a`` the rigid
+    acceleration before the modal DOFs), then the ``-Pc etaddot`` of a hinge on a node of the body."""
+    n = topology[i, N_MODES]
+    A = ws_vec[i, VEC_A]
+    pv = topology[i, FLEX + FK.FX_P_VEC]
+    W = _view(pool, topology[i, FLEX + FK.FX_P_W], 6, n)
+    ue = topology[i, U_START] + topology[i, NU_HINGE]
+    for s in range(n):
+        t = pool[pv + PV_Y * n + s]
+        for a in range(6):
+            t -= W[a, s] * A[a]
+        udot[ue + s] = t
+        tau_out[ue + s] = tau[ue + s]
+    onode = topology[i, OUTBOARD_NODE]
+    if onode >= 0:
+        Pc = _view(pool, nodes[onode, NODE_SLOT] + SL_PSI, 6, n)
+        for a in range(6):
+            t = 0.0
+            for s in range(n):
+                t += Pc[a, s] * udot[ue + s]
+            A[a] -= t
+
+
+@njit(cache=True, inline="always")
+def _add_prescribed_bias(i, topology, udot, ws_vec, ws_mat):
+    """c_i += S_p udot_p: the known accelerations of prescribed hinge DOFs enter the bias."""
+    S = ws_mat[i, MAT_S]
+    c = ws_vec[i, VEC_C]
+    u0 = topology[i, U_START]
+    for kk in range(topology[i, N_PRESCRIBED]):
+        k = topology[i, PRESCRIBED_DOFS + kk]
+        acc = udot[u0 + k]
+        for a in range(6):
+            c[a] += S[a, k] * acc
+
+
+@njit(cache=True, inline="always")
+def _hinge_accelerations(i, topology, tau, udot, tau_out, ws_vec, ws_mat):
+    """Pass 3 of the ABA at body i with ``A`` = X a_parent + c: the free hinge accelerations
+    ``Dinv (d - U' A)``, ``A += S udot``, and the prescribed DOFs' forces ``S_p' (IA A + pA)``."""
+    A = ws_vec[i, VEC_A]
+    S = ws_mat[i, MAT_S]
+    U = ws_mat[i, MAT_U]
+    Dinv = ws_mat[i, MAT_DINV]
+    d = ws_vec[i, VEC_D]
+    nf = topology[i, N_FREE]
+    u0 = topology[i, U_START]
+    for kk in range(nf):
+        s = 0.0
+        for ll in range(nf):
+            t = d[ll]
+            for a in range(6):
+                t -= U[a, ll] * A[a]
+            s += Dinv[kk, ll] * t
+        k = topology[i, FREE_DOFS + kk]
+        udot[u0 + k] = s
+        tau_out[u0 + k] = tau[u0 + k]
+    for kk in range(nf):
+        k = topology[i, FREE_DOFS + kk]
+        acc = udot[u0 + k]
+        for a in range(6):
+            A[a] += S[a, k] * acc
+    npres = topology[i, N_PRESCRIBED]
+    if npres > 0:
+        f = ws_vec[i, VEC_AUX]
+        mat6_vec(ws_mat[i, MAT_IA], A, f)
+        pA = ws_vec[i, VEC_P]
+        for kk in range(npres):
+            k = topology[i, PRESCRIBED_DOFS + kk]
+            s = 0.0
+            for a in range(6):
+                s += S[a, k] * (f[a] + pA[a])
+            tau_out[u0 + k] = s
+
+
+@njit(cache=True, inline="always")
+def _rigid_inertia_and_bias(i, topology, params, body_forces, ws_vec, ws_mat):
+    """IA = I, pA = V x* I V - f_ext of a rigid body."""
+    IA = ws_mat[i, MAT_IA]
+    pA = ws_vec[i, VEC_P]
+    o = topology[i, INERTIA]
+    V = ws_vec[i, VEC_V]
+    h = ws_vec[i, VEC_AUX]
+    for a in range(6):
+        s = 0.0
+        for b in range(6):
+            v_ = params[o + 6 * a + b]
+            IA[a, b] = v_
+            s += v_ * V[b]
+        h[a] = s
+        pA[a] = -body_forces[i, a]
+    motion_cross_force_add(V, h, pA)
+
+
+@njit(cache=True)
+def _aba_general_pass1(i, topology, nodes, joint_rot, joint_vec, params, q, u, udot, body_forces, ws_rot, ws_vec,
+                       ws_mat, pool):
+    """Pass 1 of the ABA at a body on the augmented path: kinematics, bias, inertia and body forces."""
+    _general_kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool, True)
+    _add_prescribed_bias(i, topology, udot, ws_vec, ws_mat)
+    IA = ws_mat[i, MAT_IA]
+    pA = ws_vec[i, VEC_P]
+    if topology[i, FLEXIBLE]:
+        _flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, True,
+                             topology[i, FLEX + FK.FX_GINV_KIND] == GINV_FACTORED)
+        M = _view(pool, topology[i, FLEX + FK.FX_P_MRR], 6, 6)
+        for a in range(6):
+            pA[a] -= body_forces[i, a]
+            for b in range(6):
+                IA[a, b] = M[a, b]
+    else:
+        _rigid_inertia_and_bias(i, topology, params, body_forces, ws_vec, ws_mat)
+
+
+@njit(cache=True)
+def _aba_general_pass2(i, topology, nodes, params, tau, ws_rot, ws_vec, ws_mat, pool):
+    """Pass 2 of the ABA at a body on the augmented path: modal then hinge elimination, to the parent (or
+    the slot of the parent node). False when singular."""
+    if topology[i, FLEXIBLE]:
+        if not _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
+            return False
+    if not _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
+        return False
+    _to_parent(i, topology, nodes, ws_mat[i, MAT_IAP], ws_vec[i, VEC_AUX], ws_rot, ws_vec, ws_mat, pool)
+    return True
+
+
+@njit(cache=True)
+def _aba_general_pass3(i, topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool):
+    """Pass 3 of the ABA at a body on the augmented path: accelerations (hinge, then modal)."""
+    A = ws_vec[i, VEC_A]
+    _parent_acceleration(i, topology, nodes, ground, udot, ws_rot, ws_vec, pool, A)
+    c = ws_vec[i, VEC_C]
+    for a in range(6):
+        A[a] += c[a]
+    _hinge_accelerations(i, topology, tau, udot, tau_out, ws_vec, ws_mat)
+    if topology[i, N_MODES] > 0:
+        _modal_accelerations(i, topology, nodes, tau, udot, tau_out, ws_vec, pool)
 
 
 @njit(cache=True)
@@ -999,110 +1156,51 @@ def forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, n
     free DOFs and the generalized force realizing the prescribed motion at prescribed DOFs. Returns 0, or
     1 + the index of the first body whose articulated inertia is singular. On exit the workspace holds
     every body's pose, velocity and acceleration (the latter including the ground's ``[0; -g]``).
+
+    Each pass runs a rigid body on a fixed frame inline (the rigid fast path) and calls the augmented
+    path's function for the others.
     """
     nb = topology.shape[0]
     ground = params[GROUND_ACCEL:GROUND_ACCEL + 6]
     for i in range(nb):
-        _kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool, True)
-        S = ws_mat[i, MAT_S]
-        c = ws_vec[i, VEC_C]
-        u0 = topology[i, U_START]
-        for kk in range(topology[i, N_PRESCRIBED]):
-            k = topology[i, PRESCRIBED_DOFS + kk]
-            acc = udot[u0 + k]
-            for a in range(6):
-                c[a] += S[a, k] * acc
-        IA = ws_mat[i, MAT_IA]
-        pA = ws_vec[i, VEC_P]
-        if topology[i, FLEXIBLE]:
-            _flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, True,
-                                 topology[i, FLEX + FK.FX_GINV_KIND] == GINV_FACTORED)
-            M = ws_mat[i, MAT_M]
-            for a in range(6):
-                pA[a] -= body_forces[i, a]
-                for b in range(6):
-                    IA[a, b] = M[a, b]
+        if topology[i, GENERAL]:
+            _aba_general_pass1(i, topology, nodes, joint_rot, joint_vec, params, q, u, udot, body_forces, ws_rot,
+                               ws_vec, ws_mat, pool)
         else:
-            o = topology[i, INERTIA]
-            I = _view(params, o, 6, 6)
-            for a in range(6):
-                for b in range(6):
-                    IA[a, b] = I[a, b]
-            V = ws_vec[i, VEC_V]
-            h = ws_vec[i, VEC_AUX]
-            mat6_vec(I, V, h)
-            for a in range(6):
-                pA[a] = -body_forces[i, a]
-            motion_cross_force_add(V, h, pA)
+            _rigid_position(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat)
+            _rigid_velocity(i, topology, joint_vec, u, ws_rot, ws_vec, ws_mat)
+            _add_prescribed_bias(i, topology, udot, ws_vec, ws_mat)
+            _rigid_inertia_and_bias(i, topology, params, body_forces, ws_vec, ws_mat)
     _apply_node_forces(topology, nodes, params, q, node_forces, ws_vec, pool, -1.0)
 
     for i in range(nb - 1, -1, -1):
-        if topology[i, FLEXIBLE]:
-            if not _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
+        if topology[i, GENERAL]:
+            if not _aba_general_pass2(i, topology, nodes, params, tau, ws_rot, ws_vec, ws_mat, pool):
                 return 1 + i
+            continue
         if not _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
             return 1 + i
-        _to_parent(i, topology, nodes, ws_mat[i, MAT_IAP], ws_vec[i, VEC_AUX], ws_rot, ws_vec, ws_mat, pool)
+        parent = topology[i, PARENT]
+        if parent >= 0:
+            R = ws_rot[i, ROT_PB]
+            r = ws_vec[i, VEC_POS]
+            inertia_to_parent_add(R, r, ws_mat[i, MAT_IAP], ws_mat[parent, MAT_IA], ws_mat[i, MAT_TMP])
+            force_to_parent_add(R, r, ws_vec[i, VEC_AUX], ws_vec[parent, VEC_P])
 
     for i in range(nb):
+        if topology[i, GENERAL]:
+            _aba_general_pass3(i, topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool)
+            continue
         A = ws_vec[i, VEC_A]
-        _parent_acceleration(i, topology, nodes, ground, udot, ws_rot, ws_vec, pool, A)
+        parent = topology[i, PARENT]
+        if parent >= 0:
+            motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], ws_vec[parent, VEC_A], A)
+        else:
+            motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], ground, A)
         c = ws_vec[i, VEC_C]
         for a in range(6):
             A[a] += c[a]
-        S = ws_mat[i, MAT_S]
-        U = ws_mat[i, MAT_U]
-        Dinv = ws_mat[i, MAT_DINV]
-        d = ws_vec[i, VEC_D]
-        nf = topology[i, N_FREE]
-        u0 = topology[i, U_START]
-        # udot_free = Dinv (d - U^T A'), then A = A' + S_free udot_free
-        for kk in range(nf):
-            s = 0.0
-            for ll in range(nf):
-                t = d[ll]
-                for a in range(6):
-                    t -= U[a, ll] * A[a]
-                s += Dinv[kk, ll] * t
-            k = topology[i, FREE_DOFS + kk]
-            udot[u0 + k] = s
-            tau_out[u0 + k] = tau[u0 + k]
-        for kk in range(nf):
-            k = topology[i, FREE_DOFS + kk]
-            acc = udot[u0 + k]
-            for a in range(6):
-                A[a] += S[a, k] * acc
-        npres = topology[i, N_PRESCRIBED]
-        if npres > 0:
-            f = ws_vec[i, VEC_AUX]
-            mat6_vec(ws_mat[i, MAT_IA], A, f)
-            pA = ws_vec[i, VEC_P]
-            for kk in range(npres):
-                k = topology[i, PRESCRIBED_DOFS + kk]
-                s = 0.0
-                for a in range(6):
-                    s += S[a, k] * (f[a] + pA[a])
-                tau_out[u0 + k] = s
-        n = topology[i, N_MODES]
-        if n > 0:
-            # modal accelerations y - W' a (a before the modal DOFs), then the -Pc etaddot of the body
-            pv = topology[i, FLEX + FK.FX_P_VEC]
-            W = _view(pool, topology[i, FLEX + FK.FX_P_W], 6, n)
-            ue = u0 + topology[i, NU_HINGE]
-            for s in range(n):
-                t = pool[pv + PV_Y * n + s]
-                for a in range(6):
-                    t -= W[a, s] * A[a]
-                udot[ue + s] = t
-                tau_out[ue + s] = tau[ue + s]
-            onode = topology[i, OUTBOARD_NODE]
-            if onode >= 0:
-                Pc = _view(pool, nodes[onode, NODE_SLOT] + SL_PSI, 6, n)
-                for a in range(6):
-                    t = 0.0
-                    for s in range(n):
-                        t += Pc[a, s] * udot[ue + s]
-                    A[a] -= t
+        _hinge_accelerations(i, topology, tau, udot, tau_out, ws_vec, ws_mat)
     return 0
 
 
@@ -1201,7 +1299,7 @@ def inverse_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, udot, 
             _flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, True,
                                  fx[FK.FX_GINV_KIND] == GINV_FACTORED)
             # F_r = b_r + M_rr a + M_re etaddot - f_ext, F_m = b_m + M_re' a + G etaddot
-            M = ws_mat[i, MAT_M]
+            M = _view(pool, topology[i, FLEX + FK.FX_P_MRR], 6, 6)
             Mre = _view(pool, fx[FK.FX_P_MRE], 6, n)
             ue = topology[i, U_START] + topology[i, NU_HINGE]
             am = udot[ue:ue + n]
@@ -1221,11 +1319,19 @@ def inverse_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, udot, 
                     t += Mre[a, s] * A[a]
                 pool[pv + PV_FORCE * n + s] += t
         else:
-            I = _view(params, topology[i, INERTIA], 6, 6)
-            mat6_vec(I, A, f)
+            o = topology[i, INERTIA]
+            V = ws_vec[i, VEC_V]
             h = ws_vec[i, VEC_AUX]
-            mat6_vec(I, ws_vec[i, VEC_V], h)
-            motion_cross_force_add(ws_vec[i, VEC_V], h, f)
+            for a in range(6):
+                s_ = 0.0
+                t = 0.0
+                for b in range(6):
+                    v_ = params[o + 6 * a + b]
+                    s_ += v_ * A[b]
+                    t += v_ * V[b]
+                f[a] = s_
+                h[a] = t
+            motion_cross_force_add(V, h, f)
             for a in range(6):
                 f[a] -= body_forces[i, a]
     _apply_node_forces(topology, nodes, params, q, node_forces, ws_vec, pool, -1.0)
@@ -1284,15 +1390,15 @@ def mass_matrix(topology, nodes, joint_rot, joint_vec, params, q, u, M, ws_rot, 
         Ic = ws_mat[i, MAT_IA]
         if topology[i, FLEXIBLE]:
             _flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, False, True)
-            Mrr = ws_mat[i, MAT_M]
+            Mrr = _view(pool, topology[i, FLEX + FK.FX_P_MRR], 6, 6)
             for a in range(6):
                 for b in range(6):
                     Ic[a, b] = Mrr[a, b]
         else:
-            I = _view(params, topology[i, INERTIA], 6, 6)
+            o = topology[i, INERTIA]
             for a in range(6):
                 for b in range(6):
-                    Ic[a, b] = I[a, b]
+                    Ic[a, b] = params[o + 6 * a + b]
     for i in range(nb - 1, -1, -1):
         parent = topology[i, PARENT]
         if parent < 0:
@@ -1602,7 +1708,7 @@ def energy_momentum(topology, nodes, joint_rot, joint_vec, params, q, u, out, ws
             fx = topology[i, FLEX:FLEX + FK.N_FX]
             _flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, False,
                                  fx[FK.FX_GINV_KIND] == GINV_FACTORED)
-            Mrr = ws_mat[i, MAT_M]
+            Mrr = _view(pool, topology[i, FLEX + FK.FX_P_MRR], 6, 6)
             Mre = _view(pool, fx[FK.FX_P_MRE], 6, n)
             qe = topology[i, Q_START] + topology[i, NQ_HINGE]
             ue = topology[i, U_START] + topology[i, NU_HINGE]

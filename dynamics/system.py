@@ -222,8 +222,12 @@ class MultibodySystem:
             outboard_node = node_index[b.outboard_node] if b.outboard_node else -1
             flexible = b.flexible is not None
             t = topology[i]
-            t[:K.FLEXIBLE] = [-1 if b.parent is None else index[b.parent], code, q0, nq, u0, nu, n_modes[i], len(free),
-                              len(pres), outboard_identity, parent_node, outboard_node]
+            for col, value in ((K.PARENT, -1 if b.parent is None else index[b.parent]), (K.HINGE_TYPE, code),
+                               (K.Q_START, q0), (K.NQ_HINGE, nq), (K.U_START, u0), (K.NU_HINGE, nu),
+                               (K.N_MODES, n_modes[i]), (K.N_FREE, len(free)), (K.N_PRESCRIBED, len(pres)),
+                               (K.OUTBOARD_IDENTITY, outboard_identity), (K.PARENT_NODE, parent_node),
+                               (K.OUTBOARD_NODE, outboard_node)):
+                t[col] = value
             t[K.FLEXIBLE] = flexible
             t[K.GENERAL] = flexible or parent_node >= 0 or outboard_node >= 0
             t[K.FREE_DOFS:K.FREE_DOFS + len(free)] = free
@@ -348,6 +352,7 @@ class MultibodySystem:
         fx[FK.FX_P_VEC] = pool.reserve(FK.N_PV * n)
         fx[FK.FX_P_G] = pool.reserve(n * n)
         fx[FK.FX_P_F] = pool.reserve(6 * (6 + n))
+        fx[FK.FX_P_MRR] = pool.reserve(36)
         fx[FK.FX_P_SMALL] = pool.reserve(3 * r * r + 14 * r + 2 * r * n)
         return kind, inverse
 
@@ -471,7 +476,10 @@ class MultibodySystem:
         udot = np.zeros(self.nu) if prescribed_accel is None else \
             np.array(self._vector(prescribed_accel, self.nu, "prescribed_accel"))
         tau_out = np.empty(self.nu)
-        nf, bf = self._forces(node_forces, body_forces)
+        if node_forces is None and body_forces is None:
+            nf, bf = self._zero_node_forces, self._zero_body_forces
+        else:
+            nf, bf = self._forces(node_forces, body_forces)
         status = self._forward_kernel(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params, q, u,
                                       tau, nf, bf, udot, tau_out, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
         if status:
