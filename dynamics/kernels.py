@@ -527,6 +527,12 @@ def _parent_acceleration_modal(i, topology, nodes, udot, ws_rot, ws_vec, pool, A
     motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], tmp, A)
 
 
+@njit(cache=True)
+def _parent_acceleration_general(i, topology, nodes, ground, udot, ws_rot, ws_vec, pool, A):
+    """:func:`_parent_acceleration` called (the forward dynamics' inner loop keeps it out of line)."""
+    _parent_acceleration(i, topology, nodes, ground, udot, ws_rot, ws_vec, pool, A)
+
+
 @njit(cache=True, inline="always")
 def _parent_acceleration(i, topology, nodes, ground, udot, ws_rot, ws_vec, pool, A):
     """A = X_i (a_parent + Psi_i etaddot_parent) (the ground's acceleration ``ground`` for a root body)."""
@@ -626,6 +632,35 @@ def _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
     pa = ws_vec[i, VEC_AUX]
     nf = topology[i, N_FREE]
     u0 = topology[i, U_START]
+    if nf == 1:
+        # the common 1-DOF hinge without the loops over DOFs (the same operations in the same order)
+        k = topology[i, FREE_DOFS]
+        D0 = 0.0
+        d0 = tau[u0 + k]
+        for a in range(6):
+            s = 0.0
+            for b in range(6):
+                s += IA[a, b] * S[b, k]
+            U[a, 0] = s
+        for a in range(6):
+            D0 += S[a, k] * U[a, 0]
+            d0 -= S[a, k] * pA[a]
+        d[0] = d0
+        if not D0 > 1e-14 * (IA[0, 0] + IA[1, 1] + IA[2, 2] + IA[3, 3] + IA[4, 4] + IA[5, 5]):
+            return False
+        dinv = 1.0 / D0
+        Dinv[0, 0] = dinv
+        for a in range(6):
+            for b in range(a, 6):
+                s = IA[a, b] - U[a, 0] * (dinv * U[b, 0])
+                Ia[a, b] = s
+                Ia[b, a] = s
+        mat6_vec(Ia, c, pa)
+        t = dinv * d0
+        for a in range(6):
+            pa[a] += pA[a]
+            pa[a] += U[a, 0] * t
+        return True
     for kk in range(nf):
         k = topology[i, FREE_DOFS + kk]
         for a in range(6):
@@ -989,20 +1024,6 @@ def _to_slot(i, topology, nodes, Ia, pa, ws_rot, ws_vec, ws_mat, pool):
     force_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], pa, pool[slot + SL_G:slot + SL_G + 6])
 
 
-@njit(cache=True, inline="always")
-def _to_parent(i, topology, nodes, Ia, pa, ws_rot, ws_vec, ws_mat, pool):
-    """Add body i's articulated inertia and force to its parent: into the slot of the parent node it
-    hangs from (a flexible parent), else into the parent's rigid block."""
-    parent = topology[i, PARENT]
-    if parent < 0:
-        return
-    if topology[i, PARENT_NODE] >= 0:
-        _to_slot(i, topology, nodes, Ia, pa, ws_rot, ws_vec, ws_mat, pool)
-    else:
-        inertia_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], Ia, ws_mat[parent, MAT_IA], ws_mat[i, MAT_TMP])
-        force_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], pa, ws_vec[parent, VEC_P])
-
-
 @njit(cache=True)
 def _modal_accelerations(i, topology, nodes, tau, udot, tau_out, ws_vec, pool):
     """Forward dynamics, pass 3, flexible body i: modal accelerations ``y - W' a`` (``a`` the rigid
@@ -1028,121 +1049,18 @@ def _modal_accelerations(i, topology, nodes, tau, udot, tau_out, ws_vec, pool):
             A[a] -= t
 
 
-@njit(cache=True, inline="always")
-def _add_prescribed_bias(i, topology, udot, ws_vec, ws_mat):
-    """c_i += S_p udot_p: the known accelerations of prescribed hinge DOFs enter the bias."""
-    S = ws_mat[i, MAT_S]
-    c = ws_vec[i, VEC_C]
-    u0 = topology[i, U_START]
-    for kk in range(topology[i, N_PRESCRIBED]):
-        k = topology[i, PRESCRIBED_DOFS + kk]
-        acc = udot[u0 + k]
-        for a in range(6):
-            c[a] += S[a, k] * acc
-
-
-@njit(cache=True, inline="always")
-def _hinge_accelerations(i, topology, tau, udot, tau_out, ws_vec, ws_mat):
-    """Pass 3 of the ABA at body i with ``A`` = X a_parent + c: the free hinge accelerations
-    ``Dinv (d - U' A)``, ``A += S udot``, and the prescribed DOFs' forces ``S_p' (IA A + pA)``."""
-    A = ws_vec[i, VEC_A]
-    S = ws_mat[i, MAT_S]
-    U = ws_mat[i, MAT_U]
-    Dinv = ws_mat[i, MAT_DINV]
-    d = ws_vec[i, VEC_D]
-    nf = topology[i, N_FREE]
-    u0 = topology[i, U_START]
-    for kk in range(nf):
-        s = 0.0
-        for ll in range(nf):
-            t = d[ll]
-            for a in range(6):
-                t -= U[a, ll] * A[a]
-            s += Dinv[kk, ll] * t
-        k = topology[i, FREE_DOFS + kk]
-        udot[u0 + k] = s
-        tau_out[u0 + k] = tau[u0 + k]
-    for kk in range(nf):
-        k = topology[i, FREE_DOFS + kk]
-        acc = udot[u0 + k]
-        for a in range(6):
-            A[a] += S[a, k] * acc
-    npres = topology[i, N_PRESCRIBED]
-    if npres > 0:
-        f = ws_vec[i, VEC_AUX]
-        mat6_vec(ws_mat[i, MAT_IA], A, f)
-        pA = ws_vec[i, VEC_P]
-        for kk in range(npres):
-            k = topology[i, PRESCRIBED_DOFS + kk]
-            s = 0.0
-            for a in range(6):
-                s += S[a, k] * (f[a] + pA[a])
-            tau_out[u0 + k] = s
-
-
-@njit(cache=True, inline="always")
-def _rigid_inertia_and_bias(i, topology, params, body_forces, ws_vec, ws_mat):
-    """IA = I, pA = V x* I V - f_ext of a rigid body."""
+@njit(cache=True)
+def _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, ws_vec, ws_mat, pool):
+    """Pass 1 of the ABA at a flexible body: IA = M_rr(eta) and pA = b - f_ext (modal rows in the pool)."""
+    _flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, True,
+                         topology[i, FLEX + FK.FX_GINV_KIND] == GINV_FACTORED)
     IA = ws_mat[i, MAT_IA]
     pA = ws_vec[i, VEC_P]
-    o = topology[i, INERTIA]
-    V = ws_vec[i, VEC_V]
-    h = ws_vec[i, VEC_AUX]
+    M = _view(pool, topology[i, FLEX + FK.FX_P_MRR], 6, 6)
     for a in range(6):
-        s = 0.0
+        pA[a] -= body_forces[i, a]
         for b in range(6):
-            v_ = params[o + 6 * a + b]
-            IA[a, b] = v_
-            s += v_ * V[b]
-        h[a] = s
-        pA[a] = -body_forces[i, a]
-    motion_cross_force_add(V, h, pA)
-
-
-@njit(cache=True)
-def _aba_general_pass1(i, topology, nodes, joint_rot, joint_vec, params, q, u, udot, body_forces, ws_rot, ws_vec,
-                       ws_mat, pool):
-    """Pass 1 of the ABA at a body on the augmented path: kinematics, bias, inertia and body forces."""
-    _general_kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool, True)
-    _add_prescribed_bias(i, topology, udot, ws_vec, ws_mat)
-    IA = ws_mat[i, MAT_IA]
-    pA = ws_vec[i, VEC_P]
-    if topology[i, FLEXIBLE]:
-        _flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, True,
-                             topology[i, FLEX + FK.FX_GINV_KIND] == GINV_FACTORED)
-        M = _view(pool, topology[i, FLEX + FK.FX_P_MRR], 6, 6)
-        for a in range(6):
-            pA[a] -= body_forces[i, a]
-            for b in range(6):
-                IA[a, b] = M[a, b]
-    else:
-        _rigid_inertia_and_bias(i, topology, params, body_forces, ws_vec, ws_mat)
-
-
-@njit(cache=True)
-def _aba_general_pass2(i, topology, nodes, params, tau, ws_rot, ws_vec, ws_mat, pool):
-    """Pass 2 of the ABA at a body on the augmented path: modal then hinge elimination, to the parent (or
-    the slot of the parent node). False when singular."""
-    if topology[i, FLEXIBLE]:
-        if not _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
-            return False
-    if not _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
-        return False
-    _to_parent(i, topology, nodes, ws_mat[i, MAT_IAP], ws_vec[i, VEC_AUX], ws_rot, ws_vec, ws_mat, pool)
-    return True
-
-
-@njit(cache=True)
-def _aba_general_pass3(i, topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool):
-    """Pass 3 of the ABA at a body on the augmented path: accelerations (hinge, then modal)."""
-    A = ws_vec[i, VEC_A]
-    _parent_acceleration(i, topology, nodes, ground, udot, ws_rot, ws_vec, pool, A)
-    c = ws_vec[i, VEC_C]
-    for a in range(6):
-        A[a] += c[a]
-    _hinge_accelerations(i, topology, tau, udot, tau_out, ws_vec, ws_mat)
-    if topology[i, N_MODES] > 0:
-        _modal_accelerations(i, topology, nodes, tau, udot, tau_out, ws_vec, pool)
+            IA[a, b] = M[a, b]
 
 
 @njit(cache=True)
@@ -1157,50 +1075,118 @@ def forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, n
     1 + the index of the first body whose articulated inertia is singular. On exit the workspace holds
     every body's pose, velocity and acceleration (the latter including the ground's ``[0; -g]``).
 
-    Each pass runs a rigid body on a fixed frame inline (the rigid fast path) and calls the augmented
-    path's function for the others.
+    Rigid bodies on fixed frames run inline 6 x 6 code (the rigid fast path); the augmented path's steps
+    (kinematics through deforming nodes, modal terms, modal elimination, slots) are calls.
     """
     nb = topology.shape[0]
     ground = params[GROUND_ACCEL:GROUND_ACCEL + 6]
     for i in range(nb):
         if topology[i, GENERAL]:
-            _aba_general_pass1(i, topology, nodes, joint_rot, joint_vec, params, q, u, udot, body_forces, ws_rot,
-                               ws_vec, ws_mat, pool)
+            _general_kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool,
+                                True)
         else:
             _rigid_position(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat)
             _rigid_velocity(i, topology, joint_vec, u, ws_rot, ws_vec, ws_mat)
-            _add_prescribed_bias(i, topology, udot, ws_vec, ws_mat)
-            _rigid_inertia_and_bias(i, topology, params, body_forces, ws_vec, ws_mat)
+        S = ws_mat[i, MAT_S]
+        c = ws_vec[i, VEC_C]
+        u0 = topology[i, U_START]
+        for kk in range(topology[i, N_PRESCRIBED]):
+            k = topology[i, PRESCRIBED_DOFS + kk]
+            acc = udot[u0 + k]
+            for a in range(6):
+                c[a] += S[a, k] * acc
+        if topology[i, FLEXIBLE]:
+            _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, ws_vec, ws_mat, pool)
+            continue
+        IA = ws_mat[i, MAT_IA]
+        pA = ws_vec[i, VEC_P]
+        o = topology[i, INERTIA]
+        V = ws_vec[i, VEC_V]
+        h = ws_vec[i, VEC_AUX]
+        for a in range(6):
+            s = 0.0
+            for b in range(6):
+                v_ = params[o + 6 * a + b]
+                IA[a, b] = v_
+                s += v_ * V[b]
+            h[a] = s
+            pA[a] = -body_forces[i, a]
+        motion_cross_force_add(V, h, pA)
     _apply_node_forces(topology, nodes, params, q, node_forces, ws_vec, pool, -1.0)
 
     for i in range(nb - 1, -1, -1):
-        if topology[i, GENERAL]:
-            if not _aba_general_pass2(i, topology, nodes, params, tau, ws_rot, ws_vec, ws_mat, pool):
+        if topology[i, FLEXIBLE]:
+            if not _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
                 return 1 + i
-            continue
         if not _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
             return 1 + i
         parent = topology[i, PARENT]
-        if parent >= 0:
+        if topology[i, PARENT_NODE] >= 0:
+            _to_slot(i, topology, nodes, ws_mat[i, MAT_IAP], ws_vec[i, VEC_AUX], ws_rot, ws_vec, ws_mat, pool)
+        elif parent >= 0:
             R = ws_rot[i, ROT_PB]
             r = ws_vec[i, VEC_POS]
             inertia_to_parent_add(R, r, ws_mat[i, MAT_IAP], ws_mat[parent, MAT_IA], ws_mat[i, MAT_TMP])
             force_to_parent_add(R, r, ws_vec[i, VEC_AUX], ws_vec[parent, VEC_P])
 
     for i in range(nb):
-        if topology[i, GENERAL]:
-            _aba_general_pass3(i, topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool)
-            continue
         A = ws_vec[i, VEC_A]
         parent = topology[i, PARENT]
-        if parent >= 0:
+        if topology[i, GENERAL]:
+            _parent_acceleration_general(i, topology, nodes, ground, udot, ws_rot, ws_vec, pool, A)
+        elif parent >= 0:
             motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], ws_vec[parent, VEC_A], A)
         else:
             motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], ground, A)
         c = ws_vec[i, VEC_C]
         for a in range(6):
             A[a] += c[a]
-        _hinge_accelerations(i, topology, tau, udot, tau_out, ws_vec, ws_mat)
+        S = ws_mat[i, MAT_S]
+        U = ws_mat[i, MAT_U]
+        Dinv = ws_mat[i, MAT_DINV]
+        d = ws_vec[i, VEC_D]
+        nf = topology[i, N_FREE]
+        u0 = topology[i, U_START]
+        # udot_free = Dinv (d - U^T A'), then A = A' + S_free udot_free
+        if nf == 1:
+            k = topology[i, FREE_DOFS]
+            t = d[0]
+            for a in range(6):
+                t -= U[a, 0] * A[a]
+            acc = 0.0 + Dinv[0, 0] * t
+            udot[u0 + k] = acc
+            tau_out[u0 + k] = tau[u0 + k]
+            for a in range(6):
+                A[a] += S[a, k] * acc
+            nf = 0
+        for kk in range(nf):
+            s = 0.0
+            for ll in range(nf):
+                t = d[ll]
+                for a in range(6):
+                    t -= U[a, ll] * A[a]
+                s += Dinv[kk, ll] * t
+            k = topology[i, FREE_DOFS + kk]
+            udot[u0 + k] = s
+            tau_out[u0 + k] = tau[u0 + k]
+        for kk in range(nf):
+            k = topology[i, FREE_DOFS + kk]
+            acc = udot[u0 + k]
+            for a in range(6):
+                A[a] += S[a, k] * acc
+        npres = topology[i, N_PRESCRIBED]
+        if npres > 0:
+            f = ws_vec[i, VEC_AUX]
+            mat6_vec(ws_mat[i, MAT_IA], A, f)
+            pA = ws_vec[i, VEC_P]
+            for kk in range(npres):
+                k = topology[i, PRESCRIBED_DOFS + kk]
+                s = 0.0
+                for a in range(6):
+                    s += S[a, k] * (f[a] + pA[a])
+                tau_out[u0 + k] = s
+        if topology[i, N_MODES] > 0:
+            _modal_accelerations(i, topology, nodes, tau, udot, tau_out, ws_vec, pool)
     return 0
 
 

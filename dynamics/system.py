@@ -49,6 +49,9 @@ class NodeKinematics(NamedTuple):
     linear_acceleration: np.ndarray  # (n, 3) node axes, classical acceleration of the node origin
 
 
+_FLOAT64 = np.dtype(np.float64)
+
+
 def _frozen(a, dtype=np.float64):
     a = np.ascontiguousarray(a, dtype=dtype)
     a.setflags(write=False)
@@ -433,6 +436,8 @@ class MultibodySystem:
         return q
 
     def _vector(self, x, n, what):
+        if type(x) is np.ndarray and x.dtype is _FLOAT64 and x.ndim == 1 and x.shape[0] == n:
+            return x  # the common case, without a conversion call
         x = np.asarray(x, dtype=np.float64)
         if x.shape != (n,):
             raise ValueError(f"{what}: expected shape ({n},), got {x.shape}")
