@@ -11,7 +11,7 @@ its nodes (so the modal elimination includes a child, as in a spacecraft), one c
 * order 2 with rotary node inertia (adds F2, O(n^3), and G2, O(n^4)).
 
 The modal data come from ``dynamics.flex.modal_integrals`` (computed only up to the order used) for
-random mode shapes on 400 point-mass nodes, or 40 nodes with rotary inertia. A size is skipped where its
+random mode shapes on 400 point-mass nodes, or 100 nodes with rotary inertia and CG offsets. A size is skipped where its
 tables do not fit (G1 and F2 at 1000 modes: 3e9 numbers, G2 above 50 modes: n^4), and the row says so.
 Log-log slopes are fitted over the sizes >= 50 (below that the per-call Python and dispatch overhead of
 a few microseconds dominates).
@@ -38,16 +38,16 @@ from dynamics.flexible_body import FlexibleBodyData, mass_terms_from_integrals, 
 
 
 def flexible_data(n_modes, seed, order, rotary, omit=()):
-    """FlexibleBodyData of a random body: ``rotary`` nodes (40, with inertia and CG offsets) or point
-    masses (400 nodes, enough for a positive definite modal mass at 1000 modes)."""
+    """FlexibleBodyData of a random body: ``rotary`` nodes (100, with inertia and CG offsets) or point
+    masses (400 nodes); enough translational DOFs for a well-conditioned modal mass at the sizes used."""
     rng = np.random.default_rng(seed)
-    n_nodes = 40 if rotary else 400
+    n_nodes = 100 if rotary else 400
     mass = rng.uniform(0.5, 2.0, n_nodes)
     position = np.column_stack([np.linspace(0.0, 2.0, n_nodes), rng.uniform(-0.3, 0.3, (n_nodes, 2))])
     shapes = 0.2 * rng.standard_normal((n_nodes, 6, n_modes))
     if rotary:
         cg = rng.uniform(-0.02, 0.02, (n_nodes, 3))
-        inertia = np.array([0.01 * np.eye(3)] * n_nodes)
+        inertia = np.array([0.05 * np.eye(3)] * n_nodes)
     else:
         cg = np.zeros((n_nodes, 3))
         inertia = np.zeros((n_nodes, 3, 3))
