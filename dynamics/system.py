@@ -103,38 +103,49 @@ def _modal_mass_inverse(G0, where):
 def choose_solver(topology):
     """``("aba" | "dense", reason)``: the forward-dynamics solver with the lower estimated cost.
 
-    The estimate counts multiply-adds. ABA: per body a rigid-body step, plus for a flexible body the
-    O(n^2) applications of its modal mass inverse (or O(n^3) factorization with G1/G2) and the Woodbury
-    system of its child attachment nodes; the dense path: an inverse dynamics and a composite-inertia
-    pass (about the ABA's cost without the eliminations), the mass matrix columns carried to the root and
-    a Cholesky factorization of the nu x nu mass matrix. Both are linear-algebra counts; the constants are
-    the ratios measured by ``benchmarks/flexible_scaling.py`` on this engine."""
-    cost_aba = cost_dense = 0.0
+    The estimate (in multiply-adds, ~1 ns each here) counts only what differs between the two. The
+    articulated-body recursion costs ~600 per rigid body and, per flexible body, ~1.2 10^4 fixed (the modal
+    elimination's small dense steps) plus its applications of ``G^-1`` (7 n or 7 n^2 for a constant modal
+    mass; with G1 or G2 a Cholesky factorization n^3/3 and 2 n^2 per solved row) and the Woodbury rank
+    terms 3 r^2 n. The dense path costs an inverse dynamics and a composite-inertia pass (~1100 per
+    rigid body, ~4000 + 8 n^2 per flexible body, the mass-matrix columns carried to the root, the modal
+    mass formed a second time: n^3 with G1, 3 n^3 with F2, n^4 with G2) and the Cholesky factorization
+    nu^3/3 + 2 nu^2 of the mass matrix. The constants were fitted to ``benchmarks/flexible_scaling.py``
+    and the solver comparison in docs/engine.md ("Scaling"): dense wins for one flexible body of a few
+    tens of modes (up to 30 % faster), the recursion everywhere else."""
+    aba = dense = 0.0
     nu_total = 0
     depth = np.zeros(topology.shape[0], dtype=np.int64)
     for i, t in enumerate(topology):
         n = int(t[K.N_MODES])
-        nu = int(t[K.NU_HINGE])
-        nu_total += nu + n
+        ncol = int(t[K.NU_HINGE]) + n
+        nu_total += ncol
         depth[i] = 0 if t[K.PARENT] < 0 else depth[t[K.PARENT]] + 1
-        body = 400.0 + 60.0 * n
-        cost_dense += 2.0 * body + 6.0 * (nu + n) * (nu + n + 6.0 * depth[i])
-        cost_aba += body
-        if t[K.FLEXIBLE] and n:
-            fx = t[K.FLEX:]
-            kind = fx[FK.FX_GINV_KIND]
-            r = int(fx[FK.FX_RANK])
-            ginv = {FK.GINV_DIAGONAL: n, FK.GINV_DENSE: n * n, FK.GINV_FACTORED: 2 * n * n}[int(kind)]
-            varying = fx[FK.FX_C1] >= 0 or fx[FK.FX_F2] >= 0 or kind == FK.GINV_FACTORED
-            cost_aba += ginv * (1 + (6 if varying else 0)) + n * (r * r + 14 * r + 72)
-            if kind == FK.GINV_FACTORED:
-                cost_aba += n ** 3 / 3.0 + ginv * 6 * (r // 6)
-    cost_dense += nu_total ** 3 / 6.0
-    if cost_dense < cost_aba:
-        return "dense", (f"dense M udot = tau - h (estimated {cost_dense:.3g} multiply-adds against "
-                         f"{cost_aba:.3g} for the articulated-body recursion)")
-    return "aba", (f"articulated-body recursion (estimated {cost_aba:.3g} multiply-adds against "
-                   f"{cost_dense:.3g} for the dense M udot = tau - h)")
+        dense += 40.0 * ncol * depth[i]
+        if not t[K.FLEXIBLE]:
+            aba += 600.0
+            dense += 1100.0
+            continue
+        fx = t[K.FLEX:]
+        kind = int(fx[FK.FX_GINV_KIND])
+        r = int(fx[FK.FX_RANK])
+        varying = fx[FK.FX_C1] >= 0 or fx[FK.FX_F2] >= 0
+        aba += 1.2e4 + 3.0 * r * r * n
+        if kind == FK.GINV_DIAGONAL:
+            aba += 7.0 * n * (1 + 6 * varying)
+        elif kind == FK.GINV_DENSE:
+            aba += 1.0 * n * n * (1 + 6 * varying)
+        else:
+            aba += n ** 3 / 3.0 + 2.0 * n * n * (r + 13)
+        dense += 4000.0 + 8.0 * n * n
+        dense += (n ** 3 if fx[FK.FX_G1] >= 0 else 0) + (3 * n ** 3 if fx[FK.FX_F2] >= 0 else 0) + \
+            (n ** 4 if fx[FK.FX_G2] >= 0 else 0)
+    dense += nu_total ** 3 / 3.0 + 2.0 * nu_total ** 2
+    if dense < aba:
+        return "dense", (f"dense M udot = tau - h (estimated {dense:.3g} multiply-adds against {aba:.3g} for "
+                         f"the articulated-body recursion)")
+    return "aba", (f"articulated-body recursion (estimated {aba:.3g} multiply-adds against {dense:.3g} for the "
+                   f"dense M udot = tau - h)")
 
 
 class MultibodySystem:

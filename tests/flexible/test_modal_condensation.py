@@ -29,6 +29,7 @@ from dynamics import flexible_kernels as FK
 from dynamics import kernels as K
 from dynamics.flex.modal_integrals import modal_integrals
 from dynamics.flexible_body import FlexibleBodyData, flexible_body_from_modal_body, mass_matrix_polynomial
+from dynamics.system import choose_solver  # the real one: tests/flexible/conftest.py forces "aba" in compile()
 
 from .random_flexible import flexible_body_data, random_node_model
 from .test_brute_force import H, derivatives, nodal_mass_matrix
@@ -262,3 +263,49 @@ def test_node_kinematics_after_dynamics_equals_node_kinematics(solver):
     engine.node_kinematics(d, q, u, udot, *ref)
     for got, expected in zip(out, ref):
         assert rel(got, expected) < 1e-12
+
+
+@pytest.mark.parametrize("order", [0, 1, 2])
+def test_dense_solver_matches_the_nodal_reference(order):
+    """The dense solve (composite inertia, Newton-Euler, Cholesky) against the brute-force nodal
+    formulation, as the recursion is in test_brute_force.py (1e-10 relative)."""
+    from .test_brute_force import reference_free_free
+
+    model = random_node_model(8, 4, seed=10 + order)
+    mb = Multibody()
+    mb.add_flexible_body("beam", None, modal=flexible_body_data(model, order), hinge="free")
+    system = mb.compile(solver="dense")
+    assert system.solver == "dense" and "requested" in system.solver_reason
+    rng = np.random.default_rng(order)
+    q = system.neutral_configuration()
+    q[:4] = rng.standard_normal(4)
+    q[:4] /= np.linalg.norm(q[:4])
+    q[4:7] = rng.standard_normal(3)
+    q[7:] = 0.1 * rng.standard_normal(4)
+    u, tau = rng.standard_normal(system.nu), rng.standard_normal(system.nu)
+    assert rel(system.forward_dynamics(q, u, tau), reference_free_free(model, order, u, q[7:], tau)) < 1e-10
+
+
+def test_compile_chooses_and_reports_the_cheaper_solver():
+    """Dense for small systems (one flexible body of a few modes, the 5-body tree of test_flexible_tree:
+    measured 20-40 % faster, docs/engine.md), the recursion for large bodies and long chains; the choice
+    is in the repr and the summary."""
+    def one_body(n_modes):
+        mb = Multibody()
+        mb.add_flexible_body("beam", None, modal=flexible_body_data(random_node_model(3 * n_modes, n_modes, seed=1,
+                                                                                      point_masses=True), 1),
+                             hinge="free")
+        return choose_solver(mb.compile("aba").topology)
+
+    assert one_body(5)[0] == "dense" and one_body(60)[0] == "aba"
+    assert "dense M udot = tau - h (estimated" in one_body(5)[1]
+    assert choose_solver(flexible_tree(order=1).topology)[0] == "dense"
+    mb = Multibody()
+    for i in range(12):
+        mb.add_flexible_body(f"b{i}", None if i == 0 else f"b{i - 1}", hinge="free" if i == 0 else "spherical",
+                             modal=flexible_body_data(random_node_model(5, 3, seed=i), 1),
+                             **({} if i == 0 else {"parent_node": f"tip{i - 1}"}))
+        mb.add_node(f"tip{i}", f"b{i}", grid=5)
+    chain = mb.compile()
+    assert choose_solver(chain.topology)[0] == "aba"
+    assert "solver=aba" in repr(chain) and "solver: articulated-body recursion" in chain.summary()
