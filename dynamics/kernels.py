@@ -759,6 +759,53 @@ def _gauss_solve(Aug, r, m):
 
 
 @njit(cache=True)
+def _psd_factor(Y, L, piv):
+    """Pivoted Cholesky of a symmetric positive semidefinite 6 x 6 ``Y`` (read-only here):
+    ``Y[piv[a], piv[b]] = (L L')[a, b]`` with ``L`` lower triangular; columns past the numerical rank
+    (pivot below 1e-14 of the largest diagonal entry, round-off for an articulated inertia) are zero.
+    ``L`` is used as the working copy; ``piv`` receives the permutation (as floats)."""
+    for a in range(6):
+        piv[a] = a
+        for b in range(6):
+            L[a, b] = Y[a, b]
+    biggest = 0.0
+    for a in range(6):
+        biggest = max(biggest, L[a, a])
+    for k in range(6):
+        j = k
+        for a in range(k + 1, 6):
+            if L[a, a] > L[j, j]:
+                j = a
+        if j != k:
+            for b in range(6):
+                t = L[k, b]
+                L[k, b] = L[j, b]
+                L[j, b] = t
+            for a in range(6):
+                t = L[a, k]
+                L[a, k] = L[a, j]
+                L[a, j] = t
+            t = piv[k]
+            piv[k] = piv[j]
+            piv[j] = t
+        if not L[k, k] > 1e-14 * biggest:
+            for a in range(k, 6):
+                for b in range(k, 6):
+                    L[a, b] = 0.0
+            break
+        d = np.sqrt(L[k, k])
+        L[k, k] = d
+        for a in range(k + 1, 6):
+            L[a, k] /= d
+        for a in range(k + 1, 6):  # the whole trailing block, so that later swaps see it symmetric
+            for b in range(k + 1, 6):
+                L[a, b] -= L[a, k] * L[b, k]
+    for a in range(6):
+        for b in range(a + 1, 6):
+            L[a, b] = 0.0
+
+
+@njit(cache=True)
 def _symmetric_eigen(A, r, V):
     """Cyclic Jacobi eigen-decomposition of the symmetric ``A`` (r x r): on return ``A`` is diagonal with
     the eigenvalues and ``A_in = V diag(A) V'`` (accurate to round-off relative to the largest entry)."""
@@ -956,21 +1003,42 @@ def _condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
                     Q[6 * m + a, 6 * m + b] = A[a, b]
                 Q[6 * m + a, 6 * m + 6 + a] = -1.0
                 Q[6 * m + 6 + a, 6 * m + a] = -1.0
-        _symmetric_eigen(Q, r, Vq)
         for k in range(r):
             for s in range(n):
                 Ut[k, s] = 0.0
                 Zt[k, s] = 0.0
-        for b in range(blocks):
-            Lb = _woodbury_rows(i, b, topology, nodes, pool, n, False)
-            Zb = _woodbury_rows(i, b, topology, nodes, pool, n, True)
-            for a in range(6):
+        if onode < 0:
+            # Q = blockdiag(Y_j), each positive semidefinite: Y_j = P L L' P' (pivoted Cholesky), U_j = L' P' Psi_j
+            for b in range(blocks):
+                L = _view(pool, so + 36 * b, 6, 6)  # in the V block (r^2 >= 36 blocks)
+                piv = pool[P_TMP83:P_TMP83 + 6]
+                _psd_factor(Q[6 * b:6 * b + 6, 6 * b:6 * b + 6], L, piv)
+                Lb = _woodbury_rows(i, b, topology, nodes, pool, n, False)
+                Zb = _woodbury_rows(i, b, topology, nodes, pool, n, True)
+                for k in range(6):
+                    for a in range(6):
+                        v_ = L[a, k]
+                        if v_ != 0.0:
+                            pa_ = int(piv[a])
+                            for s in range(n):
+                                Ut[6 * b + k, s] += v_ * Lb[pa_, s]
+                                Zt[6 * b + k, s] += v_ * Zb[pa_, s]
+                for k in range(6):
+                    Q[6 * b + k, 6 * b + k] = 1.0  # the signs S
+        else:
+            # with Pc, Q is indefinite: Q = V diag(lam) V' (Jacobi), U = |lam|^1/2 V' L, S = sign(lam)
+            _symmetric_eigen(Q, r, Vq)
+            for b in range(blocks):
+                Lb = _woodbury_rows(i, b, topology, nodes, pool, n, False)
+                Zb = _woodbury_rows(i, b, topology, nodes, pool, n, True)
                 for k in range(r):
-                    v_ = Vq[6 * b + a, k] * np.sqrt(abs(Q[k, k]))
-                    if v_ != 0.0:
-                        for s in range(n):
-                            Ut[k, s] += v_ * Lb[a, s]
-                            Zt[k, s] += v_ * Zb[a, s]
+                    root = np.sqrt(abs(Q[k, k]))
+                    for a in range(6):
+                        v_ = Vq[6 * b + a, k] * root
+                        if v_ != 0.0:
+                            for s in range(n):
+                                Ut[k, s] += v_ * Lb[a, s]
+                                Zt[k, s] += v_ * Zb[a, s]
         for a in range(r):
             for b in range(a, r):
                 t = 0.0

@@ -104,15 +104,16 @@ def choose_solver(topology):
     """``("aba" | "dense", reason)``: the forward-dynamics solver with the lower estimated cost.
 
     The estimate (in multiply-adds, ~1 ns each here) counts only what differs between the two. The
-    articulated-body recursion costs ~600 per rigid body and, per flexible body, ~1.2 10^4 fixed (the modal
+    articulated-body recursion costs ~600 per rigid body and, per flexible body, ~6000 fixed (the modal
     elimination's small dense steps) plus its applications of ``G^-1`` (7 n or 7 n^2 for a constant modal
     mass; with G1 or G2 a Cholesky factorization n^3/3 and 2 n^2 per solved row) and the Woodbury rank
     terms 3 r^2 n. The dense path costs an inverse dynamics and a composite-inertia pass (~1100 per
     rigid body, ~4000 + 8 n^2 per flexible body, the mass-matrix columns carried to the root, the modal
     mass formed a second time: n^3 with G1, 3 n^3 with F2, n^4 with G2) and the Cholesky factorization
     nu^3/3 + 2 nu^2 of the mass matrix. The constants were fitted to ``benchmarks/flexible_scaling.py``
-    and the solver comparison in docs/engine.md ("Scaling"): dense wins for one flexible body of a few
-    tens of modes (up to 30 % faster), the recursion everywhere else."""
+    and the solver comparison in docs/engine.md ("Scaling"): dense wins, by 10-40 %, for small systems
+    (a flexible body of up to ~10 modes, a few bodies of a few modes), the recursion everywhere else;
+    near the crossover the two differ by less than the timing noise."""
     aba = dense = 0.0
     nu_total = 0
     depth = np.zeros(topology.shape[0], dtype=np.int64)
@@ -130,7 +131,7 @@ def choose_solver(topology):
         kind = int(fx[FK.FX_GINV_KIND])
         r = int(fx[FK.FX_RANK])
         varying = fx[FK.FX_C1] >= 0 or fx[FK.FX_F2] >= 0
-        aba += 1.2e4 + 3.0 * r * r * n
+        aba += 6000.0 + 3.0 * r * r * n
         if kind == FK.GINV_DIAGONAL:
             aba += 7.0 * n * (1 + 6 * varying)
         elif kind == FK.GINV_DENSE:

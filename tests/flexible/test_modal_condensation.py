@@ -288,7 +288,7 @@ def test_dense_solver_matches_the_nodal_reference(order):
 
 def test_compile_chooses_and_reports_the_cheaper_solver():
     """Dense for small systems (one flexible body of a few modes, the 5-body tree of test_flexible_tree:
-    measured 20-40 % faster, docs/engine.md), the recursion for large bodies and long chains; the choice
+    measured 10-40 % faster, docs/engine.md), the recursion for large bodies and long chains; the choice
     is in the repr and the summary."""
     def one_body(n_modes):
         mb = Multibody()
