@@ -2,7 +2,8 @@
 
 Part 1, modes: one flexible body on a free hinge carrying a rigid wheel on a revolute hinge at one of
 its nodes (so the modal elimination includes a child, as in a spacecraft), one call of
-``system.forward_dynamics(q, u, tau)`` at 10 / 50 / 200 / 1000 modes for each set of terms of M(eta):
+``system.forward_dynamics(q, u, tau)`` (articulated-body solver) at 10 / 50 / 200 / 1000 modes for each
+set of terms of M(eta):
 
 * order 0 (M0 only);
 * order 1 with point-mass nodes (J1, p1, F1: no G1);
@@ -66,7 +67,7 @@ def body_with_wheel(data):
     mb.add_node("mount", "structure", grid=len(data.grid_ids) // 2)
     mb.add_body("wheel", "structure", mass=10.0, inertia=[20.0, 10.0, 10.0], hinge="revolute", axis=(1.0, 0.0, 0.0),
                 parent_node="mount")
-    return mb.compile()
+    return mb.compile(solver="aba")  # the recursion's cost per body (compile() would pick dense at 10 modes)
 
 
 def chain(n_bodies, n_modes, tree=False, solver=None, seed=0):
