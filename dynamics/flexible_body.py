@@ -189,13 +189,13 @@ def mass_terms_from_integrals(mi, order):
         C1[:, :3, :] = mi.F1.transpose(1, 2, 0)  # F(s) gains F1[s, r] eta_r
         C1[:, 3:6, :] = mi.E1.transpose(1, 2, 0)
         terms.C1 = _nonzero(C1)
-        if mi.G1 is not None:
+        if mi.G1 is not None and np.any(mi.G1):  # point-mass nodes: zeros, left out before any n^3 copy
             G1 = mi.G1.transpose(2, 0, 1)
             terms.G1 = _nonzero(np.ascontiguousarray(G1 + G1.transpose(0, 2, 1)))
     if order >= 2:
         J2 = 0.5 * (mi.J2 + mi.J2.transpose(1, 0, 3, 2))  # symmetric in (r, s) as matrices
         terms.J2 = _nonzero(np.ascontiguousarray(0.5 * (J2 + J2.transpose(0, 1, 3, 2))))
-        if mi.F2 is not None:
+        if mi.F2 is not None and np.any(mi.F2):
             F2 = 0.5 * (mi.F2 + mi.F2.transpose(0, 2, 1, 3))  # (l, r, s, a) symmetric in (r, s)
             terms.F2 = _nonzero(np.ascontiguousarray(F2.transpose(1, 2, 3, 0)))
         if mi.G2 is not None:

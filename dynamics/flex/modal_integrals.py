@@ -52,8 +52,9 @@ class ModalIntegrals:
     J2 (n,n,3,3), F0 (n,3), F1 (n,n,3) [index (r,s)], F2 (n,n,n,3) [(r,s,l)], E0 (n,3),
     E1 (n,n,3) [(r,s)], G0 (n,n), G1 (n,n,n) [(r,s,l)], G2 (n,n,n,n) [(r,s,l,m)]. An integral
     is None when it was not computed (above the order :func:`modal_integrals` was asked for, or
-    omitted there) or, for the n^3 and n^4 tables G1, F2, G2, when it is identically zero (point-mass
-    nodes: no rotational inertia or CG offset, TM eq. E.3.1; G2 also without rotational inertia alone).
+    omitted there) or, for G2, when it is identically zero (no node has rotational inertia). For
+    point-mass nodes (TM eq. E.3.1) G1 and F2 are arrays of zeros, as the body-file layout has them
+    (docs/body_file.md); leave them out with ``omit`` for large studies.
     """
 
     mass: float
@@ -88,8 +89,8 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
     "G1", "F2", "G2", the tables of n^3, n^3 and n^4 numbers). Memory and time: O(N n^2) at order 0
     and at order 1 without G1, O(N n^3) with G1 or F2, O(N n^4) with G2 (N nodes, n modes).
 
-    G1 and F2 are also ``None`` when they are identically zero (point-mass nodes), G2 when no node has
-    rotational inertia or when n > ``max_g2_modes`` (n^4 numbers; a warning says so).
+    G2 is also ``None`` when it is identically zero (no node has rotational inertia) or when
+    n > ``max_g2_modes`` (n^4 numbers; a warning says so).
 
     node_mass (N,), node_cm (N,3) = p_j, node_inertia (N,3,3) = J_j about the node,
     positions (N,3) = l0_j from the body-frame origin, rotation_shapes (N,3,n) = lambda_j,
@@ -137,8 +138,10 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
         J1 = -D.transpose(2, 0, 1) + np.einsum("bbr,ac->rac", D, I3)
         F1 = np.einsum("abc,bscr->rsa", eps, C)
         E1 = np.zeros((n, n, 3))
+        G1 = np.zeros((n, n, n)) if want_g1 else None
     if order >= 2:
         J2 = -C.transpose(3, 1, 0, 2) + G0[:, :, None, None] * I3
+        F2 = np.zeros((n, n, n, 3)) if want_f2 else None
     # terms in the node inertia J and CG offset p: only nodes that have them
     sel = (np.abs(J).reshape(len(m), -1).max(axis=1) > 0.0) | (np.abs(p).max(axis=1) > 0.0)
     if np.any(sel):
@@ -226,7 +229,7 @@ def flexible_body_mass_matrix(mi: ModalIntegrals, eta: np.ndarray) -> np.ndarray
     eta = np.asarray(eta, float)
     n = len(eta)
     G = mi.G0.copy()
-    if mi.G1 is not None:  # None: identically zero
+    if mi.G1 is not None:  # None: not computed (order-limited integrals)
         G = G + np.einsum("rsl,l->rs", mi.G1 + mi.G1.transpose(1, 0, 2), eta)
     if mi.G2 is not None:
         G = G + np.einsum("rslm,l,m->rs", mi.G2, eta, eta)
