@@ -119,6 +119,7 @@ class Multibody:
         self.nodes: list[NodeDefinition] = []
         self._body_index: dict[str, int] = {}
         self._node_names: set[str] = set()
+        self.notes: list[str] = []  # choices made for the user (default modal-integral orders)
 
     def add_body(self, name, parent=GROUND, *, mass, inertia, com=(0.0, 0.0, 0.0), hinge, axis=None,
                  axes=None, inboard_position=(0.0, 0.0, 0.0), inboard_rotation=None,
@@ -181,24 +182,28 @@ class Multibody:
         return name
 
     def add_flexible_body(self, name, parent=GROUND, *, modal, hinge, modes=None, order=None, damping_ratio=None,
-                          integrals="general", child_grid=None, **hinge_kwargs):
+                          integrals="general", child_grid=None, omit_terms=(), **hinge_kwargs):
         """Add a flexible body whose reference frame is connected to ``parent`` by a hinge.
 
         ``modal``: a body file path (``flexshell fem2modal ... --modal-integrals``), a
         ``dynamics.flex.body_file.ModalBody`` or a :class:`dynamics.flexible_body.FlexibleBodyData`.
         The body frame is the FE model's reference frame (basic axes at the reference grid). ``modes``
-        selects mode indices, ``order`` the modal-integral order (0, 1, 2), ``damping_ratio`` overrides
-        the file's modal damping, ``integrals`` picks ``"general"`` or ``"point_mass"`` integrals.
-        ``child_grid`` puts the hinge's outboard frame on that grid of this body, so the hinge holds the
-        deforming interface grid (as DARTS does) rather than the body frame; ``outboard_position`` and
-        ``outboard_rotation`` are then relative to the grid's node frame. Other keywords are those of
-        :meth:`add_body` (hinge axes, frames, prescribed, parent_node, joint_name). Modal coordinates are
-        appended to the hinge coordinates in ``q`` and ``u``.
+        selects mode indices, ``order`` the modal-integral order (0, 1, 2; default: the highest the body
+        file supports, 2 unless the file omits G2 for its nodes' rotational inertia, then 1, which is
+        recorded in :attr:`notes` and warned about), ``damping_ratio`` overrides the file's modal
+        damping, ``integrals`` picks ``"general"`` or ``"point_mass"`` integrals, ``omit_terms`` leaves
+        out terms of M(eta) that cost O(n^3) or O(n^4) per evaluation (a subset of ("G1", "F2", "G2"),
+        see :mod:`dynamics.flexible_body`). ``child_grid`` puts the hinge's outboard frame on that grid
+        of this body, so the hinge holds the deforming interface grid (as DARTS does) rather than the
+        body frame; ``outboard_position`` and ``outboard_rotation`` are then relative to the grid's node
+        frame. Other keywords are those of :meth:`add_body` (hinge axes, frames, prescribed,
+        parent_node, joint_name). Modal coordinates are appended to the hinge coordinates in ``q`` and
+        ``u``.
         """
         from dynamics.flexible_body import FlexibleBodyData, flexible_body_from_modal_body
 
         if isinstance(modal, FlexibleBodyData):
-            data = modal
+            data = modal.without(omit_terms)
             if modes is not None or damping_ratio is not None or (order is not None and order != data.order):
                 raise ModelDefinitionError(f"body '{name}': modes/damping_ratio/order apply to body files; "
                                            f"FlexibleBodyData is used as given (its order is {data.order})")
@@ -207,8 +212,11 @@ class Multibody:
                 from dynamics.flex.body_file import read_body_file
 
                 modal = read_body_file(modal)
-            data = flexible_body_from_modal_body(modal, modes=modes, order=2 if order is None else order,
-                                                 damping_ratio=damping_ratio, integrals=integrals)
+            try:
+                data = flexible_body_from_modal_body(modal, modes=modes, order=order, damping_ratio=damping_ratio,
+                                                     integrals=integrals, omit_terms=omit_terms)
+            except ModelDefinitionError as exc:
+                raise ModelDefinitionError(f"body '{name}': {exc}") from None
         M0 = data.M0
         mass = M0[3, 3]
         com = np.array([M0[2, 4], M0[0, 5], M0[1, 3]]) / mass
@@ -216,6 +224,9 @@ class Multibody:
         J_com = J0 - mass * (com @ com * np.eye(3) - np.outer(com, com))
         self.add_body(name, parent, mass=mass, com=com, inertia=J_com, hinge=hinge, **hinge_kwargs)
         self.bodies[-1].flexible = data
+        if data.note:
+            self.notes.append(f"body '{name}': {data.note}")
+            warnings.warn(self.notes[-1], UserWarning, stacklevel=2)
         if child_grid is not None:
             self.bodies[-1].outboard_node = self.add_node(f"{name}.hinge", name, grid=child_grid)
         return name
@@ -316,13 +327,16 @@ class Multibody:
                                        f"{HINGE_NAMES[code]} hinge), got {prescribed!r}")
         return flags
 
-    def compile(self):
-        """Freeze the description into a :class:`~dynamics.system.MultibodySystem`."""
+    def compile(self, solver=None):
+        """Freeze the description into a :class:`~dynamics.system.MultibodySystem`.
+
+        ``solver``: "aba" or "dense" forces the forward-dynamics method; by default the cheaper one is
+        chosen (:func:`dynamics.system.choose_solver`) and reported by ``system.summary()``."""
         from dynamics.system import MultibodySystem
 
         if not self.bodies:
             raise ModelDefinitionError("the multibody has no bodies")
-        return MultibodySystem.from_definitions(self.bodies, self.nodes, self.gravity)
+        return MultibodySystem.from_definitions(self.bodies, self.nodes, self.gravity, solver=solver)
 
     # ------------------------------------------------------------------ URDF
     @classmethod

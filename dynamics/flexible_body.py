@@ -6,17 +6,43 @@ A flexible body's generalized velocity is ``x = [V; eta_dot]`` (its reference fr
     M(eta) = M0 + sum_r M1[r] eta_r + sum_rs M2[r, s] eta_r eta_s            (N x N, N = 6 + n)
 
 the body mass matrix of TM-2020-5008164 eqs. E.1.34 and E.2.6 (blocks from the modal integrals
-E.2.2-E.2.5), re-ordered here as [omega, v, eta]. ``M2[r, s]`` is stored symmetric in (r, s) and as a
-matrix. The modal-integral ``order`` selects the fidelity (issue 4): 0 keeps ``M0`` only (constant
-mass matrix, rigid/elastic coupling through the participation factors F0, E0 only: the "linear
+E.2.2-E.2.5), re-ordered here as [omega, v, eta]. ``M2[r, s]`` is symmetric in (r, s) and as a matrix.
+The modal-integral ``order`` selects the fidelity (issue 4): 0 keeps ``M0`` only (constant mass
+matrix, rigid/elastic coupling through the participation factors F0, E0 only: the "linear
 superposition" level of TM Section 7.2), 1 adds the first-order terms, 2 is the full expansion.
 
+The engine never stores ``M1`` and ``M2`` whole (``n N^2`` and ``n^2 N^2`` numbers, mostly zeros): it
+keeps their non-zero blocks, :class:`ModalMassTerms`, and each block has its own cost per evaluation
+(n modes):
+
+=====  ==============================  =====================  ===================================
+term   block of M(eta)                 integrals              cost per evaluation
+=====  ==============================  =====================  ===================================
+R1     rigid/rigid, first order        J1, p1                 O(n)
+C1     rigid/modal, first order        F1, E1                 O(n^2)
+G1     modal/modal, first order        G1                     O(n^3); also makes the modal mass
+                                                              eta-dependent, so the articulated-
+                                                              body step factors it (O(n^3))
+J2     rotational, second order        J2                     O(n^2)
+F2     rotational/modal, second order  F2                     O(n^3)
+G2     modal/modal, second order       G2                     O(n^4)
+=====  ==============================  =====================  ===================================
+
+G1, F2 and G2 come only from nodes with rotational inertia or centre-of-mass offsets (zero for point
+masses, TM eq. E.3.1); a user may leave them out (``omit_terms``, :data:`OMITTABLE_TERMS`). The kinetic
+energy stays a positive quadratic form of the velocities with any subset of the terms (they are
+small corrections at small deformation), so the equations of motion remain Lagrangian and conserve
+energy; what is lost is the change of the modal mass (G1, G2) and of the rotational/modal coupling
+(F2) with the rotation ``lambda eta`` of the nodes' own inertia, effects of relative size
+``|lambda eta|`` (the node rotation angles) on those blocks.
+
 The equations of motion follow from Lagrange's equations for ``eta`` and the Euler-Poincare (Kirchhoff)
-equations for the quasi-velocity ``V`` (see :mod:`dynamics.flexible_kernels`).
+equations for the quasi-velocity ``V`` (see :mod:`dynamics.kernels`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,16 +50,45 @@ import numpy as np
 from dynamics.builder import ModelDefinitionError
 from dynamics.spatial import skew
 
+OMITTABLE_TERMS = ("G1", "F2", "G2")
+"""Terms of M(eta) a user may leave out: the O(n^3) and O(n^4) ones (module docstring)."""
+
+
+@dataclass
+class ModalMassTerms:
+    """The eta-dependent blocks of a body mass matrix, stored compactly ([omega, v, eta] order).
+
+    ``R1`` (n, 6, 6) = M1[r, :6, :6]; ``C1`` (n, 6, n) = M1[r, :6, 6:]; ``G1`` (n, n, n) = M1[r, 6:, 6:];
+    ``J2`` (n, n, 3, 3) = M2[r, s, :3, :3]; ``F2`` (n, n, 3, n) = M2[r, s, :3, 6:];
+    ``G2`` (n, n, n, n) = M2[r, s, 6:, 6:]. A term is None when it is absent: above the body's order,
+    identically zero, or omitted. The other blocks of M1, M2 follow by symmetry (or are zero)."""
+
+    R1: np.ndarray | None = None
+    C1: np.ndarray | None = None
+    G1: np.ndarray | None = None
+    J2: np.ndarray | None = None
+    F2: np.ndarray | None = None
+    G2: np.ndarray | None = None
+
+    def present(self):
+        """Names of the terms that are present."""
+        return tuple(f.name for f in dataclasses.fields(self) if getattr(self, f.name) is not None)
+
 
 @dataclass
 class FlexibleBodyData:
-    """Modal data of one flexible body, ready for the engine (SI units, body frame)."""
+    """Modal data of one flexible body, ready for the engine (SI units, body frame).
+
+    The eta-dependent part of M(eta) is given either as the polynomial coefficients ``M1`` (n, N, N)
+    and ``M2`` (n, n, N, N) (convenient for small bodies and tests), or compactly as ``terms`` (what
+    :func:`flexible_body_from_modal_body` builds, without the O(n^3) arrays). ``note`` records a choice
+    made for the user (an order chosen by default), reported by the compiled system."""
 
     n_modes: int
     order: int
     M0: np.ndarray  # (N, N)
-    M1: np.ndarray  # (n, N, N) at order >= 1, else empty
-    M2: np.ndarray  # (n, n, N, N) at order 2, else empty
+    M1: np.ndarray | None  # (n, N, N) at order >= 1, or None with ``terms``
+    M2: np.ndarray | None  # (n, n, N, N) at order 2, or None with ``terms``
     stiffness: np.ndarray  # (n, n) modal stiffness
     damping: np.ndarray  # (n, n) modal damping
     grid_ids: np.ndarray  # (G,) grids whose shapes are available for nodes
@@ -41,6 +96,8 @@ class FlexibleBodyData:
     grid_shapes: np.ndarray  # (G, 6, n) Pi(j) = [lambda; gamma]
     frequencies_hz: np.ndarray  # (n,)
     source: str = "arrays"
+    terms: ModalMassTerms | None = None
+    note: str = ""
 
     @property
     def mass(self):
@@ -54,16 +111,104 @@ class FlexibleBodyData:
                                        f"{self.grid_ids.max()}")
         return int(hits[0])
 
+    def mass_terms(self):
+        """The :class:`ModalMassTerms` of M(eta) (from ``terms``, or extracted from ``M1``, ``M2``)."""
+        if self.terms is not None:
+            return self.terms
+        return mass_terms_from_polynomial(self.M1, self.M2, self.order, self.n_modes, self.source)
 
-def mass_matrix_polynomial(mi, order):
-    """(M0, M1, M2) in [omega, v, eta] order from a ``dynamics.flex.modal_integrals.ModalIntegrals``.
+    def without(self, omit_terms):
+        """A copy without the terms named in ``omit_terms`` (a subset of :data:`OMITTABLE_TERMS`)."""
+        omit = tuple(omit_terms)
+        unknown = sorted(set(omit) - set(OMITTABLE_TERMS))
+        if unknown:
+            raise ModelDefinitionError(f"{self.source}: omit_terms: only {list(OMITTABLE_TERMS)} can be "
+                                       f"left out (the O(n^3) and O(n^4) terms), got {unknown}")
+        if not omit:
+            return self
+        terms = dataclasses.replace(self.mass_terms(), **{name: None for name in omit})
+        return dataclasses.replace(self, M1=None, M2=None, terms=terms)
 
-    Only the terms of the requested order are allocated (M2 alone is n^2 (6 + n)^2 numbers)."""
-    n = mi.p1.shape[0]
+
+def _nonzero(a):
+    return a if a is not None and np.any(a) else None
+
+
+def mass_terms_from_polynomial(M1, M2, order, n, source="arrays"):
+    """:class:`ModalMassTerms` of ``M(eta) = M0 + M1 eta + M2 eta eta`` (blocks that are zero: None).
+
+    Refuses coefficients the engine does not model: a first-order block that is not symmetric, or
+    second-order terms outside the rotational rows (the modal integrals of TM Appendix E have none)."""
     N = 6 + n
-    M0 = np.zeros((N, N))
-    M1 = np.zeros((n, N, N) if order >= 1 else (0, N, N))
-    M2 = np.zeros((n, n, N, N) if order >= 2 else (0, 0, N, N))
+    terms = ModalMassTerms()
+    if order >= 1 and n:
+        M1 = np.asarray(M1, dtype=np.float64)
+        if M1.shape != (n, N, N):
+            raise ModelDefinitionError(f"{source}: M1 must have shape {(n, N, N)} at order {order}, "
+                                       f"got {M1.shape}")
+        if np.abs(M1 - M1.transpose(0, 2, 1)).max() > 1e-12 * max(np.abs(M1).max(), 1e-300):
+            raise ModelDefinitionError(f"{source}: every M1[r] must be symmetric")
+        terms.R1 = _nonzero(np.ascontiguousarray(M1[:, :6, :6]))
+        terms.C1 = _nonzero(np.ascontiguousarray(M1[:, :6, 6:]))
+        terms.G1 = _nonzero(np.ascontiguousarray(M1[:, 6:, 6:]))
+    if order >= 2 and n:
+        M2 = np.asarray(M2, dtype=np.float64)
+        if M2.shape != (n, n, N, N):
+            raise ModelDefinitionError(f"{source}: M2 must have shape {(n, n, N, N)} at order 2, got {M2.shape}")
+        scale = max(np.abs(M2).max(), 1e-300)
+        if (np.abs(M2 - M2.transpose(1, 0, 2, 3)).max() > 1e-12 * scale
+                or np.abs(M2 - M2.transpose(0, 1, 3, 2)).max() > 1e-12 * scale):
+            raise ModelDefinitionError(f"{source}: M2[r, s] must be symmetric in (r, s) and as a matrix")
+        if np.any(M2[:, :, 3:6, :6]) or np.any(M2[:, :, :3, 3:6]) or np.any(M2[:, :, 3:6, 6:]):
+            raise ModelDefinitionError(f"{source}: M2 has second-order terms in the linear-momentum rows, "
+                                       f"which the modal integrals (TM App. E) do not produce and the engine "
+                                       f"does not model; only M2[r, s, :3, :3], [:3, 6:] and [6:, 6:] may be "
+                                       f"non-zero")
+        terms.J2 = _nonzero(np.ascontiguousarray(M2[:, :, :3, :3]))
+        terms.F2 = _nonzero(np.ascontiguousarray(M2[:, :, :3, 6:]))
+        terms.G2 = _nonzero(np.ascontiguousarray(M2[:, :, 6:, 6:]))
+    return terms
+
+
+def mass_terms_from_integrals(mi, order):
+    """:class:`ModalMassTerms` straight from a ``ModalIntegrals`` (no n N^2 polynomial arrays): the same
+    blocks :func:`mass_matrix_polynomial` places in M1, M2. Integrals that are None are left out."""
+    n = mi.G0.shape[0]
+    m = float(mi.mass)
+    terms = ModalMassTerms()
+    if order >= 1:
+        R1 = np.zeros((n, 6, 6))
+        R1[:, :3, :3] = mi.J1 + mi.J1.transpose(0, 2, 1)
+        skew_p1 = np.zeros((n, 3, 3))
+        skew_p1[:, 0, 1], skew_p1[:, 0, 2], skew_p1[:, 1, 2] = -mi.p1[:, 2], mi.p1[:, 1], -mi.p1[:, 0]
+        skew_p1 -= skew_p1.transpose(0, 2, 1)
+        R1[:, :3, 3:6] = m * skew_p1
+        R1[:, 3:6, :3] = -m * skew_p1
+        terms.R1 = _nonzero(R1)
+        C1 = np.zeros((n, 6, n))
+        C1[:, :3, :] = mi.F1.transpose(1, 2, 0)  # F(s) gains F1[s, r] eta_r
+        C1[:, 3:6, :] = mi.E1.transpose(1, 2, 0)
+        terms.C1 = _nonzero(C1)
+        if mi.G1 is not None and np.any(mi.G1):  # point-mass nodes: zeros, left out before any n^3 copy
+            G1 = mi.G1.transpose(2, 0, 1)
+            terms.G1 = _nonzero(np.ascontiguousarray(G1 + G1.transpose(0, 2, 1)))
+    if order >= 2:
+        J2 = 0.5 * (mi.J2 + mi.J2.transpose(1, 0, 3, 2))  # symmetric in (r, s) as matrices
+        terms.J2 = _nonzero(np.ascontiguousarray(0.5 * (J2 + J2.transpose(0, 1, 3, 2))))
+        if mi.F2 is not None and np.any(mi.F2):
+            F2 = 0.5 * (mi.F2 + mi.F2.transpose(0, 2, 1, 3))  # (l, r, s, a) symmetric in (r, s)
+            terms.F2 = _nonzero(np.ascontiguousarray(F2.transpose(1, 2, 3, 0)))
+        if mi.G2 is not None:
+            G2 = 0.25 * (mi.G2 + mi.G2.transpose(1, 0, 2, 3) + mi.G2.transpose(0, 1, 3, 2)
+                         + mi.G2.transpose(1, 0, 3, 2))
+            terms.G2 = _nonzero(np.ascontiguousarray(G2.transpose(2, 3, 0, 1)))
+    return terms
+
+
+def rigid_mass_block(mi):
+    """M0 (N x N, [omega, v, eta]) from a ``ModalIntegrals``."""
+    n = mi.G0.shape[0]
+    M0 = np.zeros((6 + n, 6 + n))
     m = float(mi.mass)
     M0[:3, :3] = mi.J0
     M0[:3, 3:6] = m * skew(mi.p0)
@@ -72,42 +217,53 @@ def mass_matrix_polynomial(mi, order):
     M0[:3, 6:] = mi.F0.T
     M0[3:6, 6:] = mi.E0.T
     M0[6:, 6:] = mi.G0
-    if order >= 1:
-        for r in range(n):
-            M1[r, :3, :3] = mi.J1[r] + mi.J1[r].T
-            M1[r, :3, 3:6] = m * skew(mi.p1[r])
-            M1[r, 3:6, :3] = -m * skew(mi.p1[r])
-            M1[r, :3, 6:] = mi.F1[:, r, :].T  # F(s) gains F1[s, r] eta_r
-            M1[r, 3:6, 6:] = mi.E1[:, r, :].T
-            M1[r, 6:, 6:] = mi.G1[:, :, r] + mi.G1[:, :, r].T
-    if order >= 2:
-        J2 = 0.5 * (mi.J2 + mi.J2.transpose(1, 0, 3, 2))  # symmetric in (r, s) as matrices
-        M2[:, :, :3, :3] = 0.5 * (J2 + J2.transpose(0, 1, 3, 2))
-        F2 = 0.5 * (mi.F2 + mi.F2.transpose(0, 2, 1, 3))  # (r, s, l, a) symmetric in (s, l)
-        M2[:, :, :3, 6:] = F2.transpose(1, 2, 3, 0)
-        if mi.G2 is not None:
-            G2 = 0.25 * (mi.G2 + mi.G2.transpose(1, 0, 2, 3) + mi.G2.transpose(0, 1, 3, 2)
-                         + mi.G2.transpose(1, 0, 3, 2))
-            M2[:, :, 6:, 6:] = G2.transpose(2, 3, 0, 1)
-    # the modal/rigid blocks mirror the rigid/modal ones (the rigid and modal diagonal blocks are
-    # symmetric by construction above)
     M0[6:, :6] = M0[:6, 6:].T
-    for r in range(M1.shape[0]):
-        M1[r, 6:, :6] = M1[r, :6, 6:].T
-        for s in range(M2.shape[1] if r < M2.shape[0] else 0):
-            M2[r, s, 6:, :6] = M2[r, s, :6, 6:].T
+    return M0
+
+
+def mass_matrix_polynomial(mi, order):
+    """(M0, M1, M2) in [omega, v, eta] order from a ``dynamics.flex.modal_integrals.ModalIntegrals``.
+
+    Only the terms of the requested order are allocated (M2 alone is n^2 (6 + n)^2 numbers); for large
+    bodies use :func:`mass_terms_from_integrals`, which the engine stores."""
+    n = mi.G0.shape[0]
+    N = 6 + n
+    M0 = rigid_mass_block(mi)
+    M1 = np.zeros((n, N, N) if order >= 1 else (0, N, N))
+    M2 = np.zeros((n, n, N, N) if order >= 2 else (0, 0, N, N))
+    terms = mass_terms_from_integrals(mi, order)
+    if terms.R1 is not None:
+        M1[:, :6, :6] = terms.R1
+    if terms.C1 is not None:
+        M1[:, :6, 6:] = terms.C1
+        M1[:, 6:, :6] = terms.C1.transpose(0, 2, 1)
+    if terms.G1 is not None:
+        M1[:, 6:, 6:] = terms.G1
+    if terms.J2 is not None:
+        M2[:, :, :3, :3] = terms.J2
+    if terms.F2 is not None:
+        M2[:, :, :3, 6:] = terms.F2
+        M2[:, :, 6:, :3] = terms.F2.transpose(0, 1, 3, 2)
+    if terms.G2 is not None:
+        M2[:, :, 6:, 6:] = terms.G2
     return M0, M1, M2
 
 
-def flexible_body_from_modal_body(body, modes=None, order=2, damping_ratio=None, integrals="general"):
+def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=None, integrals="general",
+                                  omit_terms=()):
     """Build :class:`FlexibleBodyData` from a ``dynamics.flex.body_file.ModalBody`` (a body file).
 
-    ``modes``: indices of the modes to keep (default all); ``order``: modal-integral order 0, 1, 2;
-    ``damping_ratio``: overrides the file's damping (scalar or per kept mode); ``integrals``:
-    ``"general"`` (nodes with their own inertia and offsets, E.2.2-E.2.5) or ``"point_mass"`` (E.3.1).
+    ``modes``: indices of the modes to keep (default all); ``order``: modal-integral order 0, 1, 2, or
+    None for the highest the file supports (2 when it holds G2 or its nodes have no rotational inertia,
+    else 1; the choice is recorded in ``note``); ``damping_ratio``: overrides the file's damping (scalar
+    or per kept mode); ``integrals``: ``"general"`` (nodes with their own inertia and offsets,
+    E.2.2-E.2.5) or ``"point_mass"`` (E.3.1); ``omit_terms``: terms of M(eta) to leave out (subset of
+    :data:`OMITTABLE_TERMS`, see the module docstring).
     """
-    if order not in (0, 1, 2):
+    if order not in (None, 0, 1, 2):
         raise ModelDefinitionError(f"modal-integral order must be 0, 1 or 2, got {order!r}")
+    if integrals not in ("general", "point_mass"):
+        raise ModelDefinitionError(f"integrals must be 'general' or 'point_mass', got {integrals!r}")
     mi = body.modal_integrals if integrals == "general" else body.point_mass_integrals
     if mi is None:
         raise ModelDefinitionError(
@@ -117,12 +273,20 @@ def flexible_body_from_modal_body(body, modes=None, order=2, damping_ratio=None,
     keep = np.arange(n_all) if modes is None else np.asarray(modes, dtype=np.int64)
     if keep.size == 0 or keep.min() < 0 or keep.max() >= n_all:
         raise ModelDefinitionError(f"{body.source}: modes {keep.tolist()} out of range 0..{n_all - 1}")
-    if order == 2 and mi.G2 is None and integrals == "general" and np.any(body.node_inertia):
+    g2_missing = (mi.G2 is None and integrals == "general" and bool(np.any(body.node_inertia))
+                  and "G2" not in omit_terms)
+    note = ""
+    if order is None:
+        order = 1 if g2_missing else 2
+        if g2_missing:
+            note = f"modal integrals order 1 (the body file has no G2 for its {n_all} modes)"
+    elif order == 2 and g2_missing:
         raise ModelDefinitionError(
             f"{body.source}: order-2 modal integrals need G2, which the body file omits (too many modes "
-            f"for the n^4 table); select fewer modes when generating it, or use order 1")
+            f"for the n^4 table: {n_all}); select fewer modes when generating it, use order 1, or leave "
+            f"the term out with omit_terms=('G2',)")
     sub = _select_modes(mi, keep)
-    M0, M1, M2 = mass_matrix_polynomial(sub, order)
+    terms = mass_terms_from_integrals(sub, order)
     K = np.asarray(body.modal_stiffness)[np.ix_(keep, keep)]
     if damping_ratio is None:
         C = np.asarray(body.modal_damping)[np.ix_(keep, keep)]
@@ -131,18 +295,23 @@ def flexible_body_from_modal_body(body, modes=None, order=2, damping_ratio=None,
         omega = 2.0 * np.pi * np.asarray(body.frequencies_hz)[keep]
         C = np.diag(2.0 * zeta * omega)
     shapes = np.concatenate([body.rotation_shapes[:, :, keep], body.translation_shapes[:, :, keep]], axis=1)
-    return FlexibleBodyData(n_modes=int(keep.size), order=order, M0=M0, M1=M1, M2=M2, stiffness=K,
-                            damping=C, grid_ids=np.asarray(body.grid_ids), grid_positions=body.grid_positions,
-                            grid_shapes=shapes, frequencies_hz=np.asarray(body.frequencies_hz)[keep],
-                            source=body.source)
+    data = FlexibleBodyData(n_modes=int(keep.size), order=order, M0=rigid_mass_block(sub), M1=None, M2=None,
+                            stiffness=K, damping=C, grid_ids=np.asarray(body.grid_ids),
+                            grid_positions=body.grid_positions, grid_shapes=shapes,
+                            frequencies_hz=np.asarray(body.frequencies_hz)[keep], source=body.source,
+                            terms=terms, note=note)
+    return data.without(omit_terms)
 
 
 def _select_modes(mi, keep):
     from dynamics.flex.modal_integrals import ModalIntegrals
 
     ix = np.ix_
+
+    def take(a, *axes):
+        return None if a is None else a[ix(*[keep] * len(axes))] if len(axes) > 1 else a[keep]
+
     return ModalIntegrals(
-        mass=mi.mass, p0=mi.p0, J0=mi.J0, p1=mi.p1[keep], J1=mi.J1[keep], J2=mi.J2[ix(keep, keep)],
-        F0=mi.F0[keep], F1=mi.F1[ix(keep, keep)], F2=mi.F2[ix(keep, keep, keep)], E0=mi.E0[keep],
-        E1=mi.E1[ix(keep, keep)], G0=mi.G0[ix(keep, keep)], G1=mi.G1[ix(keep, keep, keep)],
-        G2=None if mi.G2 is None else mi.G2[ix(keep, keep, keep, keep)])
+        mass=mi.mass, p0=mi.p0, J0=mi.J0, p1=take(mi.p1, 0), J1=take(mi.J1, 0), J2=take(mi.J2, 0, 1),
+        F0=mi.F0[keep], F1=take(mi.F1, 0, 1), F2=take(mi.F2, 0, 1, 2), E0=mi.E0[keep], E1=take(mi.E1, 0, 1),
+        G0=mi.G0[ix(keep, keep)], G1=take(mi.G1, 0, 1, 2), G2=take(mi.G2, 0, 1, 2, 3))

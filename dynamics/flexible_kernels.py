@@ -1,33 +1,31 @@
-"""O(N) dynamics of trees that contain flexible bodies (numba, ``cache=True``).
+"""Per-body primitives of flexible bodies for the engine's recursion (numba, ``cache=True``).
 
-Every body k carries an *augmented* velocity ``x_k = [V_k; eta_dot_k]`` of size ``N_k = 6 + n_k`` (rigid
-bodies: n_k = 0). With ``u_k = [hinge rates; eta_dot_k]`` the kinematics of the tree read
+The tree recursion itself (:mod:`dynamics.kernels`) treats every body as an *augmented* body with
+velocity ``x = [V; eta_dot]`` of size ``6 + n`` (rigid bodies: n = 0). This module holds what only a
+flexible body (n > 0) needs, each function over plain arrays:
 
-    x_k = P_k x_p + H_k u_k,   P_k = [X_k [I, Psi_k]; 0],   H_k = [[S_k, 0], [0, I]]
+* :func:`node_deformation` / :func:`node_pose`: the deformed pose of a node, ``R = exp((lambda eta)~)
+  R0``, ``l = l0 + gamma eta``, its relative spatial velocity per unit modal rate
+  ``Psi = [A; gamma + l~ A]``, ``A = J_l(lambda eta) lambda`` (``J_l`` the left Jacobian of SO(3), so the
+  node's rotation and angular velocity are exactly consistent), and the velocity-product term ``w'``
+  of ``d/dt (Psi eta_dot)``;
+* :func:`psi_times_inverse_modal_mass`: ``Psi G^-1`` in O(n) from the precomputed ``Pi G^-1``;
+* :func:`modal_mass_and_bias`: the body mass matrix ``M(eta) = M0 + M1 eta + M2 eta eta`` (TM-2020-5008164
+  eqs. E.2.2-E.2.6, stored as the blocks of :class:`dynamics.flexible_body.ModalMassTerms`) and the body's
+  gyroscopic, Coriolis and elastic forces from its kinetic energy ``T = 1/2 x' M(eta) x``:
+  Euler-Poincare (Kirchhoff) equations for the quasi-velocity ``V`` and Lagrange's equations for eta,
 
-where ``X_k`` is the rigid motion transform from the parent frame to body k (through the deformed pose
-of the parent node the hinge is attached to) and ``Psi_k`` (6 x n_p) is the spatial velocity, at the
-parent origin in parent axes, of that node per unit modal rate: ``Psi = [A; gamma + l~ A]`` with
-``A = J_l(lambda eta) lambda`` (``J_l`` the left Jacobian of SO(3), so the node's rotation
-``exp((lambda eta)~)`` and its angular velocity are exactly consistent) and ``l = l0 + gamma eta``.
-Differentiating gives ``xdot_k = P_k xdot_p + H_k udot_k + c_k`` with the velocity-product term
+      b = Mdot x + [omega x h_w + v x h_v; omega x h_v; -1/2 x' dM/deta_r x + K eta + C eta_dot],
 
-    c_k = [X_k w' + c_J + V_k x (X_k w + S u) + (X_k w) x (S u); 0],   w = Psi eta_dot_p,
-    w' = [Adot eta_dot; (gamma eta_dot) x (A eta_dot) + l~ Adot eta_dot]
+  ``h = M x``, each block contracted in one pass over its table (cost per block in
+  :mod:`dynamics.flexible_body`);
+* :func:`modal_mass_solve_rows` and :func:`cholesky_in_place`: products with the inverse modal mass
+  ``G^-1``, either precomputed at compile time (constant G: orders 0 and 1 without G1) or factored
+  per call (G1 or G2 present).
 
-(derivation: Featherstone, RBDA, eqs. 2.39-2.43, for a parent frame that itself moves relative to the
-parent body). When the hinge's outboard frame sits on a deforming node c of body k itself (a flexible
-child attached at its interface grid), body k moves relative to that node with ``-w_c``,
-``w_c = Psi_c eta_dot_k``: the modal columns of ``H_k`` gain the rigid part ``-Psi_c``, ``S_k`` follows the
-node's pose, and ``c_k`` gains ``w_c x (S u) - w'_c`` with ``v_kp = X_k w + S u - w_c`` in the terms above. The body equations come from its kinetic energy ``T = 1/2 x' M(eta) x`` with
-``M(eta) = M0 + M1 eta + M2 eta eta`` (:mod:`dynamics.flexible_body`, TM-2020-5008164 eq. E.2.6):
-Euler-Poincare (Kirchhoff) equations for the quasi-velocity V and Lagrange's equations for eta give
-
-    F_k = M xdot + b,   b = Mdot x + [omega x h_w + v x h_v; omega x h_v; -1/2 x' dM/deta_r x + K eta + C eta_dot]
-
-with ``h = M x``. The articulated-body recursion (RBDA Table 7.1) then runs unchanged in the
-augmented spaces (Jain, *Robot and Multibody Dynamics*, ch. 13: the flexible-body ABA), the modal
-coordinates being free "hinge" DOFs with identity subspace. Gravity enters as the ground acceleration.
+Layout of a flexible body's data: the ``FX_*`` columns of its topology row (from column
+``dynamics.kernels.FLEX`` on) hold offsets into the float ``params`` array (immutable description) and
+into the float ``pool`` (workspace).
 """
 
 from __future__ import annotations
@@ -35,86 +33,57 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dynamics.kernels import (
-    HINGE_TYPE,
-    MAT_TMP,
-    accumulate_energy_momentum,
-    accumulate_world_poses,
-    compose_body_pose,
-    INBOARD,
-    MAT_S,
-    N_FREE,
-    N_MODES,
-    N_PRESCRIBED,
-    NQ_HINGE,
-    NU_HINGE,
-    OUTBOARD,
-    OUTBOARD_IDENTITY,
-    PARENT,
-    Q_START,
-    ROT_1,
-    ROT_2,
-    ROT_BM,
-    ROT_FM,
-    ROT_PB,
-    ROT_WB,
-    U_START,
-    UJOINT,
-    VEC_POS,
-    VEC_WPOS,
-    _body_motion_subspace,
-    _spd_inverse,
-    motion_subspace_in_body,
-)
-from dynamics.hinges import hinge_transform
-from dynamics.spatial import (
-    force_to_parent_add,
-    inertia_to_parent_add,
-    motion_cross_motion_add,
-    motion_to_child,
-)
+# topology columns for hinges on deforming nodes: the parent node a hinge is attached to (-1: the parent
+# frame) and the node of the body itself that carries the hinge's outboard frame (-1: the body frame)
+PARENT_NODE = 24
+OUTBOARD_NODE = 25
 
-# topology columns for flexible systems: the parent node a hinge is attached to (-1: the parent frame)
-# and the node of the body itself that carries the hinge's outboard frame (-1: the body frame)
-PARENT_NODE = 10
-OUTBOARD_NODE = 11
+# flexible-body columns, relative to dynamics.kernels.FLEX (offsets: -1 when the term is absent)
+FX_ORDER = 0
+FX_M0RE = 1  # params: M0[:6, 6:] (6 x n)
+FX_G0 = 2  # params: M0[6:, 6:] (n x n), the constant modal mass
+FX_R1 = 3  # params: (n, 6, 6) first-order rigid/rigid block
+FX_C1 = 4  # params: (n, C1_ROWS, n) first-order rigid/modal block
+FX_C1_ROWS = 5  # 3 when only the rotational rows are non-zero (E1 = 0: no CG offsets), else 6
+FX_G1 = 6  # params: (n, n, n) first-order modal/modal block
+FX_J2 = 7  # params: (n, n, 3, 3)
+FX_F2 = 8  # params: (n, n, 3, n)
+FX_G2 = 9  # params: (n, n, n, n)
+FX_K = 10  # params: stiffness (n x n)
+FX_K_DIAGONAL = 11  # 1 when the stiffness is diagonal
+FX_C = 12  # params: damping (n x n)
+FX_C_DIAGONAL = 13
+FX_GINV_KIND = 14  # how G^-1 is applied: GINV_DIAGONAL, GINV_DENSE (constant G) or GINV_FACTORED
+FX_GINV = 15  # params: 1 / diag(G0) (n) or G0^-1 (n x n); -1 when factored
+FX_ZM0 = 16  # params: M0[:6, 6:] G0^-1 (6 x n) for a constant G; -1 when factored
+FX_P_MRE = 17  # pool: M_re(eta) (6 x n); the coupling block of the composite inertia in the CRBA
+FX_P_MDRE = 18  # pool: dM_re/dt (6 x n)
+FX_P_BP = 19  # pool: B' = IA_re - IA_rr Pc (6 x n)
+FX_P_ZM = 20  # pool: M_re G^-1 (6 x n), then B' G^-1
+FX_P_W = 21  # pool: W' = B' E'^-1 (6 x n)
+FX_P_VEC = 22  # pool: N_PV n-vectors (PV_*)
+FX_P_G = 23  # pool: G(eta), its Cholesky factor, or the composite modal inertia (n x n)
+FX_P_F = 24  # pool: force columns of the CRBA (6 x (6 + n))
+FX_P_SMALL = 25  # pool: the Woodbury system (V and Q r x r, [C | rhs] r x (r + 7), U and Z r x n)
+FX_RANK = 26  # r = 6 (child attachment nodes) + 12 (when the hinge sits on a node of the body)
+FX_P_MRR = 27  # pool: M_rr(eta) (6 x 6)
+N_FX = 28
 
-# flex_index columns (nb, 6)
-FX_N = 0
-FX_M0 = 1
-FX_M1 = 2
-FX_M2 = 3
-FX_K = 4  # stiffness, then damping right after it (n*n each)
-FX_ORDER = 5
-FX_M2_EXTENT = 6  # M2 is stored on its leading k x k block only (k = 3 for point-mass nodes: only J2)
-N_FX = 7
+# n-vectors of a flexible body in the pool (FX_P_VEC + k n)
+PV_FORCE = 0  # modal bias minus applied modal forces (ABA) / modal body force (RNEA)
+PV_RHS = 1  # G^-1 d (ABA)
+PV_Y = 2  # E'^-1 d (ABA), kept for the acceleration pass
+PV_TMP = 3
+N_PV = 4
 
-# augmented vector slots (nb, N_FV, NM)
-FV_X = 0  # x = [V; eta_dot]
-FV_C = 1  # velocity-product bias
-FV_P = 2  # articulated bias force pA / body force in RNEA
-FV_A = 3  # augmented acceleration
-FV_D = 4  # joint-space residual
-FV_PA = 5  # pa
-FV_H = 6  # scratch: momentum, M x, ...
-FV_Y = 7  # scratch
-FV_W = 8  # [0:6] X_k w (attachment velocity in body axes), [6:12] w' (parent axes)
-FV_OUT = 9  # outboard node: [0:3] p_BM(eta), [3:6] scratch, [6:12] its w' (body axes)
-N_FV = 10
-
-# augmented matrix slots (nb, N_FM, NM, NM)
-FM_IA = 0
-FM_U = 1
-FM_DINV = 2
-FM_IAP = 3
-FM_TMP = 4
-FM_L = 5
-FM_M = 6  # body mass matrix M(eta)
-N_FM = 7
+# how G^-1 is applied
+GINV_DIAGONAL = 0
+GINV_DENSE = 1
+GINV_FACTORED = 2
 
 
 @njit(cache=True, inline="always")
-def _so3_coefficients(phi):
+def so3_coefficients(phi):
     """theta-functions of exp and the left Jacobian, and their derivatives divided by theta.
 
     R = I + a phi~ + b phi~^2; J_l = I + b phi~ + c phi~^2; returns a, b, c, b'/theta, c'/theta
@@ -146,13 +115,14 @@ def _skew_apply(p, x, out):
 
 
 @njit(cache=True)
-def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, wdot, tmp):
+def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, w, wdot, tmp):
     """Deformed pose of a node and its relative motion per unit modal rate.
 
     ``shape`` (6, >=n) = Pi = [lambda; gamma]; ``l0``, ``R0`` undeformed position and node -> body
     rotation. Writes ``R = exp((lambda eta)~) R0``, ``pos = l0 + gamma eta``, ``Psi`` (6, n) the node's
-    spatial velocity at the body origin per unit eta_dot, and ``wdot`` (6) the velocity-product part of
-    d/dt (Psi eta_dot). ``tmp`` is a (8, 3) scratch array.
+    spatial velocity at the body origin per unit eta_dot, ``w = Psi eta_dot`` (6) and ``wdot`` (6) the
+    velocity-product part of d/dt (Psi eta_dot). ``tmp`` is a (8, 3) scratch array; on return
+    ``tmp[0]`` holds ``phi = lambda eta``.
     """
     phi = tmp[0]
     phidot = tmp[1]
@@ -170,7 +140,7 @@ def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, wdot, tmp):
         phidot[a] = sd
         pos[a] = g
         tmp[2, a] = gd  # gamma eta_dot
-    ca, cb, cc, dbt, dct = _so3_coefficients(phi)
+    ca, cb, cc, dbt, dct = so3_coefficients(phi)
     # exp(phi~) = I + a phi~ + b phi~^2 ; phi~^2 = phi phi' - |phi|^2 I
     t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
     E = tmp[3:6]
@@ -223,804 +193,418 @@ def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, wdot, tmp):
     _skew_apply(pos, wdot[0:3], v2)
     for a in range(3):
         wdot[3 + a] = v1[a] + v2[a]
-
-
-@njit(cache=True)
-def body_mass_matrix(fx, flex_data, eta, n, M):
-    """M(eta) = M0 + M1 eta + M2 eta eta of a body (N x N into ``M``)."""
-    N = 6 + n
-    o0 = fx[FX_M0]
-    for i in range(N):
-        for j in range(N):
-            M[i, j] = flex_data[o0 + i * N + j]
-    order = fx[FX_ORDER]
-    if n == 0 or order == 0:
-        return
-    NN = N * N
-    o1 = fx[FX_M1]
-    for r in range(n):
-        e = eta[r]
-        base = o1 + r * NN
-        for i in range(N):
-            for j in range(N):
-                M[i, j] += e * flex_data[base + i * N + j]
-    if order == 2:
-        o2 = fx[FX_M2]
-        k = fx[FX_M2_EXTENT]
-        kk = k * k
-        for r in range(n):
-            for s in range(n):
-                e = eta[r] * eta[s]
-                base = o2 + (r * n + s) * kk
-                for i in range(k):
-                    for j in range(k):
-                        M[i, j] += e * flex_data[base + i * k + j]
-
-
-@njit(cache=True)
-def body_bias(fx, flex_data, eta, x, n, M, h, out, y):
-    """Gyroscopic, Coriolis, centrifugal and elastic terms of one body: ``out = b`` (N).
-
-    ``M`` must hold M(eta); ``h``, ``y`` are N-vector scratch arrays."""
-    N = 6 + n
-    for i in range(N):
-        s = 0.0
-        for j in range(N):
-            s += M[i, j] * x[j]
-        h[i] = s
-        out[i] = 0.0
-    # rigid rows: ad*_V h  (Kirchhoff)
-    w0, w1, w2 = x[0], x[1], x[2]
-    v0, v1, v2 = x[3], x[4], x[5]
-    out[0] = w1 * h[2] - w2 * h[1] + v1 * h[5] - v2 * h[4]
-    out[1] = w2 * h[0] - w0 * h[2] + v2 * h[3] - v0 * h[5]
-    out[2] = w0 * h[1] - w1 * h[0] + v0 * h[4] - v1 * h[3]
-    out[3] = w1 * h[5] - w2 * h[4]
-    out[4] = w2 * h[3] - w0 * h[5]
-    out[5] = w0 * h[4] - w1 * h[3]
-    if n == 0:
-        return
-    order = fx[FX_ORDER]
-    NN = N * N
-    if order >= 1:
-        o1 = fx[FX_M1]
-        o2 = fx[FX_M2]
-        for r in range(n):
-            # y = dM/deta_r x = M1[r] x + 2 sum_s eta_s M2[r, s] x
-            base = o1 + r * NN
-            for i in range(N):
-                s = 0.0
-                for j in range(N):
-                    s += flex_data[base + i * N + j] * x[j]
-                y[i] = s
-            if order == 2:
-                k = fx[FX_M2_EXTENT]
-                kk = k * k
-                for s_ in range(n):
-                    e = 2.0 * eta[s_]
-                    if e == 0.0:
-                        continue
-                    base = o2 + (r * n + s_) * kk
-                    for i in range(k):
-                        acc = 0.0
-                        for j in range(k):
-                            acc += flex_data[base + i * k + j] * x[j]
-                        y[i] += e * acc
-            q = 0.0
-            for i in range(N):
-                q += x[i] * y[i]
-            out[6 + r] -= 0.5 * q
-            ed = x[6 + r]  # Mdot x = sum_r eta_dot_r dM/deta_r x
-            for i in range(N):
-                out[i] += ed * y[i]
-    ok = fx[FX_K]
-    od = ok + n * n
-    for r in range(n):
-        s = 0.0
-        for c in range(n):
-            s += flex_data[ok + r * n + c] * eta[c] + flex_data[od + r * n + c] * x[6 + c]
-        out[6 + r] += s
-
-
-@njit(cache=True)
-def _flex_position_kinematics(i, topology, joint_rot, joint_vec, node_shape, node_rot, node_pos, q, u,
-                              ws_rot, ws_vec, ws_mat, psi, fv, tmp83):
-    """Pose of body i in its parent (through the deformed parent node), its motion subspace, and the
-    attachment terms Psi (``psi[i]``) and w' (``fv[i, FV_W, 6:12]``)."""
-    hinge_type = topology[i, HINGE_TYPE]
-    parent = topology[i, PARENT]
-    jnode = topology[i, PARENT_NODE]
-    R_FM = ws_rot[i, ROT_FM]
-    pos = ws_vec[i, VEC_POS]
-    p_FM = pos[3:6]
-    axes = joint_vec[i, 2:4]
-    hinge_transform(hinge_type, q, topology[i, Q_START], axes, R_FM, p_FM, ws_rot[i, ROT_1], ws_rot[i, ROT_2])
-    if hinge_type == UJOINT:
-        _body_motion_subspace(i, topology, joint_rot, joint_vec, ws_rot, ws_mat)
-    # inboard frame F in the parent: R_PF, p_PF (deformed when attached to a node of a flexible parent)
-    R_PF = ws_rot[i, ROT_1]
-    p_PF = ws_vec[i, VEC_WPOS, 3:6]
-    n_p = topology[parent, N_MODES] if parent >= 0 else 0
-    wd = fv[i, FV_W, 6:12]
-    for a in range(6):
-        wd[a] = 0.0
-    if jnode >= 0 and n_p > 0:
-        q_eta = topology[parent, Q_START] + topology[parent, NQ_HINGE]
-        u_eta = topology[parent, U_START] + topology[parent, NU_HINGE]
-        R_PN = ws_rot[i, ROT_WB]  # scratch until world poses are needed
-        l_j = ws_vec[i, VEC_WPOS, 0:3]
-        node_deformation(node_shape[jnode], node_pos[jnode], node_rot[jnode], q[q_eta:q_eta + n_p], n_p,
-                         u[u_eta:u_eta + n_p], R_PN, l_j, psi[i], wd, tmp83)
-        R_NF = joint_rot[i, INBOARD]
-        p_NF = joint_vec[i, INBOARD]
-        for a in range(3):
-            for b in range(3):
-                R_PF[a, b] = R_PN[a, 0] * R_NF[0, b] + R_PN[a, 1] * R_NF[1, b] + R_PN[a, 2] * R_NF[2, b]
-        for a in range(3):
-            p_PF[a] = l_j[a] + R_PN[a, 0] * p_NF[0] + R_PN[a, 1] * p_NF[1] + R_PN[a, 2] * p_NF[2]
-    else:
-        for a in range(3):
-            p_PF[a] = joint_vec[i, INBOARD, a]
-            for b in range(3):
-                R_PF[a, b] = joint_rot[i, INBOARD, a, b]
-    T = ws_rot[i, ROT_2] if hinge_type != UJOINT else tmp83[3:6]
-    onode = topology[i, OUTBOARD_NODE]
-    if onode < 0:
-        compose_body_pose(R_PF, p_PF, R_FM, p_FM, topology[i, OUTBOARD_IDENTITY], joint_rot[i, OUTBOARD],
-                          joint_vec[i, OUTBOARD], T, ws_rot[i, ROT_PB], pos)
-        return
-    # outboard frame M on the body's own deforming node c: R_BM = R_Bc R_cM, p_BM = l_c + R_Bc p_cM
-    n = topology[i, N_MODES]
-    q_eta = topology[i, Q_START] + topology[i, NQ_HINGE]
-    u_eta = topology[i, U_START] + topology[i, NU_HINGE]
-    R_Bc = ws_rot[i, ROT_WB]  # scratch until world poses are needed
-    out = fv[i, FV_OUT]
-    node_deformation(node_shape[onode], node_pos[onode], node_rot[onode], q[q_eta:q_eta + n], n,
-                     u[u_eta:u_eta + n], R_Bc, out[3:6], psi[i, 6:12], out[6:12], tmp83)
-    R_cM = joint_rot[i, OUTBOARD]
-    p_cM = joint_vec[i, OUTBOARD]
-    R_BM = ws_rot[i, ROT_BM]
+    # w = [omega_r; gamma eta_dot + l x omega_r]
+    _skew_apply(pos, om, v1)
     for a in range(3):
-        for b in range(3):
-            R_BM[a, b] = R_Bc[a, 0] * R_cM[0, b] + R_Bc[a, 1] * R_cM[1, b] + R_Bc[a, 2] * R_cM[2, b]
-        out[a] = out[3 + a] + R_Bc[a, 0] * p_cM[0] + R_Bc[a, 1] * p_cM[1] + R_Bc[a, 2] * p_cM[2]
-    T = ws_rot[i, ROT_2] if hinge_type != UJOINT else tmp83[3:6]
-    compose_body_pose(R_PF, p_PF, R_FM, p_FM, 0, R_BM, out[0:3], T, ws_rot[i, ROT_PB], pos)
-    motion_subspace_in_body(hinge_type, axes, ws_rot[i, ROT_2], R_BM, out[0:3], topology[i, NU_HINGE],
-                            ws_mat[i, MAT_S], ws_mat[i, MAT_TMP])
+        w[a] = om[a]
+        w[3 + a] = tmp[2, a] + v1[a]
+
+
 
 
 @njit(cache=True)
-def _flex_velocity(i, topology, joint_vec, q, u, ws_rot, ws_vec, ws_mat, psi, fv):
-    """Augmented velocity x_i and velocity-product bias c_i (see the module docstring)."""
-    parent = topology[i, PARENT]
-    u0 = topology[i, U_START]
-    nu = topology[i, NU_HINGE]
-    n = topology[i, N_MODES]
-    S = ws_mat[i, MAT_S]
-    R = ws_rot[i, ROT_PB]
-    r = ws_vec[i, VEC_POS]
-    x = fv[i, FV_X]
-    c = fv[i, FV_C]
-    vJ = fv[i, FV_Y]
-    tmp = fv[i, FV_H]
-    Xw = fv[i, FV_W, 0:6]
-    wd = fv[i, FV_W, 6:12]
+def node_pose(shape, l0, R0, eta, n, R, pos, tmp):
+    """Deformed pose of a node only: ``R = exp((lambda eta)~) R0``, ``pos = l0 + gamma eta`` (O(n));
+    ``tmp`` (8, 3) scratch, ``tmp[0] = phi = lambda eta`` on return."""
+    phi = tmp[0]
+    for a in range(3):
+        s = 0.0
+        g = l0[a]
+        for r in range(n):
+            s += shape[a, r] * eta[r]
+            g += shape[3 + a, r] * eta[r]
+        phi[a] = s
+        pos[a] = g
+    ca, cb, cc, dbt, dct = so3_coefficients(phi)
+    t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+    E = tmp[3:6]
+    for i in range(3):
+        for j in range(3):
+            E[i, j] = cb * (phi[i] * phi[j] - (t2 if i == j else 0.0)) + (1.0 if i == j else 0.0)
+    E[0, 1] -= ca * phi[2]
+    E[0, 2] += ca * phi[1]
+    E[1, 0] += ca * phi[2]
+    E[1, 2] -= ca * phi[0]
+    E[2, 0] -= ca * phi[1]
+    E[2, 1] += ca * phi[0]
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = E[i, 0] * R0[0, j] + E[i, 1] * R0[1, j] + E[i, 2] * R0[2, j]
+
+
+@njit(cache=True)
+def node_modal_force(shape, n, phi, R, f, sign, out):
+    """``out += sign * Psi' f6`` for a force ``f = [torque; force]`` in node axes at the deformed node,
+    ``f6`` its resultant at the body origin: ``Psi' f6 = lambda' J_l' (R torque) + gamma' (R force)``
+    (the torque about the node itself only turns the node, the force also moves it). O(n)."""
+    ca, cb, cc, dbt, dct = so3_coefficients(phi)
+    t0 = R[0, 0] * f[0] + R[0, 1] * f[1] + R[0, 2] * f[2]
+    t1 = R[1, 0] * f[0] + R[1, 1] * f[1] + R[1, 2] * f[2]
+    t2 = R[2, 0] * f[0] + R[2, 1] * f[1] + R[2, 2] * f[2]
+    F0 = R[0, 0] * f[3] + R[0, 1] * f[4] + R[0, 2] * f[5]
+    F1 = R[1, 0] * f[3] + R[1, 1] * f[4] + R[1, 2] * f[5]
+    F2 = R[2, 0] * f[3] + R[2, 1] * f[4] + R[2, 2] * f[5]
+    # J_l' t = t - b phi x t + c phi x (phi x t)
+    c0 = phi[1] * t2 - phi[2] * t1
+    c1 = phi[2] * t0 - phi[0] * t2
+    c2 = phi[0] * t1 - phi[1] * t0
+    d0 = phi[1] * c2 - phi[2] * c1
+    d1 = phi[2] * c0 - phi[0] * c2
+    d2 = phi[0] * c1 - phi[1] * c0
+    j0 = sign * (t0 - cb * c0 + cc * d0)
+    j1 = sign * (t1 - cb * c1 + cc * d1)
+    j2 = sign * (t2 - cb * c2 + cc * d2)
+    F0 *= sign
+    F1 *= sign
+    F2 *= sign
+    for r in range(n):
+        out[r] += (shape[0, r] * j0 + shape[1, r] * j1 + shape[2, r] * j2
+                   + shape[3, r] * F0 + shape[4, r] * F1 + shape[5, r] * F2)
+
+
+@njit(cache=True)
+def psi_times_inverse_modal_mass(shape_ginv, n, phi, pos, Z):
+    """``Z = Psi G^-1`` (6 x n) from the precomputed ``Pi G^-1 = [lambda G^-1; gamma G^-1]`` in O(n):
+    ``Psi G^-1 = [J_l (lambda G^-1); gamma G^-1 + l~ J_l (lambda G^-1)]`` (``phi``, ``pos`` from
+    :func:`node_deformation`)."""
+    ca, cb, cc, dbt, dct = so3_coefficients(phi)
+    t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+    # J_l = I + b phi~ + c (phi phi' - |phi|^2 I)
+    J00 = 1.0 + cc * (phi[0] * phi[0] - t2)
+    J11 = 1.0 + cc * (phi[1] * phi[1] - t2)
+    J22 = 1.0 + cc * (phi[2] * phi[2] - t2)
+    J01 = -cb * phi[2] + cc * phi[0] * phi[1]
+    J10 = cb * phi[2] + cc * phi[0] * phi[1]
+    J02 = cb * phi[1] + cc * phi[0] * phi[2]
+    J20 = -cb * phi[1] + cc * phi[0] * phi[2]
+    J12 = -cb * phi[0] + cc * phi[1] * phi[2]
+    J21 = cb * phi[0] + cc * phi[1] * phi[2]
+    x, y, z = pos[0], pos[1], pos[2]
+    for r in range(n):
+        a0 = shape_ginv[0, r]
+        a1 = shape_ginv[1, r]
+        a2 = shape_ginv[2, r]
+        b0 = J00 * a0 + J01 * a1 + J02 * a2
+        b1 = J10 * a0 + J11 * a1 + J12 * a2
+        b2 = J20 * a0 + J21 * a1 + J22 * a2
+        Z[0, r] = b0
+        Z[1, r] = b1
+        Z[2, r] = b2
+        Z[3, r] = shape_ginv[3, r] + y * b2 - z * b1
+        Z[4, r] = shape_ginv[4, r] + z * b0 - x * b2
+        Z[5, r] = shape_ginv[5, r] + x * b1 - y * b0
+
+
+@njit(cache=True)
+def modal_mass_and_bias(fx, params, n, eta, V, e, with_bias, form_G, Mrr, Mre, Gm, br, bm, Mdrr, Mdre):
+    """Blocks of ``M(eta)`` and, with ``with_bias``, the body forces ``b`` (module docstring).
+
+    ``fx``: the body's FX_* columns; ``V`` (6) and ``e`` (n): the body velocity and modal rates.
+    ``Mrr`` (6 x 6) must hold the constant rigid block ``M0[:6, :6]`` on entry and receives
+    ``M_rr(eta)``; ``Mre`` (6 x n) receives ``M_re(eta)``; ``Gm`` (n x n) receives ``G(eta)`` when
+    ``form_G``; ``br`` (6) and ``bm`` (n) receive ``b``; ``Mdrr`` (6 x 6) and ``Mdre`` (6 x n) are
+    scratch (``dM/dt`` blocks). Cost: one pass over each present term's table."""
+    o = fx[FX_M0RE]
+    for a in range(6):
+        for s in range(n):
+            Mre[a, s] = params[o + a * n + s]
+    if form_G:
+        o = fx[FX_G0]
+        for s in range(n):
+            for l in range(n):
+                Gm[s, l] = params[o + s * n + l]
+    if with_bias:
+        for a in range(6):
+            for b in range(6):
+                Mdrr[a, b] = 0.0
+            for s in range(n):
+                Mdre[a, s] = 0.0
+        for s in range(n):
+            bm[s] = 0.0
+    w0, w1, w2 = V[0], V[1], V[2]
+    if fx[FX_R1] >= 0:
+        o = fx[FX_R1]
+        for r in range(n):
+            er = eta[r]
+            dr = e[r]
+            q = 0.0
+            base = o + 36 * r
+            for a in range(6):
+                t = 0.0
+                for b in range(6):
+                    c = params[base + 6 * a + b]
+                    Mrr[a, b] += er * c
+                    t += c * V[b]
+                    if with_bias:
+                        Mdrr[a, b] += dr * c
+                q += V[a] * t
+            if with_bias:
+                bm[r] -= 0.5 * q
+    if fx[FX_C1] >= 0:
+        o = fx[FX_C1]
+        rows = fx[FX_C1_ROWS]
+        for r in range(n):
+            er = eta[r]
+            dr = e[r]
+            q = 0.0
+            for a in range(rows):
+                base = o + (r * rows + a) * n
+                t = 0.0
+                if with_bias:
+                    for s in range(n):
+                        c = params[base + s]
+                        Mre[a, s] += er * c
+                        Mdre[a, s] += dr * c
+                        t += c * e[s]
+                    q += V[a] * t
+                else:
+                    for s in range(n):
+                        Mre[a, s] += er * params[base + s]
+            if with_bias:
+                bm[r] -= q  # -1/2 (2 V' C1_r e)
+    if fx[FX_G1] >= 0 and (with_bias or form_G):
+        o = fx[FX_G1]
+        for r in range(n):
+            er = eta[r]
+            dr = e[r]
+            q = 0.0
+            for s in range(n):
+                base = o + (r * n + s) * n
+                h = 0.0
+                if form_G:
+                    for l in range(n):
+                        c = params[base + l]
+                        Gm[s, l] += er * c
+                        h += c * e[l]
+                else:
+                    for l in range(n):
+                        h += params[base + l] * e[l]
+                if with_bias:
+                    bm[s] += dr * h  # (dM_ee/dt) e
+                    q += e[s] * h
+            if with_bias:
+                bm[r] -= 0.5 * q
+    if fx[FX_J2] >= 0:
+        o = fx[FX_J2]
+        for r in range(n):
+            J00 = J01 = J02 = J10 = J11 = J12 = J20 = J21 = J22 = 0.0
+            for s in range(n):
+                es = eta[s]
+                base = o + 9 * (r * n + s)
+                J00 += es * params[base]
+                J01 += es * params[base + 1]
+                J02 += es * params[base + 2]
+                J10 += es * params[base + 3]
+                J11 += es * params[base + 4]
+                J12 += es * params[base + 5]
+                J20 += es * params[base + 6]
+                J21 += es * params[base + 7]
+                J22 += es * params[base + 8]
+            er = eta[r]
+            Mrr[0, 0] += er * J00
+            Mrr[0, 1] += er * J01
+            Mrr[0, 2] += er * J02
+            Mrr[1, 0] += er * J10
+            Mrr[1, 1] += er * J11
+            Mrr[1, 2] += er * J12
+            Mrr[2, 0] += er * J20
+            Mrr[2, 1] += er * J21
+            Mrr[2, 2] += er * J22
+            if with_bias:
+                d2 = 2.0 * e[r]
+                Mdrr[0, 0] += d2 * J00
+                Mdrr[0, 1] += d2 * J01
+                Mdrr[0, 2] += d2 * J02
+                Mdrr[1, 0] += d2 * J10
+                Mdrr[1, 1] += d2 * J11
+                Mdrr[1, 2] += d2 * J12
+                Mdrr[2, 0] += d2 * J20
+                Mdrr[2, 1] += d2 * J21
+                Mdrr[2, 2] += d2 * J22
+                bm[r] -= (w0 * (J00 * w0 + J01 * w1 + J02 * w2) + w1 * (J10 * w0 + J11 * w1 + J12 * w2)
+                          + w2 * (J20 * w0 + J21 * w1 + J22 * w2))
+    if fx[FX_F2] >= 0:
+        o = fx[FX_F2]
+        for r in range(n):
+            er = eta[r]
+            dr = 2.0 * e[r]
+            q = 0.0
+            for s in range(n):
+                es = eta[s]
+                ers = er * es
+                drs = dr * es
+                for a in range(3):
+                    base = o + ((r * n + s) * 3 + a) * n
+                    t = 0.0
+                    for l in range(n):
+                        c = params[base + l]
+                        Mre[a, l] += ers * c
+                        if with_bias:
+                            Mdre[a, l] += drs * c
+                            t += c * e[l]
+                    q += es * V[a] * t
+            if with_bias:
+                bm[r] -= 2.0 * q
+    if fx[FX_G2] >= 0 and (with_bias or form_G):
+        o = fx[FX_G2]
+        for r in range(n):
+            er = eta[r]
+            dr = 2.0 * e[r]
+            q = 0.0
+            for s in range(n):
+                es = eta[s]
+                for l in range(n):
+                    base = o + ((r * n + s) * n + l) * n
+                    h = 0.0
+                    if form_G:
+                        ers = er * es
+                        for m in range(n):
+                            c = params[base + m]
+                            Gm[l, m] += ers * c
+                            h += c * e[m]
+                    else:
+                        for m in range(n):
+                            h += params[base + m] * e[m]
+                    if with_bias:
+                        bm[l] += dr * es * h
+                        q += es * e[l] * h
+            if with_bias:
+                bm[r] -= q
+    if not with_bias:
+        return
+    # h_r = M_rr V + M_re e; rigid rows: dM/dt x + ad*_V h (Kirchhoff)
+    h = br  # br is written last; use it for h first
     for a in range(6):
         s_ = 0.0
-        for k in range(nu):
-            s_ += S[a, k] * u[u0 + k]
-        vJ[a] = s_
-        c[a] = 0.0
-        Xw[a] = 0.0
-    n_p = topology[parent, N_MODES] if parent >= 0 else 0
-    if parent >= 0:
-        xp = fv[parent, FV_X]
-        for a in range(6):
-            tmp[a] = xp[a]
-        if topology[i, PARENT_NODE] >= 0 and n_p > 0:
-            P = psi[i]
-            for a in range(6):
-                s_ = 0.0
-                for rr in range(n_p):
-                    s_ += P[a, rr] * xp[6 + rr]
-                tmp[6 + a] = s_  # w
-                tmp[a] += s_
-            motion_to_child(R, r, tmp[6:12], Xw)
-            motion_to_child(R, r, wd, c)  # X w'
-        motion_to_child(R, r, tmp[0:6], x[0:6])
-        for a in range(6):
-            x[a] += vJ[a]
-    else:
-        for a in range(6):
-            x[a] = vJ[a]
-    for k in range(n):
-        x[6 + k] = u[u0 + nu + k]
-        c[6 + k] = 0.0
-    onode = topology[i, OUTBOARD_NODE]
-    wc = fv[i, FV_D, 0:6]  # free until the articulated-body pass
-    for a in range(6):
-        wc[a] = 0.0
-    if onode >= 0:
-        # the body moves relative to its hinge node with -w_c, w_c = Psi_c eta_dot
-        Pc = psi[i, 6:12]
-        out = fv[i, FV_OUT]
-        for a in range(6):
-            s_ = 0.0
-            for k in range(n):
-                s_ += Pc[a, k] * x[6 + k]
-            wc[a] = s_
-            x[a] -= s_
-            c[a] -= out[6 + a]
-        motion_cross_motion_add(wc, vJ, c)
-    if topology[i, HINGE_TYPE] == UJOINT:
-        p_BM = joint_vec[i, OUTBOARD] if onode < 0 else fv[i, FV_OUT, 0:3]
-        g = u[u0] * u[u0 + 1]
-        c0 = g * (S[1, 0] * S[2, 1] - S[2, 0] * S[1, 1])
-        c1 = g * (S[2, 0] * S[0, 1] - S[0, 0] * S[2, 1])
-        c2 = g * (S[0, 0] * S[1, 1] - S[1, 0] * S[0, 1])
-        c[0] += c0
-        c[1] += c1
-        c[2] += c2
-        c[3] += p_BM[1] * c2 - p_BM[2] * c1
-        c[4] += p_BM[2] * c0 - p_BM[0] * c2
-        c[5] += p_BM[0] * c1 - p_BM[1] * c0
-    # V x (X w + S u - w_c) + (X w) x (S u - w_c)
-    for a in range(6):
-        tmp[a] = Xw[a] + vJ[a] - wc[a]
-        tmp[6 + a] = vJ[a] - wc[a]
-    motion_cross_motion_add(x[0:6], tmp[0:6], c)
-    motion_cross_motion_add(Xw, tmp[6:12], c)
-
-
-@njit(cache=True)
-def _flex_kinematics_pass(topology, joint_rot, joint_vec, flex_index, flex_data, node_shape, node_rot,
-                          node_pos, q, u, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, with_bias):
-    """Positions, velocities, body mass matrices (``fm[i, FM_M]``) and, with ``with_bias``, body bias
-    forces (``fv[i, FV_P]``) for every body."""
-    for i in range(topology.shape[0]):
-        _flex_position_kinematics(i, topology, joint_rot, joint_vec, node_shape, node_rot, node_pos, q, u,
-                                  ws_rot, ws_vec, ws_mat, psi, fv, tmp83)
-        _flex_velocity(i, topology, joint_vec, q, u, ws_rot, ws_vec, ws_mat, psi, fv)
-        n = topology[i, N_MODES]
-        q_eta = topology[i, Q_START] + topology[i, NQ_HINGE]
-        body_mass_matrix(flex_index[i], flex_data, q[q_eta:q_eta + n], n, fm[i, FM_M])
-        if with_bias:
-            body_bias(flex_index[i], flex_data, q[q_eta:q_eta + n], fv[i, FV_X], n, fm[i, FM_M],
-                      fv[i, FV_H], fv[i, FV_P], fv[i, FV_Y])
-
-
-@njit(cache=True, inline="always")
-def _deformed_node(nd, topology, node_body, node_shape, node_rot, node_pos, q, u, Rn, l, node_psi, wd, tmp83):
-    """Deformed pose, Psi and w' of node ``nd`` on its body (see :func:`node_deformation`); returns the
-    body index and its number of modes."""
-    b = node_body[nd]
-    n = topology[b, N_MODES]
-    q_eta = topology[b, Q_START] + topology[b, NQ_HINGE]
-    u_eta = topology[b, U_START] + topology[b, NU_HINGE]
-    node_deformation(node_shape[nd], node_pos[nd], node_rot[nd], q[q_eta:q_eta + n], n, u[u_eta:u_eta + n],
-                     Rn, l, node_psi, wd, tmp83)
-    return b, n
-
-
-@njit(cache=True)
-def _apply_external_forces(topology, node_body, node_shape, node_rot, node_pos, node_forces, body_forces,
-                           q, u, psi, fv, tmp83, scratch, sign):
-    """fv[:, FV_P] += sign * (generalized external forces): node forces (node axes, at the deformed node)
-    through [X^T; Psi^T X^T], body forces (body axes, body origin) on the rigid rows.
-    ``scratch`` is a (4, 6, 6) work array."""
-    nb = topology.shape[0]
-    node_psi = psi[nb]
-    for i in range(nb):
-        P = fv[i, FV_P]
-        for a in range(6):
-            P[a] += sign * body_forces[i, a]
-    Rn = scratch[0, 0:3, 0:3]
-    l = scratch[1, 0, 0:3]
-    wd = scratch[1, 1]
-    f6 = scratch[1, 2]
-    for nd in range(node_body.shape[0]):
-        b, n = _deformed_node(nd, topology, node_body, node_shape, node_rot, node_pos, q, u, Rn, l, node_psi,
-                              wd, tmp83)
-        for a in range(6):
-            f6[a] = 0.0
-        force_to_parent_add(Rn, l, node_forces[nd], f6)
-        P = fv[b, FV_P]
-        for a in range(6):
-            P[a] += sign * f6[a]
-        for rr in range(n):
-            s_ = 0.0
-            for a in range(6):
-                s_ += node_psi[a, rr] * f6[a]
-            P[6 + rr] += sign * s_
-
-
-ALL_HINGE_DOFS = np.arange(6)
-"""Column indices of every hinge DOF (the mass matrix uses all of them, ABA only the free ones)."""
-
-
-@njit(cache=True, inline="always")
-def _inertia_times_subspace(I, S, cols, nh, n, N, Pc, has_pc, out):
-    """out (N x (nh + n)) = I H for the hinge columns ``S[:, cols[:nh]]`` and the modal columns
-    ``e_(6+r) - [Pc[:, r]; 0]`` (``Pc`` only when the hinge sits on a deforming node of the body)."""
-    for kk in range(nh):
-        k = cols[kk]
-        for a in range(N):
-            s_ = 0.0
-            for b in range(6):
-                s_ += I[a, b] * S[b, k]
-            out[a, kk] = s_
-    for rr in range(n):
-        for a in range(N):
-            s_ = I[a, 6 + rr]
-            if has_pc:
-                for b in range(6):
-                    s_ -= I[a, b] * Pc[b, rr]
-            out[a, nh + rr] = s_
-
-
-@njit(cache=True, inline="always")
-def _subspace_transpose_times(S, cols, nh, n, Pc, has_pc, F, ncol, out, row0, col0):
-    """out[row0 + k, col0 + l] = (H' F)[k, l] for the hinge rows ``S[:, cols[:nh]]'`` and modal rows."""
-    for kk in range(nh + n):
-        for ll in range(ncol):
-            if kk < nh:
-                k = cols[kk]
-                s_ = 0.0
-                for a in range(6):
-                    s_ += S[a, k] * F[a, ll]
-            else:
-                rr = kk - nh
-                s_ = F[6 + rr, ll]
-                if has_pc:
-                    for a in range(6):
-                        s_ -= Pc[a, rr] * F[a, ll]
-            out[row0 + kk, col0 + ll] = s_
-
-
-@njit(cache=True, inline="always")
-def _modal_projection(F, r, Pc, has_pc):
-    """(H' F) at modal DOF r: F[6 + r] - Pc[:, r] . F[0:6]."""
-    s_ = F[6 + r]
-    if has_pc:
-        for a in range(6):
-            s_ -= Pc[a, r] * F[a]
-    return s_
-
-
-@njit(cache=True)
-def _inertia_to_parent(i, parent, Ia, IA_p, ws_rot, ws_vec, psi, n_p, fm):
-    """IA_p += P_i^T Ia P_i with P_i = [X_i [I, Psi_i]; 0]: only Ia's rigid block reaches the parent."""
-    Y = fm[i, FM_TMP]
-    for a in range(6):
         for b in range(6):
-            Y[a, b] = 0.0
-    inertia_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], Ia[0:6, 0:6], Y, fm[i, FM_L])
+            s_ += Mrr[a, b] * V[b]
+        for s in range(n):
+            s_ += Mre[a, s] * e[s]
+        h[a] = s_
+    v0, v1, v2 = V[3], V[4], V[5]
+    c0 = w1 * h[2] - w2 * h[1] + v1 * h[5] - v2 * h[4]
+    c1 = w2 * h[0] - w0 * h[2] + v2 * h[3] - v0 * h[5]
+    c2 = w0 * h[1] - w1 * h[0] + v0 * h[4] - v1 * h[3]
+    c3 = w1 * h[5] - w2 * h[4]
+    c4 = w2 * h[3] - w0 * h[5]
+    c5 = w0 * h[4] - w1 * h[3]
+    br[0] = c0
+    br[1] = c1
+    br[2] = c2
+    br[3] = c3
+    br[4] = c4
+    br[5] = c5
     for a in range(6):
+        s_ = 0.0
         for b in range(6):
-            IA_p[a, b] += Y[a, b]
-    if n_p > 0:
-        P = psi[i]
-        for cc in range(n_p):  # Y Psi into Y[:, 6 + cc]
-            for a in range(6):
-                s_ = 0.0
-                for b in range(6):
-                    s_ += Y[a, b] * P[b, cc]
-                Y[a, 6 + cc] = s_
-        for cc in range(n_p):
-            for a in range(6):
-                IA_p[a, 6 + cc] += Y[a, 6 + cc]
-                IA_p[6 + cc, a] += Y[a, 6 + cc]
-            for dd in range(n_p):
-                s_ = 0.0
-                for a in range(6):
-                    s_ += P[a, cc] * Y[a, 6 + dd]
-                IA_p[6 + cc, 6 + dd] += s_
-
-
-@njit(cache=True)
-def _force_to_parent(i, f, p_parent, ws_rot, ws_vec, psi, n_p, y):
-    """p_parent += P_i^T f (only the rigid part of f reaches the parent); y is a 6-vector scratch."""
-    for a in range(6):
-        y[a] = 0.0
-    force_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], f[0:6], y)
-    for a in range(6):
-        p_parent[a] += y[a]
-    if n_p > 0:
-        P = psi[i]
-        for cc in range(n_p):
-            s_ = 0.0
-            for a in range(6):
-                s_ += P[a, cc] * y[a]
-            p_parent[6 + cc] += s_
-
-
-@njit(cache=True)
-def _parent_acceleration(i, topology, ground_accel, ws_rot, ws_vec, psi, fv, out):
-    """out[0:6] = X_i (a_p + Psi_i etaddot_p) (the rigid part of P_i a_p)."""
-    parent = topology[i, PARENT]
-    tmp = fv[i, FV_H]
-    if parent < 0:
+            s_ += Mdrr[a, b] * V[b]
+        for s in range(n):
+            s_ += Mdre[a, s] * e[s]
+        br[a] += s_
+    for s in range(n):
+        t = 0.0
         for a in range(6):
-            tmp[a] = ground_accel[a]
+            t += Mdre[a, s] * V[a]
+        bm[s] += t
+    o = fx[FX_K]
+    if fx[FX_K_DIAGONAL]:
+        for s in range(n):
+            bm[s] += params[o + s * n + s] * eta[s]
     else:
-        ap = fv[parent, FV_A]
-        for a in range(6):
-            tmp[a] = ap[a]
-        n_p = topology[parent, N_MODES]
-        if topology[i, PARENT_NODE] >= 0 and n_p > 0:
-            P = psi[i]
-            for a in range(6):
-                s_ = 0.0
-                for cc in range(n_p):
-                    s_ += P[a, cc] * ap[6 + cc]
-                tmp[a] += s_
-    motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], tmp[0:6], out)
+        for s in range(n):
+            t = 0.0
+            for l in range(n):
+                t += params[o + s * n + l] * eta[l]
+            bm[s] += t
+    o = fx[FX_C]
+    if fx[FX_C_DIAGONAL]:
+        for s in range(n):
+            bm[s] += params[o + s * n + s] * e[s]
+    else:
+        for s in range(n):
+            t = 0.0
+            for l in range(n):
+                t += params[o + s * n + l] * e[l]
+            bm[s] += t
 
 
 @njit(cache=True)
-def flex_forward_dynamics(topology, hinge_dofs, joint_rot, joint_vec, flex_index, flex_data, node_body,
-                          node_shape, node_rot, node_pos, ground_accel, q, u, tau, node_forces, body_forces,
-                          udot, tau_out, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, scratch):
-    """Articulated-body forward dynamics of a tree with flexible bodies (module docstring).
-
-    Same contract as :func:`dynamics.kernels.forward_dynamics`: ``udot`` holds prescribed hinge
-    accelerations on entry, all accelerations on exit; ``tau_out`` the generalized forces. Modal DOFs are
-    always free; ``tau`` at a modal DOF is an applied modal force. Returns 0 or 1 + a singular body.
-    """
-    nb = topology.shape[0]
-    _flex_kinematics_pass(topology, joint_rot, joint_vec, flex_index, flex_data, node_shape, node_rot,
-                          node_pos, q, u, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, True)
-    _apply_external_forces(topology, node_body, node_shape, node_rot, node_pos, node_forces, body_forces,
-                           q, u, psi, fv, tmp83, scratch, -1.0)
-    for i in range(nb):
-        N = 6 + topology[i, N_MODES]
-        IA = fm[i, FM_IA]
-        M = fm[i, FM_M]
-        for a in range(N):
-            for b in range(N):
-                IA[a, b] = M[a, b]
-        S = ws_mat[i, MAT_S]
-        c = fv[i, FV_C]
-        u0 = topology[i, U_START]
-        for kk in range(topology[i, N_PRESCRIBED]):
-            k = hinge_dofs[i, 1, kk]
-            acc = udot[u0 + k]
-            for a in range(6):
-                c[a] += S[a, k] * acc
-
-    for i in range(nb - 1, -1, -1):
-        n = topology[i, N_MODES]
-        N = 6 + n
-        nfh = topology[i, N_FREE]
-        nf = nfh + n
-        nu = topology[i, NU_HINGE]
-        u0 = topology[i, U_START]
-        S = ws_mat[i, MAT_S]
-        IA = fm[i, FM_IA]
-        U = fm[i, FM_U]
-        Dinv = fm[i, FM_DINV]
-        Ia = fm[i, FM_IAP]
-        D = fm[i, FM_TMP]
-        pA = fv[i, FV_P]
-        c = fv[i, FV_C]
-        d = fv[i, FV_D]
-        pa = fv[i, FV_PA]
-        Pc = psi[i, 6:12]
-        has_pc = topology[i, OUTBOARD_NODE] >= 0
-        _inertia_times_subspace(IA, S, hinge_dofs[i, 0], nfh, n, N, Pc, has_pc, U)
-        _subspace_transpose_times(S, hinge_dofs[i, 0], nfh, n, Pc, has_pc, U, nf, D, 0, 0)
-        for kk in range(nf):
-            if kk < nfh:
-                k = hinge_dofs[i, 0, kk]
-                s_ = tau[u0 + k]
-                for a in range(6):
-                    s_ -= S[a, k] * pA[a]
-            else:
-                s_ = tau[u0 + nu + kk - nfh] - _modal_projection(pA, kk - nfh, Pc, has_pc)
-            d[kk] = s_
-        if nf > 0:
-            tr = 0.0
-            for a in range(N):
-                tr += IA[a, a]
-            if not _spd_inverse(D, nf, 1e-14 * tr, fm[i, FM_L], Dinv):
-                return 1 + i
-        # T = U Dinv (kept in D's storage), Ia = IA - T U^T, pa = pA + Ia c + T d
-        T = D
-        for a in range(N):
-            for kk in range(nf):
-                s_ = 0.0
-                for ll in range(nf):
-                    s_ += U[a, ll] * Dinv[ll, kk]
-                fm[i, FM_L, 0, kk] = s_
-            for kk in range(nf):
-                T[a, kk] = fm[i, FM_L, 0, kk]
-        for a in range(N):
-            for b in range(a, N):
-                s_ = IA[a, b]
-                for kk in range(nf):
-                    s_ -= T[a, kk] * U[b, kk]
-                Ia[a, b] = s_
-                Ia[b, a] = s_
-        for a in range(N):
-            s_ = pA[a]
-            for b in range(N):
-                s_ += Ia[a, b] * c[b]
-            for kk in range(nf):
-                s_ += T[a, kk] * d[kk]
-            pa[a] = s_
-        parent = topology[i, PARENT]
-        if parent >= 0:
-            n_p = topology[parent, N_MODES] if topology[i, PARENT_NODE] >= 0 else 0
-            _inertia_to_parent(i, parent, Ia, fm[parent, FM_IA], ws_rot, ws_vec, psi, n_p, fm)
-            _force_to_parent(i, pa, fv[parent, FV_P], ws_rot, ws_vec, psi, n_p, fv[i, FV_Y])
-
-    for i in range(nb):
-        n = topology[i, N_MODES]
-        N = 6 + n
-        nfh = topology[i, N_FREE]
-        nf = nfh + n
-        nu = topology[i, NU_HINGE]
-        u0 = topology[i, U_START]
-        A = fv[i, FV_A]
-        _parent_acceleration(i, topology, ground_accel, ws_rot, ws_vec, psi, fv, A)
-        c = fv[i, FV_C]
-        for a in range(6):
-            A[a] += c[a]
-        for a in range(6, N):
-            A[a] = c[a]
-        S = ws_mat[i, MAT_S]
-        U = fm[i, FM_U]
-        Dinv = fm[i, FM_DINV]
-        d = fv[i, FV_D]
-        y = fv[i, FV_Y]
-        for kk in range(nf):
-            t = d[kk]
-            for a in range(N):
-                t -= U[a, kk] * A[a]
-            y[kk] = t
-        for kk in range(nf):
-            s_ = 0.0
-            for ll in range(nf):
-                s_ += Dinv[kk, ll] * y[ll]
-            if kk < nfh:
-                k = hinge_dofs[i, 0, kk]
-                udot[u0 + k] = s_
-                tau_out[u0 + k] = tau[u0 + k]
-                for a in range(6):
-                    A[a] += S[a, k] * s_
-            else:
-                rr = kk - nfh
-                udot[u0 + nu + rr] = s_
-                tau_out[u0 + nu + rr] = tau[u0 + nu + rr]
-                A[6 + rr] += s_
-                if topology[i, OUTBOARD_NODE] >= 0:
-                    for a in range(6):
-                        A[a] -= psi[i, 6 + a, rr] * s_
-        npres = topology[i, N_PRESCRIBED]
-        if npres > 0:
-            IA = fm[i, FM_IA]
-            pA = fv[i, FV_P]
-            for kk in range(npres):
-                k = hinge_dofs[i, 1, kk]
-                s_ = 0.0
-                for a in range(6):
-                    f = pA[a]
-                    for b in range(N):
-                        f += IA[a, b] * A[b]
-                    s_ += S[a, k] * f
-                tau_out[u0 + k] = s_
-    return 0
+def modal_mass_times(fx, params, n, Gm, a, out):
+    """``out = G a`` with the body's current modal mass: the constant ``G0`` (diagonal or dense) or the
+    ``G(eta)`` formed in ``Gm`` (when G1 or G2 is present)."""
+    if fx[FX_GINV_KIND] == GINV_FACTORED:
+        for s in range(n):
+            t = 0.0
+            for l in range(n):
+                t += Gm[s, l] * a[l]
+            out[s] = t
+        return
+    o = fx[FX_G0]
+    if fx[FX_GINV_KIND] == GINV_DIAGONAL:
+        for s in range(n):
+            out[s] = params[o + s * n + s] * a[s]
+        return
+    for s in range(n):
+        t = 0.0
+        for l in range(n):
+            t += params[o + s * n + l] * a[l]
+        out[s] = t
 
 
 @njit(cache=True)
-def _flex_accelerations(topology, ground_accel, udot, ws_rot, ws_vec, ws_mat, psi, fv):
-    """Augmented accelerations a_i = P_i a_p + H_i udot_i + c_i for given udot (into fv[:, FV_A])."""
-    for i in range(topology.shape[0]):
-        n = topology[i, N_MODES]
-        nu = topology[i, NU_HINGE]
-        u0 = topology[i, U_START]
-        A = fv[i, FV_A]
-        _parent_acceleration(i, topology, ground_accel, ws_rot, ws_vec, psi, fv, A)
-        c = fv[i, FV_C]
-        S = ws_mat[i, MAT_S]
-        for a in range(6):
-            s_ = A[a] + c[a]
-            for k in range(nu):
-                s_ += S[a, k] * udot[u0 + k]
-            A[a] = s_
-        has_pc = topology[i, OUTBOARD_NODE] >= 0
-        for rr in range(n):
-            e = udot[u0 + nu + rr]
-            A[6 + rr] = c[6 + rr] + e
-            if has_pc:
-                for a in range(6):
-                    A[a] -= psi[i, 6 + a, rr] * e
+def cholesky_in_place(G, n):
+    """Lower Cholesky factor of the symmetric ``G`` (n x n) in its lower triangle. Returns -1, or the first
+    column whose pivot is not positive relative to its diagonal entry (a matrix that is not positive
+    definite to round-off)."""
+    for j in range(n):
+        s = G[j, j]
+        for k in range(j):
+            s -= G[j, k] * G[j, k]
+        if not s > 1e-14 * abs(G[j, j]):
+            return j
+        d = np.sqrt(s)
+        G[j, j] = d
+        for i in range(j + 1, n):
+            t = G[i, j]
+            for k in range(j):
+                t -= G[i, k] * G[j, k]
+            G[i, j] = t / d
+    return -1
 
 
 @njit(cache=True)
-def flex_inverse_dynamics(topology, joint_rot, joint_vec, flex_index, flex_data, node_body, node_shape,
-                          node_rot, node_pos, ground_accel, q, u, udot, node_forces, body_forces, tau,
-                          ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, scratch):
-    """Recursive Newton-Euler in augmented form: F_i = M_i a_i + b_i - f_ext,i; tau_i = H_i^T F_i;
-    F_parent += P_i^T F_i."""
-    nb = topology.shape[0]
-    _flex_kinematics_pass(topology, joint_rot, joint_vec, flex_index, flex_data, node_shape, node_rot,
-                          node_pos, q, u, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, True)
-    _apply_external_forces(topology, node_body, node_shape, node_rot, node_pos, node_forces, body_forces,
-                           q, u, psi, fv, tmp83, scratch, -1.0)
-    _flex_accelerations(topology, ground_accel, udot, ws_rot, ws_vec, ws_mat, psi, fv)
-    for i in range(nb):
-        N = 6 + topology[i, N_MODES]
-        M = fm[i, FM_M]
-        A = fv[i, FV_A]
-        F = fv[i, FV_P]
-        for a in range(N):
-            s_ = 0.0
-            for b in range(N):
-                s_ += M[a, b] * A[b]
-            F[a] += s_
-    for i in range(nb - 1, -1, -1):
-        n = topology[i, N_MODES]
-        nu = topology[i, NU_HINGE]
-        u0 = topology[i, U_START]
-        S = ws_mat[i, MAT_S]
-        F = fv[i, FV_P]
-        for k in range(nu):
-            s_ = 0.0
-            for a in range(6):
-                s_ += S[a, k] * F[a]
-            tau[u0 + k] = s_
-        for rr in range(n):
-            tau[u0 + nu + rr] = _modal_projection(F, rr, psi[i, 6:12], topology[i, OUTBOARD_NODE] >= 0)
-        parent = topology[i, PARENT]
-        if parent >= 0:
-            n_p = topology[parent, N_MODES] if topology[i, PARENT_NODE] >= 0 else 0
-            _force_to_parent(i, F, fv[parent, FV_P], ws_rot, ws_vec, psi, n_p, fv[i, FV_Y])
-
-
-@njit(cache=True)
-def flex_mass_matrix(topology, joint_rot, joint_vec, flex_index, flex_data, node_shape, node_rot, node_pos,
-                     q, u_zero, Mout, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83):
-    """Joint-space mass matrix by composite augmented inertias (CRBA with P_i, H_i); ``u_zero`` is a
-    zero velocity vector (velocities do not enter the mass matrix)."""
-    nb = topology.shape[0]
-    _flex_kinematics_pass(topology, joint_rot, joint_vec, flex_index, flex_data, node_shape, node_rot,
-                          node_pos, q, u_zero, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, False)
-    for i in range(nb):
-        N = 6 + topology[i, N_MODES]
-        Ic = fm[i, FM_IA]
-        M = fm[i, FM_M]
-        for a in range(N):
-            for b in range(N):
-                Ic[a, b] = M[a, b]
-    for i in range(nb - 1, -1, -1):
-        parent = topology[i, PARENT]
-        if parent >= 0:
-            n_p = topology[parent, N_MODES] if topology[i, PARENT_NODE] >= 0 else 0
-            _inertia_to_parent(i, parent, fm[i, FM_IA], fm[parent, FM_IA], ws_rot, ws_vec, psi, n_p, fm)
-    Mout[:, :] = 0.0
-    for i in range(nb):
-        n = topology[i, N_MODES]
-        N = 6 + n
-        nu = topology[i, NU_HINGE]
-        ncol = nu + n
-        if ncol == 0:
-            continue
-        ui = topology[i, U_START]
-        S = ws_mat[i, MAT_S]
-        Ic = fm[i, FM_IA]
-        F = fm[i, FM_U]  # F = Ic H_i  (N x ncol)
-        has_pc = topology[i, OUTBOARD_NODE] >= 0
-        _inertia_times_subspace(Ic, S, ALL_HINGE_DOFS, nu, n, N, psi[i, 6:12], has_pc, F)
-        _subspace_transpose_times(S, ALL_HINGE_DOFS, nu, n, psi[i, 6:12], has_pc, F, ncol, Mout, ui, ui)
-        for k in range(ncol):  # symmetric by construction, not by round-off
-            for l in range(k + 1, ncol):
-                Mout[ui + l, ui + k] = Mout[ui + k, ui + l]
-        j = i
-        Fc = fm[i, FM_DINV]  # the force columns carried up the tree
-        for a in range(N):
-            for k in range(ncol):
-                Fc[a, k] = F[a, k]
-        while topology[j, PARENT] >= 0:
-            parent = topology[j, PARENT]
-            n_p = topology[parent, N_MODES] if topology[j, PARENT_NODE] >= 0 else 0
-            y = fv[j, FV_Y]
-            col = fv[j, FV_H]
-            for k in range(ncol):
-                for a in range(6):
-                    col[a] = Fc[a, k]
-                tmpf = fv[j, FV_PA]
-                for a in range(6 + topology[parent, N_MODES]):
-                    tmpf[a] = 0.0
-                _force_to_parent(j, col, tmpf, ws_rot, ws_vec, psi, n_p, y)
-                for a in range(6 + topology[parent, N_MODES]):
-                    Fc[a, k] = tmpf[a]
-            j = parent
-            nj = topology[j, N_MODES]
-            nuj = topology[j, NU_HINGE]
-            uj = topology[j, U_START]
-            Sj = ws_mat[j, MAT_S]
-            _subspace_transpose_times(Sj, ALL_HINGE_DOFS, nuj, nj, psi[j, 6:12], topology[j, OUTBOARD_NODE] >= 0,
-                                      Fc, ncol, Mout, uj, ui)
-            for k in range(nuj + nj):
-                for l in range(ncol):
-                    Mout[ui + l, uj + k] = Mout[uj + k, ui + l]
-
-
-@njit(cache=True)
-def flex_node_kinematics(topology, joint_rot, joint_vec, flex_index, flex_data, node_body, node_shape,
-                         node_rot, node_pos, q, u, udot, rotation, position, velocity, acceleration,
-                         ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, scratch):
-    """Deformed node poses, spatial velocities and classical accelerations (same outputs as
-    :func:`dynamics.kernels.node_kinematics`), elastic motion included."""
-    nb = topology.shape[0]
-    _flex_kinematics_pass(topology, joint_rot, joint_vec, flex_index, flex_data, node_shape, node_rot,
-                          node_pos, q, u, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, False)
-    zero_g = scratch[2, 0]
-    for a in range(6):
-        zero_g[a] = 0.0
-    _flex_accelerations(topology, zero_g, udot, ws_rot, ws_vec, ws_mat, psi, fv)
-    accumulate_world_poses(topology, ws_rot, ws_vec)
-    node_psi = psi[nb]
-    Rn = scratch[0, 0:3, 0:3]
-    l = scratch[1, 0, 0:3]
-    wd = scratch[1, 1]
-    tmp = scratch[1, 2]
-    w = scratch[1, 3]
-    Xw = scratch[1, 4]
-    for nd in range(node_body.shape[0]):
-        b, n = _deformed_node(nd, topology, node_body, node_shape, node_rot, node_pos, q, u, Rn, l, node_psi,
-                              wd, tmp83)
-        R_WB = ws_rot[b, ROT_WB]
-        pw = ws_vec[b, VEC_WPOS]
-        for a in range(3):
-            position[nd, a] = pw[a] + R_WB[a, 0] * l[0] + R_WB[a, 1] * l[1] + R_WB[a, 2] * l[2]
-            for k in range(3):
-                rotation[nd, a, k] = R_WB[a, 0] * Rn[0, k] + R_WB[a, 1] * Rn[1, k] + R_WB[a, 2] * Rn[2, k]
-        x = fv[b, FV_X]
-        A = fv[b, FV_A]
-        for a in range(6):
-            s_ = 0.0
-            for rr in range(n):
-                s_ += node_psi[a, rr] * x[6 + rr]
-            w[a] = s_
-            tmp[a] = x[a] + s_
-        motion_to_child(Rn, l, tmp, velocity[nd])
-        for a in range(6):
-            sa = 0.0
-            for rr in range(n):
-                sa += node_psi[a, rr] * A[6 + rr]
-            tmp[a] = A[a] + sa + wd[a]
-        motion_to_child(Rn, l, tmp, acceleration[nd])
-        motion_to_child(Rn, l, w, Xw)
-        motion_cross_motion_add(velocity[nd], Xw, acceleration[nd])
-        v = velocity[nd]
-        acc = acceleration[nd]
-        acc[3] += v[1] * v[5] - v[2] * v[4]
-        acc[4] += v[2] * v[3] - v[0] * v[5]
-        acc[5] += v[0] * v[4] - v[1] * v[3]
-
-
-@njit(cache=True)
-def flex_energy_momentum(topology, joint_rot, joint_vec, flex_index, flex_data, node_shape, node_rot,
-                         node_pos, ground_accel, q, u, out, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83):
-    """``out = [kinetic, potential (gravity + elastic), P (3), L about the world origin (3)]``."""
-    nb = topology.shape[0]
-    _flex_kinematics_pass(topology, joint_rot, joint_vec, flex_index, flex_data, node_shape, node_rot,
-                          node_pos, q, u, ws_rot, ws_vec, ws_mat, psi, fv, fm, tmp83, False)
-    accumulate_world_poses(topology, ws_rot, ws_vec)
-    for a in range(8):
-        out[a] = 0.0
-    for i in range(nb):
-        n = topology[i, N_MODES]
-        accumulate_energy_momentum(fm[i, FM_M], fv[i, FV_X], fv[i, FV_H], 6 + n, ws_rot[i, ROT_WB],
-                                   ws_vec[i, VEC_WPOS], ground_accel, out)
-        if n > 0:
-            ok = flex_index[i, FX_K]
-            q_eta = topology[i, Q_START] + topology[i, NQ_HINGE]
-            e = 0.0
-            for r in range(n):
-                for s_ in range(n):
-                    e += q[q_eta + r] * flex_data[ok + r * n + s_] * q[q_eta + s_]
-            out[1] += 0.5 * e
+def modal_mass_solve_rows(fx, params, n, L, X, rows, out):
+    """``out[:rows] = X[:rows] G^-1`` (each row a vector of length n; ``out`` must not be ``X``): with the
+    precomputed inverse (diagonal or dense) or the Cholesky factor ``L`` of ``G(eta)``."""
+    kind = fx[FX_GINV_KIND]
+    if kind == GINV_DIAGONAL:
+        o = fx[FX_GINV]
+        for a in range(rows):
+            for s in range(n):
+                out[a, s] = X[a, s] * params[o + s]
+        return
+    if kind == GINV_DENSE:
+        o = fx[FX_GINV]
+        for a in range(rows):
+            for l in range(n):
+                out[a, l] = 0.0
+        # (X G^-1)[a, l] = sum_s X[a, s] Ginv[s, l]: rows of Ginv streamed once for all rows of X
+        for s in range(n):
+            base = o + s * n
+            for a in range(rows):
+                x = X[a, s]
+                for l in range(n):
+                    out[a, l] += x * params[base + l]
+        return
+    for a in range(rows):
+        # L L' z = x: forward, then back substitution
+        for s in range(n):
+            t = X[a, s]
+            for k in range(s):
+                t -= L[s, k] * out[a, k]
+            out[a, s] = t / L[s, s]
+        for s in range(n - 1, -1, -1):
+            t = out[a, s]
+            for k in range(s + 1, n):
+                t -= L[k, s] * out[a, k]
+            out[a, s] = t / L[s, s]

@@ -7,9 +7,17 @@ hinge's ``[torque; force]`` in the outboard frame for spherical/free hinges.
 
 Node forces are spatial forces ``[torque; force]`` in node axes, applied at the node origin.
 
-The arrays (``topology``, ``hinge_dofs``, ``joint_rot``, ``joint_vec``, ``spatial_inertia``, node tables)
-never change after :meth:`dynamics.Multibody.compile`; the workspace is scratch owned by this object,
-so a system must not be shared between threads (use :meth:`MultibodySystem.copy`).
+Compilation lays the description out for the kernels of :mod:`dynamics.kernels` (one recursion for
+rigid and flexible bodies): ``topology`` and ``nodes`` (int tables), ``joint_rot``/``joint_vec`` (hinge
+frames), ``params`` (ground acceleration, inertias, modal data, node frames and mode shapes, and what
+can be precomputed from them: the inverse modal mass ``G0^-1``, ``M0_re G0^-1``, ``Pi G0^-1`` at the
+nodes children hang from), and sizes the workspace (``ws_rot``, ``ws_vec``, ``ws_mat``, ``pool``). The
+description never changes after :meth:`dynamics.Multibody.compile` except the rigid bodies' inertias
+(:meth:`MultibodySystem.set_mass_properties`); the workspace is scratch owned by this object, so a system
+must not be shared between threads (use :meth:`MultibodySystem.copy`).
+
+It also chooses the forward-dynamics solver (:attr:`MultibodySystem.solver`): the articulated-body
+recursion, or the dense ``M udot = tau - h`` where that is cheaper (:func:`choose_solver`).
 """
 
 from __future__ import annotations
@@ -21,6 +29,7 @@ import numpy as np
 
 from dynamics import flexible_kernels as FK
 from dynamics import kernels as K
+from dynamics.builder import ModelDefinitionError
 from dynamics.hinges import FREE, HINGE_NQ, HINGE_NU, HINGE_TYPES, SPHERICAL
 from dynamics.spatial import spatial_inertia as _spatial_inertia
 
@@ -40,41 +49,140 @@ class NodeKinematics(NamedTuple):
     linear_acceleration: np.ndarray  # (n, 3) node axes, classical acceleration of the node origin
 
 
+_FLOAT64 = np.dtype(np.float64)
+
+
 def _frozen(a, dtype=np.float64):
     a = np.ascontiguousarray(a, dtype=dtype)
     a.setflags(write=False)
     return a
 
 
-class MultibodySystem:
-    """A compiled tree of bodies. Build with :class:`dynamics.Multibody`."""
+class _Packer:
+    """Lays float64 blocks out one after the other in a flat array; returns each block's offset."""
 
-    def __init__(self, *, body_names, joint_names, hinge_names, node_names, node_bodies, topology,
-                 hinge_dofs, joint_rot, joint_vec, spatial_inertia, gravity, node_body, node_rot,
-                 node_pos, masses, flex_index=None, flex_data=None, node_shape=None):
+    def __init__(self, start=0):
+        self.chunks, self.size = [np.zeros(start)], start
+
+    def push(self, a):
+        a = np.ascontiguousarray(a, dtype=np.float64).ravel()
+        offset = self.size
+        self.chunks.append(a)
+        self.size += a.size
+        return offset
+
+    def reserve(self, size):
+        return self.push(np.zeros(int(size)))
+
+    def array(self):
+        return np.concatenate(self.chunks)
+
+
+def _is_diagonal(a):
+    return not np.any(a - np.diag(np.diag(a)))
+
+
+def _modal_mass_inverse(G0, where):
+    """(kind, inverse) of the constant modal mass: its reciprocal diagonal when G0 is exactly diagonal,
+    else the symmetric inverse from a Cholesky factorization. Refuses a G0 that is not positive definite."""
+    n = G0.shape[0]
+    if n and not np.allclose(G0, G0.T, rtol=0.0, atol=1e-12 * np.abs(G0).max()):
+        raise ModelDefinitionError(f"{where}: the modal mass matrix M0[6:, 6:] is not symmetric")
+    try:
+        L = np.linalg.cholesky(G0) if n else np.zeros((0, 0))
+    except np.linalg.LinAlgError:
+        raise ModelDefinitionError(f"{where}: the modal mass matrix M0[6:, 6:] is not positive definite "
+                                   f"(eigenvalues {np.linalg.eigvalsh(G0)[:3].tolist()} ...)") from None
+    if _is_diagonal(G0):
+        return FK.GINV_DIAGONAL, 1.0 / np.diag(G0)
+    Linv = np.linalg.solve(L, np.eye(n))
+    inverse = Linv.T @ Linv
+    return FK.GINV_DENSE, 0.5 * (inverse + inverse.T)
+
+
+def choose_solver(topology):
+    """``("aba" | "dense", reason)``: the forward-dynamics solver with the lower estimated cost.
+
+    The estimate (in multiply-adds, ~1 ns each here) counts only what differs between the two. The
+    articulated-body recursion costs ~600 per rigid body and, per flexible body, ~6000 fixed (the modal
+    elimination's small dense steps) plus its applications of ``G^-1`` (7 n or 7 n^2 for a constant modal
+    mass; with G1 or G2 a Cholesky factorization n^3/3 and 2 n^2 per solved row) and the Woodbury rank
+    terms 3 r^2 n. The dense path costs an inverse dynamics and a composite-inertia pass (~1100 per
+    rigid body, ~4000 + 8 n^2 per flexible body, the mass-matrix columns carried to the root, the modal
+    mass formed a second time: n^3 with G1, 3 n^3 with F2, n^4 with G2) and the Cholesky factorization
+    nu^3/3 + 2 nu^2 of the mass matrix. The constants were fitted to ``benchmarks/flexible_scaling.py``
+    and the solver comparison in docs/engine.md ("Scaling"): dense wins, by 10-40 %, for small systems
+    (a flexible body of up to ~10 modes, a few bodies of a few modes), the recursion everywhere else;
+    near the crossover the two differ by less than the timing noise."""
+    aba = dense = 0.0
+    nu_total = 0
+    depth = np.zeros(topology.shape[0], dtype=np.int64)
+    for i, t in enumerate(topology):
+        n = int(t[K.N_MODES])
+        ncol = int(t[K.NU_HINGE]) + n
+        nu_total += ncol
+        depth[i] = 0 if t[K.PARENT] < 0 else depth[t[K.PARENT]] + 1
+        dense += 40.0 * ncol * depth[i]
+        if not t[K.FLEXIBLE]:
+            aba += 600.0
+            dense += 1100.0
+            continue
+        fx = t[K.FLEX:]
+        kind = int(fx[FK.FX_GINV_KIND])
+        r = int(fx[FK.FX_RANK])
+        varying = fx[FK.FX_C1] >= 0 or fx[FK.FX_F2] >= 0
+        aba += 6000.0 + 3.0 * r * r * n
+        if kind == FK.GINV_DIAGONAL:
+            aba += 7.0 * n * (1 + 6 * varying)
+        elif kind == FK.GINV_DENSE:
+            aba += 1.0 * n * n * (1 + 6 * varying)
+        else:
+            aba += n ** 3 / 3.0 + 2.0 * n * n * (r + 13)
+        dense += 4000.0 + 8.0 * n * n
+        dense += (n ** 3 if fx[FK.FX_G1] >= 0 else 0) + (3 * n ** 3 if fx[FK.FX_F2] >= 0 else 0) + \
+            (n ** 4 if fx[FK.FX_G2] >= 0 else 0)
+    dense += nu_total ** 3 / 3.0 + 2.0 * nu_total ** 2
+    if dense < aba:
+        return "dense", (f"dense M udot = tau - h (estimated {dense:.3g} multiply-adds against {aba:.3g} for "
+                         f"the articulated-body recursion)")
+    return "aba", (f"articulated-body recursion (estimated {aba:.3g} multiply-adds against {dense:.3g} for the "
+                   f"dense M udot = tau - h)")
+
+
+class MultibodySystem:
+    """A compiled tree of bodies. Build with :class:`dynamics.Multibody`.
+
+    :attr:`solver` is the forward-dynamics method chosen at compile time ("aba" or "dense",
+    :attr:`solver_reason` says why); :attr:`notes` lists choices made for the user (default modal-integral
+    orders, O(n^3) terms kept); :meth:`summary` prints both."""
+
+    def __init__(self, *, body_names, joint_names, hinge_names, node_names, node_bodies, topology, nodes,
+                 joint_rot, joint_vec, params, pool_size, gravity, node_rot, node_pos, masses, notes, solver,
+                 solver_reason):
         self.body_names = tuple(body_names)
         self.joint_names = tuple(joint_names)
         self.hinge_names = tuple(hinge_names)
         self.node_names = tuple(node_names)
         self.node_bodies = tuple(node_bodies)
         self.topology = _frozen(topology, np.int64)
-        self.hinge_dofs = _frozen(hinge_dofs, np.int64)
+        self.nodes = _frozen(nodes.reshape(-1, K.NODE_COLUMNS), np.int64)
         self.joint_rot = _frozen(joint_rot)
         self.joint_vec = _frozen(joint_vec)
-        self.spatial_inertia = _frozen(spatial_inertia)
-        self.gravity = _frozen(gravity)
-        self.ground_accel = _frozen(np.concatenate([np.zeros(3), -np.asarray(gravity, dtype=np.float64)]))
-        self.node_body = _frozen(node_body, np.int64)
-        self.node_rot = _frozen(node_rot)
-        self.node_pos = _frozen(node_pos)
-        self.masses = _frozen(masses)
+        self.params = _frozen(params)
+        self.pool_size = int(pool_size)
         nb = self.topology.shape[0]
+        self.hinge_dofs = _frozen(np.stack([self.topology[:, K.FREE_DOFS:K.FREE_DOFS + 6],
+                                            self.topology[:, K.PRESCRIBED_DOFS:K.PRESCRIBED_DOFS + 6]], axis=1),
+                                  np.int64)
+        self.spatial_inertia = self.params[6:6 + 36 * nb].reshape(nb, 6, 6)
+        self.gravity = _frozen(gravity)
+        self.ground_accel = self.params[K.GROUND_ACCEL:K.GROUND_ACCEL + 6]
+        self.node_body = _frozen(self.nodes[:, K.NODE_BODY], np.int64)
+        self.node_rot = _frozen(np.asarray(node_rot).reshape(-1, 3, 3))
+        self.node_pos = _frozen(np.asarray(node_pos).reshape(-1, 3))
+        self.masses = _frozen(masses)
         self.n_modes = tuple(int(t[K.N_MODES]) for t in self.topology)
-        self.is_flexible = any(self.n_modes)
-        if self.is_flexible:
-            self.flex_index = _frozen(flex_index, np.int64)
-            self.flex_data = _frozen(flex_data)
-            self.node_shape = _frozen(node_shape)
+        self.is_flexible = bool(np.any(self.topology[:, K.FLEXIBLE]))
         last = self.topology[-1]
         self.nbodies = nb
         self.nnodes = len(self.node_names)
@@ -88,23 +196,35 @@ class MultibodySystem:
         self.quaternion_q_indices = np.array(
             [t[K.Q_START] for t in self.topology if t[K.HINGE_TYPE] in (SPHERICAL, FREE)], dtype=np.int64)
         prescribed = np.zeros(self.nu, dtype=bool)
-        for i, t in enumerate(self.topology):
+        for t in self.topology:
             for kk in range(t[K.N_PRESCRIBED]):
-                prescribed[t[K.U_START] + self.hinge_dofs[i, 1, kk]] = True
+                prescribed[t[K.U_START] + t[K.PRESCRIBED_DOFS + kk]] = True
         self.prescribed_dofs = _frozen(prescribed, bool)
+        self.solver, self.solver_reason = solver, solver_reason
+        self.notes = tuple(notes)
+        self._forward_kernel = K.forward_dynamics_dense if self.solver == "dense" else K.forward_dynamics
         self._allocate_workspace()
 
     @classmethod
-    def from_definitions(cls, bodies, nodes, gravity):
+    def from_definitions(cls, bodies, nodes, gravity, solver=None):
+        """Compile body and node definitions (:class:`dynamics.builder.BodyDefinition`, ``NodeDefinition``)
+        into a system; ``solver`` forces "aba" or "dense" (default: :func:`choose_solver`)."""
         index = {b.name: i for i, b in enumerate(bodies)}
         node_index = {n.name: k for k, n in enumerate(nodes)}
-        nb = len(bodies)
+        nb, nn = len(bodies), len(nodes)
         topology = np.zeros((nb, K.TOPOLOGY_COLUMNS), dtype=np.int64)
-        hinge_dofs = np.zeros((nb, 2, 6), dtype=np.int64)
+        table = np.full((nn, K.NODE_COLUMNS), -1, dtype=np.int64)
         joint_rot = np.zeros((nb, 2, 3, 3))
         joint_vec = np.zeros((nb, 4, 3))
+        params = _Packer()
+        params.push(np.concatenate([np.zeros(3), -np.asarray(gravity, dtype=np.float64)]))
+        params.reserve(36 * nb)  # the bodies' rigid blocks, written below
         inertia = np.zeros((nb, 6, 6))
+        n_modes = [0 if b.flexible is None else int(b.flexible.n_modes) for b in bodies]
+        nmax = max(n_modes)
+        pool = _Packer(K.POOL_HEADER + 6 * nmax)
         q0 = u0 = 0
+        child_nodes = [[] for _ in bodies]  # nodes of each flexible body that children hang from
         for i, b in enumerate(bodies):
             code = HINGE_TYPES[b.hinge]
             nq, nu = int(HINGE_NQ[code]), int(HINGE_NU[code])
@@ -112,14 +232,25 @@ class MultibodySystem:
             pres = np.flatnonzero(b.prescribed)
             outboard_identity = (np.array_equal(b.outboard_rotation, np.eye(3))
                                  and not np.any(b.outboard_position) and b.outboard_node is None)
-            n_modes = 0 if b.flexible is None else b.flexible.n_modes
             parent_flexible = b.parent is not None and bodies[index[b.parent]].flexible is not None
             parent_node = node_index[b.parent_node] if (b.parent_node and parent_flexible) else -1
             outboard_node = node_index[b.outboard_node] if b.outboard_node else -1
-            topology[i] = [-1 if b.parent is None else index[b.parent], code, q0, nq, u0, nu, n_modes,
-                           len(free), len(pres), outboard_identity, parent_node, outboard_node]
-            hinge_dofs[i, 0, :len(free)] = free
-            hinge_dofs[i, 1, :len(pres)] = pres
+            flexible = b.flexible is not None
+            t = topology[i]
+            for col, value in ((K.PARENT, -1 if b.parent is None else index[b.parent]), (K.HINGE_TYPE, code),
+                               (K.Q_START, q0), (K.NQ_HINGE, nq), (K.U_START, u0), (K.NU_HINGE, nu),
+                               (K.N_MODES, n_modes[i]), (K.N_FREE, len(free)), (K.N_PRESCRIBED, len(pres)),
+                               (K.OUTBOARD_IDENTITY, outboard_identity), (K.PARENT_NODE, parent_node),
+                               (K.OUTBOARD_NODE, outboard_node)):
+                t[col] = value
+            t[K.FLEXIBLE] = flexible
+            t[K.GENERAL] = flexible or parent_node >= 0 or outboard_node >= 0
+            t[K.FREE_DOFS:K.FREE_DOFS + len(free)] = free
+            t[K.PRESCRIBED_DOFS:K.PRESCRIBED_DOFS + len(pres)] = pres
+            t[K.INERTIA] = 6 + 36 * i
+            t[K.FIRST_SLOT] = -1
+            if parent_node >= 0 and parent_node not in child_nodes[index[b.parent]]:
+                child_nodes[index[b.parent]].append(parent_node)
             R_in, p_in = b.inboard_rotation, b.inboard_position
             if b.parent_node and not parent_flexible:  # a node of a rigid parent: fold its fixed pose in
                 node = nodes[node_index[b.parent_node]]
@@ -129,95 +260,142 @@ class MultibodySystem:
             joint_vec[i, K.INBOARD] = p_in
             joint_vec[i, K.OUTBOARD] = b.outboard_position
             joint_vec[i, K.AXIS1:K.AXIS2 + 1] = b.axes
-            inertia[i] = _spatial_inertia(b.mass, b.com, b.inertia)
-            q0 += nq + n_modes
-            u0 += nu + n_modes
-        nn = len(nodes)
-        node_body = np.array([index[n.body] for n in nodes], dtype=np.int64)
-        node_rot = np.array([n.rotation for n in nodes]).reshape(nn, 3, 3)
-        node_pos = np.array([n.position for n in nodes]).reshape(nn, 3)
-        flex = {}
-        if any(b.flexible is not None for b in bodies):
-            flex = cls._flexible_arrays(bodies, nodes, inertia)
+            inertia[i] = b.flexible.M0[:6, :6] if flexible else _spatial_inertia(b.mass, b.com, b.inertia)
+            q0 += nq + n_modes[i]
+            u0 += nu + n_modes[i]
+        ginv = {}
+        for i, b in enumerate(bodies):
+            if b.flexible is not None:
+                ginv[i] = cls._flexible_layout(i, b, topology[i], params, pool, len(child_nodes[i]))
+        for k, nd in enumerate(nodes):
+            i = index[nd.body]
+            table[k, K.NODE_BODY] = i
+            table[k, K.NODE_FRAME] = params.push(np.concatenate([nd.rotation.ravel(), nd.position]))
+            if bodies[i].flexible is not None:
+                table[k, K.NODE_SHAPE] = params.push(nd.shape)
+        for i, b in enumerate(bodies):
+            slots = child_nodes[i] + ([topology[i, K.OUTBOARD_NODE]] if topology[i, K.OUTBOARD_NODE] >= 0 else [])
+            for k in dict.fromkeys(slots):
+                table[k, K.NODE_SLOT] = pool.reserve(K.SL_PSI + 12 * n_modes[i])
+                kind, inverse = ginv[i]
+                if kind != FK.GINV_FACTORED:
+                    shape = np.asarray(nodes[k].shape, dtype=np.float64).reshape(6, n_modes[i])
+                    table[k, K.NODE_SHAPE_GINV] = params.push(shape * inverse if kind == FK.GINV_DIAGONAL
+                                                              else shape @ inverse)
+            for a, k in enumerate(child_nodes[i]):
+                if a == 0:
+                    topology[i, K.FIRST_SLOT] = k
+                table[k, K.NODE_NEXT_SLOT] = child_nodes[i][a + 1] if a + 1 < len(child_nodes[i]) else -1
+        flat = params.array()
+        flat[6:6 + 36 * nb] = inertia.ravel()
+        notes = [f"body '{b.name}': {b.flexible.note}" for b in bodies if b.flexible is not None and b.flexible.note]
+        for i, b in enumerate(bodies):
+            t = topology[i]
+            if t[K.FLEXIBLE] and t[K.N_MODES] > 40:
+                fx = t[K.FLEX:]
+                cubic = [name for name, col in (("G1", FK.FX_G1), ("F2", FK.FX_F2), ("G2", FK.FX_G2)) if fx[col] >= 0]
+                if cubic:
+                    notes.append(f"body '{b.name}': terms {', '.join(cubic)} of M(eta) cost O(n^3) or more per "
+                                 f"evaluation at {t[K.N_MODES]} modes; omit_terms={tuple(cubic)!r} leaves them out "
+                                 f"(see dynamics/flexible_body.py)")
+        if solver is None:
+            solver, reason = choose_solver(topology)
+        elif solver in ("aba", "dense"):
+            reason = f"{solver} (requested)"
+        else:
+            raise ModelDefinitionError(f"solver must be 'aba' or 'dense', got {solver!r}")
+        if solver == "dense":  # the mass matrix and two vectors at the end of the pool
+            pool.reserve(u0 * u0 + 2 * u0)
         system = cls(body_names=[b.name for b in bodies], joint_names=[b.joint_name for b in bodies],
                      hinge_names=[b.hinge for b in bodies], node_names=[n.name for n in nodes],
-                     node_bodies=[n.body for n in nodes], topology=topology, hinge_dofs=hinge_dofs,
-                     joint_rot=joint_rot, joint_vec=joint_vec, spatial_inertia=inertia, gravity=gravity,
-                     node_body=node_body, node_rot=node_rot, node_pos=node_pos,
-                     masses=[b.mass for b in bodies], **flex)
+                     node_bodies=[n.body for n in nodes], topology=topology, nodes=table, joint_rot=joint_rot,
+                     joint_vec=joint_vec, params=flat, pool_size=pool.size, gravity=gravity,
+                     node_rot=[n.rotation for n in nodes], node_pos=[n.position for n in nodes],
+                     masses=[b.mass for b in bodies], notes=notes, solver=solver, solver_reason=reason)
         # the description this system was compiled from, for run-time reconfiguration
         system.definitions = (tuple(dataclasses.replace(b) for b in bodies),
                               tuple(dataclasses.replace(n) for n in nodes), np.array(gravity, dtype=float))
         return system
 
     @staticmethod
-    def _flexible_arrays(bodies, nodes, inertia):
-        """flex_index, flex_data (M0, M1, M2, K, C per body, flattened) and padded node mode shapes."""
-        nb = len(bodies)
-        flex_index = np.zeros((nb, FK.N_FX), dtype=np.int64)
-        chunks, offset = [], 0
-
-        def push(a):
-            nonlocal offset
-            a = np.ascontiguousarray(a, dtype=np.float64).ravel()
-            chunks.append(a)
-            start = offset
-            offset += a.size
-            return start
-
-        for i, b in enumerate(bodies):
-            data = b.flexible
-            if data is None:
-                flex_index[i] = [0, push(inertia[i]), 0, 0, 0, 0, 0]
-                continue
-            n = data.n_modes
-            flex_index[i, FK.FX_N] = n
-            flex_index[i, FK.FX_M0] = push(data.M0)
-            flex_index[i, FK.FX_M1] = push(data.M1 if data.order >= 1 else np.zeros(0))
-            if data.order == 2:
-                # store M2 on the smallest leading block holding its non-zeros (only J2 for point masses)
-                nonzero = np.flatnonzero(np.any(data.M2 != 0.0, axis=(0, 1, 2)) | np.any(data.M2 != 0.0, axis=(0, 1, 3)))
-                extent = int(nonzero.max()) + 1 if nonzero.size else 0
-                flex_index[i, FK.FX_M2_EXTENT] = extent
-                flex_index[i, FK.FX_M2] = push(data.M2[:, :, :extent, :extent])
-            else:
-                flex_index[i, FK.FX_M2] = push(np.zeros(0))
-            flex_index[i, FK.FX_K] = push(data.stiffness)
-            push(data.damping)
-            flex_index[i, FK.FX_ORDER] = data.order
-        nmax = max(1, max((b.flexible.n_modes for b in bodies if b.flexible is not None), default=1))
-        node_shape = np.zeros((len(nodes), 6, nmax))
-        for k, nd in enumerate(nodes):
-            if nd.shape is not None:
-                node_shape[k, :, :nd.shape.shape[1]] = nd.shape
-        return {"flex_index": flex_index, "flex_data": np.concatenate(chunks), "node_shape": node_shape}
+    def _flexible_layout(i, body, t, params, pool, n_child_nodes):
+        """Modal data of flexible body ``i`` into ``params``, its workspace into ``pool``, their offsets into
+        its topology row ``t``; returns how G^-1 is applied and the precomputed inverse."""
+        data = body.flexible
+        where = f"body '{body.name}' ({data.source})"
+        n = int(data.n_modes)
+        N = 6 + n
+        M0 = np.asarray(data.M0, dtype=np.float64)
+        if M0.shape != (N, N) or not np.all(np.isfinite(M0)):
+            raise ModelDefinitionError(f"{where}: M0 must be a finite {N} x {N} matrix, got shape {M0.shape}")
+        if data.order not in (0, 1, 2):
+            raise ModelDefinitionError(f"{where}: modal-integral order must be 0, 1 or 2, got {data.order!r}")
+        terms = data.mass_terms()
+        fx = t[K.FLEX:]
+        fx[:] = -1
+        fx[FK.FX_ORDER] = data.order
+        fx[FK.FX_M0RE] = params.push(M0[:6, 6:])
+        fx[FK.FX_G0] = params.push(M0[6:, 6:])
+        if terms.R1 is not None:
+            fx[FK.FX_R1] = params.push(terms.R1)
+        fx[FK.FX_C1_ROWS] = 6
+        if terms.C1 is not None:
+            rows = 3 if not np.any(terms.C1[:, 3:6, :]) else 6  # no CG offsets: E1 = 0
+            fx[FK.FX_C1_ROWS] = rows
+            fx[FK.FX_C1] = params.push(terms.C1[:, :rows, :])
+        for col, term in ((FK.FX_G1, terms.G1), (FK.FX_J2, terms.J2), (FK.FX_F2, terms.F2), (FK.FX_G2, terms.G2)):
+            if term is not None:
+                fx[col] = params.push(term)
+        for col, diag_col, name in ((FK.FX_K, FK.FX_K_DIAGONAL, "stiffness"), (FK.FX_C, FK.FX_C_DIAGONAL, "damping")):
+            a = np.asarray(getattr(data, name), dtype=np.float64)
+            if a.shape != (n, n) or not np.all(np.isfinite(a)):
+                raise ModelDefinitionError(f"{where}: the modal {name} must be a finite {n} x {n} matrix, got "
+                                           f"shape {a.shape}")
+            fx[col] = params.push(a)
+            fx[diag_col] = _is_diagonal(a)
+        if terms.G1 is not None or terms.G2 is not None:
+            kind, inverse = FK.GINV_FACTORED, None
+        else:
+            kind, inverse = _modal_mass_inverse(M0[6:, 6:], where)
+            fx[FK.FX_GINV] = params.push(inverse)
+            fx[FK.FX_ZM0] = params.push(M0[:6, 6:] * inverse if kind == FK.GINV_DIAGONAL else M0[:6, 6:] @ inverse)
+        fx[FK.FX_GINV_KIND] = kind
+        r = 6 * n_child_nodes + (12 if t[K.OUTBOARD_NODE] >= 0 else 0)
+        fx[FK.FX_RANK] = r if n else 0
+        for col in (FK.FX_P_MRE, FK.FX_P_MDRE, FK.FX_P_BP, FK.FX_P_ZM, FK.FX_P_W):
+            fx[col] = pool.reserve(6 * n)
+        fx[FK.FX_P_VEC] = pool.reserve(FK.N_PV * n)
+        fx[FK.FX_P_G] = pool.reserve(n * n)
+        fx[FK.FX_P_F] = pool.reserve(6 * (6 + n))
+        fx[FK.FX_P_MRR] = pool.reserve(36)
+        fx[FK.FX_P_SMALL] = pool.reserve(3 * r * r + 14 * r + 2 * r * n)
+        return kind, inverse
 
     def _allocate_workspace(self):
         nb = self.nbodies
         self.ws_rot = np.zeros((nb, K.N_ROT, 3, 3))
         self.ws_vec = np.zeros((nb, K.N_VEC, 6))
         self.ws_mat = np.zeros((nb, K.N_MAT, 6, 6))
+        self.pool = np.zeros(self.pool_size)
         K.initialize_workspace(self.topology, self.joint_rot, self.joint_vec, self.ws_rot, self.ws_mat)
+        # zeros for omitted inputs; writable like the caller's arrays (the kernels never write inputs), so
+        # that numba compiles one specialization of each kernel, not one per read-only combination
         self._zero_body_forces = np.zeros((nb, 6))
-        self._zero_body_forces.setflags(write=False)
         self._zero_node_forces = np.zeros((self.nnodes, 6))
-        self._zero_node_forces.setflags(write=False)
-        self._body_forces = np.zeros((nb, 6))
         self._zero_u = np.zeros(self.nu)
-        self._zero_u.setflags(write=False)
-        if self.is_flexible:
-            nmax = self.node_shape.shape[2]
-            nm = max(6 + max(self.n_modes), 12)
-            self.fw_psi = np.zeros((nb + 1, 12, nmax))  # Psi of the parent node, then of the own hinge node
-            self.fw_vec = np.zeros((nb, FK.N_FV, nm))
-            self.fw_mat = np.zeros((nb, FK.N_FM, nm, nm))
-            self.fw_tmp = np.zeros((8, 3))
-            self.fw_scratch = np.zeros((4, 6, 6))
 
-    def copy(self):
-        """A system sharing the immutable arrays with its own workspace (one per thread)."""
+    def copy(self, mass_properties: bool = False):
+        """A system sharing the immutable arrays with its own workspace (one per thread); with
+        ``mass_properties`` also its own copy of the parameters that :meth:`set_mass_properties` changes
+        (one per simulation context: a Monte Carlo run's mass changes stay in that run)."""
         other = object.__new__(MultibodySystem)
         other.__dict__.update(self.__dict__)
+        if mass_properties:
+            nb = self.nbodies
+            other.params = _frozen(np.array(self.params))
+            other.masses = _frozen(np.array(self.masses))
+            other.spatial_inertia = other.params[6:6 + 36 * nb].reshape(nb, 6, 6)
+            other.ground_accel = other.params[K.GROUND_ACCEL:K.GROUND_ACCEL + 6]
         other._allocate_workspace()
         return other
 
@@ -244,27 +422,23 @@ class MultibodySystem:
     def set_mass_properties(self, body, mass, com, inertia):
         """Change a rigid body's mass, center of mass and inertia (about the COM) in place, O(1): for
         mass depletion during a run. The values are validated like :meth:`Multibody.add_body`'s."""
-        from dynamics.builder import ModelDefinitionError, Multibody
+        from dynamics.builder import Multibody
 
         i = self.body_index(body)
-        if self.n_modes[i]:
+        if self.topology[i, K.FLEXIBLE]:
             raise ModelDefinitionError(f"set_mass_properties: '{body}' is flexible; its mass properties come "
                                        f"from its modal data")
         probe = Multibody()
         probe.add_body(body, None, mass=mass, com=com, inertia=inertia, hinge="locked")
         b = probe.bodies[0]
         M = _spatial_inertia(b.mass, b.com, b.inertia)
-        self.spatial_inertia.setflags(write=True)
-        self.spatial_inertia[i] = M
-        self.spatial_inertia.setflags(write=False)
+        o = int(self.topology[i, K.INERTIA])
+        self.params.setflags(write=True)
+        self.params[o:o + 36] = M.ravel()
+        self.params.setflags(write=False)
         self.masses.setflags(write=True)
         self.masses[i] = b.mass
         self.masses.setflags(write=False)
-        if self.is_flexible:
-            start = int(self.flex_index[i, FK.FX_M0])
-            self.flex_data.setflags(write=True)
-            self.flex_data[start:start + 36] = M.ravel()
-            self.flex_data.setflags(write=False)
         definitions = list(self.definitions[0])
         definitions[i] = dataclasses.replace(definitions[i], mass=b.mass, com=b.com, inertia=b.inertia)
         self.definitions = (tuple(definitions),) + self.definitions[1:]
@@ -282,42 +456,27 @@ class MultibodySystem:
         return q
 
     def _vector(self, x, n, what):
+        if type(x) is np.ndarray and x.dtype is _FLOAT64 and x.ndim == 1 and x.shape[0] == n:
+            return x  # the common case, without a conversion call
         x = np.asarray(x, dtype=np.float64)
         if x.shape != (n,):
             raise ValueError(f"{what}: expected shape ({n},), got {x.shape}")
         return x
 
-    def _body_forces_from(self, node_forces, body_forces):
-        if node_forces is None and body_forces is None:
-            return self._zero_body_forces
-        out = self._body_forces
-        if node_forces is not None:
-            node_forces = np.asarray(node_forces, dtype=np.float64)
-            if node_forces.shape != (self.nnodes, 6):
-                raise ValueError(f"node_forces: expected shape ({self.nnodes}, 6) (one [torque; force] per "
-                                 f"node, node axes), got {node_forces.shape}")
-            K.node_forces_to_bodies(self.node_body, self.node_rot, self.node_pos, node_forces, out)
+    def _forces(self, node_forces, body_forces):
+        if node_forces is None:
+            nf = self._zero_node_forces
         else:
-            out[:] = 0.0
-        if body_forces is not None:
-            body_forces = np.asarray(body_forces, dtype=np.float64)
-            if body_forces.shape != (self.nbodies, 6):
-                raise ValueError(f"body_forces: expected shape ({self.nbodies}, 6), got {body_forces.shape}")
-            out += body_forces
-        return out
-
-    def _flex_forces(self, node_forces, body_forces):
-        nf = self._zero_node_forces if node_forces is None else np.asarray(node_forces, dtype=np.float64)
-        if nf.shape != (self.nnodes, 6):
-            raise ValueError(f"node_forces: expected shape ({self.nnodes}, 6) (one [torque; force] per "
-                             f"node, node axes), got {nf.shape}")
-        bf = self._zero_body_forces if body_forces is None else np.asarray(body_forces, dtype=np.float64)
+            nf = np.asarray(node_forces, dtype=np.float64)
+            if nf.shape != (self.nnodes, 6):
+                raise ValueError(f"node_forces: expected shape ({self.nnodes}, 6) (one [torque; force] per "
+                                 f"node, node axes), got {nf.shape}")
+        if body_forces is None:
+            return nf, self._zero_body_forces
+        bf = np.asarray(body_forces, dtype=np.float64)
         if bf.shape != (self.nbodies, 6):
             raise ValueError(f"body_forces: expected shape ({self.nbodies}, 6), got {bf.shape}")
         return nf, bf
-
-    def _flex_workspace(self):
-        return self.ws_rot, self.ws_vec, self.ws_mat, self.fw_psi, self.fw_vec, self.fw_mat, self.fw_tmp
 
     # ------------------------------------------------------------------ algorithms
     def q_dot(self, q, u):
@@ -328,7 +487,7 @@ class MultibodySystem:
 
     def forward_dynamics(self, q, u, tau=None, node_forces=None, prescribed_accel=None, body_forces=None,
                          return_forces=False):
-        """Accelerations ``u_dot`` by the O(N) articulated-body algorithm.
+        """Accelerations ``u_dot`` (O(N) articulated-body algorithm, or the dense solve, :attr:`solver`).
 
         ``tau`` (nu,) generalized forces at the free DOFs; ``node_forces`` (nnodes, 6) and
         ``body_forces`` (nbodies, 6: about the body origin, body axes) external spatial forces;
@@ -342,17 +501,12 @@ class MultibodySystem:
         udot = np.zeros(self.nu) if prescribed_accel is None else \
             np.array(self._vector(prescribed_accel, self.nu, "prescribed_accel"))
         tau_out = np.empty(self.nu)
-        if self.is_flexible:
-            nf, bf = self._flex_forces(node_forces, body_forces)
-            status = FK.flex_forward_dynamics(
-                self.topology, self.hinge_dofs, self.joint_rot, self.joint_vec, self.flex_index, self.flex_data,
-                self.node_body, self.node_shape, self.node_rot, self.node_pos, self.ground_accel, q, u, tau, nf,
-                bf, udot, tau_out, *self._flex_workspace(), self.fw_scratch)
+        if node_forces is None and body_forces is None:
+            nf, bf = self._zero_node_forces, self._zero_body_forces
         else:
-            status = K.forward_dynamics(self.topology, self.hinge_dofs, self.joint_rot, self.joint_vec,
-                                        self.spatial_inertia, self.ground_accel, q, u, tau,
-                                        self._body_forces_from(node_forces, body_forces), udot, tau_out,
-                                        self.ws_rot, self.ws_vec, self.ws_mat)
+            nf, bf = self._forces(node_forces, body_forces)
+        status = self._forward_kernel(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params, q, u,
+                                      tau, nf, bf, udot, tau_out, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
         if status:
             name = self.body_names[status - 1]
             raise SingularConfigurationError(
@@ -367,45 +521,29 @@ class MultibodySystem:
         q = self._vector(q, self.nq, "q")
         u = self._vector(u, self.nu, "u")
         u_dot = self._vector(u_dot, self.nu, "u_dot")
-        if self.is_flexible:
-            nf, bf = self._flex_forces(node_forces, body_forces)
-            FK.flex_inverse_dynamics(self.topology, self.joint_rot, self.joint_vec, self.flex_index,
-                                     self.flex_data, self.node_body, self.node_shape, self.node_rot, self.node_pos,
-                                     self.ground_accel, q, u, u_dot, nf, bf, tau, *self._flex_workspace(),
-                                     self.fw_scratch)
-        else:
-            K.inverse_dynamics(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia,
-                               self.ground_accel, q, u, u_dot, self._body_forces_from(node_forces, body_forces),
-                               tau, self.ws_rot, self.ws_vec, self.ws_mat)
+        nf, bf = self._forces(node_forces, body_forces)
+        K.inverse_dynamics(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params, q, u, u_dot, nf,
+                           bf, tau, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
         return tau
 
     def mass_matrix(self, q):
         """Joint-space mass matrix (composite-rigid-body algorithm), symmetric (nu, nu)."""
         M = np.empty((self.nu, self.nu))
-        q = self._vector(q, self.nq, "q")
-        if self.is_flexible:
-            FK.flex_mass_matrix(self.topology, self.joint_rot, self.joint_vec, self.flex_index, self.flex_data,
-                                self.node_shape, self.node_rot, self.node_pos, q, self._zero_u, M,
-                                *self._flex_workspace())
-        else:
-            K.mass_matrix(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia, q, M,
-                          self.ws_rot, self.ws_vec, self.ws_mat)
+        K.mass_matrix(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
+                      self._vector(q, self.nq, "q"), self._zero_u, M, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
         return M
 
     def bias_forces(self, q, u, node_forces=None, body_forces=None):
         """Coriolis, gyroscopic, gravity and external-force terms: ``M u_dot + bias = tau``."""
         return self.inverse_dynamics(q, u, self._zero_u, node_forces=node_forces, body_forces=body_forces)
 
-    def _modal_matrix(self, which):
+    def _modal_matrix(self, column):
         out = np.zeros((self.nu, self.nu))
-        if not self.is_flexible:
-            return out
-        for i, n in enumerate(self.n_modes):
-            if n == 0:
-                continue
-            start = int(self.flex_index[i, FK.FX_K]) + (n * n if which == "damping" else 0)
-            k = self.u_slices[i].stop - n
-            out[k:k + n, k:k + n] = self.flex_data[start:start + n * n].reshape(n, n)
+        for i, s in enumerate(self.u_slices):
+            n = self.n_modes[i]
+            if n:
+                start = int(self.topology[i, K.FLEX + column])
+                out[s.stop - n:s.stop, s.stop - n:s.stop] = self.params[start:start + n * n].reshape(n, n)
         return out
 
     def stiffness_matrix(self):
@@ -413,11 +551,11 @@ class MultibodySystem:
 
         At rest without gravity this is the exact linearization of the generalized forces, so
         ``K phi = omega^2 M(q0) phi`` gives the system modes."""
-        return self._modal_matrix("stiffness")
+        return self._modal_matrix(FK.FX_K)
 
     def damping_matrix(self):
         """Generalized damping (nu, nu): the modal damping blocks of flexible bodies, zero elsewhere."""
-        return self._modal_matrix("damping")
+        return self._modal_matrix(FK.FX_C)
 
     def node_kinematics(self, q, u, u_dot=None):
         """Pose, velocity and (classical) acceleration of every node; see :class:`NodeKinematics`."""
@@ -427,17 +565,9 @@ class MultibodySystem:
         velocity = np.empty((n, 6))
         acceleration = np.empty((n, 6))
         u_dot = self._zero_u if u_dot is None else self._vector(u_dot, self.nu, "u_dot")
-        q = self._vector(q, self.nq, "q")
-        u = self._vector(u, self.nu, "u")
-        if self.is_flexible:
-            FK.flex_node_kinematics(self.topology, self.joint_rot, self.joint_vec, self.flex_index,
-                                    self.flex_data, self.node_body, self.node_shape, self.node_rot, self.node_pos,
-                                    q, u, u_dot, rotation, position, velocity, acceleration,
-                                    *self._flex_workspace(), self.fw_scratch)
-        else:
-            K.node_kinematics(self.topology, self.joint_rot, self.joint_vec, self.node_body, self.node_rot,
-                              self.node_pos, q, u, u_dot, rotation, position, velocity, acceleration,
-                              self.ws_rot, self.ws_vec, self.ws_mat)
+        K.node_kinematics(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
+                          self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), u_dot, rotation, position,
+                          velocity, acceleration, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
         return NodeKinematics(rotation, position, velocity[:, :3], velocity[:, 3:], acceleration[:, :3],
                               acceleration[:, 3:])
 
@@ -449,21 +579,13 @@ class MultibodySystem:
     def body_velocities(self, q, u):
         """Spatial velocities ``[omega; v]`` of every body reference frame, body axes, at its origin."""
         self._energy_momentum(q, u)
-        if self.is_flexible:
-            return self.fw_vec[:, FK.FV_X, :6].copy()
         return self.ws_vec[:, K.VEC_V].copy()
 
     def _energy_momentum(self, q, u):
         out = np.empty(8)
-        q = self._vector(q, self.nq, "q")
-        u = self._vector(u, self.nu, "u")
-        if self.is_flexible:
-            FK.flex_energy_momentum(self.topology, self.joint_rot, self.joint_vec, self.flex_index,
-                                    self.flex_data, self.node_shape, self.node_rot, self.node_pos,
-                                    self.ground_accel, q, u, out, *self._flex_workspace())
-        else:
-            K.energy_momentum(self.topology, self.joint_rot, self.joint_vec, self.spatial_inertia,
-                              self.ground_accel, q, u, out, self.ws_rot, self.ws_vec, self.ws_mat)
+        K.energy_momentum(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
+                          self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), out, self.ws_rot,
+                          self.ws_vec, self.ws_mat, self.pool)
         return out
 
     def kinetic_energy(self, q, u):
@@ -482,6 +604,22 @@ class MultibodySystem:
         """Total angular momentum about the world origin, world axes."""
         return self._energy_momentum(q, u)[5:8]
 
+    def summary(self):
+        """A few lines describing the compiled system: sizes, flexible bodies, solver and notes."""
+        lines = [repr(self)]
+        for i, name in enumerate(self.body_names):
+            if self.topology[i, K.FLEXIBLE]:
+                fx = self.topology[i, K.FLEX:]
+                terms = [term for term, col in (("R1", FK.FX_R1), ("C1", FK.FX_C1), ("G1", FK.FX_G1),
+                                                ("J2", FK.FX_J2), ("F2", FK.FX_F2), ("G2", FK.FX_G2)) if fx[col] >= 0]
+                kind = {FK.GINV_DIAGONAL: "diagonal G0", FK.GINV_DENSE: "G0^-1 precomputed",
+                        FK.GINV_FACTORED: "G(eta) factored per call"}[int(fx[FK.FX_GINV_KIND])]
+                lines.append(f"  flexible body '{name}': {self.n_modes[i]} modes, modal-integral order "
+                             f"{fx[FK.FX_ORDER]}, terms {'+'.join(['M0'] + terms)}, {kind}")
+        lines.append(f"  solver: {self.solver_reason}")
+        lines.extend(f"  note: {note}" for note in self.notes)
+        return "\n".join(lines)
+
     def __repr__(self):
         return (f"MultibodySystem({self.nbodies} bodies, nq={self.nq}, nu={self.nu}, "
-                f"{self.nnodes} nodes)")
+                f"{self.nnodes} nodes, solver={self.solver})")

@@ -50,44 +50,60 @@ class ModalIntegrals:
 
     Shapes with n = number of modes: mass (), p0 (3,), J0 (3,3), p1 (n,3), J1 (n,3,3),
     J2 (n,n,3,3), F0 (n,3), F1 (n,n,3) [index (r,s)], F2 (n,n,n,3) [(r,s,l)], E0 (n,3),
-    E1 (n,n,3) [(r,s)], G0 (n,n), G1 (n,n,n) [(r,s,l)], G2 (n,n,n,n) [(r,s,l,m)] or None
-    (identically zero: no node has rotational inertia, or not computed, see
-    :func:`modal_integrals`).
+    E1 (n,n,3) [(r,s)], G0 (n,n), G1 (n,n,n) [(r,s,l)], G2 (n,n,n,n) [(r,s,l,m)]. An integral
+    is None when it was not computed (above the order :func:`modal_integrals` was asked for, or
+    omitted there) or, for G2, when it is identically zero (no node has rotational inertia). For
+    point-mass nodes (TM eq. E.3.1) G1 and F2 are arrays of zeros, as the body-file layout has them
+    (docs/body_file.md); leave them out with ``omit`` for large studies.
     """
 
     mass: float
     p0: np.ndarray
     J0: np.ndarray
-    p1: np.ndarray
-    J1: np.ndarray
-    J2: np.ndarray
+    p1: np.ndarray | None
+    J1: np.ndarray | None
+    J2: np.ndarray | None
     F0: np.ndarray
-    F1: np.ndarray
-    F2: np.ndarray
+    F1: np.ndarray | None
+    F2: np.ndarray | None
     E0: np.ndarray
-    E1: np.ndarray
+    E1: np.ndarray | None
     G0: np.ndarray
-    G1: np.ndarray
+    G1: np.ndarray | None
     G2: np.ndarray | None
 
     def arrays(self) -> dict:
-        """Name -> array of every integral that is present (G2 may be absent)."""
+        """Name -> array of every integral that is present."""
         return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)
                 if getattr(self, f.name) is not None}
 
 
 def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np.ndarray,
                     positions: np.ndarray, rotation_shapes: np.ndarray,
-                    translation_shapes: np.ndarray, max_g2_modes: int = 40) -> ModalIntegrals:
-    """All integrals of eqs. E.2.2-E.2.5.
+                    translation_shapes: np.ndarray, max_g2_modes: int = 40, order: int = 2,
+                    omit: tuple = ()) -> ModalIntegrals:
+    """The integrals of eqs. E.2.2-E.2.5 that modal-integral ``order`` 0, 1 or 2 uses.
 
-    G2 is ``None`` when it is identically zero (no node has rotational inertia) or when
+    ``order`` 0 computes m, p0, J0, F0, E0, G0; 1 adds p1, J1, F1, E1, G1; 2 (default) adds J2,
+    F2, G2. The integrals above the order are ``None``, as are those named in ``omit`` (a subset of
+    "G1", "F2", "G2", the tables of n^3, n^3 and n^4 numbers). Memory and time: O(N n^2) at order 0
+    and at order 1 without G1, O(N n^3) with G1 or F2, O(N n^4) with G2 (N nodes, n modes).
+
+    G2 is also ``None`` when it is identically zero (no node has rotational inertia) or when
     n > ``max_g2_modes`` (n^4 numbers; a warning says so).
 
     node_mass (N,), node_cm (N,3) = p_j, node_inertia (N,3,3) = J_j about the node,
     positions (N,3) = l0_j from the body-frame origin, rotation_shapes (N,3,n) = lambda_j,
     translation_shapes (N,3,n) = gamma_j.
     """
+    if order not in (0, 1, 2):
+        raise ValueError(f"modal-integral order must be 0, 1 or 2, got {order!r}")
+    unknown = set(omit) - {"G1", "F2", "G2"}
+    if unknown:
+        raise ValueError(f"omit: only G1, F2 and G2 can be left out, got {sorted(unknown)}")
+    want_g1 = order >= 1 and "G1" not in omit
+    want_f2 = order >= 2 and "F2" not in omit
+    want_g2 = order >= 2 and "G2" not in omit
     m = np.asarray(node_mass, float)
     p = np.asarray(node_cm, float)
     J = np.asarray(node_inertia, float)
@@ -114,16 +130,18 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
     p0 = (m[:, None] * (p + l0)).sum(0) / mass
     J0 = (J - m[:, None, None] * (L0 @ L0 + skew_batch(p) @ L0 + L0 @ skew_batch(p))).sum(0)
     E0 = np.einsum("j,jar->ra", m, gam)
-    p1 = E0 / mass
     G0 = np.einsum("asar->rs", C)
-    J1 = -D.transpose(2, 0, 1) + np.einsum("bbr,ac->rac", D, I3)
-    J2 = -C.transpose(3, 1, 0, 2) + G0[:, :, None, None] * I3
     F0 = np.einsum("abc,bcr->ra", eps, D)
-    F1 = np.einsum("abc,bscr->rsa", eps, C)
-    F2 = np.zeros((n, n, n, 3))
-    E1 = np.zeros((n, n, 3))
-    G1 = np.zeros((n, n, n))
-    G2 = None
+    p1 = J1 = F1 = E1 = G1 = J2 = F2 = G2 = None
+    if order >= 1:
+        p1 = E0 / mass
+        J1 = -D.transpose(2, 0, 1) + np.einsum("bbr,ac->rac", D, I3)
+        F1 = np.einsum("abc,bscr->rsa", eps, C)
+        E1 = np.zeros((n, n, 3))
+        G1 = np.zeros((n, n, n)) if want_g1 else None
+    if order >= 2:
+        J2 = -C.transpose(3, 1, 0, 2) + G0[:, :, None, None] * I3
+        F2 = np.zeros((n, n, n, 3)) if want_f2 else None
     # terms in the node inertia J and CG offset p: only nodes that have them
     sel = (np.abs(J).reshape(len(m), -1).max(axis=1) > 0.0) | (np.abs(p).max(axis=1) > 0.0)
     if np.any(sel):
@@ -135,60 +153,66 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
         lxp = np.cross(np.moveaxis(lam, 2, 1), p[:, None, :])   # (N,n,3) lambda_r~ p
         LXP = skew_batch(lxp)                           # [lambda_r~ p]x
         E0 = E0 - np.einsum("j,jab,jbr->ra", m, P, lam, **es)     # eq. E.2.5
-        p1 = p1 + np.einsum("j,jri->ri", m, lxp, **es) / mass     # eq. E.2.4
-        J1 = J1 + (np.einsum("jrab,jbc->rac", Lr, J, **es)
-                   - np.einsum("j,jrab,jbc->rac", m, Gr, P, **es)
-                   - np.einsum("j,jab,jrbc->rac", m, L0, LXP, **es))
-        J2 = J2 - (np.einsum("jrab,jbc,jscd->rsad", Lr, J, Lr, **es)
-                   + np.einsum("j,jrab,jsbc->rsac", m, Gr, LXP, **es)
-                   + np.einsum("j,jsab,jrbc->rsac", m, LXP, Gr, **es))
         F0 = F0 + (np.einsum("jab,jbr->ra", J - m[:, None, None] * (L0 @ P), lam, **es)
                    + np.einsum("j,jab,jbr->ra", m, P, gam, **es))
-        LJ = np.einsum("jsab,jbc->jsac", Lr, J, **es)
-        JL = np.einsum("jab,jsbc->jsac", J, Lr, **es)
-        F1 = F1 + (np.einsum("jsab,jbr->rsa", LJ - JL, lam, **es)
-                   - np.einsum("j,jsab,jbc,jcr->rsa", m, Gr, P, lam, **es)
-                   + np.einsum("j,jsab,jbr->rsa", m, LXP, gam, **es)
-                   - np.einsum("j,jab,jsbc,jcr->rsa", m, L0, LXP, lam, **es))
-        # F2(r,s,l) = -sum_j [lambda_s x (J (lambda_l x lambda_r))
-        #                     + m gamma_s x ((lambda_l x p) x lambda_r)], GEMMs over (node, axis)
-        lam_t = np.moveaxis(lam, 2, 1)                                   # (N,n,3)
-        cross_rl = np.cross(lam_t[:, :, None, :], lam_t[:, None, :, :])  # (N,r,l,3)
-        Nj = len(m)
-        w = np.einsum("jab,jlrb->jalr", J, cross_rl)                         # J (l x r)
-        u = np.cross(lxp[:, :, None, :], lam_t[:, None, :, :])              # (l x p) x r
-        u = (m[:, None, None, None] * u).transpose(0, 3, 1, 2)               # (N,3,l,r)
-        F2 = -((Lr.transpose(1, 2, 0, 3).reshape(3 * n, 3 * Nj)
-                @ w.reshape(3 * Nj, n * n))
-               + (Gr.transpose(1, 2, 0, 3).reshape(3 * n, 3 * Nj)
-                  @ u.reshape(3 * Nj, n * n)))
-        F2 = F2.reshape(n, 3, n, n).transpose(3, 0, 2, 1)                    # [r,s,l,a]
-        E1 = -np.einsum("j,jsab,jbr->rsa", m, LXP, lam, **es)
         G0 = G0 + (np.einsum("jar,jab,jbs->rs", lam, J, lam, **es)
                    + np.einsum("j,jar,jab,jbs->rs", m, lam, P, gam, **es)
                    + np.einsum("j,jas,jab,jbr->rs", m, lam, P, gam, **es))
-        # lambda_r' lambda_l~ = (lambda_r x lambda_l)' and lambda_r' [w]x = (lambda_r x w)':
-        # G1 as one GEMM over (node, axis)
-        Jlam = np.einsum("jab,jbs->jas", J, lam)                         # (N,3,n)
-        q = m[:, None, None, None] * np.cross(lam_t[:, :, None, :], lxp[:, None, :, :])
-        G1 = ((cross_rl.transpose(0, 3, 1, 2).reshape(3 * Nj, n * n).T
-               @ Jlam.reshape(3 * Nj, n))
-              + (q.transpose(0, 3, 1, 2).reshape(3 * Nj, n * n).T
-                 @ gam.reshape(3 * Nj, n))).reshape(n, n, n).transpose(0, 2, 1)
+        if order >= 1:
+            p1 = p1 + np.einsum("j,jri->ri", m, lxp, **es) / mass     # eq. E.2.4
+            J1 = J1 + (np.einsum("jrab,jbc->rac", Lr, J, **es)
+                       - np.einsum("j,jrab,jbc->rac", m, Gr, P, **es)
+                       - np.einsum("j,jab,jrbc->rac", m, L0, LXP, **es))
+            LJ = np.einsum("jsab,jbc->jsac", Lr, J, **es)
+            JL = np.einsum("jab,jsbc->jsac", J, Lr, **es)
+            F1 = F1 + (np.einsum("jsab,jbr->rsa", LJ - JL, lam, **es)
+                       - np.einsum("j,jsab,jbc,jcr->rsa", m, Gr, P, lam, **es)
+                       + np.einsum("j,jsab,jbr->rsa", m, LXP, gam, **es)
+                       - np.einsum("j,jab,jsbc,jcr->rsa", m, L0, LXP, lam, **es))
+            E1 = -np.einsum("j,jsab,jbr->rsa", m, LXP, lam, **es)
+        if order >= 2:
+            J2 = J2 - (np.einsum("jrab,jbc,jscd->rsad", Lr, J, Lr, **es)
+                       + np.einsum("j,jrab,jsbc->rsac", m, Gr, LXP, **es)
+                       + np.einsum("j,jsab,jrbc->rsac", m, LXP, Gr, **es))
+        lam_t = np.moveaxis(lam, 2, 1)                                   # (N,n,3)
+        Nj = len(m)
+        if want_g1 or want_f2 or want_g2:
+            cross_rl = np.cross(lam_t[:, :, None, :], lam_t[:, None, :, :])  # (N,r,l,3)
+        if want_f2:
+            # F2(r,s,l) = -sum_j [lambda_s x (J (lambda_l x lambda_r))
+            #                     + m gamma_s x ((lambda_l x p) x lambda_r)], GEMMs over (node, axis)
+            w = np.einsum("jab,jlrb->jalr", J, cross_rl)                         # J (l x r)
+            u = np.cross(lxp[:, :, None, :], lam_t[:, None, :, :])              # (l x p) x r
+            u = (m[:, None, None, None] * u).transpose(0, 3, 1, 2)               # (N,3,l,r)
+            F2 = -((Lr.transpose(1, 2, 0, 3).reshape(3 * n, 3 * Nj)
+                    @ w.reshape(3 * Nj, n * n))
+                   + (Gr.transpose(1, 2, 0, 3).reshape(3 * n, 3 * Nj)
+                      @ u.reshape(3 * Nj, n * n)))
+            F2 = F2.reshape(n, 3, n, n).transpose(3, 0, 2, 1)                    # [r,s,l,a]
+        if want_g1:
+            # lambda_r' lambda_l~ = (lambda_r x lambda_l)' and lambda_r' [w]x = (lambda_r x w)':
+            # G1 as one GEMM over (node, axis)
+            Jlam = np.einsum("jab,jbs->jas", J, lam)                         # (N,3,n)
+            q = m[:, None, None, None] * np.cross(lam_t[:, :, None, :], lxp[:, None, :, :])
+            G1 = ((cross_rl.transpose(0, 3, 1, 2).reshape(3 * Nj, n * n).T
+                   @ Jlam.reshape(3 * Nj, n))
+                  + (q.transpose(0, 3, 1, 2).reshape(3 * Nj, n * n).T
+                     @ gam.reshape(3 * Nj, n))).reshape(n, n, n).transpose(0, 2, 1)
         hasJ = np.abs(J).reshape(len(m), -1).max(axis=1) > 0.0
-        if np.any(hasJ) and n <= max_g2_modes:
+        if want_g2 and np.any(hasJ) and n <= max_g2_modes:
             # G2(r,s,l,m) = -(lambda_r x lambda_l)' J (lambda_m x lambda_s): one GEMM
             C = cross_rl[hasJ].transpose(0, 3, 1, 2).reshape(-1, n * n)      # rows (j,a)
             JC = np.einsum("jab,jbX->jaX", J[hasJ],
                            cross_rl[hasJ].transpose(0, 3, 1, 2).reshape(-1, 3, n * n))
             X = (C.T @ JC.reshape(-1, n * n)).reshape(n, n, n, n)         # [r,l,m,s]
             G2 = -X.transpose(0, 3, 1, 2)
-        elif np.any(hasJ):
+        elif want_g2 and np.any(hasJ):
             warnings.warn(f"modal integral G2 (n^4 = {n**4} numbers) not computed for {n} "
                           f"modes (limit max_g2_modes = {max_g2_modes}); the O(eta^2) "
                           "rotational-inertia term of the modal mass block is omitted",
                           stacklevel=2)
-    J2 = 0.5 * (J2 + J2.transpose(1, 0, 2, 3))
+    if J2 is not None:
+        J2 = 0.5 * (J2 + J2.transpose(1, 0, 2, 3))
     return ModalIntegrals(mass=mass, p0=p0, J0=J0, p1=p1, J1=J1, J2=J2, F0=F0, F1=F1, F2=F2,
                           E0=E0, E1=E1, G0=G0, G1=G1, G2=G2)
 
@@ -204,11 +228,14 @@ def flexible_body_mass_matrix(mi: ModalIntegrals, eta: np.ndarray) -> np.ndarray
     """M_fl(eta) of eq. E.2.6, ordered [eta_dot; omega; v] (n + 6 square)."""
     eta = np.asarray(eta, float)
     n = len(eta)
-    G = mi.G0 + np.einsum("rsl,l->rs", mi.G1 + mi.G1.transpose(1, 0, 2), eta)
+    G = mi.G0.copy()
+    if mi.G1 is not None:  # None: not computed (order-limited integrals)
+        G = G + np.einsum("rsl,l->rs", mi.G1 + mi.G1.transpose(1, 0, 2), eta)
     if mi.G2 is not None:
         G = G + np.einsum("rslm,l,m->rs", mi.G2, eta, eta)
-    F = (mi.F0 + np.einsum("rsa,s->ra", mi.F1, eta)
-         + np.einsum("rsla,s,l->ra", mi.F2, eta, eta))          # (n,3)
+    F = mi.F0 + np.einsum("rsa,s->ra", mi.F1, eta)          # (n,3)
+    if mi.F2 is not None:
+        F = F + np.einsum("rsla,s,l->ra", mi.F2, eta, eta)
     E = mi.E0 + np.einsum("rsa,s->ra", mi.E1, eta)               # (n,3)
     p = mi.p0 + mi.p1.T @ eta
     Jk = (mi.J0 + np.einsum("rab,r->ab", mi.J1 + mi.J1.transpose(0, 2, 1), eta)

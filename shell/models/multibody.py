@@ -218,9 +218,9 @@ def engine_kernel(op, t, x, z, u, p, d, out):
     elif op == FEEDTHROUGH_OUTPUTS:
         _solve_accelerations(x, u, d)
         _copy_blocks(work.udot, ports.hinge_udot, out)
-        if ports.accel_offsets.shape[0]:
-            E.node_kinematics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position, work.velocity,
-                              work.acceleration)
+        if ports.accel_offsets.shape[0]:  # reusing the workspace the forward dynamics just left
+            E.node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
+                                             work.velocity, work.acceleration)
             for n in range(ports.accel_offsets.shape[0]):
                 a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
                 for k in range(3):
@@ -283,15 +283,9 @@ def probe_engine_data():
 
 
 def _private_system(system):
-    """A copy of ``system`` with its own workspace and its own mass-property arrays (a run that changes
-    mass properties must not change another run's)."""
-    other = system.copy()
-    for name in ("spatial_inertia", "masses", "flex_data"):
-        if hasattr(other, name):
-            a = np.array(getattr(other, name))
-            a.setflags(write=False)
-            setattr(other, name, a)
-    return other
+    """A copy of ``system`` with its own workspace and its own mass properties (a run that changes mass
+    properties must not change another run's)."""
+    return system.copy(mass_properties=True)
 
 
 @register_model
