@@ -5,8 +5,12 @@ Pure numerics in SI units (no pint, no YAML). Build a system with :class:`dynami
 algorithms are ``numba.njit(cache=True)`` kernels (:mod:`dynamics.kernels`).
 """
 
-from dynamics.builder import GROUND, ModelDefinitionError, Multibody
-from dynamics.system import MultibodySystem, NodeKinematics, SingularConfigurationError
+from dynamics.compile_cache import configure as _configure_compile_cache
+
+_configure_compile_cache()  # before any kernel module is imported: see dynamics.compile_cache
+
+from dynamics.builder import GROUND, ModelDefinitionError, Multibody  # noqa: E402
+from dynamics.system import MultibodySystem, NodeKinematics, SingularConfigurationError  # noqa: E402
 
 __all__ = ["GROUND", "ModelDefinitionError", "Multibody", "MultibodySystem", "NodeKinematics",
            "SingularConfigurationError"]

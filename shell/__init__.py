@@ -4,4 +4,6 @@ The multibody engine lives in the sibling package :mod:`dynamics`; this package 
 device models into scenes a user can run, linearize and disperse.
 """
 
+import dynamics  # noqa: F401  (first: it sets numba's cache directory before any shell kernel compiles)
+
 __version__ = "0.1.0"

@@ -1,0 +1,56 @@
+"""Where numba caches flexshell's compiled code: a directory keyed on the sources of the whole package.
+
+numba's on-disk cache (``cache=True``) invalidates a function when *its own* file changes, not when a
+function it calls from another file does: after an update of ``dynamics/kernels.py`` a cached caller
+(the engine entry points, the shell's compiled loop) would keep linking the old machine code and run
+outdated physics (seen during development). :func:`configure` therefore points numba at
+``~/.cache/flexshell/numba/<hash of every .py file of dynamics and shell>`` (``$XDG_CACHE_HOME`` is
+honoured) before any kernel is compiled: any change of the sources starts a fresh cache, an unchanged
+installation reuses its cache across processes (Monte Carlo workers, later runs). The four most recently
+used directories are kept. A ``NUMBA_CACHE_DIR`` set by the user is left alone.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+from pathlib import Path
+
+KEEP = 4
+
+
+def source_key(root: Path) -> str:
+    """sha256 (16 hex digits) of the package sources under ``root`` (paths and contents)."""
+    digest = hashlib.sha256()
+    for package in ("dynamics", "shell"):
+        for path in sorted((root / package).rglob("*.py")):
+            digest.update(path.relative_to(root).as_posix().encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def configure() -> str | None:
+    """Set numba's cache directory for this process (see the module docstring); returns it, or None when
+    the user chose one with ``NUMBA_CACHE_DIR``."""
+    import numba
+
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return None
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "flexshell" / "numba"
+    directory = base / source_key(Path(__file__).resolve().parent.parent)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        os.utime(directory)  # most recently used
+        _prune(base, directory)
+    except OSError:  # an unwritable home: numba's default (__pycache__ next to the sources)
+        return None
+    numba.config.CACHE_DIR = str(directory)
+    return str(directory)
+
+
+def _prune(base: Path, current: Path) -> None:
+    older = sorted((p for p in base.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime,
+                   reverse=True)
+    for stale in older[KEEP - 1:]:
+        shutil.rmtree(stale, ignore_errors=True)
