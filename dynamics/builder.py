@@ -181,14 +181,15 @@ class Multibody:
         self._body_index[name] = len(self.bodies) - 1
         return name
 
-    def add_flexible_body(self, name, parent=GROUND, *, modal, hinge, modes=None, order=None, damping_ratio=None,
-                          integrals="general", child_grid=None, omit_terms=(), **hinge_kwargs):
+    def add_flexible_body(self, name, parent=GROUND, *, modal, hinge, modes=None, max_frequency=None, order=None,
+                          damping_ratio=None, integrals="general", child_grid=None, omit_terms=(), **hinge_kwargs):
         """Add a flexible body whose reference frame is connected to ``parent`` by a hinge.
 
         ``modal``: a body file path (``flexshell fem2modal ... --modal-integrals``), a
         ``dynamics.flex.body_file.ModalBody`` or a :class:`dynamics.flexible_body.FlexibleBodyData`.
         The body frame is the FE model's reference frame (basic axes at the reference grid). ``modes``
-        selects mode indices, ``order`` the modal-integral order (0, 1, 2; default: the highest the body
+        selects mode indices, ``max_frequency`` (Hz) keeps only the body file's modes at or below it (of the
+        listed ones when ``modes`` is given; :func:`dynamics.mode_selection.select_modes`), ``order`` the modal-integral order (0, 1, 2; default: the highest the body
         file supports, 2 unless the file omits G2 for its nodes' rotational inertia, then 1, which is
         recorded in :attr:`notes` and warned about), ``damping_ratio`` overrides the file's modal
         damping, ``integrals`` picks ``"general"`` or ``"point_mass"`` integrals, ``omit_terms`` leaves
@@ -204,14 +205,22 @@ class Multibody:
 
         if isinstance(modal, FlexibleBodyData):
             data = modal.without(omit_terms)
-            if modes is not None or damping_ratio is not None or (order is not None and order != data.order):
-                raise ModelDefinitionError(f"body '{name}': modes/damping_ratio/order apply to body files; "
+            if (modes is not None or max_frequency is not None or damping_ratio is not None
+                    or (order is not None and order != data.order)):
+                raise ModelDefinitionError(f"body '{name}': modes/max_frequency/damping_ratio/order apply to body files; "
                                            f"FlexibleBodyData is used as given (its order is {data.order})")
         else:
             if not hasattr(modal, "modal_integrals"):
                 from dynamics.flex.body_file import read_body_file
 
                 modal = read_body_file(modal)
+            if max_frequency is not None:
+                from dynamics.mode_selection import select_modes
+
+                try:
+                    modes = select_modes(modal.frequencies_hz, modes, max_frequency)
+                except ValueError as exc:
+                    raise ModelDefinitionError(f"body '{name}': {exc}") from None
             try:
                 data = flexible_body_from_modal_body(modal, modes=modes, order=order, damping_ratio=damping_ratio,
                                                      integrals=integrals, omit_terms=omit_terms)

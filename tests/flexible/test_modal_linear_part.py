@@ -201,3 +201,23 @@ def test_selected_modes_are_the_file_modes(structure):
     np.testing.assert_array_equal(K, np.asarray(structure.modal_stiffness)[np.ix_(keep, keep)])
     # the file's Pi' K Pi and its FREQ (from the eigenvalues) agree to the eigen-solver's accuracy (4e-10)
     np.testing.assert_allclose(np.diag(K), (2 * np.pi * structure.frequencies_hz[keep]) ** 2, rtol=1e-9)
+
+
+def test_builder_max_frequency_keeps_the_same_modes(structure):
+    """``Multibody.add_flexible_body(max_frequency=...)`` (Hz) compiles the same body as the indices of
+    ``select_modes``: identical stiffness and mass matrices; a cutoff below the lowest mode is refused with
+    the body's name."""
+    from dynamics import ModelDefinitionError
+
+    keep = select_modes(structure.frequencies_hz, max_frequency=400.0)
+    mb = Multibody()
+    mb.add_flexible_body("s", None, modal=structure, hinge="free", damping_ratio=0.0, max_frequency=400.0)
+    by_cutoff = mb.compile()
+    by_index = free_body(structure, keep)
+    assert by_cutoff.nu == 6 + 21
+    np.testing.assert_array_equal(by_cutoff.stiffness_matrix(), by_index.stiffness_matrix())
+    q = by_index.neutral_configuration()
+    np.testing.assert_array_equal(by_cutoff.mass_matrix(q), by_index.mass_matrix(q))
+    mb = Multibody()
+    with pytest.raises(ModelDefinitionError, match=r"body 'structure': select_modes: max_frequency = 1 Hz removes"):
+        mb.add_flexible_body("structure", None, modal=structure, hinge="free", max_frequency=1.0)
