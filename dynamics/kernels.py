@@ -620,7 +620,8 @@ def _spd_inverse(D, n, tol, L, out):
 @njit(cache=True, inline="always")
 def _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
     """Articulated-body step of body i's free hinge DOFs (RBDA Table 7.1): U = IA S, D = S' U,
-    d = tau - S' pA, Ia = IA - U D^-1 U', pa = pA + Ia c + U D^-1 d. False when D is singular."""
+    d = tau - S' pA, Ia = IA - U D^-1 U', pa = pA + Ia c + U D^-1 d (the last two only for a body with a
+    parent: what a root would pass inward is never read). False when D is singular."""
     S = ws_mat[i, MAT_S]
     IA = ws_mat[i, MAT_IA]
     U = ws_mat[i, MAT_U]
@@ -684,6 +685,8 @@ def _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
         tol = 1e-14 * (IA[0, 0] + IA[1, 1] + IA[2, 2] + IA[3, 3] + IA[4, 4] + IA[5, 5])
         if not _spd_inverse(D, nf, tol, ws_mat[i, MAT_IAP], Dinv):
             return False
+    if topology[i, PARENT] < 0 and topology[i, PARENT_NODE] < 0:
+        return True  # a root body passes nothing inward: Ia, pa are never read (skips 6 x 6 x nf^2 work)
     for a in range(6):
         for b in range(a, 6):
             s = IA[a, b]
