@@ -74,6 +74,7 @@ class RunSummary:
     derivative_evaluations: int
     events: int
     discrete_updates: int
+    notes: tuple = ()    # choices made for the user (models' ``notes``: engine solver, modal-integral order)
 
     @property
     def real_time_factor(self) -> float:
@@ -83,7 +84,7 @@ class RunSummary:
         return (f"{self.status} at t = {self.t_end:.6g} s ({self.reason}); wall time {self.wall_time:.3f} s, "
                 f"{self.steps} steps, {self.derivative_evaluations} derivative evaluations, "
                 f"{self.discrete_updates} discrete updates, {self.events} events, "
-                f"real-time factor {self.real_time_factor:.3g}")
+                f"real-time factor {self.real_time_factor:.3g}" + "".join(f"\n  note: {n}" for n in self.notes))
 
 
 class _EventFunction:
@@ -362,6 +363,7 @@ class Simulation:
         t_start = self.t
         wall_start = _time.perf_counter()
         status, reason = "completed", "reached t_final"
+        blas = self._single_threaded_blas()
         try:
             self._initialize()
             end = Fraction(t_final).limit_denominator(10**9)
@@ -397,6 +399,9 @@ class Simulation:
             if isinstance(exc, SimulationError):
                 raise
             raise SimulationError(message) from exc
+        finally:
+            if blas is not None:
+                blas.restore_original_limits()
         if writer is not None:
             writer.close(status, reason)
         self.evaluate()  # outputs consistent with the final state for signal() queries
@@ -404,7 +409,8 @@ class Simulation:
         return RunSummary(status, reason, t_start, self.t, wall, self.counters["steps"] - start_counters["steps"],
                           self.counters["nfev"] - start_counters["nfev"],
                           self.counters["events"] - start_counters["events"],
-                          self.counters["updates"] - start_counters["updates"])
+                          self.counters["updates"] - start_counters["updates"],
+                          tuple(note for m in self.diagram.models for note in getattr(m, "notes", ())))
 
     # ------------------------------------------------------------------------------------------------
     # the compiled loop (shell.compiled_loop): the same instants, updates, steps and log rows as below
@@ -713,6 +719,18 @@ class Simulation:
         self._check_finite_state(f"after the event at t = {t_event:.12g} s")
         self.evaluate(t_event)  # outputs reflect the state after the handlers
         return True, stop
+
+    def _single_threaded_blas(self):
+        """BLAS limited to one thread for a run whose integrator multiplies small dense matrices at every step
+        (the exponential and implicit methods: a few hundred rows at most, where more BLAS threads only add
+        synchronization, and spin against other work on a shared machine: the observatory scene's etdrk4
+        run measured 6x slower with two BLAS threads on a loaded 2-core machine). None otherwise."""
+        cls = INTEGRATORS.get(str(self.integrator_name).lower(), self.integrator_name)
+        if not (getattr(cls, "uses_linear_part", False) or getattr(cls, "implicit", False)):
+            return None
+        from threadpoolctl import threadpool_limits
+
+        return threadpool_limits(limits=1, user_api="blas")
 
     def _restart_integrator(self, target: float):
         """The integrator positioned at (self.t, self.x) heading for target; reset only after a jump."""

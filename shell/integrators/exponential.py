@@ -129,23 +129,35 @@ def phi_functions(z, k_max):
 
     Taylor series ``phi_k(z) = sum_j z^j / (j + k)!`` for |z| < 1 (30 terms: truncation below 1e-32), the
     recurrence ``phi_{k+1} = (phi_k - 1/k!) / z`` from ``e^z`` otherwise (cancellation bounded by 1/|z|^k <= 1).
+    Compiled (:func:`_phi_into`): the dense output evaluates it at every event-search sample.
     """
     z = np.asarray(z, dtype=np.complex128).ravel()
     out = np.empty((k_max + 1, z.size), dtype=np.complex128)
-    small = np.abs(z) < 1.0
-    zs = z[small]
-    for k in range(k_max + 1):
-        acc = np.zeros_like(zs)
-        for j in range(29, -1, -1):  # Horner in z
-            acc = acc * zs + 1.0 / math.factorial(j + k)
-        out[k, small] = acc
-    zl = z[~small]
-    value = np.exp(zl)
-    out[0, ~small] = value
-    for k in range(k_max):
-        value = (value - 1.0 / math.factorial(k)) / zl
-        out[k + 1, ~small] = value
+    _phi_into(z, int(k_max), out)
     return out
+
+
+#: 1 / j! for the Taylor series of the phi functions
+_INVERSE_FACTORIALS = np.array([1.0 / math.factorial(j) for j in range(40)])
+
+
+@njit(cache=True)
+def _phi_into(z, k_max, out):
+    inverse_factorials = _INVERSE_FACTORIALS
+    for i in range(z.size):
+        zi = z[i]
+        if abs(zi) < 1.0:
+            for k in range(k_max + 1):
+                acc = 0j
+                for j in range(29, -1, -1):  # Horner in z
+                    acc = acc * zi + inverse_factorials[j + k]
+                out[k, i] = acc
+        else:
+            value = np.exp(zi)
+            out[0, i] = value
+            for k in range(k_max):
+                value = (value - inverse_factorials[k]) / zi
+                out[k + 1, i] = value
 
 
 class LinearPart:
