@@ -38,6 +38,7 @@ import numpy as np
 from numba import njit
 
 from dynamics import engine as E
+from dynamics import kernels as K
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 
 from shell.model import InputPort, Model, ModelError, OutputPort, State
@@ -309,6 +310,17 @@ class MultibodyModel(Model):
         self._initial_q = system.neutral_configuration() if initial_q is None else np.asarray(initial_q, float)
         self._initial_u = np.zeros(system.nu) if initial_u is None else np.asarray(initial_u, float)
         super().__init__(name)
+
+    @property
+    def notes(self) -> tuple:
+        """Choices the engine made for the user, for the run summary: the forward-dynamics solver of a
+        scene with flexible bodies (and why), the engine's notes (default modal-integral orders, O(n^3)
+        terms kept)."""
+        s = self.system
+        notes = [f"{self.path}: {note}" for note in s.notes]
+        if s.topology[:, K.FLEXIBLE].any():
+            notes.insert(0, f"{self.path}: forward dynamics by {s.solver_reason}")
+        return tuple(notes)
 
     # -- declarations ----------------------------------------------------------------------------------
     def declare(self):

@@ -53,7 +53,10 @@ def test_sensor_on_a_flexible_node_measures_elastic_motion(scene, tmp_path, beam
     sim = scene(SCENE.format(file=beam_file))
     engine = sim.models[0]
     assert engine.system.nq == 7 + 4 and engine.system.nu == 6 + 4
-    sim.run(0.5, log_path=tmp_path / "beam.h5")
+    summary = sim.run(0.5, log_path=tmp_path / "beam.h5")
+    # the run summary says which forward-dynamics solver the engine chose for the flexible body, and why
+    assert summary.notes[0].startswith(f"multibody: forward dynamics by {engine.system.solver_reason}")
+    assert "note: multibody: forward dynamics by " in str(summary)
     log = read_log(tmp_path / "beam.h5")
     # the gyro holds the tip node's angular velocity sampled at the same instants (zero noise)
     np.testing.assert_array_equal(log["sensor.gyro.y"], log["multibody.tip.angular_velocity"])
