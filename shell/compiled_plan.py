@@ -231,6 +231,18 @@ class CompiledPlan:
         L.run_stages(table, table.shape[0], self.kernels, self.engine, float(t), b, b.src, b.fac)
         L.gather_all(b, b.src, b.fac)
 
+    def update_is_compiled(self, i: int) -> bool:
+        """Whether sampled model ``i`` has a compiled update (not a Python one)."""
+        return int(self.buffers.update_ops[i, L.KIND]) in (L.UPDATE, L.UPDATE_NOISE)
+
+    def update(self, t: float, i: int) -> None:
+        """Model ``i``'s discrete update at the context's state, compiled: the outputs its inputs need, its
+        noise drawn from its own generator, its kernel (the same numbers as ``Diagram.update``; for loops
+        that stay in Python, e.g. with an adaptive or exponential integrator)."""
+        ops = self.buffers.update_ops
+        rng = self.rngs[ops[i, L.RNG]] if ops[i, L.KIND] == L.UPDATE_NOISE else self.rngs[-1]
+        L.update_model_alone(i, self.kernels, self.engine, rng, float(t), self.buffers)
+
     def stage_table(self, stages):
         """The op table of ``stages`` (cached per stage tuple)."""
         cached = self._variants.get(("stages", stages))

@@ -78,10 +78,12 @@ def _multirate_scene():
     return root
 
 
-@pytest.mark.parametrize("method", ["euler", "heun", "rk4", "rk8"])
+@pytest.mark.parametrize("method", ["euler", "heun", "rk4", "rk8", "dopri5"])
 def test_multirate_noise_and_odd_log_rates_are_bit_identical(method, tmp_path):
     """Rates 100 Hz, 10 Hz with an offset, 30 Hz (not a multiple of the 7 ms step: steps are cut at the
-    instants), Gaussian noise from the model's own stream, logs at 7 Hz and 120 Hz."""
+    instants), Gaussian noise from the model's own stream, logs at 7 Hz and 120 Hz. With ``dopri5`` the
+    integrator stays in Python and the compiled plan serves its derivatives and the sampled updates
+    (``CompiledPlan.update``, noise drawn inside numba from the same generators)."""
     runs = []
     for mode in ("interpreted", "compiled"):
         sim = Simulation(_multirate_scene(), integrator=method, step=0.007, seed=11, mode=mode)
