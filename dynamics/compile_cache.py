@@ -6,8 +6,8 @@ function it calls from another file does: after an update of ``dynamics/kernels.
 outdated physics (seen during development). :func:`configure` therefore points numba at
 ``~/.cache/flexshell/numba/<hash of every .py file of dynamics and shell>`` (``$XDG_CACHE_HOME`` is
 honoured) before any kernel is compiled: any change of the sources starts a fresh cache, an unchanged
-installation reuses its cache across processes (Monte Carlo workers, later runs). The four most recently
-used directories are kept. A ``NUMBA_CACHE_DIR`` set by the user is left alone.
+installation reuses its cache across processes (Monte Carlo workers, later runs). Directories unused for
+a week are removed, except the four most recently used. A ``NUMBA_CACHE_DIR`` set by the user is left alone.
 """
 
 from __future__ import annotations
@@ -15,9 +15,11 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import time
 from pathlib import Path
 
 KEEP = 4
+STALE_AFTER_S = 7 * 24 * 3600.0
 
 
 def source_key(root: Path) -> str:
@@ -52,5 +54,7 @@ def configure() -> str | None:
 def _prune(base: Path, current: Path) -> None:
     older = sorted((p for p in base.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime,
                    reverse=True)
+    now = time.time()
     for stale in older[KEEP - 1:]:
-        shutil.rmtree(stale, ignore_errors=True)
+        if now - stale.stat().st_mtime > STALE_AFTER_S:  # never a directory another process may be using
+            shutil.rmtree(stale, ignore_errors=True)
