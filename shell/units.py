@@ -10,6 +10,7 @@ factor here; nothing in this module is called inside the integration loop.
 from __future__ import annotations
 
 import re
+import reprlib
 
 import numpy as np
 import pint
@@ -82,19 +83,36 @@ def _split_string_value(text: str) -> tuple[object, str]:
             return json.loads(match.group(1)), match.group(2)
         except ValueError:
             pass
+        except RecursionError:
+            raise UnitError(f"the list {_short(match.group(1))} is nested too deeply") from None
         try:
             numbers = yaml.safe_load(match.group(1))
-        except yaml.YAMLError as exc:
-            raise UnitError(f"cannot read the list {match.group(1)!r}: {exc}") from None
+        except (yaml.YAMLError, RecursionError) as exc:
+            raise UnitError(f"cannot read the list {_short(match.group(1))}: {_short(str(exc))}") from None
         return numbers, match.group(2)
     try:
         return float(text), ""  # a bare number is in the declared unit
     except ValueError:
         pass
-    quantity = ureg.Quantity(text)
+    try:
+        quantity = ureg.Quantity(text)
+    except Exception as exc:  # pint's parser raises tokenize, syntax and lookup errors of many kinds
+        raise UnitError(f"{_short(text)} is not a number with a unit ({type(exc).__name__})") from None
     if isinstance(quantity, (int, float)):
         return float(quantity), ""
     return quantity.magnitude, f"{quantity.units}"
+
+
+_SHORT = reprlib.Repr()
+_SHORT.maxstring, _SHORT.maxother, _SHORT.maxlist, _SHORT.maxdict, _SHORT.maxlevel = 60, 60, 6, 6, 3
+
+
+def short_repr(value) -> str:
+    """``repr(value)`` cut to a line: error messages never print a huge (or alias-expanded) value whole."""
+    return _SHORT.repr(value)
+
+
+_short = short_repr
 
 
 def to_magnitude(value, unit: str | pint.Unit, shape: tuple[int, ...] | None = None,
@@ -110,15 +128,15 @@ def to_magnitude(value, unit: str | pint.Unit, shape: tuple[int, ...] | None = N
         magnitude = _magnitude_in(value, target, where)
     except pint.errors.DimensionalityError as exc:
         raise UnitError(f"{where}: expected a value in {format_unit(target)} "
-                        f"[{target.dimensionality}], given {value!r} ({exc})") from None
+                        f"[{target.dimensionality}], given {_short(value)} ({exc})") from None
     except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, TypeError, ValueError,
             AttributeError, AssertionError) as exc:
         if isinstance(exc, UnitError):
             raise
-        raise UnitError(f"{where}: expected a value in {format_unit(target)}, given {value!r} ({exc})") from None
+        raise UnitError(f"{where}: expected a value in {format_unit(target)}, given {_short(value)} ({exc})") from None
     array = np.asarray(magnitude, dtype=np.float64)
     if shape is not None and tuple(array.shape) != tuple(shape):
-        raise UnitError(f"{where}: expected shape {tuple(shape)}, given shape {tuple(array.shape)} ({value!r})")
+        raise UnitError(f"{where}: expected shape {tuple(shape)}, given shape {tuple(array.shape)} ({_short(value)})")
     return array
 
 
@@ -133,18 +151,18 @@ def _magnitude_in(value, target: pint.Unit, where: str):
     if isinstance(value, str):
         numbers, unit_text = _split_string_value(value)
         if isinstance(numbers, str):
-            raise UnitError(f"{where}: {value!r} is not a number with a unit")
+            raise UnitError(f"{where}: {_short(value)} is not a number with a unit")
         factor = conversion_factor(unit_text, target, where) if unit_text else 1.0
         return np.asarray(_plain_numbers(numbers, where), dtype=np.float64) * factor
     if isinstance(value, (list, tuple)) and any(isinstance(v, (str, list, tuple, dict)) for v in value):
         return np.array([_magnitude_in(v, target, where) for v in value], dtype=np.float64)
     if isinstance(value, bool):
-        raise UnitError(f"{where}: expected a number, given the boolean {value!r}")
+        raise UnitError(f"{where}: expected a number, given the boolean {value}")
     return np.asarray(_plain_numbers(value, where), dtype=np.float64)
 
 
 def _plain_numbers(value, where: str):
     array = np.asarray(value)
     if array.dtype.kind not in "iuf":
-        raise UnitError(f"{where}: expected numbers, given {value!r}")
+        raise UnitError(f"{where}: expected numbers, given {_short(value)}")
     return array
