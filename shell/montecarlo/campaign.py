@@ -41,7 +41,7 @@ import numpy as np
 
 from shell.montecarlo.draws import DISTRIBUTIONS, CorrelationGroup, Dispersion, draw_run
 from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples
-from shell.scenario import ScenarioError, build_simulation, load_yaml, parse_scenario
+from shell.scenario import ScenarioError, build_simulation, decode_scenario, load_yaml, parse_scenario, show
 from shell.scenario import _expect_mapping
 from shell.scenario import _Where as scenario_Where
 from shell.units import UnitError, conversion_factor, parse_unit, to_magnitude, ureg
@@ -97,6 +97,9 @@ def yaml_text(value, top: bool = True) -> str:
         return "null"
     raise TypeError(f"cannot write {value!r} as YAML")
 
+
+#: most runs of one campaign (its results table is allocated when the campaign starts)
+MAX_RUNS = 10**6
 
 CAMPAIGN_KEYS = {
     "name": "campaign name", "description": "free text", "scenario": "scenario file, relative to the campaign",
@@ -539,9 +542,13 @@ def load_campaign(path, validate: bool = True) -> Campaign:
     (every dispersion path, metric signal and kept signal must exist)."""
     path = str(path)
     try:
-        text = Path(path).read_text()
+        with open(path, "rb") as f:
+            data = f.read()
+        text = decode_scenario(data, path)
     except OSError as exc:
         raise CampaignError(f"{path}: cannot read the campaign ({exc.strerror})") from None
+    except ScenarioError as exc:
+        raise CampaignError(str(exc)) from None
     return parse_campaign(text, path, validate)
 
 
@@ -554,12 +561,18 @@ def parse_campaign(text: str, filename: str = "<string>", validate: bool = True)
     here = root.child(document, "scenario")
     scenario_file = Path(filename).parent / str(document["scenario"])
     try:
-        scenario_text = scenario_file.read_text()
+        with open(scenario_file, "rb") as f:
+            scenario_text = decode_scenario(f.read(), str(scenario_file))
     except OSError as exc:
         raise here.error(f"cannot read the scenario {str(scenario_file)!r} ({exc.strerror})") from None
+    except ScenarioError as exc:
+        raise here.error(str(exc)) from None
     runs = document["runs"]
     if not isinstance(runs, int) or isinstance(runs, bool) or runs < 1:
-        raise root.child(document, "runs").error(f"expected a positive integer, given {runs!r}")
+        raise root.child(document, "runs").error(f"expected a positive integer, given {show(runs)}")
+    if runs > MAX_RUNS:
+        raise root.child(document, "runs").error(f"{runs} runs: a campaign file holds at most {MAX_RUNS} (its "
+                                                 "table is allocated whole); split the campaign into several")
     seed = document.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise root.child(document, "seed").error(f"expected a non-negative integer, given {seed!r}")

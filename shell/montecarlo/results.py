@@ -14,6 +14,9 @@ Layout (a stable contract, like the log layout of shell/log_file.py)::
 Only /timing depends on the machine and the executor; /table and /signals are bit-identical for the
 same campaign whatever executed it. Rows are "pending" until their run completes.
 
+A results file is written by one process at a time: a second campaign (or ``--resume``) refuses a file
+another process holds (HDF5's lock), and ``--overwrite`` only ever replaces a campaign results file.
+
 Kill safety: each completed run is first appended to a journal (``OUT.h5.journal``, one JSON line per
 run; floats written with repr, arrays as base64 bytes, so they round-trip exactly) and only then
 written to the HDF5 file, which is flushed. A campaign killed at any instant therefore keeps every
@@ -194,11 +197,21 @@ def open_results(path, campaign: Campaign, resume: bool = False, overwrite: bool
     Refuses to overwrite an existing file unless ``overwrite``, and to resume a file written by a
     different campaign (the fingerprint covers the campaign and scenario texts).
     """
+    from shell.log_file import LogError, check_log_target, held_by_another_process
+
     path = str(path)
     journal = path + ".journal"
     exists = os.path.exists(path)
     if exists and not (resume or overwrite):
         raise ResultsError(f"{path} exists; pass --resume to finish that campaign or choose another output")
+    if exists and os.path.isfile(path) and held_by_another_process(path):
+        raise ResultsError(f"{path}: another process is writing this campaign (it holds the file); wait for it "
+                           "to finish, or stop it and then --resume")
+    if not (resume and exists):
+        try:  # a new file, or --overwrite: only ever replaces a campaign results file
+            check_log_target(path, FORMAT)
+        except LogError as exc:
+            raise ResultsError(str(exc)) from None
     if not resume or not exists and not os.path.exists(journal):
         if resume:
             raise ResultsError(f"{path}: nothing to resume (no results file and no journal {journal})")
@@ -211,7 +224,8 @@ def open_results(path, campaign: Campaign, resume: bool = False, overwrite: bool
             h5 = h5py.File(path, "a")
             fingerprint = h5.attrs.get("fingerprint")
             h5["table"], h5["timing"]
-        except (OSError, KeyError):  # cut by a kill during a write: rebuilt from the journal below
+        except (OSError, KeyError):  # cut by a kill during a write (no one holds it: checked above): rebuilt
+            # from the journal below
             if h5 is not None:
                 h5.close()
             h5, fingerprint = None, None
