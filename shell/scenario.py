@@ -824,6 +824,10 @@ def build_member(container: Assembly, name: str, entry: dict, here: _Where, clas
         raise _locate_error(here, entry, exc) from None
     except TypeError as exc:
         raise here.error(f"cannot construct {entry['type']}: {exc}") from None
+    except (AttributeError, KeyError, IndexError, ValueError, OverflowError, ZeroDivisionError) as exc:
+        # a configuration value of the wrong kind that the model's constructor did not check itself
+        raise here.error(f"cannot construct {entry['type']} from these values: {type(exc).__name__}: "
+                         f"{show(str(exc))}") from None
     for state, value in (entry.get("initial", {}) or {}).items():
         if not isinstance(member, Model):
             raise here.child(entry, "initial").error("initial values are set on models, not assemblies")

@@ -30,14 +30,20 @@ def parse_unit(unit: str | pint.Unit, where: str = "") -> pint.Unit:
     """The pint unit for ``unit`` ("" or "1" is dimensionless); refuses unknown unit names."""
     if isinstance(unit, pint.Unit):
         return unit
-    text = (unit or "").strip()
+    if unit is None:
+        unit = ""
+    if isinstance(unit, (int, float)) and not isinstance(unit, bool) and unit == 1:
+        unit = "1"  # YAML reads `unit: 1` as a number
+    if not isinstance(unit, str):
+        raise UnitError(f"{where}: expected a unit name such as m/s, given {short_repr(unit)}")
+    text = unit.strip()
     if text in ("", "1", "-", "dimensionless"):
         return ureg.dimensionless
     try:
         return ureg.Unit(text)
-    except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError, AttributeError,
-            TypeError) as exc:
-        raise UnitError(f"{where}: unknown unit {text!r} ({exc})") from None
+    except Exception as exc:  # pint's parser raises lookup, syntax, tokenize and assertion errors
+        raise UnitError(f"{where}: unknown unit {short_repr(text)} ({type(exc).__name__}: "
+                        f"{short_repr(str(exc))})") from None
 
 
 def is_offset_unit(unit: pint.Unit) -> bool:
