@@ -17,6 +17,9 @@ from tests.safety.conftest import RAMP, ROOT, line_of
 BOMB = "".join(f"{a}: &{a} [{', '.join([f'*{p}'] * 9) if p else ', '.join(['x'] * 9)}]\n"
                for p, a in zip(["", "a", "b", "c", "d", "e"], ["a", "b", "c", "d", "e", "f"]))
 
+FLOW_BOMB = "[&a [x, x, x, x, x, x, x, x, x], " + ", ".join(
+    f"&{a} [{', '.join([f'*{p}'] * 9)}]" for p, a in zip("abcde", "bcdef")) + "]"
+
 
 def change(old, new):
     assert old in RAMP, old
@@ -35,15 +38,7 @@ SCENARIO_CASES = [
     ("rate-inf", change("rate: 10 Hz", "rate: .inf"), [], "models.sensor.rate", "rate: .inf", "finite"),
     ("rate-inf-hz", change("rate: 10 Hz", "rate: .inf Hz"), [], "models.sensor.rate", "rate: .inf Hz", None),
     ("rate-nan", change("rate: 10 Hz", "rate: .nan"), [], "models.sensor.rate", "rate: .nan", None),
-    ("rate-zero", change("rate: 10 Hz", "rate: 0 Hz"), [], "models.sensor.rate", "rate: 0 Hz", None),
-    ("rate-negative", change("rate: 10 Hz", "rate: -5 Hz"), [], "models.sensor.rate", "rate: -5 Hz", None),
     ("rate-absurd", change("rate: 10 Hz", "rate: 1e12 Hz"), [], "models.sensor.rate", "rate: 1e12 Hz", None),
-    ("rate-not-a-rate", change("rate: 10 Hz", "rate: fast"), [], "models.sensor.rate", "rate: fast", None),
-    ("rate-wrong-unit", change("rate: 10 Hz", "rate: 10 kg"), [], "models.sensor.rate", "rate: 10 kg", None),
-    ("rate-list", change("rate: 10 Hz", "rate: [10 Hz]"), [], "models.sensor.rate", "rate: [10 Hz]", None),
-    ("period-negative", change("rate: 10 Hz", "period: -1 s"), [], "models.sensor.period", "period: -1 s", None),
-    ("rate-and-period", change("rate: 10 Hz", "rate: 10 Hz\n    period: 0.1 s"), [], "models.sensor.period",
-     "period: 0.1 s", "not both"),
     ("model-samples-absurd", change("rate: 10 Hz", "rate: 100 MHz"), [], "models.sensor.rate", "rate: 100 MHz",
      "samples"),
     ("log-rate-absurd", change("  rate: 10 Hz\n  signals", "  rate: 1e12 Hz\n  signals"), [], "log.rate",
@@ -55,21 +50,10 @@ SCENARIO_CASES = [
     ("stop-1e999", change("time: 2 s", "time: 1e999 s"), [], "stop.time", "time: 1e999 s", "finite"),
     ("stop-nan", change("time: 2 s", "time: .nan"), [], "stop.time", "time: .nan", None),
     ("stop-nan-text", change("time: 2 s", "time: nan s"), [], "stop.time", "time: nan s", None),
-    ("stop-negative", change("time: 2 s", "time: -1 s"), [], "stop.time", "time: -1 s", None),
-    ("stop-zero", change("time: 2 s", "time: 0 s"), [], "stop.time", "time: 0 s", None),
-    ("stop-wrong-unit", change("time: 2 s", "time: 5 m"), [], "stop.time", "time: 5 m", None),
-    ("stop-list", change("time: 2 s", "time: [1, 2]"), [], "stop.time", "time: [1, 2]", None),
-    ("stop-events-text", change("time: 2 s", "time: 2 s\n  events: sensor.hit"), [], "stop.events",
-     "events: sensor.hit", None),
     ("step-huge", change("step: 0.01 s", "step: 1e300 s"), [], "integrator.step", "step: 1e300 s", "longer"),
-    ("step-nan", change("step: 0.01 s", "step: .nan"), [], "integrator.step", "step: .nan", None),
-    ("step-negative", change("step: 0.01 s", "step: -0.01 s"), [], "integrator.step", "step: -0.01 s", None),
-    ("step-zero", change("step: 0.01 s", "step: 0 s"), [], "integrator.step", "step: 0 s", None),
-    ("step-wrong-unit", change("step: 0.01 s", "step: 1 kg"), [], "integrator.step", "step: 1 kg", None),
     ("step-count-absurd", change("step: 0.01 s", "step: 1e-12 s"), [], "integrator.step", "step: 1e-12 s", "steps"),
     ("method-list", change("method: rk4", "method: [rk4]"), [], "integrator.method", "method: [rk4]", "list"),
     ("method-mapping", change("method: rk4", "method: {a: 1}"), [], "integrator.method", "method: {a: 1}", None),
-    ("method-number", change("method: rk4", "method: 4"), [], "integrator.method", "method: 4", None),
     ("method-misspelt", change("method: rk4", "method: rk5"), [], "integrator.method", "method: rk5",
      "did you mean"),
     ("option-nan", change("step: 0.01 s", "step: 0.01 s\n  options: {rtol: .nan}"), [],
@@ -78,6 +62,71 @@ SCENARIO_CASES = [
      "integrator.options.atol", "options:", None),
     ("option-inf", change("step: 0.01 s", "step: 0.01 s\n  options: {max_step: .inf}"), [],
      "integrator.options.max_step", "options:", None),
+    ("initial-nan", change("config: {unit: m}\n  sensor", "config: {unit: m}\n    initial: {x: .nan}\n  sensor"),
+     [], "models.position.initial.x", "initial: {x: .nan}", None),
+    ("parameter-nan", change("parameters: {value: 1 m/s}", "parameters: {value: .nan}"), [],
+     "models.rate.parameters.value", "parameters: {value: .nan}", None),
+    ("key-is-a-list", RAMP + "? [a, b]\n: 1\n", [], None, "? [a, b]", "key"),
+    ("key-is-a-mapping", RAMP + "? {a: 1}\n: 1\n", [], None, "? {a: 1}", "key"),
+    ("deep-list", RAMP + "description: " + "[" * 3000 + "]" * 3000 + "\n", [], None, "description:", "nested"),
+    ("deep-mapping", RAMP + "description: " + "{a: " * 2000 + "1" + "}" * 2000 + "\n", [], None,
+     "description:", "nested"),
+    ("deep-block", RAMP + "description:\n" + "".join(" " * k + "- \n" for k in range(0, 400, 2)), [], None,
+     None, "nested"),
+    ("alias-bomb", RAMP + BOMB + "g: [*f, *f, *f, *f, *f, *f, *f, *f, *f]\n", [], None, "f: &f", "aliases"),
+    # --set: the message names the file and the override (a command-line value has no line)
+    ("set-stop-inf", RAMP, ["--set", "stop.time=.inf"], "stop.time", "time: 2 s", "finite"),
+    ("set-method-list", RAMP, ["--set", "integrator.method=[rk4]"], "integrator.method", "method: rk4", "list"),
+    ("set-deep", RAMP, ["--set", "seed=" + "[" * 3000], "--set", None, "nested"),
+    ("set-bare-rate", RAMP, ["--set", "sensor.rate=10"], "models.sensor.rate", "    rate: 10 Hz", "Hz"),
+    ("set-nan-rate", RAMP, ["--set", "sensor.rate=.nan"], "models.sensor.rate", "    rate: 10 Hz", None),
+    ("set-step-huge", RAMP, ["--set", "integrator.step=1e300 s"], "integrator.step", "step: 0.01 s", "longer"),
+    ("set-log-rate-absurd", RAMP, ["--set", "log.rate=1e12 Hz"], "log.rate", "  rate: 10 Hz", None),
+    ("set-initial-nan", RAMP, ["--set", "position.initial.x=.nan"], "models.position.initial.x", "position:",
+     None),
+    ("set-model-is-text", change("  position:\n    type: Integrator\n    config: {unit: m}", "  position: x"),
+     ["--set", "position.initial.x=1"], "--set position.initial.x=1", None, "not a mapping"),
+    ("period-samples-absurd", change("rate: 10 Hz", "period: 1 ns"), [], "models.sensor.period", "period: 1 ns",
+     "samples"),
+    ("period-inf", change("rate: 10 Hz", "period: .inf"), [], "models.sensor.period", "period: .inf", None),
+    ("offset-nan", change("rate: 10 Hz", "rate: 10 Hz\n    offset: .nan"), [], "models.sensor.offset",
+     "offset: .nan", "NaN"),
+    ("log-rate-nan", change("  rate: 10 Hz\n  signals", "  rate: .nan\n  signals"), [], "log.rate", "rate: .nan",
+     None),
+    ("log-rate-inf", change("  rate: 10 Hz\n  signals", "  rate: .inf Hz\n  signals"), [], "log.rate",
+     "rate: .inf Hz", None),
+    ("log-signal-rate-inf", change("signals: [sensor.y]", "signals: [{signal: sensor.y, rate: .inf Hz}]"), [],
+     "log.signals[0].rate", "signals: [", None),
+    ("stop-steps-absurd", change("time: 2 s", "time: 1e300 s"), [], "integrator.step", "step: 0.01 s", "steps"),
+    ("events-tolerance-inf", RAMP + "events:\n  tolerance: .inf\n", [], "events.tolerance", "tolerance:", None),
+    ("option-max-step-nan", change("step: 0.01 s", "step: 0.01 s\n  options: {max_step: .nan}"), [],
+     "integrator.options.max_step", "options:", None),
+    ("set-alias-bomb", RAMP, ["--set", "description=" + FLOW_BOMB], "--set description=", None, "aliases"),
+    ("set-control-character", RAMP, ["--set", "name=a\x07b"], "--set name=", None, "control characters"),
+]
+
+# Refusals that the code before issue 17 already made; kept in the catalogue (the issue asks for "the
+# earlier ones" too) so that the new checks do not lose them or their file:line: key.
+KEPT_CASES = [
+    ("rate-zero", change("rate: 10 Hz", "rate: 0 Hz"), [], "models.sensor.rate", "rate: 0 Hz", None),
+    ("rate-negative", change("rate: 10 Hz", "rate: -5 Hz"), [], "models.sensor.rate", "rate: -5 Hz", None),
+    ("rate-not-a-rate", change("rate: 10 Hz", "rate: fast"), [], "models.sensor.rate", "rate: fast", None),
+    ("rate-wrong-unit", change("rate: 10 Hz", "rate: 10 kg"), [], "models.sensor.rate", "rate: 10 kg", None),
+    ("rate-list", change("rate: 10 Hz", "rate: [10 Hz]"), [], "models.sensor.rate", "rate: [10 Hz]", None),
+    ("period-negative", change("rate: 10 Hz", "period: -1 s"), [], "models.sensor.period", "period: -1 s", None),
+    ("rate-and-period", change("rate: 10 Hz", "rate: 10 Hz\n    period: 0.1 s"), [], "models.sensor.period",
+     "period: 0.1 s", "not both"),
+    ("stop-negative", change("time: 2 s", "time: -1 s"), [], "stop.time", "time: -1 s", None),
+    ("stop-zero", change("time: 2 s", "time: 0 s"), [], "stop.time", "time: 0 s", None),
+    ("stop-wrong-unit", change("time: 2 s", "time: 5 m"), [], "stop.time", "time: 5 m", None),
+    ("stop-list", change("time: 2 s", "time: [1, 2]"), [], "stop.time", "time: [1, 2]", None),
+    ("stop-events-text", change("time: 2 s", "time: 2 s\n  events: sensor.hit"), [], "stop.events",
+     "events: sensor.hit", None),
+    ("step-nan", change("step: 0.01 s", "step: .nan"), [], "integrator.step", "step: .nan", None),
+    ("step-negative", change("step: 0.01 s", "step: -0.01 s"), [], "integrator.step", "step: -0.01 s", None),
+    ("step-zero", change("step: 0.01 s", "step: 0 s"), [], "integrator.step", "step: 0 s", None),
+    ("step-wrong-unit", change("step: 0.01 s", "step: 1 kg"), [], "integrator.step", "step: 1 kg", None),
+    ("method-number", change("method: rk4", "method: 4"), [], "integrator.method", "method: 4", None),
     ("option-unknown", change("step: 0.01 s", "step: 0.01 s\n  options: {speed: 2}"), [],
      "integrator.options.speed", "options:", None),
     ("events-detection-list", RAMP + "events:\n  detection: [subdivided]\n", [], "events.detection",
@@ -85,25 +134,13 @@ SCENARIO_CASES = [
     ("events-tolerance-nan", RAMP + "events:\n  tolerance: .nan\n", [], "events.tolerance", "tolerance:", None),
     ("events-tolerance-negative", RAMP + "events:\n  tolerance: -1 s\n", [], "events.tolerance", "tolerance:",
      None),
-    ("initial-nan", change("config: {unit: m}\n  sensor", "config: {unit: m}\n    initial: {x: .nan}\n  sensor"),
-     [], "models.position.initial.x", "initial: {x: .nan}", None),
-    ("parameter-nan", change("parameters: {value: 1 m/s}", "parameters: {value: .nan}"), [],
-     "models.rate.parameters.value", "parameters: {value: .nan}", None),
     ("seed-negative", change("seed: 0", "seed: -1"), [], "seed", "seed: -1", None),
     ("seed-text", change("seed: 0", "seed: abc"), [], "seed", "seed: abc", None),
     ("seed-float", change("seed: 0", "seed: 1.5"), [], "seed", "seed: 1.5", None),
-    ("key-is-a-list", RAMP + "? [a, b]\n: 1\n", [], None, "? [a, b]", "key"),
-    ("key-is-a-mapping", RAMP + "? {a: 1}\n: 1\n", [], None, "? {a: 1}", "key"),
     ("duplicate-key", RAMP + "seed: 3\n", [], None, "seed: 3", "duplicate key"),
     ("unknown-top-key", RAMP + "stopp: {time: 2 s}\n", [], "stopp", "stopp:", "did you mean"),
     ("unknown-model-key", change("type: Integrator", "type: Integrator\n    ratee: 10 Hz"), [],
      "models.position.ratee", "ratee:", "did you mean"),
-    ("deep-list", RAMP + "description: " + "[" * 3000 + "]" * 3000 + "\n", [], None, "description:", "nested"),
-    ("deep-mapping", RAMP + "description: " + "{a: " * 2000 + "1" + "}" * 2000 + "\n", [], None,
-     "description:", "nested"),
-    ("deep-block", RAMP + "description:\n" + "".join(" " * k + "- \n" for k in range(0, 400, 2)), [], None,
-     None, "nested"),
-    ("alias-bomb", RAMP + BOMB + "g: [*f, *f, *f, *f, *f, *f, *f, *f, *f]\n", [], None, "f: &f", "aliases"),
     ("models-a-list", change("models:\n  rate:", "models:\n- rate:").replace("\n  position:", "\n- position:"),
      [], "models", "models:", None),
     ("model-not-a-mapping", change("  position:\n    type: Integrator\n    config: {unit: m}",
@@ -124,32 +161,20 @@ SCENARIO_CASES = [
      "file: [a.h5]", None),
     ("invalid-yaml", change("method: rk4", "method: [rk4"), [], None, None, "not valid YAML"),
     ("top-level-list", "- a\n- b\n", [], None, "- a", "mapping at the top level"),
-    # --set: the message names the file and the override (a command-line value has no line)
     ("set-without-equals", RAMP, ["--set", "stop.time"], "--set stop.time", None, "key.path=value"),
     ("set-unclosed-list", RAMP, ["--set", "controller.kp=[[["], "--set controller.kp=[[[", None,
      "neither a model"),
     ("set-into-list", RAMP, ["--set", "log.signals.x=1"], "--set log.signals.x=1", None, "not a mapping"),
-    ("set-stop-inf", RAMP, ["--set", "stop.time=.inf"], "stop.time", "time: 2 s", "finite"),
     ("set-stop-negative", RAMP, ["--set", "stop.time=-3 s"], "stop.time", "time: 2 s", None),
-    ("set-method-list", RAMP, ["--set", "integrator.method=[rk4]"], "integrator.method", "method: rk4", "list"),
-    ("set-deep", RAMP, ["--set", "seed=" + "[" * 3000], "--set", None, "nested"),
     ("set-unknown-section", RAMP, ["--set", "stopp.time=3 s"], "--set stopp.time=3 s", None, "known"),
-    ("set-bare-rate", RAMP, ["--set", "sensor.rate=10"], "models.sensor.rate", "    rate: 10 Hz", "Hz"),
-    ("set-nan-rate", RAMP, ["--set", "sensor.rate=.nan"], "models.sensor.rate", "    rate: 10 Hz", None),
     ("set-empty-key", RAMP, ["--set", "=5"], "--set =5", None, "key.path=value"),
     ("set-multibody-missing", RAMP, ["--set", "multibody.bus.mass=3 kg"], "--set multibody.bus.mass=3 kg",
      None, "neither a model"),
-    ("set-step-huge", RAMP, ["--set", "integrator.step=1e300 s"], "integrator.step", "step: 0.01 s", "longer"),
-    ("set-log-rate-absurd", RAMP, ["--set", "log.rate=1e12 Hz"], "log.rate", "  rate: 10 Hz", None),
-    ("set-initial-nan", RAMP, ["--set", "position.initial.x=.nan"], "models.position.initial.x", "position:",
-     None),
-    ("set-model-is-text", change("  position:\n    type: Integrator\n    config: {unit: m}", "  position: x"),
-     ["--set", "position.initial.x=1"], "--set position.initial.x=1", None, "not a mapping"),
 ]
 
 
-@pytest.mark.parametrize("name, text, extra, key, needle, expected", SCENARIO_CASES,
-                         ids=[c[0] for c in SCENARIO_CASES])
+@pytest.mark.parametrize("name, text, extra, key, needle, expected", SCENARIO_CASES + KEPT_CASES,
+                         ids=[c[0] for c in SCENARIO_CASES] + [f"kept-{c[0]}" for c in KEPT_CASES])
 def test_check_refuses(name, text, extra, key, needle, expected, put, cli):
     path = put("scene.yaml", text)
     code, out, err = cli("check", path, *extra)
@@ -168,6 +193,7 @@ def test_check_refuses(name, text, extra, key, needle, expected, put, cli):
 FILE_CASES = [
     ("binary", b"\x00\x01\x02name: x\n", "not a text file"),
     ("utf16", RAMP.encode("utf-16"), "UTF-16"),
+    ("utf16-big-endian", b"\xfe\xff" + RAMP.encode("utf-16-be"), "UTF-16"),
     ("latin1", "name: caf\xe9\n".encode("latin-1"), "not UTF-8"),
     ("control-character", b"name: a\x07b\n", "not a text file"),
     ("huge", b"# " + b"x" * (17 * 2**20) + b"\n", "larger than"),
@@ -197,6 +223,8 @@ RUN_CASES = [
     ("t-final-inf", ["--t-final", "inf s"], "--t-final", "a finite number of seconds"),
     ("t-final-wrong-unit", ["--t-final", "5 kg"], "--t-final", None),
     ("t-final-text", ["--t-final", "soon"], "--t-final", None),
+    ("t-final-zero", ["--t-final", "0"], "--t-final", "a finite number of seconds"),
+    ("t-final-minus-inf", ["--t-final=-inf"], "--t-final", "a finite number of seconds"),
     ("t-final-absurd-steps", ["--t-final", "1e9 s"], "integrator.step", "steps"),
     ("t-final-absurd-samples", ["--t-final", "1e6 s", "--set", "integrator.step=1 s", "--set", "log.rate=1 kHz"],
      "log.rate", "samples"),
@@ -268,11 +296,12 @@ def test_run_refuses_a_read_only_directory(put, cli, tmp_path):
 # ------------------------------------------------------------------------------------------------
 # user code: checked without being run
 USER_CODE_CASES = [
-    ("missing-file", None, "nowhere.py:unload", "not found"),
     ("syntax-error", "def unload(t, s:\n    return {}\n", "fsw.py:unload", "syntax error"),
-    ("name-not-defined", "def other(t, s):\n    return {}\n", "fsw.py:unload", "does not define 'unload'"),
-    ("no-colon", "def unload(t, s):\n    return {}\n", "fsw.py", "expected 'file.py:name'"),
-    ("no-module", None, "no_such_module_for_flexshell:unload", "no module"),
+    # refused before issue 17 too (by importing the file; now by reading it)
+    ("kept-missing-file", None, "nowhere.py:unload", "not found"),
+    ("kept-name-not-defined", "def other(t, s):\n    return {}\n", "fsw.py:unload", "does not define 'unload'"),
+    ("kept-no-colon", "def unload(t, s):\n    return {}\n", "fsw.py", "expected 'file.py:name'"),
+    ("kept-no-module", None, "no_such_module_for_flexshell:unload", "no module"),
 ]
 
 
@@ -337,10 +366,11 @@ metrics:
 
 CAMPAIGN_CASES = [
     ("runs-absurd", CAMPAIGN.replace("runs: 4", "runs: 10000000000"), [], "runs", "runs: 1", "at most"),
-    ("runs-zero", CAMPAIGN.replace("runs: 4", "runs: 0"), [], "runs", "runs: 0", None),
-    ("runs-text", CAMPAIGN.replace("runs: 4", "runs: many"), [], "runs", "runs: many", None),
     ("campaign-yaml-error", CAMPAIGN.replace("runs: 4", "runs: [4"), [], None, None, "not valid YAML"),
     ("campaign-scenario-binary", CAMPAIGN, [], "scenario", "scenario:", "not a text file"),
+    ("campaign-utf16", CAMPAIGN.encode("utf-16"), [], None, None, "UTF-16"),
+    ("kept-runs-zero", CAMPAIGN.replace("runs: 4", "runs: 0"), [], "runs", "runs: 0", None),
+    ("kept-runs-text", CAMPAIGN.replace("runs: 4", "runs: many"), [], "runs", "runs: many", None),
 ]
 
 
@@ -351,6 +381,8 @@ def test_montecarlo_refuses(name, text, extra, key, needle, expected, put, cli, 
     code, _, err = cli("montecarlo", campaign, "-o", tmp_path / "out.h5", "--quiet", *extra)
     assert code == 1 and "Traceback" not in err, err
     assert str(campaign) in err
+    if isinstance(text, bytes):
+        assert f"{campaign}:1:" in err
     if needle is not None:
         assert f"{campaign}:{line_of(text, needle)}:" in err, err
     if key is not None:
@@ -378,6 +410,14 @@ def test_montecarlo_refuses_command_lines_fast(name, extra, expected, put, cli, 
     assert code == 1 and "Traceback" not in err, err
     assert expected in err, err
     assert time.perf_counter() - start < 10, "refused before the campaign is built (no 60 s wait)"
+
+
+def test_montecarlo_refuses_a_run_it_does_not_have(put, cli, tmp_path):
+    put("scene.yaml", RAMP)
+    campaign = put("campaign.yaml", CAMPAIGN)
+    code, out, err = cli("montecarlo", campaign, "--print-overrides", "99")
+    assert code == 1 and "Traceback" not in err and out == ""
+    assert "--print-overrides 99" in err and "0..3" in err, err
 
 
 def test_montecarlo_overwrite_refuses_a_file_that_is_not_a_campaign(put, cli, tmp_path):
