@@ -90,11 +90,11 @@ def _split_string_value(text: str) -> tuple[object, str]:
         except ValueError:
             pass
         except RecursionError:
-            raise UnitError(f"the list {_short(match.group(1))} is nested too deeply") from None
+            raise ValueError(f"the list {_short(match.group(1))} is nested too deeply") from None
         try:
             numbers = yaml.safe_load(match.group(1))
         except (yaml.YAMLError, RecursionError) as exc:
-            raise UnitError(f"cannot read the list {_short(match.group(1))}: {_short(str(exc))}") from None
+            raise ValueError(f"cannot read the list {_short(match.group(1))}: {_short(str(exc))}") from None
         return numbers, match.group(2)
     try:
         return float(text), ""  # a bare number is in the declared unit
@@ -102,8 +102,8 @@ def _split_string_value(text: str) -> tuple[object, str]:
         pass
     try:
         quantity = ureg.Quantity(text)
-    except Exception as exc:  # pint's parser raises tokenize, syntax and lookup errors of many kinds
-        raise UnitError(f"{_short(text)} is not a number with a unit ({type(exc).__name__})") from None
+    except Exception as exc:  # pint's parser raises tokenize, syntax, assertion and lookup errors: the caller
+        raise ValueError(f"not a number with a unit: {type(exc).__name__}: {_short(str(exc))}") from None  # says where
     if isinstance(quantity, (int, float)):
         return float(quantity), ""
     return quantity.magnitude, f"{quantity.units}"

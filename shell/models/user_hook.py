@@ -114,8 +114,8 @@ def inspect_callable(spec: str, where: str) -> Path | None:
         elif isinstance(node, (ast.Import, ast.ImportFrom)):
             defined.update((a.asname or a.name).split(".")[0] for a in node.names)
     if attribute not in defined:
-        raise ModelError(f"{where}: function {spec!r}: {path} does not define {attribute!r} at its top level "
-                         f"(it defines {sorted(defined)})")
+        raise ModelError(f"{where}: function {spec!r}: {path} has no {attribute!r} (it does not define it at its "
+                         f"top level; it defines {sorted(defined)})")
     return path
 
 

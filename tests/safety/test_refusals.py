@@ -299,7 +299,7 @@ USER_CODE_CASES = [
     ("syntax-error", "def unload(t, s:\n    return {}\n", "fsw.py:unload", "syntax error"),
     # refused before issue 17 too (by importing the file; now by reading it)
     ("kept-missing-file", None, "nowhere.py:unload", "not found"),
-    ("kept-name-not-defined", "def other(t, s):\n    return {}\n", "fsw.py:unload", "does not define 'unload'"),
+    ("kept-name-not-defined", "def other(t, s):\n    return {}\n", "fsw.py:unload", "has no 'unload'"),
     ("kept-no-colon", "def unload(t, s):\n    return {}\n", "fsw.py", "expected 'file.py:name'"),
     ("kept-no-module", None, "no_such_module_for_flexshell:unload", "no module"),
 ]
