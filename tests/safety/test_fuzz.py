@@ -176,3 +176,74 @@ def test_the_unmutated_scene_builds():
     scenario = parse_scenario(RAMP, "fuzz.yaml")
     assert math.isclose(scenario.t_final, 2.0)
     build_simulation(scenario)
+
+
+# ------------------------------------------------------------------------------------------------
+# campaign files (read and validated against the scenario's text; not built: validate=False)
+CAMPAIGN = {"name": "ramp_campaign", "scenario": "scene.yaml", "runs": 4, "seed": 7, "timeout": "10 s",
+            "set": {"stop.time": "3 s"},
+            "dispersions": {"rate.value": {"distribution": "normal", "mean": "100 cm/s", "sigma": "10 cm/s"},
+                            "sensor.sigma": {"distribution": "uniform", "low": "1 mm", "high": "5 mm"},
+                            "sensor.rate": {"distribution": "choice", "choices": ["10 Hz", "20 Hz"],
+                                            "probabilities": [0.5, 0.5]}},
+            "correlations": [{"between": ["rate.value", "sensor.sigma"], "coefficient": 0.3}],
+            "metrics": {"final_position": {"signal": "sensor.y", "statistic": "final", "unit": "m"},
+                        "settle": {"signal": "sensor.y", "statistic": "settling_time", "tolerance": "1 cm",
+                                   "target": "2 m"}},
+            "keep": ["sensor.y"]}
+CAMPAIGN_PATHS = [p for p in paths(CAMPAIGN) if p]
+
+
+@st.composite
+def mutated_campaigns(draw):
+    document = copy.deepcopy(CAMPAIGN)
+    for _ in range(draw(st.integers(1, 3))):
+        path = draw(st.sampled_from(CAMPAIGN_PATHS))
+        container = document
+        try:
+            for key in path[:-1]:
+                container = container[key]
+            if draw(st.booleans()):
+                container[path[-1]] = draw(values)
+            else:
+                del container[path[-1]]
+        except (KeyError, IndexError, TypeError):
+            continue
+    return yaml.safe_dump(document, allow_unicode=True, sort_keys=False)
+
+
+@pytest.fixture(scope="module")
+def campaign_dir(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("campaign")
+    (directory / "scene.yaml").write_text(RAMP)
+    return directory
+
+
+def check_campaign(text, directory):
+    from shell.montecarlo.campaign import parse_campaign
+
+    filename = str(directory / "campaign.yaml")
+    try:
+        parse_campaign(text, filename, validate=False)
+    except ScenarioError as exc:  # CampaignError is a ScenarioError
+        assert str(exc).startswith(filename), str(exc)
+
+
+@FAST
+@given(text=mutated_campaigns())
+def test_mutated_campaigns(text, campaign_dir):
+    check_campaign(text, campaign_dir)
+
+
+@pytest.mark.slow
+@SLOW
+@given(text=mutated_campaigns())
+def test_mutated_campaigns_slow(text, campaign_dir):
+    check_campaign(text, campaign_dir)
+
+
+def test_the_unmutated_campaign_parses(campaign_dir):
+    from shell.montecarlo.campaign import parse_campaign
+
+    campaign = parse_campaign(yaml.safe_dump(CAMPAIGN), str(campaign_dir / "campaign.yaml"), validate=False)
+    assert campaign.runs == 4 and len(campaign.groups) == 1 and len(campaign.metrics) == 2

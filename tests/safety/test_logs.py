@@ -207,3 +207,16 @@ def test_a_full_disk_gives_a_clear_message_and_a_readable_failed_log(tmp_path):
         log = read_log(path)
     assert log["time"].size > 1000 and log["time"][-1] == state["last_time"]
     np.testing.assert_allclose(np.diff(log["time"]), 1e-3, rtol=1e-6)
+
+
+def test_plot_of_a_cut_log_says_so(tmp_path, cli):
+    path = tmp_path / "run.h5"
+    writer = LogWriter(path, SIGNALS)
+    for k in range(3):
+        writer.append("every_0.1s", 0.1 * k, [np.array(float(k))])
+    writer.flush()
+    writer.file.close()  # what a kill leaves: the file closed by the system, status still "running"
+    code, out, err = cli("plot", path, "-o", tmp_path / "run.png")
+    assert code == 0 and "Traceback" not in err, err
+    assert "note:" in err and "cut" in err and "t = 0.2 s" in err, err
+    assert (tmp_path / "run.png").exists()
