@@ -31,7 +31,7 @@ import yaml
 from shell.assembly import Assembly
 from shell.model import Model, ModelError, parse_period
 from shell.registry import RegistryError, lookup
-from shell.units import UnitError, short_repr, to_magnitude
+from shell.units import UnitError, short_repr, to_magnitude, written_numbers
 
 
 class ScenarioError(ValueError):
@@ -897,5 +897,28 @@ def _check_initial_state(simulation, scenario: Scenario) -> None:
             values = (simulation.x if kind == "x" else simulation.z)[sl]
             if not np.all(np.isfinite(values)):
                 keys = ("multibody",) if model.path == "multibody" else ("models", model.path, "initial")
-                where = _find(scenario.document, scenario.file, keys)
+                where = _nonfinite_body_initial(scenario) or _find(scenario.document, scenario.file, keys)
                 raise where.error(f"initial state {model.path}.{name} is not finite: {show(values.tolist())}")
+
+
+def _nonfinite_body_initial(scenario: Scenario) -> _Where | None:
+    """The multibody.bodies[i](name).initial.<key> whose value, as written, is not finite (if one is)."""
+    document = scenario.document
+    multibody = document.get("multibody")
+    bodies = multibody.get("bodies") if isinstance(multibody, dict) else None
+    if not isinstance(bodies, list):
+        return None
+    where = _Where(scenario.file, 1, "").child(document, "multibody").child(multibody, "bodies")
+    for k, body in enumerate(bodies):
+        initial = body.get("initial") if isinstance(body, dict) else None
+        if not isinstance(initial, dict):
+            continue
+        for key, value in initial.items():
+            try:
+                finite = np.all(np.isfinite(written_numbers(value)))
+            except UnitError:
+                continue
+            if not finite:
+                here = where.child(bodies, k, f"[{k}]({body.get('name')})")
+                return here.child(body, "initial").child(initial, key)
+    return None

@@ -121,6 +121,22 @@ def short_repr(value) -> str:
 _short = short_repr
 
 
+def written_numbers(value) -> np.ndarray:
+    """The numbers of a user value as written, whatever its unit ("[1e999, 0] deg/s" -> [inf, 0]), for
+    checks that do not depend on the unit (finiteness); raises UnitError when ``value`` holds no numbers."""
+    try:
+        if isinstance(value, str):
+            numbers, _ = _split_string_value(value)
+            return np.asarray(_plain_numbers(numbers, ""), dtype=np.float64)
+        if isinstance(value, dict) and "value" in value:
+            return written_numbers(value["value"])
+        if isinstance(value, (list, tuple)) and any(isinstance(v, (str, list, tuple, dict)) for v in value):
+            return np.concatenate([written_numbers(v).reshape(-1) for v in value]) if value else np.zeros(0)
+        return np.asarray(_plain_numbers(value, ""), dtype=np.float64)
+    except (ValueError, TypeError, AttributeError) as exc:
+        raise UnitError(f"{short_repr(value)} holds no numbers ({exc})") from None
+
+
 def to_magnitude(value, unit: str | pint.Unit, shape: tuple[int, ...] | None = None,
                  where: str = "") -> np.ndarray:
     """Convert a user value to a float64 array expressed in ``unit``.

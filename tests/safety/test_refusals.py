@@ -345,6 +345,43 @@ integrator:""", 1)
     assert "controller.torque" in err and "wheels_command.u" in err and "twice" in err, err
 
 
+DEMO = (ROOT / "configs" / "demo_attitude_hold.yaml").read_text()
+SECOND_CONTROLLER = """
+  controller2:
+    type: PdAttitudeController
+    rate: 10 Hz
+    attach: {node: acs}
+    parameters: {kp: "[1, 1, 1] N*m/rad", kd: "[1, 1, 1] N*m*s/rad", attitude_command: [1, 0, 0, 0]}
+
+integrator:"""
+ENGINE_CASES = [
+    ("multibody-initial-inf", DEMO.replace('"[2, -1, 3] deg/s"', '"[1e999, -1, 3] deg/s"'),
+     "multibody.bodies[0](bus).initial.angular_velocity", "angular_velocity:", "not finite"),
+    ("multibody-initial-nan", DEMO.replace('"[2, -1, 3] deg/s"', '"[NaN, -1, 3] deg/s"'),
+     "multibody.bodies[0](bus).initial.angular_velocity", "angular_velocity:", "not finite"),
+    ("kept-multibody-mass-inf", DEMO.replace("mass: 500 kg", "mass: 1e999 kg"), "multibody.bodies[0](bus)",
+     "- name: bus", "finite"),  # the engine's own check names the body's line
+]
+
+
+@pytest.mark.parametrize("name, text, key, needle, expected", ENGINE_CASES, ids=[c[0] for c in ENGINE_CASES])
+def test_check_refuses_engine_values(name, text, key, needle, expected, put, cli):
+    scenario = put("scene.yaml", text)
+    code, _, err = cli("check", scenario)
+    assert code == 1 and "Traceback" not in err, err
+    assert f"{scenario}:{line_of(text, needle)}: {key}" in err and expected in err, err
+
+
+def test_check_refuses_two_attachments_driving_one_node_input(put, cli):
+    """Kept from before issue 17: the diagram refuses an input driven twice, naming both lines."""
+    text = DEMO.replace("\nintegrator:", SECOND_CONTROLLER, 1)
+    scenario = put("scene.yaml", text)
+    code, _, err = cli("check", scenario)
+    assert code == 1 and "Traceback" not in err, err
+    assert "driven twice" in err and f"{scenario}:{line_of(text, 'attach: {node: acs}  ')}" in err, err
+    assert f"{scenario}:{line_of(text, '  controller2:') + 3}" in err, err
+
+
 def test_check_accepts_the_attached_controller_alone(cli):
     """The refusal above is about the second use, not about attach (the shipped demo checks)."""
     code, out, err = cli("check", ROOT / "configs" / "demo_attitude_hold.yaml")
