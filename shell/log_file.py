@@ -216,7 +216,8 @@ class LogWriter:
                 try:  # held until the rename: no other writer starts in between
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except BlockingIOError:
-                    raise LogError(f"{self.path}: another process started writing it; choose another output") from None
+                    raise LogError(f"{self.path}: another process opened it meanwhile (to write or read it); try again "
+                                   "or choose another output") from None
                 if os.fstat(fd).st_ino != os.stat(target).st_ino:
                     raise LogError(f"{self.path}: another process replaced it meanwhile; choose another output")
                 os.replace(temporary, target)

@@ -45,7 +45,9 @@ MAX_NODES = 200_000
 #: most samples of one rate (model updates or log rows) and integrator steps in one run
 MAX_SAMPLES = 10**8
 MAX_STEPS = 10**10
+#: largest scenario file read (a scenario is a short text; a larger file is refused, not parsed for minutes)
 MAX_BYTES = 16 * 2**20
+
 
 def show(value) -> str:
     """``repr(value)`` cut to a line (:func:`shell.units.short_repr`)."""
@@ -91,27 +93,33 @@ class _LineLoader(yaml.SafeLoader):
 
 
 def _check_expansion(root: yaml.Node, filename: str) -> None:
-    """Refuse a document whose aliases expand it past MAX_NODES nodes (a "billion laughs" file)."""
-    sizes: dict[int, int] = {}
+    """Refuse a document whose aliases expand it past MAX_NODES nodes (a "billion laughs" file) or nest it
+    deeper than MAX_DEPTH (an alias inside an alias inside ...), before anything is built from it."""
+    measured: dict[int, tuple[int, int]] = {}  # node id -> (expanded size, depth below it)
 
-    def size(node) -> int:
+    def measure(node) -> tuple[int, int]:
         key = id(node)
-        if key in sizes:
-            return sizes[key]
-        sizes[key] = MAX_NODES + 1  # a node reached again while it is being measured: a cycle
+        if key in measured:
+            return measured[key]
+        measured[key] = (MAX_NODES + 1, MAX_DEPTH + 1)  # reached again while being measured: a cycle
         if isinstance(node, yaml.MappingNode):
-            total = 1 + sum(size(k) + size(v) for k, v in node.value)
+            children = [measure(n) for pair in node.value for n in pair]
         elif isinstance(node, yaml.SequenceNode):
-            total = 1 + sum(size(child) for child in node.value)
+            children = [measure(n) for n in node.value]
         else:
-            total = 1
-        sizes[key] = total = min(total, MAX_NODES + 1)
+            children = []
+        total = min(1 + sum(c[0] for c in children), MAX_NODES + 1)
+        depth = 1 + max((c[1] for c in children), default=0)
+        line = node.start_mark.line + 1
         if total > MAX_NODES:
-            raise ScenarioError(f"{filename}:{node.start_mark.line + 1}: the document expands to more than "
-                                f"{MAX_NODES} values through its aliases (*name); write the values out")
-        return total
+            raise ScenarioError(f"{filename}:{line}: the document expands to more than {MAX_NODES} values "
+                                "through its aliases (*name); write the values out")
+        if depth > MAX_DEPTH:
+            raise ScenarioError(f"{filename}:{line}: nested more than {MAX_DEPTH} levels deep (through aliases)")
+        measured[key] = (total, depth)
+        return total, depth
 
-    size(root)
+    measure(root)
 
 
 def _construct_mapping(loader: _LineLoader, node: yaml.MappingNode) -> LineDict:

@@ -17,6 +17,8 @@ from tests.safety.conftest import RAMP, ROOT, line_of
 BOMB = "".join(f"{a}: &{a} [{', '.join([f'*{p}'] * 9) if p else ', '.join(['x'] * 9)}]\n"
                for p, a in zip(["", "a", "b", "c", "d", "e"], ["a", "b", "c", "d", "e", "f"]))
 
+# anchors nesting each other 40 levels deeper at every link: 1600 levels once the aliases are followed
+ALIAS_CHAIN = "[&a0 x, " + ", ".join(f"&a{i} " + "[" * 40 + f"*a{i - 1}" + "]" * 40 for i in range(1, 40)) + "]"
 FLOW_BOMB = "[&a [x, x, x, x, x, x, x, x, x], " + ", ".join(
     f"&{a} [{', '.join([f'*{p}'] * 9)}]" for p, a in zip("abcde", "bcdef")) + "]"
 
@@ -101,6 +103,7 @@ SCENARIO_CASES = [
     ("events-tolerance-inf", RAMP + "events:\n  tolerance: .inf\n", [], "events.tolerance", "tolerance:", None),
     ("option-max-step-nan", change("step: 0.01 s", "step: 0.01 s\n  options: {max_step: .nan}"), [],
      "integrator.options.max_step", "options:", None),
+    ("alias-chain-depth", RAMP + "description: " + ALIAS_CHAIN + "\n", [], None, "description:", "through aliases"),
     ("set-alias-bomb", RAMP, ["--set", "description=" + FLOW_BOMB], "--set description=", None, "aliases"),
     ("set-control-character", RAMP, ["--set", "name=a\x07b"], "--set name=", None, "control characters"),
 ]
