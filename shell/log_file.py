@@ -86,18 +86,25 @@ def _log_format(path: Path):
     return value.decode() if isinstance(value, bytes) else value
 
 
-def check_log_target(path, kind: str = FORMAT) -> None:
-    """Refuse a log destination that would lose data or fail later: a directory, a missing or read-only
-    directory, a file being written by another process, or an existing file that is not a log of
-    ``kind`` (it is replaced only when it is one, or empty). Raises :class:`LogError`."""
+def check_output_place(path) -> Path:
+    """Refuse an output path that is a directory or lies in a missing or read-only directory (before a
+    run, not after it); returns the path."""
     target = Path(path)
     parent = target.parent if str(target.parent) else Path(".")
     if target.is_dir():
-        raise LogError(f"{path}: is a directory; give a file name for the log")
+        raise LogError(f"{path}: is a directory; give a file name")
     if not parent.is_dir():
         raise LogError(f"{path}: the directory {str(parent)!r} does not exist; create it or choose another output")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise LogError(f"{path}: the directory {str(parent)!r} is not writable; choose another output")
+    return target
+
+
+def check_log_target(path, kind: str = FORMAT) -> None:
+    """Refuse a log destination that would lose data or fail later: a directory, a missing or read-only
+    directory, a file being written by another process, or an existing file that is not a log of
+    ``kind`` (it is replaced only when it is one, or empty). Raises :class:`LogError`."""
+    target = check_output_place(path)
     if not target.exists():
         return
     if not target.is_file():

@@ -296,6 +296,25 @@ def test_run_refuses_a_read_only_directory(put, cli, tmp_path):
     assert code == 1 and "not writable" in err
 
 
+LINEARIZE_CASES = [
+    ("output-is-the-scenario", lambda d: ["-o", d / "scene.yaml"], "the scenario itself"),
+    ("output-is-text", lambda d: ["-o", (d / "a.txt").write_text("keep") and d / "a.txt"], "not an HDF5 file"),
+    ("mat-in-missing-directory", lambda d: ["-o", d / "lin.h5", "--mat", d / "no" / "lin.mat"], "does not exist"),
+    ("at-nan", lambda d: ["-o", d / "lin.h5", "--at", "nan"], "--at"),
+    ("at-negative", lambda d: ["-o", d / "lin.h5", "--at=-1"], "--at"),
+]
+
+
+@pytest.mark.parametrize("name, arguments, expected", LINEARIZE_CASES, ids=[c[0] for c in LINEARIZE_CASES])
+def test_linearize_refuses_outputs_and_times_first(name, arguments, expected, put, cli, tmp_path):
+    scenario = put("scene.yaml", RAMP)
+    before = scenario.read_text()
+    code, _, err = cli("linearize", scenario, "--inputs", "rate.y", "--outputs", "sensor.y", *arguments(tmp_path))
+    assert code == 1 and "Traceback" not in err, err
+    assert expected in err, err
+    assert scenario.read_text() == before and not (tmp_path / "lin.h5").exists()
+
+
 # ------------------------------------------------------------------------------------------------
 # user code: checked without being run
 USER_CODE_CASES = [
