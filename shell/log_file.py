@@ -420,10 +420,21 @@ def log_status(path) -> dict:
     return {"status": status, "message": message, "last_time": last_time}
 
 
-def _open_log(path):
-    """The log opened for reading (without taking HDF5's lock, so a log being written can be read)."""
+def open_for_reading(path) -> h5py.File:
+    """An HDF5 file opened for reading without taking HDF5's lock (a file another process is writing can
+    be read); a file this process already has open is opened with that open's locking."""
     try:
-        f = h5py.File(path, "r", locking=False)
+        return h5py.File(path, "r", locking=False)
+    except OSError as exc:
+        if "locking flag values don't match" not in str(exc):
+            raise
+        return h5py.File(path, "r")
+
+
+def _open_log(path):
+    """The log opened for reading (:func:`open_for_reading`)."""
+    try:
+        f = open_for_reading(path)
     except FileNotFoundError:
         raise LogError(f"{path}: no such log") from None
     except (OSError, RuntimeError) as exc:

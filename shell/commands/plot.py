@@ -36,9 +36,11 @@ def plot(args) -> int:
         matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from shell.log_file import LogIncompleteWarning, log_info, read_log
+    from shell.log_file import LogIncompleteWarning, check_output_place, log_info, read_log
 
     try:
+        if not args.show:
+            check_output_place(args.output or str(Path(args.log).with_suffix(".png")))
         info = log_info(args.log)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", LogIncompleteWarning)

@@ -35,6 +35,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from shell.log_file import LogError, check_log_target, held_by_another_process, open_for_reading
 from shell.montecarlo.campaign import Campaign, RunRecord
 
 FORMAT = "flexshell-campaign"
@@ -197,8 +198,6 @@ def open_results(path, campaign: Campaign, resume: bool = False, overwrite: bool
     Refuses to overwrite an existing file unless ``overwrite``, and to resume a file written by a
     different campaign (the fingerprint covers the campaign and scenario texts).
     """
-    from shell.log_file import LogError, check_log_target, held_by_another_process
-
     path = str(path)
     journal = path + ".journal"
     exists = os.path.exists(path)
@@ -249,16 +248,20 @@ def open_results(path, campaign: Campaign, resume: bool = False, overwrite: bool
 
 def read_results(path) -> dict:
     """{"table": structured array (runs,), "timing": ..., "attrs": file attributes, "units": {...},
-    "draw_columns": [...], "metric_columns": [...], "choices": {...}}."""
+    "draw_columns": [...], "metric_columns": [...], "choices": {...}}. A file still marked "running"
+    that no process holds was cut by a kill: its status reads "interrupted"."""
     try:
-        with h5py.File(path, "r") as f:
+        with open_for_reading(path) as f:
             if f.attrs.get("format") != FORMAT:
                 raise ResultsError(f"{path}: not a flexshell campaign results file (format "
                                    f"{f.attrs.get('format')!r})")
             table = f["table"]
             rows = table[:]
             rows["message"] = [m.decode() if isinstance(m, bytes) else m for m in rows["message"]]
-            return {"table": rows, "timing": f["timing"][:], "attrs": dict(f.attrs),
+            attrs = dict(f.attrs)
+            if attrs.get("status") == "running" and not held_by_another_process(path):
+                attrs["status"] = "interrupted"  # cut by a kill: no process is writing it (finish with --resume)
+            return {"table": rows, "timing": f["timing"][:], "attrs": attrs,
                     "units": json.loads(table.attrs["units"]),
                     "draw_columns": json.loads(table.attrs["draw_columns"]),
                     "metric_columns": json.loads(table.attrs["metric_columns"]),

@@ -79,3 +79,15 @@ def test_resume_refuses_a_campaign_another_process_is_writing(tmp_path, capsys):
     finally:
         running.close("interrupted")
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("out")) == ["out.h5", "out.h5.journal"]
+
+
+def test_a_campaign_cut_by_a_kill_reads_as_interrupted(tmp_path):
+    from shell.montecarlo.results import read_results
+
+    campaign = write_campaign(tmp_path)
+    output = tmp_path / "out.h5"
+    running = open_results(output, load_campaign(campaign, validate=False))
+    assert read_results(output)["attrs"]["status"] == "running", "held by a writer: it is running"
+    running.file.close()  # what a kill leaves: the file closed by the system, its status still "running"
+    running._journal.close()
+    assert read_results(output)["attrs"]["status"] == "interrupted"

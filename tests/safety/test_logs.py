@@ -33,6 +33,8 @@ def test_a_second_writer_is_refused_and_the_first_log_survives(tmp_path):
     first.flush()
     with pytest.raises(LogError, match="being written"):
         LogWriter(path, SIGNALS)
+    assert log_status(path)["status"] == "running", "a log being written is not reported as cut"
+    np.testing.assert_array_equal(read_log(path)["sensor.y"], [1.0])  # readable while it is written
     first.append("every_0.1s", 0.1, [np.array(2.0)])
     first.close("completed")
     log = read_log(path)

@@ -315,6 +315,27 @@ def test_linearize_refuses_outputs_and_times_first(name, arguments, expected, pu
     assert scenario.read_text() == before and not (tmp_path / "lin.h5").exists()
 
 
+def test_plot_refuses_an_image_in_a_missing_directory(cli, tmp_path):
+    from tests.safety.test_logs import write_log
+
+    write_log(tmp_path / "run.h5")
+    code, _, err = cli("plot", tmp_path / "run.h5", "-o", tmp_path / "no" / "run.png")
+    assert code == 1 and "Traceback" not in err and "does not exist" in err, err
+
+
+def test_report_refuses_an_output_that_is_a_file(cli, tmp_path, put):
+    from shell.montecarlo.campaign import load_campaign
+    from shell.montecarlo.results import open_results
+
+    put("scene.yaml", RAMP)
+    results = open_results(tmp_path / "out.h5", load_campaign(put("campaign.yaml", CAMPAIGN), validate=False))
+    results.close("partial")
+    notes = put("notes.txt", "keep me")
+    code, _, err = cli("report", tmp_path / "out.h5", "-o", notes)
+    assert code == 1 and "Traceback" not in err and "not a directory" in err, err
+    assert notes.read_text() == "keep me"
+
+
 # ------------------------------------------------------------------------------------------------
 # user code: checked without being run
 USER_CODE_CASES = [
