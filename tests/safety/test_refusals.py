@@ -104,6 +104,8 @@ SCENARIO_CASES = [
     ("option-max-step-nan", change("step: 0.01 s", "step: 0.01 s\n  options: {max_step: .nan}"), [],
      "integrator.options.max_step", "options:", None),
     ("alias-chain-depth", RAMP + "description: " + ALIAS_CHAIN + "\n", [], None, "description:", "through aliases"),
+    ("set-unclosed-list-value", RAMP, ["--set", "sensor.sigma=[[["], "models.sensor.parameters.sigma",
+     "parameters: {sigma: 0.01 m}", "[[["),
     ("set-alias-bomb", RAMP, ["--set", "description=" + FLOW_BOMB], "--set description=", None, "aliases"),
     ("set-control-character", RAMP, ["--set", "name=a\x07b"], "--set name=", None, "control characters"),
 ]
