@@ -1,9 +1,15 @@
-"""``flexshell run SCENARIO.yaml``: build a scenario, run it with a progress bar, log to HDF5, summarize."""
+"""``flexshell run SCENARIO.yaml``: build a scenario, run it with a progress bar, log to HDF5, summarize.
+
+Everything that can be refused without building the scene (the scenario, the stop time, the log and
+restart paths) is refused first. Ctrl-C and SIGTERM end a run as "interrupted" (exit 130 and 143): the
+log is closed with the time of its last sample (shell.log_file).
+"""
 
 from __future__ import annotations
 
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -125,7 +131,8 @@ def run(args) -> int:
         print(f"flexshell run: {exc}", file=sys.stderr)
         return 1
     progress = ProgressBar(simulation.t, t_final, enabled=not args.quiet and sys.stderr.isatty())
-    previous_handler = signal.signal(signal.SIGTERM, _raise_terminated)
+    in_main_thread = threading.current_thread() is threading.main_thread()  # signal handlers live there
+    previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
     try:
         summary = simulation.run(t_final, log_path=output, progress=progress,
                                  log_attributes={"scenario": scenario.text, "scenario_file": str(args.scenario)})
@@ -142,7 +149,8 @@ def run(args) -> int:
               + (f"; the log {output} keeps every sample up to there" if output else ""), file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
     finally:
-        signal.signal(signal.SIGTERM, previous_handler)
+        if in_main_thread:
+            signal.signal(signal.SIGTERM, previous_handler)
     progress.close()
     if args.save_state:
         simulation.save_state(args.save_state)
