@@ -273,10 +273,10 @@ def test_run_refuses_outputs(name, make, expected, put, cli, tmp_path):
         assert output.read_bytes() == before, "the file refused as output is untouched"
 
 
-def test_run_refuses_a_log_file_key_in_a_missing_directory(put, cli, tmp_path):
+def test_run_refuses_a_log_file_key_in_a_missing_directory(put, cli, tmp_path, monkeypatch):
     text = change("signals: [sensor.y]", "signals: [sensor.y]\n  file: nowhere/out.h5")
     scenario = put("scene.yaml", text)
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     code, _, err = cli("run", scenario, "--quiet")
     assert code == 1 and "Traceback" not in err
     assert f"{scenario}:{line_of(text, 'file: nowhere')}: log.file" in err and "does not exist" in err, err
