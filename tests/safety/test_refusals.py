@@ -494,6 +494,17 @@ def test_montecarlo_refuses_command_lines_fast(name, extra, expected, put, cli, 
     assert time.perf_counter() - start < 10, "refused before the campaign is built (no 60 s wait)"
 
 
+def test_montecarlo_refuses_an_output_in_a_missing_directory_before_building(put, cli, tmp_path):
+    import time
+
+    put("scene.yaml", RAMP)
+    campaign = put("campaign.yaml", CAMPAIGN)
+    start = time.perf_counter()
+    code, _, err = cli("montecarlo", campaign, "-o", tmp_path / "no" / "out.h5", "--quiet")
+    assert code == 1 and "Traceback" not in err and "does not exist" in err, err
+    assert time.perf_counter() - start < 10
+
+
 def test_montecarlo_refuses_a_run_it_does_not_have(put, cli, tmp_path):
     put("scene.yaml", RAMP)
     campaign = put("campaign.yaml", CAMPAIGN)
