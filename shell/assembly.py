@@ -242,9 +242,24 @@ def _bind_attachment(assembly: Assembly, attachment: _Attachment, existing: list
     for signal in child_outputs:
         if signal in engine_inputs:
             src_model, src_port = resolve_output(assembly, f"{attachment.child}.{signal}")
+            _refuse_second_use(src_model, src_port, existing, origin, engine, engine_inputs[signal])
             bound.append(Connection(src_model, src_port, engine, engine_inputs[signal], origin))
     if not bound:
         raise ModelError(f"{origin}: binds no port; {attachment.child} has inputs {child_inputs} and outputs "
                          f"{child_outputs}, the {attachment.kind} offers outputs {sorted(engine_outputs)} "
                          f"and inputs {sorted(engine_inputs)}")
     return bound
+
+
+def _refuse_second_use(src_model: Model, src_port: str, existing: list[Connection], origin: str, engine: Model,
+                       engine_input: str) -> None:
+    """An output that ``attach`` would apply to the engine (a force, a torque) and that is also wired to
+    another model acts twice: a controller's torque applied to the bus and also commanded to the wheels
+    that turn it into torque on the bus. Refused; a scene that means both sums them in a model."""
+    for c in existing:
+        if c.source_model is src_model and c.source_port == src_port and c.destination_model is not engine:
+            raise ModelError(f"{origin}: would apply {src_model.path}.{src_port} to {engine.path}.{engine_input}, "
+                             f"but {src_model.path}.{src_port} also drives {c.destination_model.path}."
+                             f"{c.destination_port} ({c.origin}): the {src_port} would act twice. Wire the "
+                             f"{src_model.path} inputs with connections instead of attach, or route both "
+                             "through a model that sums them explicitly")

@@ -34,7 +34,15 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    return int(args.func(args) or 0)
+    try:
+        return int(args.func(args) or 0)
+    except RecursionError:  # each verb reports its input's errors; these two are the input's size
+        print(f"flexshell {args.verb}: the input is nested too deeply to process", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print(f"flexshell {args.verb}: out of memory (an input too large: a size, a count or a rate?)",
+              file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

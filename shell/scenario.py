@@ -20,20 +20,38 @@ validation: ``seed=7``, ``integrator.step=5 ms``, ``stop.time=30 s``, ``<model>.
 from __future__ import annotations
 
 import difflib
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import networkx as nx
+import numpy as np
 import yaml
 
 from shell.assembly import Assembly
 from shell.model import Model, ModelError, parse_period
 from shell.registry import RegistryError, lookup
-from shell.units import UnitError, to_magnitude
+from shell.units import UnitError, short_repr, to_magnitude, written_numbers
 
 
 class ScenarioError(ValueError):
     """An invalid scenario; the message starts with ``file:line: key.path:``."""
+
+
+#: deepest nesting of lists and mappings a scenario may have (deeper: refused, not a RecursionError)
+MAX_DEPTH = 48
+#: most YAML nodes a scenario may expand to once aliases are followed (an alias bomb is refused)
+MAX_NODES = 200_000
+#: most samples of one rate (model updates or log rows) and integrator steps in one run
+MAX_SAMPLES = 10**8
+MAX_STEPS = 10**10
+#: largest scenario file read (a scenario is a short text; a larger file is refused, not parsed for minutes)
+MAX_BYTES = 16 * 2**20
+
+
+def show(value) -> str:
+    """``repr(value)`` cut to a line (:func:`shell.units.short_repr`)."""
+    return short_repr(value)
 
 
 class LineDict(dict):
@@ -51,7 +69,57 @@ class LineList(list):
 
 
 class _LineLoader(yaml.SafeLoader):
-    """SafeLoader producing LineDict/LineList, refusing duplicate keys."""
+    """SafeLoader producing LineDict/LineList, refusing duplicate keys, keys that are not text or
+    numbers, nesting deeper than MAX_DEPTH and documents expanding to more than MAX_NODES nodes."""
+
+    depth = 0
+
+    def compose_node(self, parent, index):
+        self.depth += 1
+        try:
+            if self.depth > MAX_DEPTH:
+                mark = self.peek_event().start_mark
+                raise ScenarioError(f"{self.name}:{mark.line + 1}: nested more than {MAX_DEPTH} levels deep")
+            return super().compose_node(parent, index)
+        finally:
+            self.depth -= 1
+
+    def get_single_data(self):
+        node = self.get_single_node()
+        if node is None:
+            return None
+        _check_expansion(node, self.name)
+        return self.construct_document(node)
+
+
+def _check_expansion(root: yaml.Node, filename: str) -> None:
+    """Refuse a document whose aliases expand it past MAX_NODES nodes (a "billion laughs" file) or nest it
+    deeper than MAX_DEPTH (an alias inside an alias inside ...), before anything is built from it."""
+    measured: dict[int, tuple[int, int]] = {}  # node id -> (expanded size, depth below it)
+
+    def measure(node) -> tuple[int, int]:
+        key = id(node)
+        if key in measured:
+            return measured[key]
+        measured[key] = (MAX_NODES + 1, MAX_DEPTH + 1)  # reached again while being measured: a cycle
+        if isinstance(node, yaml.MappingNode):
+            children = [measure(n) for pair in node.value for n in pair]
+        elif isinstance(node, yaml.SequenceNode):
+            children = [measure(n) for n in node.value]
+        else:
+            children = []
+        total = min(1 + sum(c[0] for c in children), MAX_NODES + 1)
+        depth = 1 + max((c[1] for c in children), default=0)
+        line = node.start_mark.line + 1
+        if total > MAX_NODES:
+            raise ScenarioError(f"{filename}:{line}: the document expands to more than {MAX_NODES} values "
+                                "through its aliases (*name); write the values out")
+        if depth > MAX_DEPTH:
+            raise ScenarioError(f"{filename}:{line}: nested more than {MAX_DEPTH} levels deep (through aliases)")
+        measured[key] = (total, depth)
+        return total, depth
+
+    measure(root)
 
 
 def _construct_mapping(loader: _LineLoader, node: yaml.MappingNode) -> LineDict:
@@ -62,6 +130,8 @@ def _construct_mapping(loader: _LineLoader, node: yaml.MappingNode) -> LineDict:
     for key_node, value_node in node.value:
         key = loader.construct_object(key_node, deep=True)
         line = key_node.start_mark.line + 1
+        if not isinstance(key, (str, int, float, bool)) and key is not None:
+            raise ScenarioError(f"{loader.name}:{line}: a key must be a name, given {_type_name(key)} {show(key)}")
         if key in mapping:
             raise ScenarioError(f"{loader.name}:{line}: duplicate key {key!r} (first on line {mapping.lines[key]})")
         mapping[key] = loader.construct_object(value_node, deep=True)
@@ -81,7 +151,10 @@ _LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _co
 
 
 def load_yaml(text: str, filename: str = "<string>"):
-    loader = _LineLoader(text)
+    try:
+        loader = _LineLoader(text)
+    except yaml.reader.ReaderError as exc:  # the reader checks every character first
+        raise _reader_error(exc, text, filename) from None
     loader.name = filename
     try:
         return loader.get_single_data()
@@ -89,8 +162,19 @@ def load_yaml(text: str, filename: str = "<string>"):
         mark = exc.problem_mark
         line = mark.line + 1 if mark is not None else 0
         raise ScenarioError(f"{filename}:{line}: not valid YAML: {exc.problem}") from None
+    except yaml.reader.ReaderError as exc:
+        raise _reader_error(exc, text, filename) from None
+    except yaml.YAMLError as exc:
+        raise ScenarioError(f"{filename}:1: not valid YAML: {show(str(exc))}") from None
+    except RecursionError:
+        raise ScenarioError(f"{filename}:1: nested too deeply to read") from None
     finally:
         loader.dispose()
+
+
+def _reader_error(exc: yaml.reader.ReaderError, text: str, filename: str) -> ScenarioError:
+    line = text.count("\n", 0, exc.position) + 1
+    return ScenarioError(f"{filename}:{line}: not a text file: character {exc.character!r} ({exc.reason})")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -103,11 +187,13 @@ class _Where:
     key: str
 
     def __str__(self) -> str:
+        if self.key.startswith("--set"):  # a command-line override: no line in the file
+            return f"{self.file}: {self.key}"
         return f"{self.file}:{self.line}: {self.key}"
 
     def child(self, container, key, path_part=None) -> "_Where":
         line = self.line
-        lines = getattr(container, "lines", None)
+        lines = getattr(container, "lines", None) or {}
         if isinstance(container, LineDict) and key in lines:
             line = lines[key]
         elif isinstance(container, LineList) and isinstance(key, int) and key < len(lines):
@@ -128,7 +214,7 @@ def _type_name(value) -> str:
 def _expect_mapping(value, where: _Where, allowed: dict[str, str], required=()) -> dict:
     """Check a mapping's keys; ``allowed`` maps key -> short description used in messages."""
     if not isinstance(value, dict):
-        raise where.error(f"expected a mapping with keys {sorted(allowed)}, given {_type_name(value)} {value!r}")
+        raise where.error(f"expected a mapping with keys {sorted(allowed)}, given {_type_name(value)} {show(value)}")
     for key in value:
         if key not in allowed:
             close = difflib.get_close_matches(str(key), list(allowed), n=1)
@@ -142,13 +228,13 @@ def _expect_mapping(value, where: _Where, allowed: dict[str, str], required=()) 
 
 def _expect_list(value, where: _Where, what: str) -> list:
     if not isinstance(value, list):
-        raise where.error(f"expected a list of {what}, given {_type_name(value)} {value!r}")
+        raise where.error(f"expected a list of {what}, given {_type_name(value)} {show(value)}")
     return value
 
 
 def _expect_name(value, where: _Where, what: str) -> str:
     if not isinstance(value, str) or not value:
-        raise where.error(f"expected {what} (text), given {_type_name(value)} {value!r}")
+        raise where.error(f"expected {what} (text), given {_type_name(value)} {show(value)}")
     return value
 
 
@@ -195,15 +281,39 @@ class Scenario:
     def name(self) -> str:
         return str(self.document.get("name", Path(self.file).stem))
 
+    def location(self, *keys) -> str:
+        """``file:line: key.path`` of ``document[keys[0]][keys[1]]...`` (for messages about a value)."""
+        return str(_find(self.document, self.file, keys))
+
 
 def load_scenario(path, overrides: list[str] | None = None) -> Scenario:
     """Read, override and validate a scenario file (the scene is built by :func:`build_simulation`)."""
     path = str(path)
     try:
-        text = Path(path).read_text()
+        if Path(path).is_dir():
+            raise ScenarioError(f"{path}: is a directory, not a scenario file")
+        with open(path, "rb") as f:
+            data = f.read(MAX_BYTES + 1)
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read the scenario ({exc.strerror})") from None
-    return parse_scenario(text, path, overrides)
+    return parse_scenario(decode_scenario(data, path), path, overrides)
+
+
+def decode_scenario(data: bytes, path: str) -> str:
+    """The text of a scenario file: UTF-8 (a UTF-8 byte-order mark is dropped); anything else refused."""
+    if len(data) > MAX_BYTES:
+        raise ScenarioError(f"{path}:1: larger than {MAX_BYTES // 2**20} MiB; a scenario is a short text file")
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise ScenarioError(f"{path}:1: encoded in UTF-16; save the scenario as UTF-8")
+    if b"\x00" in data:
+        line = data.count(b"\n", 0, data.index(b"\x00")) + 1
+        raise ScenarioError(f"{path}:{line}: not a text file (it holds NUL bytes); a scenario is YAML text in UTF-8")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ScenarioError(f"{path}:{line}: not UTF-8 text (byte {data[exc.start]:#04x}); save the scenario "
+                            "as UTF-8") from None
 
 
 def parse_scenario(text: str, filename: str = "<string>", overrides: list[str] | None = None) -> Scenario:
@@ -226,7 +336,74 @@ def parse_scenario(text: str, filename: str = "<string>", overrides: list[str] |
     _validate_stop(document, root, scenario)
     _validate_events(document, root, scenario)
     _validate_log(document, root, scenario)
+    _refuse_nan(document, root)
+    check_sample_counts(scenario, scenario.t_final)
     return scenario
+
+
+def check_time(seconds: float, where: str, given) -> float:
+    """``seconds`` if it is a finite positive time; else ScenarioError naming ``where``."""
+    if not math.isfinite(seconds) or seconds <= 0:
+        raise ScenarioError(f"{where}: expected a positive time (a finite number of seconds), given {show(given)}")
+    return seconds
+
+
+def _refuse_nan(value, where: _Where) -> None:
+    """NaN is never a meaningful input (a value, a limit, a state): refused wherever it appears."""
+    if isinstance(value, float) and value != value:
+        raise where.error("expected a number, given NaN (.nan)")
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _refuse_nan(item, where.child(value, key))
+    elif isinstance(value, list):
+        for k, item in enumerate(value):
+            _refuse_nan(item, where.child(value, k))
+
+
+def _period_seconds(value) -> float | None:
+    try:
+        return float(parse_period(value, "rate"))
+    except (ModelError, UnitError, ZeroDivisionError, OverflowError, ValueError):
+        return None
+
+
+def check_sample_counts(scenario: "Scenario", t_final: float | None) -> None:
+    """Refuse a run that would take more than MAX_SAMPLES samples at one rate (models, log) or
+    MAX_STEPS integrator steps before ``t_final``, and a step longer than the run."""
+    document = scenario.document
+    file = scenario.file
+    if t_final is None:
+        return
+    step_where = _find(document, file, ("integrator", "step"))
+    if scenario.step and scenario.step > t_final:
+        raise step_where.error(f"the step ({scenario.step:g} s) is longer than the run ({t_final:g} s); "
+                               "give a step shorter than the stop time")
+    if scenario.step and t_final / scenario.step > MAX_STEPS:
+        raise step_where.error(f"{t_final / scenario.step:.3g} steps of {scenario.step:g} s to reach "
+                               f"{t_final:g} s (more than {MAX_STEPS:.0e}); give a longer step or a shorter run")
+    rated = [(_find(document, file, ("models", name, key)), entry[key])
+             for name, entry in (document.get("models") or {}).items() if isinstance(entry, dict)
+             for key in ("rate", "period") if key in entry]
+    if "log" in document and isinstance(document["log"], dict) and "rate" in document["log"]:
+        rated.append((_find(document, file, ("log", "rate")), document["log"]["rate"]))
+    rated += [(here, rate) for _, rate, here in scenario.log_signals if rate is not scenario.log_rate]
+    for here, rate in rated:
+        period = _period_seconds(rate)
+        if period and t_final / period > MAX_SAMPLES:
+            raise here.error(f"{show(rate)} for {t_final:g} s is {t_final / period:.3g} samples (more than "
+                             f"{MAX_SAMPLES:.0e}); give a lower rate or a shorter run")
+
+
+def _find(document, file: str, keys: tuple) -> _Where:
+    """The location of ``document[keys[0]][keys[1]]...`` (as deep as it exists)."""
+    where = _Where(file, 1, "")
+    container = document
+    for key in keys:
+        if not isinstance(container, dict) or key not in container:
+            break
+        where = where.child(container, key)
+        container = container[key]
+    return where
 
 
 def _validate_seed(document, root: _Where, scenario: Scenario) -> None:
@@ -320,21 +497,50 @@ def _validate_models(document, root: _Where, templates: dict, inside: str | None
                                                   "not under models:")
         for key in ("parameters", "config", "initial"):
             if key in entry and not isinstance(entry[key], dict):
-                raise here.child(entry, key).error(f"expected a mapping, given {_type_name(entry[key])} {entry[key]!r}")
+                raise here.child(entry, key).error(f"expected a mapping, given {_type_name(entry[key])} {show(entry[key])}")
         if "rate" in entry and "period" in entry:
             raise here.child(entry, "period").error("give either rate or period, not both")
         for key in ("rate", "period"):
             if key in entry:
-                try:
-                    parse_period(entry[key], key)
-                except (ModelError, UnitError) as exc:
-                    raise here.child(entry, key).error(f"expected a {'frequency (e.g. 10 Hz)' if key == 'rate' else 'time (e.g. 0.1 s)'}, "
-                                                       f"given {entry[key]!r} ({exc})") from None
+                check_rate(entry[key], here.child(entry, key), key,
+                           "a frequency (e.g. 10 Hz)" if key == "rate" else "a time (e.g. 0.1 s)")
         if "attach" in entry:
             attach = _expect_mapping(entry["attach"], here.child(entry, "attach"),
                                      {"node": "node name", "hinge": "body whose hinge", "engine": "engine model name"})
             if ("node" in attach) == ("hinge" in attach):
                 raise here.child(entry, "attach").error(f"expected exactly one of node: or hinge:, given {dict(attach)}")
+
+
+def check_rate(value, where: _Where, key: str = "rate", expected: str = "a rate such as 10 Hz") -> None:
+    """A sample rate (``rate:``, "10 Hz") or period (``period:``, "0.1 s"): with a unit under ``rate:``
+    (a bare number there was once read as a period in seconds), finite, positive."""
+    if key == "rate" and _is_bare_number(value) and not math.isfinite(float(value)):
+        raise where.error(f"expected a finite rate such as 10 Hz, given {show(value)}")
+    if key == "rate" and _is_bare_number(value):
+        raise where.error(f"a rate needs a unit: write `{show(value)} Hz` (or a period such as `0.1 s`), "
+                          f"given the bare number {show(value)}")
+    try:
+        period = parse_period(value, key)
+    except (ModelError, UnitError) as exc:
+        raise where.error(f"expected {expected}, given {show(value)} ({exc})") from None
+    except (ZeroDivisionError, OverflowError, ValueError):
+        raise where.error(f"expected {expected}, given {show(value)}") from None
+    if not math.isfinite(float(period)) or float(period) < 1e-9:
+        raise where.error(f"expected {expected} with a period of at least 1 ns, given {show(value)}")
+
+
+def _is_bare_number(value) -> bool:
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, (int, float)):
+        return True
+    if isinstance(value, str):
+        try:
+            float(value)
+        except ValueError:
+            return False
+        return True
+    return False
 
 
 def _connection_ends(item, where: _Where) -> tuple[str, str]:
@@ -347,7 +553,7 @@ def _connection_ends(item, where: _Where) -> tuple[str, str]:
         _expect_mapping(item, where, {"from": "source model.port", "to": "destination model.port"}, required=("from", "to"))
         return (_expect_name(item["from"], where.child(item, "from"), "a source model.port"),
                 _expect_name(item["to"], where.child(item, "to"), "a destination model.port"))
-    raise where.error(f"expected 'source.port -> destination.port' or {{from:, to:}}, given {_type_name(item)} {item!r}")
+    raise where.error(f"expected 'source.port -> destination.port' or {{from:, to:}}, given {_type_name(item)} {show(item)}")
 
 
 def _validate_connections(document, root: _Where) -> None:
@@ -373,17 +579,15 @@ def _validate_integrator(document, root: _Where, scenario: Scenario) -> None:
                                                            "options": "rtol, atol, max_step"})
     if "method" in spec:
         method = spec["method"]
-        if method not in INTEGRATORS:
-            raise where.child(spec, "method").error(f"expected one of {sorted(INTEGRATORS)}, given {method!r}")
+        if not isinstance(method, str) or method not in INTEGRATORS:
+            close = difflib.get_close_matches(str(method), list(INTEGRATORS), n=1) if isinstance(method, str) else []
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            given = show(method) if isinstance(method, str) else f"{_type_name(method)} {show(method)}"
+            raise where.child(spec, "method").error(f"expected one of {sorted(INTEGRATORS)}, given {given}{hint}")
         scenario.integrator = method
     if "step" in spec:
-        try:
-            step = float(to_magnitude(spec["step"], "s", (), "step"))
-        except UnitError as exc:
-            raise where.child(spec, "step").error(f"expected a time, given {spec['step']!r} ({exc})") from None
-        if not step > 0:
-            raise where.child(spec, "step").error(f"expected a positive time, given {spec['step']!r}")
-        scenario.step = step
+        here = where.child(spec, "step")
+        scenario.step = check_time(_seconds(spec["step"], here), str(here), spec["step"])
     options = spec.get("options", {})
     if not isinstance(options, dict):
         raise where.child(spec, "options").error(f"expected a mapping, given {options!r}")
@@ -392,10 +596,22 @@ def _validate_integrator(document, root: _Where, scenario: Scenario) -> None:
             raise where.child(spec, "options").child(options, key).error(
                 f"unknown integrator option; expected rtol, atol or max_step")
         unit = "s" if key == "max_step" else ""
+        here = where.child(spec, "options").child(options, key)
         try:
-            scenario.integrator_options[key] = float(to_magnitude(value, unit, (), key))
+            number = float(to_magnitude(value, unit, (), key))
         except UnitError as exc:
-            raise where.child(spec, "options").child(options, key).error(str(exc)) from None
+            raise here.error(str(exc)) from None
+        if not math.isfinite(number) or number <= 0:
+            raise here.error(f"expected a finite positive number, given {show(value)}")
+        scenario.integrator_options[key] = number
+
+
+def _seconds(value, where: _Where) -> float:
+    """A time value in seconds (any unit of time; a bare number is in seconds)."""
+    try:
+        return float(to_magnitude(value, "s", (), "time"))
+    except UnitError as exc:
+        raise where.error(f"expected a time, given {show(value)} ({exc})") from None
 
 
 def _validate_stop(document, root: _Where, scenario: Scenario) -> None:
@@ -405,12 +621,8 @@ def _validate_stop(document, root: _Where, scenario: Scenario) -> None:
     spec = _expect_mapping(document["stop"], where, {"time": "stop time, e.g. 20 s",
                                                      "events": "list of model.zero_crossing names"})
     if "time" in spec:
-        try:
-            scenario.t_final = float(to_magnitude(spec["time"], "s", (), "time"))
-        except UnitError as exc:
-            raise where.child(spec, "time").error(f"expected a time, given {spec['time']!r} ({exc})") from None
-        if scenario.t_final <= 0:
-            raise where.child(spec, "time").error(f"expected a positive time, given {spec['time']!r}")
+        here = where.child(spec, "time")
+        scenario.t_final = check_time(_seconds(spec["time"], here), str(here), spec["time"])
     if "events" in spec:
         events = _expect_list(spec["events"], where.child(spec, "events"), "model.zero_crossing names")
         for k, name in enumerate(events):
@@ -427,16 +639,12 @@ def _validate_events(document, root: _Where, scenario: Scenario) -> None:
                      "sign_change (search a step only when a function changes sign between its ends; cheaper)",
         "tolerance": "time tolerance of located crossings, e.g. 1e-10 s"})
     if "detection" in spec:
-        if spec["detection"] not in ("sign_change", "subdivided"):
-            raise where.child(spec, "detection").error(f"expected sign_change or subdivided, given {spec['detection']!r}")
+        if not isinstance(spec["detection"], str) or spec["detection"] not in ("sign_change", "subdivided"):
+            raise where.child(spec, "detection").error(f"expected sign_change or subdivided, given {show(spec['detection'])}")
         scenario.event_detection = spec["detection"]
     if "tolerance" in spec:
-        try:
-            scenario.event_tolerance = float(to_magnitude(spec["tolerance"], "s", (), "tolerance"))
-        except UnitError as exc:
-            raise where.child(spec, "tolerance").error(f"expected a time, given {spec['tolerance']!r} ({exc})") from None
-        if not scenario.event_tolerance > 0:
-            raise where.child(spec, "tolerance").error(f"expected a positive time, given {spec['tolerance']!r}")
+        here = where.child(spec, "tolerance")
+        scenario.event_tolerance = check_time(_seconds(spec["tolerance"], here), str(here), spec["tolerance"])
 
 
 def _validate_log(document, root: _Where, scenario: Scenario) -> None:
@@ -447,10 +655,7 @@ def _validate_log(document, root: _Where, scenario: Scenario) -> None:
                                                     "signals": "list of model.port names",
                                                     "file": "default log file (HDF5)"})
     scenario.log_rate = spec.get("rate", "100 Hz")
-    try:
-        parse_period(scenario.log_rate, "rate")
-    except (ModelError, UnitError) as exc:
-        raise where.child(spec, "rate").error(f"expected a rate such as 10 Hz, given {scenario.log_rate!r} ({exc})") from None
+    check_rate(scenario.log_rate, where.child(spec, "rate"))
     signals = _expect_list(spec.get("signals", []), where.child(spec, "signals"), "signal names")
     for k, item in enumerate(signals):
         here = where.child(spec, "signals").child(signals, k)
@@ -459,10 +664,7 @@ def _validate_log(document, root: _Where, scenario: Scenario) -> None:
         else:
             _expect_mapping(item, here, {"signal": "model.port", "rate": "log rate"}, required=("signal",))
             rate = item.get("rate", scenario.log_rate)
-            try:
-                parse_period(rate, "rate")
-            except (ModelError, UnitError) as exc:
-                raise here.child(item, "rate").error(f"expected a rate, given {rate!r} ({exc})") from None
+            check_rate(rate, here.child(item, "rate"))
             scenario.log_signals.append((_expect_name(item["signal"], here.child(item, "signal"), "model.port"),
                                          rate, here))
     if "file" in spec:
@@ -472,18 +674,18 @@ def _validate_log(document, root: _Where, scenario: Scenario) -> None:
 # ------------------------------------------------------------------------------------------------
 def apply_override(document: dict, assignment: str, filename: str) -> None:
     """Apply ``key.path=value`` (value parsed as YAML) to the loaded document."""
-    where = _Where(filename, 0, f"--set {assignment}")
+    shown = assignment if len(assignment) <= 80 else assignment[:60] + "..." + assignment[-10:]
+    where = _Where(filename, 0, f"--set {shown}")
     if "=" not in assignment:
         raise where.error("expected key.path=value")
     key, raw = assignment.split("=", 1)
     parts = [p for p in key.strip().split(".") if p]
     if not parts:
         raise where.error("expected key.path=value")
-    try:
-        value = yaml.safe_load(raw) if raw.strip() else ""
-    except yaml.YAMLError:  # "[1, 2] N*m/rad": a list with a unit, read by the unit parser later
-        value = raw.strip()
+    value = _override_value(raw, where)
     models = document.get("models") or {}
+    if not isinstance(models, dict):
+        raise where.error("the scenario's models: section is not a mapping")
     if parts[0] in ("seed", "name", "description") and len(parts) == 1:
         document[parts[0]] = value
     elif parts[0] in ("integrator", "stop", "log", "events"):
@@ -492,15 +694,19 @@ def apply_override(document: dict, assignment: str, filename: str) -> None:
             raise where.error(f"section {parts[0]} is not a mapping")
         _set_nested(section, parts[1:], value, where)
     elif parts[0] == "multibody" and "multibody" in document and len(parts) >= 3:
-        bodies = document["multibody"].get("bodies", []) or []
-        nodes = document["multibody"].get("nodes", []) or []
-        for item in list(bodies) + list(nodes):
+        multibody = document["multibody"]
+        if not isinstance(multibody, dict):
+            raise where.error("the scenario's multibody: section is not a mapping")
+        items = [item for key in ("bodies", "nodes") for item in _as_list(multibody.get(key))]
+        for item in items:
             if isinstance(item, dict) and item.get("name") == parts[1]:
                 _set_nested(item, parts[2:], value, where)
                 return
         raise where.error(f"no body or node named {parts[1]!r} in multibody")
     elif parts[0] in models and len(parts) >= 2:
         entry = models[parts[0]]
+        if not isinstance(entry, dict):
+            raise where.error(f"the model entry {parts[0]!r} is not a mapping")
         if parts[1] in ("rate", "period", "offset", "type") and len(parts) == 2:
             entry[parts[1]] = value
             if parts[1] == "rate":
@@ -508,13 +714,42 @@ def apply_override(document: dict, assignment: str, filename: str) -> None:
             if parts[1] == "period":
                 entry.pop("rate", None)
         elif parts[1] in ("parameters", "config", "initial"):
-            _set_nested(entry.setdefault(parts[1], LineDict()), parts[2:], value, where)
+            section = entry.setdefault(parts[1], LineDict())
+            if not isinstance(section, dict):
+                raise where.error(f"{parts[0]}.{parts[1]} is not a mapping")
+            _set_nested(section, parts[2:], value, where)
         else:
             params = entry.setdefault("parameters", LineDict())
+            if not isinstance(params, dict):
+                raise where.error(f"{parts[0]}.parameters is not a mapping")
             params[".".join(parts[1:])] = value
     else:
-        known = sorted(set(models) | {"seed", "integrator", "stop", "log", "events", "multibody"})
+        known = sorted({str(m) for m in models} | {"seed", "integrator", "stop", "log", "events", "multibody"})
         raise where.error(f"{parts[0]!r} is neither a model nor a scenario section; known: {known}")
+
+
+def _as_list(value) -> list:
+    return list(value) if isinstance(value, list) else []
+
+
+def _override_value(raw: str, where: _Where):
+    """The value of ``--set key=value``: YAML (a number, a list, a mapping), else the text itself (e.g.
+    ``[1, 2] N*m/rad``, read by the unit parser later); nesting and aliases bounded as in a file."""
+    if not raw.strip():
+        return ""
+    try:
+        loader = _LineLoader(raw)
+    except yaml.reader.ReaderError:
+        raise where.error("the value holds control characters") from None
+    loader.name = "--set"
+    try:
+        return loader.get_single_data()
+    except ScenarioError as exc:
+        raise where.error(str(exc).split(": ", 1)[-1]) from None
+    except (yaml.YAMLError, RecursionError):  # "[1, 2] N*m/rad": a list with a unit, read by the unit parser
+        return raw.strip()
+    finally:
+        loader.dispose()
 
 
 def _set_nested(mapping: dict, parts: list[str], value, where: _Where) -> None:
@@ -523,7 +758,7 @@ def _set_nested(mapping: dict, parts: list[str], value, where: _Where) -> None:
     for part in parts[:-1]:
         mapping = mapping.setdefault(part, LineDict())
         if not isinstance(mapping, dict):
-            raise where.error(f"{part!r} is not a mapping")
+            raise where.error(f"{part!r} is not a mapping (a --set cannot reach into a list or a value)")
     mapping[parts[-1]] = value
 
 
@@ -597,15 +832,21 @@ def build_member(container: Assembly, name: str, entry: dict, here: _Where, clas
         raise _locate_error(here, entry, exc) from None
     except TypeError as exc:
         raise here.error(f"cannot construct {entry['type']}: {exc}") from None
+    except (AttributeError, KeyError, IndexError, ValueError, OverflowError, ZeroDivisionError) as exc:
+        # a configuration value of the wrong kind that the model's constructor did not check itself
+        raise here.error(f"cannot construct {entry['type']} from these values: {type(exc).__name__}: "
+                         f"{show(str(exc))}") from None
     for state, value in (entry.get("initial", {}) or {}).items():
         if not isinstance(member, Model):
             raise here.child(entry, "initial").error("initial values are set on models, not assemblies")
+        state_where = here.child(entry, "initial").child(entry["initial"], state)
         try:
             member.set_initial(state, value)
-            member.initial_continuous_state()
-            member.initial_discrete_state()
+            values = (member.initial_continuous_state(), member.initial_discrete_state())
         except (ModelError, UnitError) as exc:
-            raise here.child(entry, "initial").child(entry["initial"], state).error(str(exc)) from None
+            raise state_where.error(str(exc)) from None
+        if not all(np.all(np.isfinite(np.asarray(v, dtype=float))) for v in values):
+            raise state_where.error(f"expected finite initial values, given {show(value)}")
     return member
 
 
@@ -653,4 +894,39 @@ def build_simulation(scenario: Scenario):
             simulation.log([name], rate)
         except ModelError as exc:
             raise here.error(str(exc)) from None
+    _check_initial_state(simulation, scenario)
     return simulation
+
+
+def _check_initial_state(simulation, scenario: Scenario) -> None:
+    """Refuse a scene whose initial state is not finite (a NaN rate, an infinite angle), naming the model."""
+    for model in simulation.models:
+        for name, (kind, sl, _) in ((n, v) for (m, n), v in simulation.state_slices.items() if m == model.path):
+            values = (simulation.x if kind == "x" else simulation.z)[sl]
+            if not np.all(np.isfinite(values)):
+                keys = ("multibody",) if model.path == "multibody" else ("models", model.path, "initial")
+                where = _nonfinite_body_initial(scenario) or _find(scenario.document, scenario.file, keys)
+                raise where.error(f"initial state {model.path}.{name} is not finite: {show(values.tolist())}")
+
+
+def _nonfinite_body_initial(scenario: Scenario) -> _Where | None:
+    """The multibody.bodies[i](name).initial.<key> whose value, as written, is not finite (if one is)."""
+    document = scenario.document
+    multibody = document.get("multibody")
+    bodies = multibody.get("bodies") if isinstance(multibody, dict) else None
+    if not isinstance(bodies, list):
+        return None
+    where = _Where(scenario.file, 1, "").child(document, "multibody").child(multibody, "bodies")
+    for k, body in enumerate(bodies):
+        initial = body.get("initial") if isinstance(body, dict) else None
+        if not isinstance(initial, dict):
+            continue
+        for key, value in initial.items():
+            try:
+                finite = np.all(np.isfinite(written_numbers(value)))
+            except UnitError:
+                continue
+            if not finite:
+                here = where.child(bodies, k, f"[{k}]({body.get('name')})")
+                return here.child(body, "initial").child(initial, key)
+    return None

@@ -387,9 +387,9 @@ class Simulation:
                     progress(self.t)
                 if instant >= end:
                     break
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:  # Ctrl-C, or a signal turned into one (flexshell run: SIGTERM)
             if writer is not None:
-                writer.close("interrupted", f"interrupted by the user at t = {self.t:.9g} s")
+                writer.close("interrupted", f"{exc or 'interrupted by the user'} at t = {self.t:.9g} s")
             raise
         except Exception as exc:
             message = str(exc) if isinstance(exc, SimulationError) else \

@@ -10,6 +10,7 @@ factor here; nothing in this module is called inside the integration loop.
 from __future__ import annotations
 
 import re
+import reprlib
 
 import numpy as np
 import pint
@@ -29,14 +30,20 @@ def parse_unit(unit: str | pint.Unit, where: str = "") -> pint.Unit:
     """The pint unit for ``unit`` ("" or "1" is dimensionless); refuses unknown unit names."""
     if isinstance(unit, pint.Unit):
         return unit
-    text = (unit or "").strip()
+    if unit is None:
+        unit = ""
+    if isinstance(unit, (int, float)) and not isinstance(unit, bool) and unit == 1:
+        unit = "1"  # YAML reads `unit: 1` as a number
+    if not isinstance(unit, str):
+        raise UnitError(f"{where}: expected a unit name such as m/s, given {short_repr(unit)}")
+    text = unit.strip()
     if text in ("", "1", "-", "dimensionless"):
         return ureg.dimensionless
     try:
         return ureg.Unit(text)
-    except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError, AttributeError,
-            TypeError) as exc:
-        raise UnitError(f"{where}: unknown unit {text!r} ({exc})") from None
+    except Exception as exc:  # pint's parser raises lookup, syntax, tokenize and assertion errors
+        raise UnitError(f"{where}: unknown unit {short_repr(text)} ({type(exc).__name__}: "
+                        f"{short_repr(str(exc))})") from None
 
 
 def is_offset_unit(unit: pint.Unit) -> bool:
@@ -82,19 +89,52 @@ def _split_string_value(text: str) -> tuple[object, str]:
             return json.loads(match.group(1)), match.group(2)
         except ValueError:
             pass
+        except RecursionError:
+            raise ValueError(f"the list {_short(match.group(1))} is nested too deeply") from None
         try:
             numbers = yaml.safe_load(match.group(1))
-        except yaml.YAMLError as exc:
-            raise UnitError(f"cannot read the list {match.group(1)!r}: {exc}") from None
+        except (yaml.YAMLError, RecursionError) as exc:
+            raise ValueError(f"cannot read the list {_short(match.group(1))}: {_short(str(exc))}") from None
         return numbers, match.group(2)
     try:
         return float(text), ""  # a bare number is in the declared unit
     except ValueError:
         pass
-    quantity = ureg.Quantity(text)
+    try:
+        quantity = ureg.Quantity(text)
+    except Exception as exc:  # pint's parser raises tokenize, syntax, assertion and lookup errors: the caller
+        raise ValueError(f"not a number with a unit: {type(exc).__name__}: {_short(str(exc))}") from None  # says where
     if isinstance(quantity, (int, float)):
         return float(quantity), ""
     return quantity.magnitude, f"{quantity.units}"
+
+
+_SHORT = reprlib.Repr()
+_SHORT.maxstring, _SHORT.maxother, _SHORT.maxlist, _SHORT.maxdict, _SHORT.maxlevel = 60, 60, 6, 6, 3
+
+
+def short_repr(value) -> str:
+    """``repr(value)`` cut to a line: error messages never print a huge (or alias-expanded) value whole."""
+    return _SHORT.repr(value)
+
+
+_short = short_repr
+
+
+def written_numbers(value) -> np.ndarray:
+    """The numbers of a user value as written, whatever its unit ("[1e999, 0] deg/s" -> [inf, 0]), for
+    checks that do not depend on the unit (finiteness); raises UnitError when ``value`` holds no numbers."""
+    try:
+        if isinstance(value, str):
+            numbers, _ = _split_string_value(value)
+            return np.asarray(_plain_numbers(numbers, ""), dtype=np.float64)
+        if isinstance(value, dict) and "value" in value:
+            return written_numbers(value["value"])
+        if isinstance(value, (list, tuple)) and any(isinstance(v, (str, list, tuple, dict)) for v in value):
+            return np.concatenate([written_numbers(v).reshape(-1) for v in value]) if value else np.zeros(0)
+        return np.asarray(_plain_numbers(value, ""), dtype=np.float64)
+    except (ValueError, TypeError, AttributeError) as exc:
+        raise UnitError(f"{short_repr(value)} holds no numbers ({exc})") from None
 
 
 def to_magnitude(value, unit: str | pint.Unit, shape: tuple[int, ...] | None = None,
@@ -110,15 +150,15 @@ def to_magnitude(value, unit: str | pint.Unit, shape: tuple[int, ...] | None = N
         magnitude = _magnitude_in(value, target, where)
     except pint.errors.DimensionalityError as exc:
         raise UnitError(f"{where}: expected a value in {format_unit(target)} "
-                        f"[{target.dimensionality}], given {value!r} ({exc})") from None
+                        f"[{target.dimensionality}], given {_short(value)} ({exc})") from None
     except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, TypeError, ValueError,
             AttributeError, AssertionError) as exc:
         if isinstance(exc, UnitError):
             raise
-        raise UnitError(f"{where}: expected a value in {format_unit(target)}, given {value!r} ({exc})") from None
+        raise UnitError(f"{where}: expected a value in {format_unit(target)}, given {_short(value)} ({exc})") from None
     array = np.asarray(magnitude, dtype=np.float64)
     if shape is not None and tuple(array.shape) != tuple(shape):
-        raise UnitError(f"{where}: expected shape {tuple(shape)}, given shape {tuple(array.shape)} ({value!r})")
+        raise UnitError(f"{where}: expected shape {tuple(shape)}, given shape {tuple(array.shape)} ({_short(value)})")
     return array
 
 
@@ -133,18 +173,18 @@ def _magnitude_in(value, target: pint.Unit, where: str):
     if isinstance(value, str):
         numbers, unit_text = _split_string_value(value)
         if isinstance(numbers, str):
-            raise UnitError(f"{where}: {value!r} is not a number with a unit")
+            raise UnitError(f"{where}: {_short(value)} is not a number with a unit")
         factor = conversion_factor(unit_text, target, where) if unit_text else 1.0
         return np.asarray(_plain_numbers(numbers, where), dtype=np.float64) * factor
     if isinstance(value, (list, tuple)) and any(isinstance(v, (str, list, tuple, dict)) for v in value):
         return np.array([_magnitude_in(v, target, where) for v in value], dtype=np.float64)
     if isinstance(value, bool):
-        raise UnitError(f"{where}: expected a number, given the boolean {value!r}")
+        raise UnitError(f"{where}: expected a number, given the boolean {value}")
     return np.asarray(_plain_numbers(value, where), dtype=np.float64)
 
 
 def _plain_numbers(value, where: str):
     array = np.asarray(value)
     if array.dtype.kind not in "iuf":
-        raise UnitError(f"{where}: expected numbers, given {value!r}")
+        raise UnitError(f"{where}: expected numbers, given {_short(value)}")
     return array

@@ -12,16 +12,21 @@ def register(subparsers) -> None:
     parser.add_argument("scenario", help="scenario file (YAML)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario value (as for run)")
+    parser.add_argument("--trust", action="store_true",
+                        help="import the scenario's user code (UserFunction files) while building; without it "
+                             "check reads that code (file, syntax, name) but does not run it")
     parser.set_defaults(func=check)
 
 
 def check(args) -> int:
+    from shell.models.user_hook import user_code
     from shell.scenario import ScenarioError, build_simulation, load_scenario
     from shell.units import UnitError
 
     try:
         scenario = load_scenario(args.scenario, args.overrides)
-        simulation = build_simulation(scenario)
+        with user_code(runs=args.trust):
+            simulation = build_simulation(scenario)
     except (ScenarioError, UnitError, ValueError, OSError) as exc:
         print(f"flexshell check: {exc}", file=sys.stderr)
         return 1

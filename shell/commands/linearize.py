@@ -10,7 +10,9 @@ MATLAB file.
 
 from __future__ import annotations
 
+import math
 import sys
+from pathlib import Path
 
 
 def _names(values):
@@ -54,14 +56,27 @@ def register(subparsers) -> None:
 def linearize_command(args) -> int:
     from datetime import datetime, timezone
 
+    from shell.analysis.linear_model_file import FORMAT as LINEAR_FORMAT
     from shell.analysis.linear_model_file import write_linear_model, write_mat
+    from shell.log_file import LogError, check_log_target, check_output_place
     from shell.analysis.linearize import linearize
     from shell.analysis.trim import trim
     from shell.model import ModelError
     from shell.scenario import ScenarioError, build_simulation, load_scenario
     from shell.units import UnitError
 
-    try:
+    try:  # outputs first: a refused output costs nothing, a linearization may take minutes
+        for output, kind in ((args.output, LINEAR_FORMAT), (args.mat, None)):
+            if output is None:
+                continue
+            if Path(output).resolve() == Path(args.scenario).resolve():
+                raise LogError(f"{output}: is the scenario itself; choose another output")
+            if kind is None:
+                check_output_place(output)
+            else:
+                check_log_target(output, kind)
+        if args.at is not None and not (math.isfinite(args.at) and args.at >= 0):
+            raise ValueError(f"--at {args.at}: expected a finite time >= 0 (s)")
         scenario = load_scenario(args.scenario, args.overrides)
         simulation = build_simulation(scenario)
         if args.at is not None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 
 def register(subparsers) -> None:
@@ -59,31 +60,60 @@ class CampaignProgress:
 
 
 def run(args) -> int:
-    from shell.montecarlo.campaign import CampaignError, load_campaign
-    from shell.montecarlo.executors import run_campaign
-    from shell.montecarlo.results import ResultsError
+    from shell.log_file import LogError, check_log_target
+    from shell.montecarlo.campaign import load_campaign
+    from shell.montecarlo.executors import SchedulerUnreachable, check_scheduler, run_campaign
+    from shell.montecarlo.results import FORMAT, ResultsError
+    from shell.scenario import ScenarioError
+    from shell.units import UnitError
 
     from shell.commands.run import announce_compilation
 
+    try:  # what can be refused without building the scene is refused first
+        if args.workers is not None and args.workers < 1:
+            raise ValueError(f"--workers {args.workers}: expected a positive number of worker processes")
+        if args.scheduler is not None:
+            if args.executor != "dask":
+                raise ValueError("--scheduler needs --executor dask")
+            check_scheduler(args.scheduler)
+        if args.output and not (args.resume or args.rerun is not None):
+            if Path(args.output).exists() and not args.overwrite:
+                raise ValueError(f"{args.output} exists; pass --resume to finish that campaign or choose "
+                                 "another output")
+            check_log_target(args.output, FORMAT)
+        elif args.output and args.rerun is not None:
+            check_log_target(args.output)
+    except (ValueError, SchedulerUnreachable) as exc:
+        print(f"flexshell montecarlo: {exc}", file=sys.stderr)
+        return 1
     announce_compilation(getattr(args, "quiet", False))
     try:
         campaign = load_campaign(args.campaign)
-    except CampaignError as exc:
+    except (ScenarioError, UnitError, ValueError, OSError) as exc:
         print(f"flexshell montecarlo: {exc}", file=sys.stderr)
         return 1
     if args.print_overrides is not None:
+        if not 0 <= args.print_overrides < campaign.runs:
+            print(f"flexshell montecarlo: --print-overrides {args.print_overrides}: the campaign has runs "
+                  f"0..{campaign.runs - 1}", file=sys.stderr)
+            return 1
         for item in campaign.overrides(args.print_overrides):
             print(f"--set \"{item}\"")
         return 0
     output = args.output or f"{campaign.name}.h5"
     if args.rerun is not None:
+        try:
+            check_log_target(args.output or f"{campaign.name}_run{args.rerun}.h5")
+        except LogError as exc:
+            print(f"flexshell montecarlo: {exc}", file=sys.stderr)
+            return 1
         return _rerun(campaign, args.rerun, args.output or f"{campaign.name}_run{args.rerun}.h5")
     progress = CampaignProgress(enabled=not args.quiet and sys.stderr.isatty())
     start = time.perf_counter()
     try:
         counts = run_campaign(campaign, output, args.executor, args.workers, args.scheduler, args.resume,
                               args.overwrite, progress)
-    except ResultsError as exc:
+    except (ResultsError, SchedulerUnreachable, ScenarioError) as exc:
         progress.close()
         print(f"flexshell montecarlo: {exc}", file=sys.stderr)
         return 1

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 
 
@@ -35,11 +36,17 @@ def plot(args) -> int:
         matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from shell.log_file import log_info, read_log
+    from shell.log_file import LogIncompleteWarning, check_output_place, log_info, read_log
 
     try:
+        if not args.show:
+            check_output_place(args.output or str(Path(args.log).with_suffix(".png")))
         info = log_info(args.log)
-        data = read_log(args.log)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", LogIncompleteWarning)
+            data = read_log(args.log)
+        for warning in caught:
+            print(f"flexshell plot: note: {warning.message}", file=sys.stderr)
         available = list(info["signals"])
         names = [_resolve(s, available) for s in args.signals] if args.signals else available
     except (KeyError, OSError, ValueError) as exc:

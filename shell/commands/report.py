@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 
 def register(subparsers) -> None:
@@ -19,8 +20,10 @@ def run(args) -> int:
     from shell.montecarlo.results import ResultsError
 
     try:
+        if Path(args.output).exists() and not Path(args.output).is_dir():
+            raise ResultsError(f"{args.output}: exists and is not a directory; give a directory for the report")
         written = write_report(args.results, args.output)
-    except ResultsError as exc:
+    except (ResultsError, OSError) as exc:
         print(f"flexshell report: {exc}", file=sys.stderr)
         return 1
     print((args.output.rstrip("/") + "/percentiles.md"))

@@ -1,8 +1,15 @@
-"""``flexshell run SCENARIO.yaml``: build a scenario, run it with a progress bar, log to HDF5, summarize."""
+"""``flexshell run SCENARIO.yaml``: build a scenario, run it with a progress bar, log to HDF5, summarize.
+
+Everything that can be refused without building the scene (the scenario, the stop time, the log and
+restart paths) is refused first. Ctrl-C and SIGTERM end a run as "interrupted" (exit 130 and 143): the
+log is closed with the time of its last sample (shell.log_file).
+"""
 
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -64,43 +71,86 @@ def announce_compilation(quiet: bool) -> None:
         print(f"flexshell: compiled in {seconds:.0f} s", file=sys.stderr, flush=True)
 
 
-def run(args) -> int:
-    from shell.scenario import ScenarioError, build_simulation, load_scenario
-    from shell.simulation import SimulationError
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received: handled as an interruption, so the log is closed with status "interrupted"."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise Terminated("terminated (SIGTERM)")
+
+
+def stop_time(value: str, scenario_file: str) -> float:
+    """The ``--t-final`` value in seconds: finite and positive."""
+    from shell.scenario import ScenarioError, check_time
     from shell.units import UnitError, to_magnitude
 
-    announce_compilation(args.quiet)
+    try:
+        seconds = to_magnitude(value, "s", (), "--t-final")
+    except UnitError as exc:
+        raise ScenarioError(f"{scenario_file}: --t-final: expected a time such as 30 s, given {value!r} ({exc})") from None
+    return check_time(float(seconds), f"{scenario_file}: --t-final", value)
+
+
+def run(args) -> int:
+    from shell.log_file import LogError, check_log_target
+    from shell.scenario import ScenarioError, build_simulation, check_sample_counts, load_scenario
+    from shell.simulation import SimulationError
+    from shell.units import UnitError
+
     try:
         scenario = load_scenario(args.scenario, args.overrides)
         t_final = scenario.t_final
         if args.t_final is not None:
-            t_final = float(to_magnitude(args.t_final, "s", (), "--t-final"))
+            t_final = stop_time(args.t_final, args.scenario)
+            check_sample_counts(scenario, t_final)
         if t_final is None:
             raise ScenarioError(f"{args.scenario}: no stop time; add stop: {{time: ...}} or pass --t-final")
+        output = args.output or scenario.log_file or f"{Path(args.scenario).stem}.h5"
+        if not scenario.log_signals:
+            output = None
+        if output is not None:
+            try:
+                if Path(output).resolve() == Path(args.scenario).resolve():
+                    raise LogError(f"{output}: is the scenario itself; choose another log file")
+                check_log_target(output)
+            except LogError as exc:
+                if args.output:
+                    raise
+                raise LogError(f"{scenario.location('log', 'file')}: {exc}") from None
+        if args.save_state:
+            check_log_target(args.save_state, "flexshell-restart")
+    except (ScenarioError, UnitError, ValueError, OSError) as exc:
+        print(f"flexshell run: {exc}", file=sys.stderr)
+        return 1
+    announce_compilation(args.quiet)
+    try:
         simulation = build_simulation(scenario)
         if args.restore:
             simulation.load_state(args.restore)
     except (ScenarioError, UnitError, ValueError, OSError) as exc:
         print(f"flexshell run: {exc}", file=sys.stderr)
         return 1
-    output = args.output or scenario.log_file or f"{Path(args.scenario).stem}.h5"
-    if not scenario.log_signals:
-        output = None
     progress = ProgressBar(simulation.t, t_final, enabled=not args.quiet and sys.stderr.isatty())
+    in_main_thread = threading.current_thread() is threading.main_thread()  # signal handlers live there
+    previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
     try:
         summary = simulation.run(t_final, log_path=output, progress=progress,
                                  log_attributes={"scenario": scenario.text, "scenario_file": str(args.scenario)})
-    except SimulationError as exc:
+    except (SimulationError, LogError) as exc:
         progress.close()
         print(f"flexshell run: {exc}", file=sys.stderr)
-        if output:
+        if output and isinstance(exc, SimulationError):
             print(f"flexshell run: the log {output} keeps every sample up to the failure", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         progress.close()
-        print(f"flexshell run: interrupted at t = {simulation.t:.6g} s"
+        cause = str(exc) or "interrupted"
+        print(f"flexshell run: {cause} at t = {simulation.t:.6g} s"
               + (f"; the log {output} keeps every sample up to there" if output else ""), file=sys.stderr)
-        return 130
+        return 143 if isinstance(exc, Terminated) else 130
+    finally:
+        if in_main_thread:
+            signal.signal(signal.SIGTERM, previous_handler)
     progress.close()
     if args.save_state:
         simulation.save_state(args.save_state)

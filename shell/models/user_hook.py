@@ -25,11 +25,19 @@ This hook runs interpreted Python at its sample rate (``python_update``: a compi
 Python at each of its samples); everything else stays compiled. Its layout is the user's: the held
 outputs are its discrete states, one per output in the same order and shape, so the output kernel
 copies z to y; the update packs and unpacks by name through the instance's layouts.
+
+A scenario with a UserFunction runs code: building the scene imports the user's file. ``flexshell check``
+does not: it reads the file (:func:`inspect_callable`: the file exists, parses, and defines the name at
+its top level) without running it, unless given ``--trust`` (:func:`user_code`).
 """
 
 from __future__ import annotations
 
+import ast
+import contextlib
+import contextvars
 import importlib
+import importlib.machinery
 import importlib.util
 from collections import namedtuple
 from pathlib import Path
@@ -41,23 +49,96 @@ from shell.model import InputPort, Layout, Model, ModelError, OutputPort, State
 from shell.registry import register_model
 
 
-def load_callable(spec: str, where: str):
-    """``path/to/file.py:name`` or ``package.module:name`` -> the object."""
-    if ":" not in spec:
+#: False while a scene is only checked (flexshell check without --trust): user code is read, not run
+_USER_CODE_RUNS = contextvars.ContextVar("flexshell_user_code_runs", default=True)
+
+
+@contextlib.contextmanager
+def user_code(runs: bool):
+    """Within the block, UserFunction models import their code (``runs``) or only inspect it."""
+    token = _USER_CODE_RUNS.set(runs)
+    try:
+        yield
+    finally:
+        _USER_CODE_RUNS.reset(token)
+
+
+def _split_spec(spec, where: str) -> tuple[str, str]:
+    if not isinstance(spec, str) or ":" not in spec:
         raise ModelError(f"{where}: function {spec!r}: expected 'file.py:name' or 'package.module:name'")
     source, _, attribute = spec.rpartition(":")
+    if not source or not attribute.isidentifier():
+        raise ModelError(f"{where}: function {spec!r}: expected 'file.py:name' or 'package.module:name'")
+    return source, attribute
+
+
+def _module_file(source: str) -> Path | None:
+    """The file of module ``source`` found on sys.path without importing it (nor its packages)."""
+    spec, search = None, None
+    for part in source.split("."):
+        spec = importlib.machinery.PathFinder.find_spec(part, search)
+        if spec is None:
+            return None
+        search = spec.submodule_search_locations
+    return Path(spec.origin) if spec is not None and spec.origin and spec.origin.endswith(".py") else None
+
+
+def inspect_callable(spec: str, where: str) -> Path | None:
+    """Check ``spec`` without running any of its code: the file exists, is valid Python and defines
+    ``name`` (a function, class or assignment) at its top level. Returns the file (None for a module
+    that is not a Python source file, e.g. compiled: then only importing can tell)."""
+    source, attribute = _split_spec(spec, where)
     if source.endswith(".py"):
         path = Path(source)
         if not path.is_file():
             raise ModelError(f"{where}: function {spec!r}: file {path} not found")
+    else:
+        path = _module_file(source)
+        if path is None:
+            if importlib.util.find_spec(source.split(".")[0]) is None:
+                raise ModelError(f"{where}: function {spec!r}: no module {source} on the Python path")
+            return None
+    try:
+        tree = ast.parse(path.read_bytes(), filename=str(path))
+    except SyntaxError as exc:
+        raise ModelError(f"{where}: function {spec!r}: {path}:{exc.lineno}: syntax error: {exc.msg}") from None
+    except (OSError, ValueError) as exc:
+        raise ModelError(f"{where}: function {spec!r}: cannot read {path} ({exc})") from None
+    defined = set()
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            defined.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            defined.update(t.id for t in targets if isinstance(t, ast.Name))
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            defined.update((a.asname or a.name).split(".")[0] for a in node.names)
+    if attribute not in defined:
+        raise ModelError(f"{where}: function {spec!r}: {path} has no {attribute!r} (it does not define it at its "
+                         f"top level; it defines {sorted(defined)})")
+    return path
+
+
+def load_callable(spec: str, where: str):
+    """``path/to/file.py:name`` or ``package.module:name`` -> the object (the file is inspected first,
+    so a missing file or name or a syntax error is reported without running anything)."""
+    inspect_callable(spec, where)
+    source, attribute = _split_spec(spec, where)
+    if source.endswith(".py"):
+        path = Path(source)
         module_spec = importlib.util.spec_from_file_location(f"flexshell_user_{path.stem}", path)
         module = importlib.util.module_from_spec(module_spec)
-        module_spec.loader.exec_module(module)
+        try:
+            module_spec.loader.exec_module(module)
+        except Exception as exc:
+            raise ModelError(f"{where}: function {spec!r}: importing {path} raised {type(exc).__name__}: "
+                             f"{exc}") from None
     else:
         try:
             module = importlib.import_module(source)
-        except ImportError as exc:
-            raise ModelError(f"{where}: function {spec!r}: cannot import {source}: {exc}") from None
+        except Exception as exc:
+            raise ModelError(f"{where}: function {spec!r}: cannot import {source}: {type(exc).__name__}: "
+                             f"{exc}") from None
     if not hasattr(module, attribute):
         raise ModelError(f"{where}: function {spec!r}: {source} has no {attribute!r}")
     function = getattr(module, attribute)
@@ -101,7 +182,11 @@ class UserFunction(Model):
         if function is None:
             raise ModelError(f"{where}: UserFunction needs config: function ('file.py:name' or 'module:name')")
         self.function_spec = function
-        self.function = load_callable(function, where)
+        if _USER_CODE_RUNS.get():
+            self.function = load_callable(function, where)
+        else:  # checked, not run: the scene is built but never stepped
+            inspect_callable(function, where)
+            self.function = None
         self._input_specs = _port_specs(inputs, "inputs", where)
         self._output_specs = _port_specs(outputs, "outputs", where)
         super().__init__(name, **kwargs)

@@ -41,7 +41,7 @@ import numpy as np
 
 from shell.montecarlo.draws import DISTRIBUTIONS, CorrelationGroup, Dispersion, draw_run
 from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples
-from shell.scenario import ScenarioError, build_simulation, load_yaml, parse_scenario
+from shell.scenario import ScenarioError, build_simulation, decode_scenario, load_yaml, parse_scenario, show
 from shell.scenario import _expect_mapping
 from shell.scenario import _Where as scenario_Where
 from shell.units import UnitError, conversion_factor, parse_unit, to_magnitude, ureg
@@ -98,6 +98,16 @@ def yaml_text(value, top: bool = True) -> str:
     raise TypeError(f"cannot write {value!r} as YAML")
 
 
+#: most runs of one campaign (its results table is allocated when the campaign starts)
+MAX_RUNS = 10**6
+#: most components of one dispersed value
+MAX_DRAWN = 10**4
+
+
+def _one_of(value, options) -> bool:
+    """``value in options`` for values of any YAML kind (a list is never an option: unhashable)."""
+    return isinstance(value, str) and value in options
+
 CAMPAIGN_KEYS = {
     "name": "campaign name", "description": "free text", "scenario": "scenario file, relative to the campaign",
     "set": "overrides applied to every run: {key.path: value}", "runs": "number of runs",
@@ -142,10 +152,11 @@ _NUMBER_THEN_UNIT = re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*(.
 def _parse_dispersion(path: str, spec, where: _Where) -> Dispersion:
     _mapping(spec, where, DISPERSION_KEYS, required=("distribution",))
     kind = spec["distribution"]
-    if kind not in DISTRIBUTIONS:
-        close = difflib.get_close_matches(str(kind), list(DISTRIBUTIONS), n=1)
+    if not _one_of(kind, DISTRIBUTIONS):
+        close = difflib.get_close_matches(str(kind), list(DISTRIBUTIONS), n=1) if isinstance(kind, str) else []
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise where.child(spec, "distribution").error(f"expected one of {sorted(DISTRIBUTIONS)}, given {kind!r}{hint}")
+        raise where.child(spec, "distribution").error(f"expected one of {sorted(DISTRIBUTIONS)}, given "
+                                                      f"{show(kind)}{hint}")
     needed = DISTRIBUTIONS[kind]
     for key in needed:
         if key not in spec:
@@ -158,19 +169,19 @@ def _parse_dispersion(path: str, spec, where: _Where) -> Dispersion:
     if kind == "choice":
         choices = spec["choices"]
         if not isinstance(choices, list) or not choices:
-            raise where.child(spec, "choices").error(f"expected a non-empty list of values, given {choices!r}")
+            raise where.child(spec, "choices").error(f"expected a non-empty list of values, given {show(choices)}")
         probabilities = spec.get("probabilities", [1.0 / len(choices)] * len(choices))
         try:
             probabilities = np.asarray(probabilities, dtype=np.float64)
         except (TypeError, ValueError):
             raise where.child(spec, "probabilities").error(f"expected numbers, given {probabilities!r}") from None
-        if probabilities.shape != (len(choices),) or np.any(probabilities < 0) \
-                or abs(probabilities.sum() - 1.0) > 1e-9:
+        if probabilities.shape != (len(choices),) or not np.all(np.isfinite(probabilities)) \
+                or np.any(probabilities < 0) or not abs(probabilities.sum() - 1.0) <= 1e-9:
             raise where.child(spec, "probabilities").error(
-                f"expected {len(choices)} non-negative numbers summing to 1, given {spec.get('probabilities')!r}")
+                f"expected {len(choices)} non-negative numbers summing to 1, given {show(spec.get('probabilities'))}")
         return Dispersion(path, kind, (), "", {"probabilities": probabilities}, _plain(choices))
     location = {"normal": "mean", "truncated_normal": "mean", "uniform": "low", "lognormal": "median"}[kind]
-    unit = str(spec["unit"]) if "unit" in spec else _unit_of(spec[location])
+    unit = spec["unit"] if "unit" in spec else _unit_of(spec[location])
     try:
         unit = "" if parse_unit(unit, "unit") == ureg.dimensionless else unit
     except UnitError as exc:
@@ -181,11 +192,15 @@ def _parse_dispersion(path: str, spec, where: _Where) -> Dispersion:
             parameters[key] = to_magnitude(spec[key], "" if key == "log_sigma" else unit, None, key)
         except UnitError as exc:
             raise where.child(spec, key).error(str(exc)) from None
+        if not np.all(np.isfinite(parameters[key])):
+            raise where.child(spec, key).error(f"expected finite numbers, given {show(spec[key])}")
     try:
         shape = tuple(int(n) for n in spec["shape"]) if "shape" in spec else \
             np.broadcast_shapes(*(a.shape for a in parameters.values()))
+        if any(n < 0 for n in shape) or int(np.prod(shape, dtype=np.float64)) > MAX_DRAWN:
+            raise ValueError(f"at most {MAX_DRAWN} components")
         parameters = {k: np.array(np.broadcast_to(a, shape), dtype=np.float64) for k, a in parameters.items()}
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, OverflowError) as exc:
         raise where.child(spec, "shape" if "shape" in spec else location).error(
             f"parameter shapes {[a.shape for a in parameters.values()]} do not fit one value shape ({exc})") from None
     p = parameters
@@ -222,7 +237,7 @@ def _parse_correlations(section, where: _Where, dispersions: dict[str, Dispersio
         if not isinstance(members, list) or len(members) < 2:
             raise here.child(entry, "between").error(f"expected a list of at least two dispersion paths, given {members!r}")
         for m in members:
-            if m not in dispersions:
+            if not _one_of(m, dispersions):
                 raise here.child(entry, "between").error(f"{m!r} is not a dispersion; dispersions: {sorted(dispersions)}")
             if dispersions[m].distribution == "choice":
                 raise here.child(entry, "between").error(f"{m!r} is a discrete choice; correlate continuous dispersions")
@@ -266,11 +281,13 @@ def _parse_correlations(section, where: _Where, dispersions: dict[str, Dispersio
 
 def _parse_metric(name: str, spec, where: _Where) -> Metric:
     _mapping(spec, where, METRIC_KEYS, required=("signal", "statistic"))
-    if spec["statistic"] not in STATISTICS:
-        raise where.child(spec, "statistic").error(f"expected one of {list(STATISTICS)}, given {spec['statistic']!r}")
+    if not _one_of(spec["statistic"], STATISTICS):
+        raise where.child(spec, "statistic").error(f"expected one of {list(STATISTICS)}, given {show(spec['statistic'])}")
     of = spec.get("of", "value")
-    if of not in MAPPINGS:
-        raise where.child(spec, "of").error(f"expected one of {list(MAPPINGS)}, given {of!r}")
+    if not _one_of(of, MAPPINGS):
+        raise where.child(spec, "of").error(f"expected one of {list(MAPPINGS)}, given {show(of)}")
+    if not isinstance(spec["signal"], str) or not spec["signal"]:
+        raise where.child(spec, "signal").error(f"expected a signal name (model.port), given {show(spec['signal'])}")
     component = spec.get("component")
     if component is not None and (not isinstance(component, int) or of != "value"):
         raise where.child(spec, "component").error(f"expected an integer index with of: value, given {component!r}")
@@ -539,9 +556,13 @@ def load_campaign(path, validate: bool = True) -> Campaign:
     (every dispersion path, metric signal and kept signal must exist)."""
     path = str(path)
     try:
-        text = Path(path).read_text()
+        with open(path, "rb") as f:
+            data = f.read()
+        text = decode_scenario(data, path)
     except OSError as exc:
         raise CampaignError(f"{path}: cannot read the campaign ({exc.strerror})") from None
+    except ScenarioError as exc:
+        raise CampaignError(str(exc)) from None
     return parse_campaign(text, path, validate)
 
 
@@ -554,12 +575,18 @@ def parse_campaign(text: str, filename: str = "<string>", validate: bool = True)
     here = root.child(document, "scenario")
     scenario_file = Path(filename).parent / str(document["scenario"])
     try:
-        scenario_text = scenario_file.read_text()
+        with open(scenario_file, "rb") as f:
+            scenario_text = decode_scenario(f.read(), str(scenario_file))
     except OSError as exc:
         raise here.error(f"cannot read the scenario {str(scenario_file)!r} ({exc.strerror})") from None
+    except ScenarioError as exc:
+        raise here.error(str(exc)) from None
     runs = document["runs"]
     if not isinstance(runs, int) or isinstance(runs, bool) or runs < 1:
-        raise root.child(document, "runs").error(f"expected a positive integer, given {runs!r}")
+        raise root.child(document, "runs").error(f"expected a positive integer, given {show(runs)}")
+    if runs > MAX_RUNS:
+        raise root.child(document, "runs").error(f"{runs} runs: a campaign file holds at most {MAX_RUNS} (its "
+                                                 "table is allocated whole); split the campaign into several")
     seed = document.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise root.child(document, "seed").error(f"expected a non-negative integer, given {seed!r}")

@@ -14,6 +14,10 @@ coordinator compiles (or loads) every kernel when the campaign is validated, whi
 cache; each record counts the kernels its worker had to compile (0 when the cache was used; on other
 machines of a cluster the cache directory must be shared, or each machine compiles once).
 
+Pool workers die with their coordinator (:func:`start_pool_worker`: Linux ``PR_SET_PDEATHSIG``, and a
+watchdog thread where that is missing): a coordinator killed with ``kill -9`` leaves no worker running
+on, holding files or cores.
+
 Dask: ``--scheduler ADDRESS`` connects to a running ``dask scheduler`` (workers started with
 ``dask worker ADDRESS`` where flexshell is installed and the campaign's files are readable);
 without it a ``LocalCluster`` of one single-threaded worker process per core is started and closed.
@@ -21,9 +25,16 @@ without it a ``LocalCluster`` of one single-threaded worker process per core is 
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import multiprocessing
 import os
+import signal
+import socket
+import threading
+import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from urllib.parse import urlsplit
 
 from shell.montecarlo.campaign import Campaign, RunRecord
 from shell.montecarlo.results import open_results
@@ -62,6 +73,55 @@ def start_worker(campaign: Campaign) -> str:
 
 
 _THREAD_LIMIT = None
+PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
+class SchedulerUnreachable(ConnectionError):
+    """The Dask scheduler named by --scheduler does not answer; the message says where it was looked for."""
+
+
+def start_pool_worker(campaign: Campaign, coordinator: int) -> str:
+    """The pool's initializer: tie this worker's life to the coordinator's (pid ``coordinator``), then
+    :func:`start_worker`."""
+    die_with_parent(coordinator)
+    return start_worker(campaign)
+
+
+def die_with_parent(parent: int) -> None:
+    """End this process when ``parent`` ends, even by ``kill -9``: the kernel sends SIGKILL on the parent's
+    death (Linux ``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon thread polls the parent's pid."""
+    libc_name = ctypes.util.find_library("c")
+    armed = False
+    if libc_name and os.uname().sysname == "Linux":
+        libc = ctypes.CDLL(libc_name, use_errno=True)
+        armed = libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+    if os.getppid() != parent:  # the parent died before the request took effect
+        os._exit(1)
+    if not armed:
+        def watch() -> None:
+            while os.getppid() == parent:
+                time.sleep(0.5)
+            os._exit(1)
+        threading.Thread(target=watch, name="flexshell-parent-watch", daemon=True).start()
+
+
+def check_scheduler(address: str, timeout: float = 5.0) -> None:
+    """Fail fast (``timeout`` seconds) when nothing listens at a Dask scheduler ``address``
+    (``tcp://host:port``, ``host:port``)."""
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host, port = None, None
+    if parts.scheme not in ("tcp", "tls") or not host or port is None:
+        raise SchedulerUnreachable(f"--scheduler {address!r}: expected an address such as tcp://host:8786")
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise SchedulerUnreachable(f"--scheduler {address}: no Dask scheduler answers at {host}:{port} "
+                                   f"({reason}); start one with `dask scheduler` or check the address") from None
 
 
 def run_serial(campaign: Campaign, runs):
@@ -80,7 +140,7 @@ def run_pool(campaign: Campaign, runs, workers: int | None = None):
         start_worker(campaign)  # forked workers inherit the loaded loop and the built scene
     pending_runs = list(runs)
     with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
-                             initializer=start_worker, initargs=(campaign,)) as pool:
+                             initializer=start_pool_worker, initargs=(campaign, os.getpid())) as pool:
         in_flight = set()
         try:
             while pending_runs or in_flight:
@@ -114,6 +174,7 @@ def run_dask(campaign: Campaign, runs, scheduler: str | None = None, workers: in
                                    dashboard_address=None)
         client = Client(cluster, timeout=timeout)
     else:
+        check_scheduler(scheduler)
         client = Client(scheduler, timeout=timeout)
     try:
         client.run(start_worker, campaign)  # every worker warm before the first run is submitted

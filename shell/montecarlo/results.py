@@ -14,6 +14,9 @@ Layout (a stable contract, like the log layout of shell/log_file.py)::
 Only /timing depends on the machine and the executor; /table and /signals are bit-identical for the
 same campaign whatever executed it. Rows are "pending" until their run completes.
 
+A results file is written by one process at a time: a second campaign (or ``--resume``) refuses a file
+another process holds (HDF5's lock), and ``--overwrite`` only ever replaces a campaign results file.
+
 Kill safety: each completed run is first appended to a journal (``OUT.h5.journal``, one JSON line per
 run; floats written with repr, arrays as base64 bytes, so they round-trip exactly) and only then
 written to the HDF5 file, which is flushed. A campaign killed at any instant therefore keeps every
@@ -32,6 +35,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from shell.log_file import LogError, check_log_target, held_by_another_process, open_for_reading
 from shell.montecarlo.campaign import Campaign, RunRecord
 
 FORMAT = "flexshell-campaign"
@@ -199,6 +203,14 @@ def open_results(path, campaign: Campaign, resume: bool = False, overwrite: bool
     exists = os.path.exists(path)
     if exists and not (resume or overwrite):
         raise ResultsError(f"{path} exists; pass --resume to finish that campaign or choose another output")
+    if exists and os.path.isfile(path) and held_by_another_process(path):
+        raise ResultsError(f"{path}: another process is writing this campaign (it holds the file); wait for it "
+                           "to finish, or stop it and then --resume")
+    if not (resume and exists):
+        try:  # a new file, or --overwrite: only ever replaces a campaign results file
+            check_log_target(path, FORMAT)
+        except LogError as exc:
+            raise ResultsError(str(exc)) from None
     if not resume or not exists and not os.path.exists(journal):
         if resume:
             raise ResultsError(f"{path}: nothing to resume (no results file and no journal {journal})")
@@ -211,7 +223,8 @@ def open_results(path, campaign: Campaign, resume: bool = False, overwrite: bool
             h5 = h5py.File(path, "a")
             fingerprint = h5.attrs.get("fingerprint")
             h5["table"], h5["timing"]
-        except (OSError, KeyError):  # cut by a kill during a write: rebuilt from the journal below
+        except (OSError, KeyError):  # cut by a kill during a write (no one holds it: checked above): rebuilt
+            # from the journal below
             if h5 is not None:
                 h5.close()
             h5, fingerprint = None, None
@@ -235,16 +248,20 @@ def open_results(path, campaign: Campaign, resume: bool = False, overwrite: bool
 
 def read_results(path) -> dict:
     """{"table": structured array (runs,), "timing": ..., "attrs": file attributes, "units": {...},
-    "draw_columns": [...], "metric_columns": [...], "choices": {...}}."""
+    "draw_columns": [...], "metric_columns": [...], "choices": {...}}. A file still marked "running"
+    that no process holds was cut by a kill: its status reads "interrupted"."""
     try:
-        with h5py.File(path, "r") as f:
+        with open_for_reading(path) as f:
             if f.attrs.get("format") != FORMAT:
                 raise ResultsError(f"{path}: not a flexshell campaign results file (format "
                                    f"{f.attrs.get('format')!r})")
             table = f["table"]
             rows = table[:]
             rows["message"] = [m.decode() if isinstance(m, bytes) else m for m in rows["message"]]
-            return {"table": rows, "timing": f["timing"][:], "attrs": dict(f.attrs),
+            attrs = dict(f.attrs)
+            if attrs.get("status") == "running" and not held_by_another_process(path):
+                attrs["status"] = "interrupted"  # cut by a kill: no process is writing it (finish with --resume)
+            return {"table": rows, "timing": f["timing"][:], "attrs": attrs,
                     "units": json.loads(table.attrs["units"]),
                     "draw_columns": json.loads(table.attrs["draw_columns"]),
                     "metric_columns": json.loads(table.attrs["metric_columns"]),

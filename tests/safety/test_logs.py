@@ -1,0 +1,224 @@
+"""Fault tests of the HDF5 log (issue 17): two writers, a full disk, kill -9 and SIGTERM mid-run."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+import warnings
+
+import h5py
+import numpy as np
+import pytest
+
+from shell.log_file import (LogError, LoggedSignal, LogIncompleteWarning, LogWriter, check_log_target, log_info,
+                            log_status, read_log)
+from tests.safety.conftest import RAMP, ROOT, subprocess_env
+
+SIGNALS = {"every_0.1s": [LoggedSignal("sensor.y", (), "m", "reading")]}
+
+
+def write_log(path, rows=3, status="completed"):
+    writer = LogWriter(path, SIGNALS)
+    for k in range(rows):
+        writer.append("every_0.1s", 0.1 * k, [np.array(float(k))])
+    writer.close(status)
+
+
+def test_a_second_writer_is_refused_and_the_first_log_survives(tmp_path):
+    path = tmp_path / "run.h5"
+    first = LogWriter(path, SIGNALS)
+    first.append("every_0.1s", 0.0, [np.array(1.0)])
+    first.flush()
+    with pytest.raises(LogError, match="being written"):
+        LogWriter(path, SIGNALS)
+    assert log_status(path)["status"] == "running", "a log being written is not reported as cut"
+    np.testing.assert_array_equal(read_log(path)["sensor.y"], [1.0])  # readable while it is written
+    first.append("every_0.1s", 0.1, [np.array(2.0)])
+    first.close("completed")
+    log = read_log(path)
+    np.testing.assert_array_equal(log["sensor.y"], [1.0, 2.0])
+    assert log_status(path) == {"status": "completed", "message": "", "last_time": 0.1}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.h5"], "no temporary file left behind"
+
+
+def test_a_second_run_in_another_process_leaves_the_running_log_alone(tmp_path):
+    """The first writer is another process holding the log open; `flexshell run -o` the same path."""
+    path = tmp_path / "run.h5"
+    holder = subprocess.Popen([sys.executable, "-c", textwrap.dedent(f"""
+        import sys, time, numpy as np
+        from shell.log_file import LogWriter, LoggedSignal
+        w = LogWriter({str(path)!r}, {{"every_0.1s": [LoggedSignal("sensor.y", (), "m", "")]}})
+        w.append("every_0.1s", 0.0, [np.array(5.0)]); w.flush()
+        print("ready", flush=True)
+        sys.stdin.readline()
+        w.close("completed")
+        """)], cwd=tmp_path, env=subprocess_env(), stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "ready"
+        scenario = tmp_path / "scene.yaml"
+        scenario.write_text(RAMP)
+        from shell.cli import main
+
+        assert main(["run", str(scenario), "-o", str(path), "--quiet"]) == 1
+        holder.stdin.write("\n")
+        holder.stdin.flush()
+        assert holder.wait(timeout=60) == 0
+    finally:
+        if holder.poll() is None:
+            holder.kill()
+            holder.wait()
+    np.testing.assert_array_equal(read_log(path)["sensor.y"], [5.0])
+    assert log_status(path)["status"] == "completed"
+
+
+def test_a_finished_log_of_the_same_kind_is_replaced(tmp_path):
+    path = tmp_path / "run.h5"
+    write_log(path, rows=5)
+    write_log(path, rows=2)
+    assert read_log(path)["sensor.y"].shape == (2,)
+
+
+def test_refused_targets_are_left_as_they_were(tmp_path):
+    text = tmp_path / "scene.yaml"
+    text.write_text("name: keep me\n")
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as f:
+        f.attrs["format"] = "flexshell-campaign"
+    for target in (text, other):
+        before = target.read_bytes()
+        with pytest.raises(LogError, match="refusing to overwrite"):
+            LogWriter(target, SIGNALS)
+        assert target.read_bytes() == before
+    with pytest.raises(LogError, match="is a directory"):
+        check_log_target(tmp_path)
+
+
+def test_reading_something_that_is_not_a_log_says_so(tmp_path):
+    empty = tmp_path / "cut.h5"
+    empty.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 20)  # the start of an HDF5 file, cut
+    with pytest.raises(LogError, match="damaged"):
+        read_log(empty)
+    with pytest.raises(LogError, match="no such log"):
+        read_log(tmp_path / "missing.h5")
+
+
+def test_failed_and_interrupted_logs_warn_their_readers(tmp_path):
+    path = tmp_path / "run.h5"
+    write_log(path, rows=4, status="interrupted")
+    with pytest.warns(LogIncompleteWarning, match=r"interrupted.*up to t = 0.3 s"):
+        log = read_log(path)
+    assert log["sensor.y"].shape == (4,)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        write_log(path, rows=4, status="completed")
+        read_log(path)
+
+
+# ------------------------------------------------------------------------------------------------
+# real runs in a process of their own
+LONG = ["--set", "stop.time=100000 s", "--set", "log.rate=100 Hz"]
+
+
+def _start_run(tmp_path, extra, preamble=""):
+    scenario = tmp_path / "scene.yaml"
+    scenario.write_text(RAMP)
+    code = textwrap.dedent(f"""
+        import sys
+        {preamble}
+        from shell.cli import main
+        sys.exit(main(sys.argv[1:]))
+        """)
+    return subprocess.Popen([sys.executable, "-c", code, "run", str(scenario), "-o", str(tmp_path / "run.h5"),
+                             "--quiet", *extra], cwd=tmp_path, env=subprocess_env(), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_samples(path, process, timeout=240.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert process.poll() is None, process.communicate()
+        try:
+            if log_status(path)["last_time"] > 1.0:
+                return
+        except LogError:  # not there yet, or caught between two writes
+            pass
+        time.sleep(0.5)
+    raise AssertionError("the run wrote no sample in time")
+
+
+def test_kill_9_then_read_log_says_interrupted(tmp_path):
+    process = _start_run(tmp_path, LONG)
+    path = tmp_path / "run.h5"
+    try:
+        _wait_for_samples(path, process)
+        process.kill()
+        process.wait(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    state = log_status(path)
+    assert state["status"] == "interrupted" and "cut" in state["message"]
+    assert state["last_time"] > 1.0
+    assert log_info(path)["attributes"]["status"] == "interrupted"
+    with pytest.warns(LogIncompleteWarning, match="cut"):
+        log = read_log(path)
+    assert log["time"].size > 0 and log["time"][-1] == state["last_time"]
+
+
+def test_sigterm_closes_the_log_as_interrupted(tmp_path):
+    process = _start_run(tmp_path, LONG)
+    path = tmp_path / "run.h5"
+    try:
+        _wait_for_samples(path, process)
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 143, err
+    assert "Traceback" not in err and "SIGTERM" in err
+    state = log_status(path)
+    assert state["status"] == "interrupted" and "SIGTERM" in state["message"], state
+    with pytest.warns(LogIncompleteWarning):
+        log = read_log(path)
+    assert log["time"][-1] == pytest.approx(state["last_time"])
+
+
+def test_a_full_disk_gives_a_clear_message_and_a_readable_failed_log(tmp_path):
+    """The process may write at most 3 MB (RLIMIT_FSIZE) once its scene is built; the log needs more.
+    Writes past the limit fail as on a full disk (SIGXFSZ ignored, so write() returns EFBIG)."""
+    preamble = textwrap.dedent(f"""
+        import resource, signal
+        from shell.scenario import build_simulation, load_scenario
+        build_simulation(load_scenario({str(tmp_path / 'scene.yaml')!r}))  # compiled code cached before the limit
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (3 * 2**20, 3 * 2**20))
+        """).replace("\n", "\n        ")
+    process = _start_run(tmp_path, ["--set", "stop.time=2000 s", "--set", "log.rate=1 kHz"], preamble)
+    _, err = process.communicate(timeout=600)
+    assert process.returncode == 1, err
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+    assert "not enough room" in err, err
+    path = tmp_path / "run.h5"
+    assert path.stat().st_size <= 3 * 2**20
+    state = log_status(path)
+    assert state["status"] == "failed" and "not enough room" in state["message"]
+    with pytest.warns(LogIncompleteWarning):
+        log = read_log(path)
+    assert log["time"].size > 1000 and log["time"][-1] == state["last_time"]
+    np.testing.assert_allclose(np.diff(log["time"]), 1e-3, rtol=1e-6)
+
+
+def test_plot_of_a_cut_log_says_so(tmp_path, cli):
+    path = tmp_path / "run.h5"
+    writer = LogWriter(path, SIGNALS)
+    for k in range(3):
+        writer.append("every_0.1s", 0.1 * k, [np.array(float(k))])
+    writer.flush()
+    writer.file.close()  # what a kill leaves: the file closed by the system, status still "running"
+    code, out, err = cli("plot", path, "-o", tmp_path / "run.png")
+    assert code == 0 and "Traceback" not in err, err
+    assert "note:" in err and "cut" in err and "t = 0.2 s" in err, err
+    assert (tmp_path / "run.png").exists()
