@@ -193,7 +193,7 @@ multibody:
 integrator: {{method: rk4, step: {STEP} s}}
 log:
   rate: {1.0 / SAMPLE:g} Hz
-  signals: [multibody.boom.q, multibody.boom.u]
+  signals: [multibody.boom.modal_q, multibody.boom.u]
 """
 
 
@@ -208,7 +208,7 @@ def run_flexshell(model: Model, duration: float, order: int) -> Run:
     log = read_log(log_path)
     phi = model.body.translation_shapes.reshape(-1, model.n_modes)
     # free hinge: q = [quaternion (4), position (3), eta], u = [omega, v (body axes), eta_dot]
-    return Run(log["time"], log["multibody.boom.q"][:, 7:], log["multibody.boom.u"][:, :3], phi,
+    return Run(log["time"], log["multibody.boom.modal_q"], log["multibody.boom.u"][:, :3], phi,
                summary.wall_time, summary.steps)
 
 

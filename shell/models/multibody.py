@@ -11,11 +11,15 @@ Ports (``<body>`` a body name, i.e. its inboard hinge; ``<node>`` a node name):
 inputs (all optional, zero when unconnected; they feed through to the accelerations)
   ``<body>.torque``            (nu_hinge,) generalized force of the hinge's free DOFs
   ``<body>.prescribed_accel``  (nu_hinge,) acceleration of a hinge with prescribed DOFs
+  ``<body>.modal_force``       (n_modes,) N m, generalized force on a flexible body's modal coordinates
   ``<node>.torque``            (3,) N m, about the node origin, node axes
   ``<node>.force``             (3,) N, at the node origin, node axes
 outputs
   ``q``, ``u``                 all coordinates and velocities
   ``<body>.q``, ``<body>.u``   the hinge's coordinates and velocities; ``<body>.u_dot`` (feedthrough)
+  ``<body>.modal_q``, ``<body>.modal_u``, ``<body>.modal_u_dot``  a flexible body's modal coordinates
+                               (dimensionless), velocities (1/s), accelerations (1/s^2, feedthrough),
+                               apart from its hinge's (whose ports keep the hinge's units)
   ``<node>.attitude``          (4,) quaternion [w, x, y, z] node -> world; ``<node>.rotation`` (3, 3)
   ``<node>.position``          (3,) m, world; ``<node>.angular_velocity`` (3,) rad/s and
   ``<node>.linear_velocity``   (3,) m/s, node axes
@@ -142,9 +146,9 @@ class EnginePorts(NamedTuple):
     force_dst: np.ndarray
     node_offsets: np.ndarray    # (nnodes, 5) y starts of attitude, rotation, position, angular/linear velocity
     accel_offsets: np.ndarray   # (nnodes, 2) y starts of angular and linear acceleration
-    hinge_q: np.ndarray         # (k, 3) [y start, q start, count] of <body>.q outputs
-    hinge_u: np.ndarray         # (k, 3) the same for <body>.u
-    hinge_udot: np.ndarray      # (k, 3) the same for <body>.u_dot
+    hinge_q: np.ndarray         # (k, 3) [y start, q start, count] of <body>.q and <body>.modal_q outputs
+    hinge_u: np.ndarray         # (k, 3) the same for <body>.u and <body>.modal_u
+    hinge_udot: np.ndarray      # (k, 3) the same for <body>.u_dot and <body>.modal_u_dot
 
 
 class EngineWork(NamedTuple):
@@ -298,10 +302,11 @@ class MultibodyModel(Model):
     #: shown by `flexshell models` in place of per-instance ports
     port_summary = (
         "inputs (optional, zero when unconnected): <node>.torque [N*m] (3,), <node>.force [N] (3,), "
-        "<body>.torque (hinge nu,), <body>.prescribed_accel (hinge nu,)",
+        "<body>.torque (hinge nu,), <body>.prescribed_accel (hinge nu,), <body>.modal_force [N*m] (modes,)",
         "outputs: <node>.attitude (4,) node->world, <node>.rotation (3,3), <node>.position [m], "
         "<node>.angular_velocity [rad/s], <node>.linear_velocity [m/s], <node>.angular_acceleration, "
-        "<node>.linear_acceleration (feedthrough), <body>.q, <body>.u, <body>.u_dot, q, u",
+        "<node>.linear_acceleration (feedthrough), <body>.q, <body>.u, <body>.u_dot (hinge), <body>.modal_q, "
+        "<body>.modal_u [1/s], <body>.modal_u_dot [1/s^2] (flexible bodies), q, u",
         "continuous states: q, u (docs/scenario_schema.md, section multibody)",
     )
 
@@ -329,28 +334,47 @@ class MultibodyModel(Model):
         outputs.append(OutputPort("q", "", (s.nq,), "generalized coordinates (SI)"))
         outputs.append(OutputPort("u", "", (s.nu,), "generalized velocities (SI)"))
         self._hinge_torque_ports, self._hinge_accel_ports = [], []
+        #: per output port kind, (port, first coordinate in q or u, count): hinge and modal parts apart
+        self._coordinate_ports = {"q": [], "u": [], "u_dot": []}
         for b, body in enumerate(s.body_names):
             hinge = s.hinge_names[b]
-            nq = s.q_slices[b].stop - s.q_slices[b].start
-            nu = s.u_slices[b].stop - s.u_slices[b].start
-            n_modes = nq - int(HINGE_NQ[HINGE_TYPES[hinge]])
-            # hinge coordinates followed by modal coordinates: mixed units unless the body is rigid
-            uq, uu, uud, uf = HINGE_UNITS[hinge] if n_modes == 0 else ("", "", "", "")
+            q0, u0 = s.q_slices[b].start, s.u_slices[b].start
+            nq = int(HINGE_NQ[HINGE_TYPES[hinge]])  # the hinge's own coordinates (modal ones follow them)
+            nu = int(HINGE_NU[HINGE_TYPES[hinge]])
+            n_modes = s.u_slices[b].stop - u0 - nu
+            uq, uu, uud, uf = HINGE_UNITS[hinge]
             if nq:
                 outputs.append(OutputPort(f"{body}.q", uq, (nq,), f"{hinge} hinge coordinates of {body}"))
+                self._coordinate_ports["q"].append((f"{body}.q", q0, nq))
             if nu:
                 outputs.append(OutputPort(f"{body}.u", uu, (nu,), f"{hinge} hinge velocities of {body}"))
                 outputs.append(OutputPort(f"{body}.u_dot", uud, (nu,), f"{hinge} hinge accelerations of {body}",
                                           feedthrough=True))
-                prescribed = s.prescribed_dofs[s.u_slices[b]]
+                self._coordinate_ports["u"].append((f"{body}.u", u0, nu))
+                self._coordinate_ports["u_dot"].append((f"{body}.u_dot", u0, nu))
+                prescribed = s.prescribed_dofs[u0:u0 + nu]
                 if np.any(~prescribed):
                     inputs.append(InputPort(f"{body}.torque", uf, (nu,), f"generalized force on the free DOFs of "
                                             f"the {hinge} hinge of {body}", feedthrough=True, required=False))
-                    self._hinge_torque_ports.append((f"{body}.torque", s.u_slices[b]))
+                    self._hinge_torque_ports.append((f"{body}.torque", slice(u0, u0 + nu)))
                 if np.any(prescribed):
                     inputs.append(InputPort(f"{body}.prescribed_accel", uud, (nu,), f"accelerations of the "
                                             f"prescribed DOFs of {body}", feedthrough=True, required=False))
-                    self._hinge_accel_ports.append((f"{body}.prescribed_accel", s.u_slices[b]))
+                    self._hinge_accel_ports.append((f"{body}.prescribed_accel", slice(u0, u0 + nu)))
+            if n_modes:
+                # modal coordinates eta are dimensionless (mode shapes are metres and radians per unit eta);
+                # a modal force is the work per unit eta of the loads on the body, N m
+                outputs.append(OutputPort(f"{body}.modal_q", "", (n_modes,), f"modal coordinates eta of {body}"))
+                outputs.append(OutputPort(f"{body}.modal_u", "1/s", (n_modes,), f"modal velocities of {body}"))
+                outputs.append(OutputPort(f"{body}.modal_u_dot", "1/s^2", (n_modes,),
+                                          f"modal accelerations of {body}", feedthrough=True))
+                self._coordinate_ports["q"].append((f"{body}.modal_q", q0 + nq, n_modes))
+                self._coordinate_ports["u"].append((f"{body}.modal_u", u0 + nu, n_modes))
+                self._coordinate_ports["u_dot"].append((f"{body}.modal_u_dot", u0 + nu, n_modes))
+                inputs.append(InputPort(f"{body}.modal_force", "N*m", (n_modes,), f"generalized forces on the modal "
+                                        f"coordinates of {body} (added to those of the node loads)",
+                                        feedthrough=True, required=False))
+                self._hinge_torque_ports.append((f"{body}.modal_force", slice(u0 + nu, u0 + nu + n_modes)))
         for node in s.node_names:
             for signal, (unit, shape, description, feedthrough) in NODE_OUTPUTS.items():
                 outputs.append(OutputPort(f"{node}.{signal}", unit, shape, description, feedthrough))
@@ -381,9 +405,9 @@ class MultibodyModel(Model):
                 f_dst.extend(range(6 * n + column, 6 * n + column + 3))
         as_index = lambda values: np.asarray(values, dtype=np.int64)  # noqa: E731
 
-        def blocks(kind, slices):
-            return as_index([[y_layout.offsets[f"{b}.{kind}"], slices[i].start, slices[i].stop - slices[i].start]
-                             for i, b in enumerate(s.body_names) if f"{b}.{kind}" in y_layout.offsets]).reshape(-1, 3)
+        def blocks(kind):
+            return as_index([[y_layout.offsets[port], start, count]
+                             for port, start, count in self._coordinate_ports[kind]]).reshape(-1, 3)
 
         self.ports = EnginePorts(
             s.nq, s.nu, y_layout.offsets["q"], y_layout.offsets["u"], as_index(tau_src), as_index(tau_dst),
@@ -393,7 +417,7 @@ class MultibodyModel(Model):
                       for node in s.node_names]).reshape(-1, 5),
             as_index([[y_layout.offsets[f"{node}.angular_acceleration"],
                        y_layout.offsets[f"{node}.linear_acceleration"]] for node in s.node_names]).reshape(-1, 2),
-            blocks("q", s.q_slices), blocks("u", s.u_slices), blocks("u_dot", s.u_slices))
+            blocks("q"), blocks("u"), blocks("u_dot"))
 
     def create_data(self, own: bool = False):
         """(the engine system of the run, (EngineData, EnginePorts, EngineWork)); ``own``: a private copy

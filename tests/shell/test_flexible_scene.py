@@ -45,7 +45,7 @@ connections:
 integrator: {{step: 1 ms}}
 log:
   rate: 100 Hz
-  signals: [sensor.gyro.y, multibody.tip.angular_velocity, multibody.root.angular_velocity, multibody.beam.u]
+  signals: [sensor.gyro.y, multibody.tip.angular_velocity, multibody.root.angular_velocity, multibody.beam.modal_u]
 """
 
 
@@ -71,7 +71,7 @@ def test_sensor_on_a_flexible_node_measures_elastic_motion(scene, tmp_path, beam
     from dynamics.flex.body_file import read_body_file
 
     difference = log["multibody.tip.angular_velocity"] - log["multibody.root.angular_velocity"]
-    modal_rates = log["multibody.beam.u"][:, 6:]
+    modal_rates = log["multibody.beam.modal_u"]
     slope_rate = modal_rates @ read_body_file(beam_file).mode_shape(10)[:3].T
     assert np.max(np.abs(difference)) > 1e-2  # 0.022 rad/s: elastic motion the sensor measures
     np.testing.assert_allclose(difference, slope_rate, atol=1e-3 * np.max(np.abs(difference)))
@@ -119,3 +119,41 @@ def test_flexible_child_hinged_at_its_grid_from_yaml(scene, beam_file):
           bodies:
             - {{name: beam, hinge: free, body_file: {beam_file}, child_grid: first}}
         """)
+
+
+def test_hinge_and_modal_ports_are_separate_with_their_units(scene, beam_file):
+    """A flexible body on a revolute hinge: ``beam.q/u/u_dot/torque`` are the hinge's (rad, rad/s, rad/s^2,
+    N m; one DOF: a drive torque needs no padding for the modes), ``beam.modal_q/modal_u/modal_u_dot`` and
+    ``beam.modal_force`` the modal coordinates' (dimensionless, 1/s, 1/s^2, N m). Each port holds its own
+    slice of the engine's coordinates; a modal force enters the modal equations (the same accelerations as
+    the engine given that generalized force)."""
+    sim = scene(f"""
+    multibody:
+      bodies:
+        - {{name: beam, hinge: revolute, axis: [0, 0, 1], body_file: {beam_file}, damping_ratio: 0.0,
+           initial: {{angle: 0.3 rad, angle_rate: 0.2 rad/s, modal: [1e-3, -2e-3, 0, 5e-4],
+                     modal_rate: [0.1, 0, -0.05, 0]}}}}
+    models:
+      drive: {{type: Constant, config: {{unit: N*m, shape: [1]}}, parameters: {{value: "[40] N*m"}}}}
+      shake: {{type: Constant, config: {{unit: N*m, shape: [4]}}, parameters: {{value: "[0, 3, 0, -1] N*m"}}}}
+    connections:
+      - drive.y -> multibody.beam.torque
+      - shake.y -> multibody.beam.modal_force
+    """)
+    engine = sim.models[0]
+    ports = {p.name: p for p in engine.outputs + engine.inputs}
+    for name, unit, shape in (("beam.q", "rad", (1,)), ("beam.u", "rad/s", (1,)), ("beam.u_dot", "rad/s^2", (1,)),
+                              ("beam.torque", "N*m", (1,)), ("beam.modal_q", "", (4,)), ("beam.modal_u", "1/s", (4,)),
+                              ("beam.modal_u_dot", "1/s^2", (4,)), ("beam.modal_force", "N*m", (4,))):
+        assert (ports[name].unit, ports[name].shape) == (unit, shape), name
+    sim.run(0.01)
+    system = engine.system
+    q, u = sim.x[:system.nq], sim.x[system.nq:system.nq + system.nu]
+    np.testing.assert_array_equal(sim.signal("multibody.beam.q"), q[:1])
+    np.testing.assert_array_equal(sim.signal("multibody.beam.modal_q"), q[1:])
+    np.testing.assert_array_equal(sim.signal("multibody.beam.u"), u[:1])
+    np.testing.assert_array_equal(sim.signal("multibody.beam.modal_u"), u[1:])
+    expected = system.forward_dynamics(q, u, tau=np.array([40.0, 0.0, 3.0, 0.0, -1.0]))
+    np.testing.assert_allclose(np.concatenate([sim.signal("multibody.beam.u_dot"),
+                                               sim.signal("multibody.beam.modal_u_dot")]), expected,
+                               rtol=1e-13, atol=1e-13 * np.max(np.abs(expected)))
