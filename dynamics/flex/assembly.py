@@ -2,9 +2,23 @@
 
 Set names follow NASTRAN: the g-set holds 6 DOFs per grid (``[T1 T2 T3 R1 R2 R3]`` in the
 grid's displacement frame CD, grids in ascending ID order); eliminating RBE2 dependent DOFs
-gives the n-set; removing single-point constraints (SPC/SPC1, plus AUTOSPC of DOFs that carry
-neither stiffness nor mass) gives the f-set on which the eigen-problems are solved. One sparse
-matrix ``T_gf`` (g x f) carries all of it: ``u_g = T_gf u_f``, ``K_ff = T_gf' K_gg T_gf``.
+gives the n-set; removing single-point constraints (SPC/SPC1, GRID PS, plus AUTOSPC of DOFs that
+carry neither stiffness nor mass) gives the f-set on which the eigen-problems are solved. One
+sparse matrix ``T_gf`` (g x f) carries all of it: ``u_g = T_gf u_f``, ``K_ff = T_gf' K_gg T_gf``.
+
+Massless mechanisms: a motion of the massless DOFs (zero rows of M_ff) with no strain energy,
+such as the spin of a lumped-mass CBAR line about its own axis, has neither mass nor stiffness,
+so K - sigma M is singular for every sigma. For a positive semi-definite K such a motion z
+satisfies K_oo z = 0 on the massless set o, and then K z = 0 and M z = 0 on the whole f-set. The
+null space of K_oo is found and one DOF per null vector (the largest entries, by a pivoted QR)
+is held, as NASTRAN's AUTOSPC does for grid-point singularities; any complement of the null
+space gives the same strain and kinetic energy, so no frequency or mass property changes. The
+held DOFs are reported in :attr:`StructuralModel.mechanisms`.
+
+Rigid-body vectors of the geometry (:meth:`StructuralModel.rigid_body_vectors`): for every
+connected part, the six motions ``u = t + theta x (x - x_c)``, ``rotation = theta`` of its
+grids, rotated to the CD frames, restricted to the combinations that carry no strain energy
+(round-off relative to the absolute-value energy |D|' |K| |D|) and have mass.
 
 Elements are assembled in the basic frame and rotated to the CD frames afterwards
 (``K_gg = R' K_basic R`` with R block-diagonal per grid); CELAS springs act on CD components
@@ -57,6 +71,8 @@ class StructuralModel:
     autospc_count: int = 0
     spc_count: int = 0
     rbe2_dependent_count: int = 0
+    spc_dofs: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    mechanisms: list = field(default_factory=list)
 
     @property
     def grid_ids(self) -> np.ndarray:
@@ -73,6 +89,66 @@ class StructuralModel:
     def mass_f(self) -> sp.csr_matrix:
         T = self.T_gf
         return (T.T @ self.mass_g @ T).tocsr()
+
+    def describe_g(self, g: int) -> str:
+        return f"grid {self.grid_ids[g // 6]} component {g % 6 + 1}"
+
+    def rigid_body_vectors(self, stiffness_f=None, mass_f=None,
+                           energy_tol: float = 1e-10) -> np.ndarray:
+        """(n_f, r) f-set rigid-body motions that the constraints allow and K does not resist.
+
+        Per connected part of the structure (grids joined by K_f or M_f), the six motions
+        ``u = t + theta x (x - x_c)``, ``rotation = theta`` (rotations scaled by the part's size
+        so the columns are comparable) restricted to the free DOFs; combinations that vanish
+        there (all their DOFs held) are dropped, and a combination is rigid when its strain
+        energy is below ``energy_tol`` times its absolute-value energy |D|' |K| |D| (round-off
+        of K D is ~1e-16 of the latter; an element to a held DOF or a grounded CELAS spring
+        gives an O(1) fraction). Parts without mass (mechanisms) give no vector.
+        """
+        from scipy.sparse.csgraph import connected_components
+        K = self.stiffness_f() if stiffness_f is None else sp.csr_matrix(stiffness_f)
+        M = self.mass_f() if mass_f is None else sp.csr_matrix(mass_f)
+        nf = len(self.f_dofs)
+        grid_of = self.f_dofs // 6
+        C = (abs(K) + abs(M)).tocoo()
+        ng = self.n_grids
+        G = sp.csr_matrix((np.ones(C.nnz), (grid_of[C.row], grid_of[C.col])), shape=(ng, ng))
+        _, part = connected_components(G, directed=False)
+        pos = self.bulk.positions
+        Rcd = self.bulk.displacement_rotation
+        out = []
+        for label in np.unique(part[grid_of]):
+            rows = np.nonzero(part[grid_of] == label)[0]
+            grids = np.unique(grid_of[rows])
+            center = pos[grids].mean(axis=0)
+            size = max(float(np.max(np.abs(pos[grids] - center))), 1e-12)
+            r = (pos - center) / size
+            D = np.zeros((ng, 6, 6))
+            D[:, :3, :3] = np.eye(3)
+            D[:, 0, 4], D[:, 0, 5] = r[:, 2], -r[:, 1]      # theta x r
+            D[:, 1, 3], D[:, 1, 5] = -r[:, 2], r[:, 0]
+            D[:, 2, 3], D[:, 2, 4] = r[:, 1], -r[:, 0]
+            D[:, 3:, 3:] = np.eye(3) / size
+            D[:, :3] = np.einsum("nba,nbk->nak", Rcd, D[:, :3])
+            D[:, 3:] = np.einsum("nba,nbk->nak", Rcd, D[:, 3:])
+            Dc = np.zeros((nf, 6))
+            Dc[rows] = D.reshape(6 * ng, 6)[self.f_dofs[rows]]
+            U, sv, _ = np.linalg.svd(Dc[rows], full_matrices=False)
+            Dc = np.zeros((nf, int(np.sum(sv > 1e-8 * sv.max(initial=0.0)))))
+            if Dc.shape[1] == 0:
+                continue
+            Dc[rows] = U[:, :Dc.shape[1]]
+            absolute = np.abs(Dc).T @ (abs(K) @ np.abs(Dc))
+            scale = np.sqrt(np.maximum(np.diag(absolute), 1e-300))
+            E = (Dc.T @ (K @ Dc)) / np.outer(scale, scale)
+            w, V = np.linalg.eigh(0.5 * (E + E.T))
+            Dr = Dc @ V[:, np.abs(w) <= energy_tol]
+            if Dr.shape[1] == 0:
+                continue
+            Mr = Dr.T @ (M @ Dr)
+            w, V = np.linalg.eigh(0.5 * (Mr + Mr.T))
+            out.append(Dr @ V[:, w > 1e-12 * max(w.max(initial=0.0), 1e-300)])
+        return np.hstack(out) if out else np.zeros((nf, 0))
 
     def dof_index(self, grid_id: int, component: int, context: str) -> int:
         """g-set index of (grid, component 1..6)."""
@@ -180,11 +256,13 @@ def _beam_section(prop, context: str):
     return A, I1, I2, J, nsm, k1, k2
 
 
-def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> StructuralModel:
+def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
+             interface: list = ()) -> StructuralModel:
     """Assemble g-set K and M (and the lumped M in basic), build T_gf.
 
     ``separate_lumped`` leaves CONM2 masses out of M (FModal's separateLumpedRigidBodies) and
-    returns them as :class:`LumpedMass` records.
+    returns them as :class:`LumpedMass` records. ``interface``: (grid, [components]) that
+    should stay free when a massless mechanism needs a DOF held (the a-set).
     """
     model = bulk.model
     n = len(bulk.grid_ids)
@@ -295,7 +373,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
     structural = StructuralModel(bulk=bulk, stiffness_g=K_g, mass_g=M_g,
                                  mass_lumped_basic=ML_basic.tocsr(), T_gf=sp.identity(ng, format="csr"),
                                  f_dofs=np.arange(ng), lumped_masses=lumped)
-    apply_constraints(structural)
+    apply_constraints(structural, interface)
     structural.deck_aset = deck_aset(bulk)
     return structural
 
@@ -401,7 +479,7 @@ def _selected_set(model, kind: str):
     return None
 
 
-def apply_constraints(sm: StructuralModel) -> None:
+def apply_constraints(sm: StructuralModel, interface: list = ()) -> None:
     bulk = sm.bulk
     model = bulk.model
     ng = 6 * sm.n_grids
@@ -474,6 +552,13 @@ def apply_constraints(sm: StructuralModel) -> None:
                         raise BulkDataError(f"{ctx}: DOF {c} of grid {g} is an RBE2 dependent "
                                             f"DOF ({dependent[gi]}) and cannot also be an SPC")
                     spc_dofs.add(gi)
+    for gid, comps in bulk.permanent_spc:
+        for c in comps:
+            gi = 6 * bulk.grid_index(gid, "GRID PS") + c - 1
+            if gi in dependent:
+                raise BulkDataError(f"GRID {gid} PS: DOF {c} is an RBE2 dependent DOF "
+                                    f"({dependent[gi]}) and cannot also be held")
+            spc_dofs.add(gi)
     if sid is None and len(model.spcs) > 1:
         warnings.warn(f"{bulk.path}: no SPC selected in case control; applying all SPC sets "
                       f"{sorted(model.spcs)}", stacklevel=3)
@@ -489,10 +574,79 @@ def apply_constraints(sm: StructuralModel) -> None:
     null = (Kd <= 1e-14 * max(Kd.max(initial=0.0), 1e-300)) & \
         (Md <= 1e-14 * max(Md.max(initial=0.0), 1e-300))
     sm.autospc_count = int(null.sum())
-    sm.f_dofs = independent[~null]
-    sm.T_gf = T_gn[:, ~null].tocsr()
-    if len(sm.f_dofs) == 0:
+    sm.spc_dofs = np.array(sorted(spc_dofs), dtype=np.int64)
+    f_dofs = independent[~null]
+    T_gf = T_gn[:, ~null].tocsr()
+    if len(f_dofs) == 0:
         raise BulkDataError(f"{bulk.path}: every DOF is constrained; nothing can move")
+    avoid = np.zeros(len(f_dofs), dtype=bool)
+    for gid, comps in list(interface) + deck_aset(bulk):
+        i = row_of_grid(bulk, gid)
+        if i is not None:
+            avoid |= np.isin(f_dofs, 6 * i + np.asarray(comps, dtype=np.int64) - 1)
+    held = massless_mechanism_dofs(T_gf.T @ sm.stiffness_g @ T_gf, T_gf.T @ sm.mass_g @ T_gf,
+                                   avoid)
+    if len(held):
+        keep = np.setdiff1d(np.arange(len(f_dofs)), held)
+        sm.mechanisms = [sm.describe_g(int(g)) for g in f_dofs[held]]
+        sm.spc_dofs = np.union1d(sm.spc_dofs, f_dofs[held])
+        f_dofs, T_gf = f_dofs[keep], T_gf[:, keep].tocsr()
+        warnings.warn(f"{bulk.path}: {len(held)} massless mechanism(s) (motions with neither "
+                      "mass nor stiffness, e.g. a lumped-mass CBAR/CROD line spinning about its "
+                      "axis) removed by holding " + ", ".join(sm.mechanisms[:6])
+                      + (" ..." if len(held) > 6 else "") + " (as NASTRAN AUTOSPC does); "
+                      "frequencies and mass properties are unchanged", stacklevel=3)
+    sm.f_dofs, sm.T_gf = f_dofs, T_gf
+
+
+DENSE_NULL_LIMIT = 3000
+
+
+def row_of_grid(bulk: BulkData, gid: int):
+    i = int(np.searchsorted(bulk.grid_ids, gid))
+    return i if i < len(bulk.grid_ids) and bulk.grid_ids[i] == gid else None
+
+
+def massless_mechanism_dofs(K, M, avoid: np.ndarray | None = None) -> np.ndarray:
+    """f-set DOFs to hold so that no motion has both zero mass and zero stiffness.
+
+    The massless set o (zero rows of M) is where such motions live; their span is the null
+    space of K_oo (module docstring). Dense eigen-decomposition of K_oo up to
+    ``DENSE_NULL_LIMIT`` massless DOFs; above, one sparse LU decides that K_oo is regular (the
+    usual case) and a shift-invert Lanczos finds the null vectors otherwise. DOFs flagged in
+    ``avoid`` (interface DOFs) are held only when a mechanism lives on them alone.
+    """
+    import scipy.linalg as sla
+    import scipy.sparse.linalg as spla
+    M = sp.csr_matrix(M)
+    row = np.asarray(abs(M).sum(axis=1)).ravel()
+    o = np.nonzero(row <= 1e-14 * max(row.max(initial=0.0), 1e-300))[0]
+    if len(o) == 0:
+        return np.zeros(0, dtype=np.int64)
+    Koo = sp.csr_matrix(K)[o][:, o]
+    kmax = max(float(np.abs(Koo.diagonal()).max(initial=0.0)), 1e-300)
+    if len(o) <= DENSE_NULL_LIMIT:
+        w, V = np.linalg.eigh(Koo.toarray())
+        Z = V[:, w <= 1e-10 * kmax]
+    else:
+        try:
+            lu = spla.splu(Koo.tocsc())
+            d = np.abs(lu.U.diagonal())
+            if d.min() > 1e-10 * d.max():
+                return np.zeros(0, dtype=np.int64)
+        except RuntimeError:
+            pass
+        w, V = spla.eigsh(Koo.tocsc(), k=min(24, len(o) - 1), sigma=-1e-8 * kmax, which="LM")
+        Z = V[:, w <= 1e-10 * kmax]
+        if Z.shape[1] == V.shape[1]:
+            raise BulkDataError("24 or more massless mechanisms (motions with neither mass nor "
+                                "stiffness): give the rotations mass (PARAM COUPMASS 1, CBEAM, "
+                                "CONM2 inertia) or constrain them")
+    if Z.shape[1] == 0:
+        return np.zeros(0, dtype=np.int64)
+    weight = np.ones(len(o)) if avoid is None else np.where(avoid[o], 1e-6, 1.0)
+    _, _, piv = sla.qr(Z.T * weight, pivoting=True, mode="economic")
+    return np.sort(o[piv[:Z.shape[1]]])
 
 
 def deck_aset(bulk: BulkData) -> list:
