@@ -34,6 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from dynamics.flex import elements as el
+from dynamics.flex.shells import shell_batch
 from dynamics.flex.bulk_data import (BulkData, BulkDataError, displacement_frame_rotation,
                                       vector_to_basic)
 
@@ -282,6 +283,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
     elems = model.elements
     n_elem = len(elems)
     beams: list = []
+    shells: list = []
     sections: dict = {}
     for count, (eid, elem) in enumerate(sorted(elems.items())):
         if progress is not None and count % 5000 == 0:
@@ -291,6 +293,8 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
             continue    # reported by read_bulk_data and accepted with allow_unsupported
         if elem.type in ("CBAR", "CBEAM"):
             beams.append(_beam_data(bulk, elem, ctx, wt, idx, sections))
+        elif elem.type in ("CQUAD4", "CTRIA3"):
+            shells.append(_shell_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type == "CROD":
             _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
         elif elem.type in ("CELAS1", "CELAS2"):
@@ -321,6 +325,21 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
             progress(f"element matrices for {len(beams)} beams")
         dofs, props, frames, wa, wb, torsion = _beam_batch(bulk, beams)
         Kg, Mg, MLg = el.beam_element_batch(props, frames, wa, wb, bulk.coupled_mass, torsion)
+        K_b.add_batch(dofs, Kg)
+        M_b.add_batch(dofs, Mg)
+        ML_b.add_batch(dofs, MLg)
+
+    for nn in (3, 4):
+        group = [sh for sh in shells if len(sh[0]) == nn]
+        if not group:
+            continue
+        if progress is not None:
+            progress(f"element matrices for {len(group)} {'CQUAD4' if nn == 4 else 'CTRIA3'}")
+        rows = np.array([sh[0] for sh in group], dtype=np.int64)
+        xyz = pos[rows]
+        props = np.array([sh[1] for sh in group], dtype=float)
+        Kg, Mg, MLg = shell_batch(xyz, props, bulk.coupled_mass)
+        dofs = (6 * rows[:, :, None] + np.arange(6)).reshape(len(group), 6 * nn)
         K_b.add_batch(dofs, Kg)
         M_b.add_batch(dofs, Mg)
         ML_b.add_batch(dofs, MLg)
@@ -376,6 +395,57 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
     apply_constraints(structural, interface)
     structural.deck_aset = deck_aset(bulk)
     return structural
+
+
+def _shell_data(bulk, elem, ctx, wt, idx, sections):
+    """(grid rows, props) of one CQUAD4/CTRIA3; props as :func:`shells.shell_batch` takes them."""
+    model = bulk.model
+    if float(elem.zoffset or 0.0) != 0.0:
+        raise BulkDataError(f"{ctx}: ZOFFS = {elem.zoffset}; shell offsets are not supported")
+    rows = [idx(int(g), ctx) for g in elem.nodes]
+    if len(set(rows)) != len(rows):
+        raise BulkDataError(f"{ctx}: repeated grid (degenerate element)")
+    key = ("PSHELL", int(elem.pid))
+    if key not in sections:
+        prop = _property(model, int(elem.pid), ("PSHELL",), ctx)
+        pctx = f"{ctx} -> PSHELL {prop.pid}"
+        mids = [prop.mid1, prop.mid2, prop.mid3]
+        if getattr(prop, "mid4", None):
+            raise BulkDataError(f"{pctx}: MID4 (membrane-bending coupling) is not supported")
+        given = [int(m) for m in mids if m]
+        if not given:
+            raise BulkDataError(f"{pctx}: no material (MID1, MID2 blank)")
+        mats = {m: _material(model, m, pctx) for m in set(given)}
+        if len(set(mats.values())) > 1:
+            raise BulkDataError(f"{pctx}: MID1, MID2, MID3 name different materials; only one "
+                                "isotropic MAT1 per PSHELL is supported")
+        E, G, rho = mats[given[0]]
+        nu = _poisson(model, given[0])
+        if not prop.mid1:
+            raise BulkDataError(f"{pctx}: MID1 blank (no membrane stiffness) is not supported")
+        bend = float(prop.twelveIt3 if prop.twelveIt3 is not None else 1.0) if prop.mid2 else 0.0
+        if prop.mid2 and int(prop.mid2) == -1:
+            raise BulkDataError(f"{pctx}: MID2 = -1 (plane strain) is not supported")
+        ts = float(prop.tst if prop.tst is not None else 0.833333)
+        sections[key] = (E, nu, G, rho, float(prop.t), float(prop.nsm or 0.0), bend, ts,
+                         0.0 if prop.mid3 else 1.0)
+    E, nu, G, rho, t, nsm, bend, ts, rigid = sections[key]
+    thick = [float(v) for v in (getattr(elem, "T1", None), getattr(elem, "T2", None),
+                                getattr(elem, "T3", None), getattr(elem, "T4", None))
+             if v is not None and float(v) > 0.0]
+    if thick and getattr(elem, "tflag", 0) == 0:
+        t = float(np.mean(thick))
+    elif thick:
+        t = t * float(np.mean(thick))
+    return rows, (E, nu, G, rho * wt, t, nsm * wt, bend, ts, rigid)
+
+
+def _poisson(model, mid: int) -> float:
+    mat = model.materials[mid]
+    E, G, nu = mat.e, mat.g, mat.nu
+    if nu is not None:
+        return float(nu)
+    return float(E) / (2.0 * float(G)) - 1.0
 
 
 def _beam_data(bulk, elem, ctx, wt, idx, sections):

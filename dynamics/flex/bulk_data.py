@@ -5,7 +5,8 @@ is parsed with pyNastran's BDF reader. Every card type is then sorted into one o
 reported by name and count, so nothing is silently dropped:
 
 * supported: modelled by :mod:`dynamics.flex.elements` / :mod:`dynamics.flex.assembly`
-  (GRID, CORD2R, CORD2C, CORD1R, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
+  (GRID, GRDSET, CORD2R, CORD2C, CORD1R, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
+  CQUAD4/CTRIA3/PSHELL,
   CONM1, CONM2, MAT1, RBE2, SPC, SPC1, ASET, ASET1, PARAM WTMASS/COUPMASS/GRDPNT);
 * ignored: cards that carry no mass, stiffness or constraint (solution controls, output and
   load cards, SPOINTs without elements, other PARAMs): reported as a warning;
@@ -38,6 +39,7 @@ SUPPORTED_CARDS = frozenset({
     "GRID", "GRDSET", "CORD2R", "CORD2C", "CORD1R",
     "CBAR", "PBAR", "CBEAM", "PBEAM", "CROD", "PROD",
     "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1",
+    "CQUAD4", "CTRIA3", "PSHELL",
     "RBE2", "SPC", "SPC1", "ASET", "ASET1", "PARAM", "ENDDATA",
 })
 # PARAMs that change the structural matrices or the products; all others are reported as ignored.
