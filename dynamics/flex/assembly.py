@@ -34,6 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from dynamics.flex import elements as el
+from dynamics.flex import solids
 from dynamics.flex.shells import shell_batch
 from dynamics.flex.bulk_data import (BulkData, BulkDataError, displacement_frame_rotation,
                                       vector_to_basic)
@@ -284,6 +285,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
     n_elem = len(elems)
     beams: list = []
     shells: list = []
+    solid_elems: list = []
     sections: dict = {}
     for count, (eid, elem) in enumerate(sorted(elems.items())):
         if progress is not None and count % 5000 == 0:
@@ -295,6 +297,8 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
             beams.append(_beam_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type in ("CQUAD4", "CTRIA3"):
             shells.append(_shell_data(bulk, elem, ctx, wt, idx, sections))
+        elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
+            solid_elems.append(_solid_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type == "CROD":
             _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
         elif elem.type in ("CELAS1", "CELAS2"):
@@ -340,6 +344,19 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
         props = np.array([sh[1] for sh in group], dtype=float)
         Kg, Mg, MLg = shell_batch(xyz, props, bulk.coupled_mass)
         dofs = (6 * rows[:, :, None] + np.arange(6)).reshape(len(group), 6 * nn)
+        K_b.add_batch(dofs, Kg)
+        M_b.add_batch(dofs, Mg)
+        ML_b.add_batch(dofs, MLg)
+
+    for kind in sorted({se[0] for se in solid_elems}):
+        group = [se for se in solid_elems if se[0] == kind]
+        if progress is not None:
+            progress(f"element matrices for {len(group)} {solids.NAMES[kind]}")
+        rows = np.array([se[1] for se in group], dtype=np.int64)
+        props = np.array([se[2] for se in group], dtype=float)
+        pts, wts = solids.RULES[kind]
+        Kg, Mg, MLg = solids.solid_batch(kind, pos[rows], props, pts, wts, bulk.coupled_mass)
+        dofs = (6 * rows[:, :, None] + np.arange(3)).reshape(len(group), 3 * rows.shape[1])
         K_b.add_batch(dofs, Kg)
         M_b.add_batch(dofs, Mg)
         ML_b.add_batch(dofs, MLg)
@@ -438,6 +455,34 @@ def _shell_data(bulk, elem, ctx, wt, idx, sections):
     elif thick:
         t = t * float(np.mean(thick))
     return rows, (E, nu, G, rho * wt, t, nsm * wt, bend, ts, rigid)
+
+
+_SOLID_KINDS = {("CHEXA", 8): solids.HEXA8, ("CHEXA", 20): solids.HEXA20,
+                ("CTETRA", 4): solids.TETRA4, ("CTETRA", 10): solids.TETRA10,
+                ("CPENTA", 6): solids.PENTA6}
+
+
+def _solid_data(bulk, elem, ctx, wt, idx, sections):
+    """(kind, grid rows, (E, nu, rho)) of one CHEXA/CTETRA/CPENTA with PSOLID and MAT1."""
+    model = bulk.model
+    nodes = list(elem.nodes)
+    kind = _SOLID_KINDS.get((elem.type, len(nodes)))
+    if kind is None or any(g is None or int(g) == 0 for g in nodes):
+        given = sum(1 for g in nodes if g)
+        raise BulkDataError(f"{ctx}: {elem.type} with {given} grids is not supported (CHEXA 8 "
+                            "or 20, CTETRA 4 or 10, CPENTA 6, all mid-edge grids present)")
+    rows = [idx(int(g), ctx) for g in nodes]
+    key = ("PSOLID", int(elem.pid))
+    if key not in sections:
+        prop = _property(model, int(elem.pid), ("PSOLID",), ctx)
+        pctx = f"{ctx} -> PSOLID {prop.pid}"
+        if str(getattr(prop, "fctn", "SMECH") or "SMECH").strip() not in ("SMECH", "PFLUID"):
+            raise BulkDataError(f"{pctx}: FCTN = {prop.fctn} is not supported")
+        if str(getattr(prop, "fctn", "SMECH") or "SMECH").strip() == "PFLUID":
+            raise BulkDataError(f"{pctx}: FCTN = PFLUID (fluid element) is not supported")
+        E, G, rho = _material(model, int(prop.mid), pctx)
+        sections[key] = (E, _poisson(model, int(prop.mid)), rho * wt)
+    return kind, rows, sections[key]
 
 
 def _poisson(model, mid: int) -> float:

@@ -6,7 +6,7 @@ reported by name and count, so nothing is silently dropped:
 
 * supported: modelled by :mod:`dynamics.flex.elements` / :mod:`dynamics.flex.assembly`
   (GRID, GRDSET, CORD2R, CORD2C, CORD1R, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
-  CQUAD4/CTRIA3/PSHELL,
+  CQUAD4/CTRIA3/PSHELL, CHEXA/CTETRA/CPENTA/PSOLID,
   CONM1, CONM2, MAT1, RBE2, SPC, SPC1, ASET, ASET1, PARAM WTMASS/COUPMASS/GRDPNT);
 * ignored: cards that carry no mass, stiffness or constraint (solution controls, output and
   load cards, SPOINTs without elements, other PARAMs): reported as a warning;
@@ -39,7 +39,7 @@ SUPPORTED_CARDS = frozenset({
     "GRID", "GRDSET", "CORD2R", "CORD2C", "CORD1R",
     "CBAR", "PBAR", "CBEAM", "PBEAM", "CROD", "PROD",
     "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1",
-    "CQUAD4", "CTRIA3", "PSHELL",
+    "CQUAD4", "CTRIA3", "PSHELL", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
     "RBE2", "SPC", "SPC1", "ASET", "ASET1", "PARAM", "ENDDATA",
 })
 # PARAMs that change the structural matrices or the products; all others are reported as ignored.
