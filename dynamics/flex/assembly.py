@@ -299,6 +299,8 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
             shells.append(_shell_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
             solid_elems.append(_solid_data(bulk, elem, ctx, wt, idx, sections))
+        elif elem.type == "CBUSH":
+            _add_bush(bulk, elem, ctx, K_b, idx)
         elif elem.type == "CROD":
             _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
         elif elem.type in ("CELAS1", "CELAS2"):
@@ -560,6 +562,61 @@ def _beam_batch(bulk, beams):
     return dofs, props, frames, wa, wb, np.array([b[8] for b in beams])
 
 
+def _add_bush(bulk, elem, ctx, K_b, idx):
+    """CBUSH with PBUSH K1-K6 (MSC QRG CBUSH): springs in the element frame at the point
+    S along GA-GB, joined to the grids by rigid links; GB blank is a spring to ground.
+
+    Element frame: CID >= 0 its axes (CID 0: basic), else x from GA to GB and y in the plane
+    of x and the orientation vector (X in GA's CD frame, or G0). OCID/S1-S3 offsets, damping
+    (B, GE) and PBUSH mass are not modelled: offsets are refused, damping is reported.
+    """
+    model = bulk.model
+    prop = _property(model, int(elem.pid), ("PBUSH",), ctx)
+    k = np.array([float(v or 0.0) for v in (list(prop.Ki) + [0.0] * 6)[:6]])
+    if getattr(prop, "mass", None):
+        raise BulkDataError(f"{ctx} -> PBUSH {prop.pid}: mass M is not supported (use CONM2)")
+    if any(v for v in list(prop.Bi) + list(prop.GEi)):
+        warnings.warn(f"{ctx} -> PBUSH {prop.pid}: damping B/GE is not used (the body's "
+                      "damping is modal: --damping)", stacklevel=4)
+    ocid = elem.ocid if elem.ocid is not None else -1
+    if int(ocid) != -1:
+        raise BulkDataError(f"{ctx}: OCID = {ocid} (spring location offsets) is not supported")
+    ga, gb = elem.nodes[0], elem.nodes[1] if len(elem.nodes) > 1 else None
+    ia = idx(int(ga), ctx)
+    ib = idx(int(gb), ctx) if gb else None
+    xa = bulk.positions[ia]
+    xb = bulk.positions[ib] if ib is not None else xa
+    axis = xb - xa
+    L = float(np.linalg.norm(axis))
+    if elem.cid is not None and int(elem.cid) >= 0:
+        from dynamics.flex.bulk_data import coordinate_axes
+        _, axes, kind = coordinate_axes(model, int(elem.cid), ctx)
+        if kind != "R":
+            raise BulkDataError(f"{ctx}: CID {elem.cid} is not rectangular")
+        Lam = axes.T
+    else:
+        if L <= 1e-12:
+            raise BulkDataError(f"{ctx}: coincident grids need CID (the element axes)")
+        if elem.g0 is not None and int(elem.g0) > 0:
+            v = bulk.positions[idx(int(elem.g0), ctx)] - xa
+        elif elem.x is not None and elem.x[0] is not None:
+            v = bulk.displacement_rotation[ia] @ np.asarray(elem.x, float)
+        else:
+            raise BulkDataError(f"{ctx}: no orientation (CID, X1-X3 or G0)")
+        Lam = el.beam_frame(axis, v, ctx)
+    s_loc = float(elem.s if elem.s is not None else 0.5)
+    point = xa + s_loc * axis
+    # relative motion at the spring point: local (B - A), rigid links from each grid
+    ends = [(ia, -1.0)] + ([(ib, 1.0)] if ib is not None else [])
+    T = np.zeros((6, 6 * len(ends)))
+    for n, (i, sign) in enumerate(ends):
+        link = np.eye(6)
+        link[:3, 3:] = -el.skew(point - bulk.positions[i])
+        T[:, 6 * n:6 * n + 6] = sign * np.kron(np.eye(2), Lam) @ link
+    dofs = np.concatenate([6 * i + np.arange(6) for i, _ in ends])
+    K_b.add(dofs, T.T @ np.diag(k) @ T)
+
+
 def _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
     model = bulk.model
     ga, gb = (int(g) for g in elem.nodes)
@@ -608,8 +665,18 @@ def apply_constraints(sm: StructuralModel, interface: list = ()) -> None:
         ctx = f"{rig.type} {eid}"
         if rig.type in bulk.report.unsupported:
             continue
+        if rig.type == "RBE3":
+            for g, dofs, coeffs in rbe3_rows(bulk, rig, ctx):
+                if g in dependent:
+                    raise BulkDataError(f"{ctx}: DOF {g % 6 + 1} of grid {bulk.grid_ids[g // 6]} "
+                                        f"is already dependent in {dependent[g]}")
+                dependent[g] = ctx
+                rows.extend([g] * len(dofs))
+                cols.extend(dofs)
+                vals.extend(coeffs)
+            continue
         if rig.type != "RBE2":
-            raise BulkDataError(f"{ctx}: rigid element type not supported (RBE2 only)")
+            raise BulkDataError(f"{ctx}: rigid element type not supported (RBE2, RBE3)")
         ni = bulk.grid_index(int(rig.gn), ctx)
         comps = _components(rig.cm)
         for gm in rig.Gmi:
@@ -762,6 +829,54 @@ def massless_mechanism_dofs(K, M, avoid: np.ndarray | None = None) -> np.ndarray
     weight = np.ones(len(o)) if avoid is None else np.where(avoid[o], 1e-6, 1.0)
     _, _, piv = sla.qr(Z.T * weight, pivoting=True, mode="economic")
     return np.sort(o[piv[:Z.shape[1]]])
+
+
+def rbe3_rows(bulk: BulkData, rig, ctx: str):
+    """Dependent rows of an RBE3: [(g-set DOF of REFGRID, independent g-set DOFs, coefficients)].
+
+    The reference grid moves with the rigid-body motion (u, theta) that fits the independent
+    grids' motions in the weighted least-squares sense (MSC Nastran QRG, RBE3 remarks;
+    MSC "RBE3 theory"): minimize sum_i w_i |S_i (u, theta) - u_i|^2 over the listed components,
+    S_i = R_i' [I, -skew(x_i - x_ref)] for translations and R_i' [0, I] for rotations (R_i the
+    grid's CD frame), rotation rows weighted by w_i L^2 with L the mean distance of the
+    independent grids from the reference (so both kinds of rows have the same units). Then
+    (u, theta) = (S' W S)^-1 S' W u_ind, rotated to the reference grid's CD frame.
+    """
+    if rig.Gmi:
+        raise BulkDataError(f"{ctx}: UM (alternate dependent DOFs) is not supported")
+    pos, Rcd = bulk.positions, bulk.displacement_rotation
+    ref = bulk.grid_index(int(rig.refgrid), ctx)
+    refc = _components(rig.refc)
+    if not refc:
+        raise BulkDataError(f"{ctx}: REFC is blank")
+    entries = []     # (g-set dof, weight, S row)
+    for weight, comp, grids in zip(rig.weights, rig.comps, rig.Gijs):
+        for gid in grids:
+            i = bulk.grid_index(int(gid), ctx)
+            d = pos[i] - pos[ref]
+            rigid = np.zeros((6, 6))
+            rigid[:3, :3] = np.eye(3)
+            rigid[:3, 3:] = -el.skew(d)
+            rigid[3:, 3:] = np.eye(3)
+            S6 = np.kron(np.eye(2), Rcd[i]).T @ rigid
+            for c in _components(comp):
+                entries.append((6 * i + c - 1, float(weight), S6[c - 1], c > 3))
+    if not entries:
+        raise BulkDataError(f"{ctx}: no independent grids")
+    grids = {e[0] // 6 for e in entries}
+    length = np.mean([np.linalg.norm(pos[g] - pos[ref]) for g in grids]) or 1.0
+    S = np.array([e[2] for e in entries])
+    w = np.array([e[1] * (length**2 if e[3] else 1.0) for e in entries])
+    A = S.T @ (w[:, None] * S)
+    ev = np.linalg.eigvalsh(A)
+    if ev[0] <= 1e-10 * ev[-1]:
+        raise BulkDataError(f"{ctx}: the independent grids and components do not determine the "
+                            "reference grid's rigid motion (e.g. collinear grids with "
+                            "translations only); add grids or rotation components")
+    G = np.linalg.solve(A, S.T * w)                       # (6, n_ind), basic
+    G = np.kron(np.eye(2), Rcd[ref]).T @ G                # reference grid's CD frame
+    dofs = np.array([e[0] for e in entries], dtype=np.int64)
+    return [(6 * ref + c - 1, dofs, G[c - 1]) for c in refc]
 
 
 def deck_aset(bulk: BulkData) -> list:

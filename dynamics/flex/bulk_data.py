@@ -5,7 +5,7 @@ is parsed with pyNastran's BDF reader. Every card type is then sorted into one o
 reported by name and count, so nothing is silently dropped:
 
 * supported: modelled by :mod:`dynamics.flex.elements` / :mod:`dynamics.flex.assembly`
-  (GRID, GRDSET, CORD2R, CORD2C, CORD1R, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
+  (GRID, GRDSET, CORD2R, CORD2C, CORD2S, CORD1R, CORD1C, CORD1S, RBE3, CBUSH/PBUSH, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
   CQUAD4/CTRIA3/PSHELL, CHEXA/CTETRA/CPENTA/PSOLID,
   CONM1, CONM2, MAT1, RBE2, SPC, SPC1, ASET, ASET1, PARAM WTMASS/COUPMASS/GRDPNT);
 * ignored: cards that carry no mass, stiffness or constraint (solution controls, output and
@@ -16,7 +16,7 @@ reported by name and count, so nothing is silently dropped:
 
 Grid geometry is resolved here: positions in the basic frame (CP frames) and, per grid, the
 rotation from its displacement frame (CD) to basic, including the position-dependent axes of a
-cylindrical CD frame (MSC Nastran Quick Reference Guide, GRID / CORD2C). GRDSET supplies CP, CD
+cylindrical or spherical CD frame (MSC Nastran Quick Reference Guide, GRID / CORD2C / CORD2S). GRDSET supplies CP, CD
 and PS to GRIDs that leave them blank (QRG, GRDSET); pyNastran reads a blank CP/CD as 0, so an
 explicit 0 on a GRID cannot be told from a blank one and also takes the GRDSET value (the
 report says so). The GRID PS field (permanent single-point constraints, in the CD frame) is
@@ -40,7 +40,8 @@ SUPPORTED_CARDS = frozenset({
     "CBAR", "PBAR", "CBEAM", "PBEAM", "CROD", "PROD",
     "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1",
     "CQUAD4", "CTRIA3", "PSHELL", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
-    "RBE2", "SPC", "SPC1", "ASET", "ASET1", "PARAM", "ENDDATA",
+    "RBE2", "RBE3", "CBUSH", "PBUSH", "CORD2S", "CORD1C", "CORD1S",
+    "SPC", "SPC1", "ASET", "ASET1", "PARAM", "ENDDATA",
 })
 # PARAMs that change the structural matrices or the products; all others are reported as ignored.
 USED_PARAMS = frozenset({"WTMASS", "COUPMASS", "GRDPNT"})
@@ -291,11 +292,11 @@ def coordinate_axes(model, cid: int, context: str):
     coord = model.coords.get(cid)
     if coord is None:
         raise BulkDataError(f"{context}: coordinate system {cid} is not defined")
-    if coord.type not in ("CORD2R", "CORD2C", "CORD1R"):
+    if coord.type not in ("CORD2R", "CORD2C", "CORD2S", "CORD1R", "CORD1C", "CORD1S"):
         raise UnsupportedCardError(f"{context}: coordinate system {cid} is a {coord.type}; "
-                                   "supported are CORD2R, CORD2C, CORD1R")
+                                   "supported are CORD1R/C/S and CORD2R/C/S")
     axes = np.asarray(coord.beta(), dtype=float).T
-    kind = "C" if coord.type == "CORD2C" else "R"
+    kind = coord.type[-1]
     return np.asarray(coord.origin, dtype=float), axes, kind
 
 
@@ -306,9 +307,18 @@ def displacement_frame_rotation(model, cid: int, position_basic: np.ndarray,
     if kind == "R":
         return axes
     local = axes.T @ (position_basic - origin)
-    theta = np.arctan2(local[1], local[0])
-    c, s = np.cos(theta), np.sin(theta)
-    return axes @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    phi = np.arctan2(local[1], local[0])
+    c, s = np.cos(phi), np.sin(phi)
+    if kind == "C":        # (R, theta, Z): e_R, e_theta, e_z
+        return axes @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    # spherical (R, theta, phi), theta from the local z axis, phi about it from x (QRG CORD2S):
+    # columns e_R, e_theta, e_phi
+    th = np.arctan2(np.hypot(local[0], local[1]), local[2])
+    ct, st = np.cos(th), np.sin(th)
+    if np.hypot(local[0], local[1]) <= 1e-12 * max(np.linalg.norm(local), 1e-300):
+        raise BulkDataError(f"{context}: grid on the polar axis of spherical system {cid}: "
+                            "its displacement directions are undefined")
+    return axes @ np.array([[st * c, ct * c, -s], [st * s, ct * s, c], [ct, -st, 0.0]])
 
 
 def vector_to_basic(model, cid: int, vector: np.ndarray, at_basic: np.ndarray,
