@@ -235,7 +235,34 @@ def _property(model, pid: int, kinds: tuple, context: str):
     return prop
 
 
+def _round_section(prop, context: str):
+    """A, I1, I2, J of a PBARL/PBEAML ROD (DIM1 = radius): the closed forms of a circle.
+
+    NASTRAN gives these sections transverse shear flexibility with a shear area factor; 0.9
+    for ROD reproduces MSC Nastran's eigenvalues of the pyNastran beam_modes model to its
+    printed 7 digits (tests/flex/test_nastran_reference.py). Other shapes are refused until
+    their factor is verified the same way.
+    """
+    kind = str(prop.Type).strip().upper()
+    dims = np.asarray(prop.dim, dtype=float)
+    if dims.ndim > 1:                     # PBEAML: one row per station
+        if np.ptp(dims, axis=0).max() > 1e-12 * np.abs(dims).max():
+            raise BulkDataError(f"{context}: tapered PBEAML is not supported")
+        dims = dims[0]
+    if kind != "ROD":
+        raise BulkDataError(f"{context}: {prop.type} section {kind} is not supported (ROD)")
+    r = dims[0]
+    if not r > 0.0:
+        raise BulkDataError(f"{context}: ROD radius {r} must be > 0")
+    I = np.pi / 4.0 * r**4
+    return np.pi * r * r, I, I, 2.0 * I
+
+
 def _beam_section(prop, context: str):
+    if prop.type in ("PBARL", "PBEAML"):
+        A, I1, I2, J = _round_section(prop, context)
+        nsm = float(np.atleast_1d(np.asarray(prop.nsm, dtype=float))[0] or 0.0)
+        return A, I1, I2, J, nsm, 0.9, 0.9
     if prop.type == "PBAR":
         A, I1, I2, I12, J, nsm = (float(prop.A), float(prop.i1), float(prop.i2),
                                   float(prop.i12), float(prop.j), float(prop.nsm))
@@ -516,8 +543,8 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
         i0, x = -1, elem.x
     key = (elem.type, int(elem.pid))
     if key not in sections:
-        prop = _property(model, int(elem.pid), ("PBAR",) if elem.type == "CBAR"
-                         else ("PBEAM",), ctx)
+        prop = _property(model, int(elem.pid), ("PBAR", "PBARL") if elem.type == "CBAR"
+                         else ("PBEAM", "PBEAML"), ctx)
         A, I1, I2, J, nsm, k1, k2 = _beam_section(prop, f"{ctx} -> {prop.type} {prop.pid}")
         E, G, rho = _material(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
         sections[key] = (E, G, A, I1, I2, J, (rho * A + nsm) * wt, k1, k2)

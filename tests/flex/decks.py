@@ -89,8 +89,8 @@ def single_length_beam_deck() -> str:
 
 def plate_deck(n: int, a: float = 1.0, b: float = 1.0, t: float = 0.01, edges: str = "SSSS",
                coupled: bool = True, triangles: bool = False, in_plane_held: bool = True,
-               mid3: bool = True) -> str:
-    """Flat rectangular plate in the basic x-y plane, n x n CQUAD4 (or 2 n^2 CTRIA3), PSHELL 1.
+               mid3: bool = True, ny: int | None = None) -> str:
+    """Flat rectangular plate in the basic x-y plane, n x ny CQUAD4 (or 2 n ny CTRIA3), PSHELL 1.
 
     ``edges``: boundary of the edges x = 0, y = 0, x = a, y = b, each S (hard simply supported:
     w and the rotation about the edge normal held), C (clamped) or F (free).
@@ -100,14 +100,15 @@ def plate_deck(n: int, a: float = 1.0, b: float = 1.0, t: float = 0.01, edges: s
     if coupled:
         lines.append("PARAM,COUPMASS,1")
     ps = "126" if in_plane_held else ""
+    m = n if ny is None else ny
     nid = lambda i, j: 1 + i + (n + 1) * j      # noqa: E731
-    for j in range(n + 1):
+    for j in range(m + 1):
         for i in range(n + 1):
-            lines.append(f"GRID,{nid(i, j)},,{a * i / n!r},{b * j / n!r},0.0,,{ps}")
+            lines.append(f"GRID,{nid(i, j)},,{a * i / n!r},{b * j / m!r},0.0,,{ps}")
     lines.append(f"MAT1,1,{E!r},,{NU!r},{RHO!r}")
     lines.append(f"PSHELL,1,1,{t!r},1,,{'1' if mid3 else ''}")
     eid = 1
-    for j in range(n):
+    for j in range(m):
         for i in range(n):
             g = (nid(i, j), nid(i + 1, j), nid(i + 1, j + 1), nid(i, j + 1))
             if triangles:
@@ -123,13 +124,13 @@ def plate_deck(n: int, a: float = 1.0, b: float = 1.0, t: float = 0.01, edges: s
         if not comps:
             continue
         if edge == 0:
-            grids = [nid(0, j) for j in range(n + 1)]
+            grids = [nid(0, j) for j in range(m + 1)]
         elif edge == 2:
-            grids = [nid(n, j) for j in range(n + 1)]
+            grids = [nid(n, j) for j in range(m + 1)]
         elif edge == 1:
             grids = [nid(i, 0) for i in range(n + 1)]
         else:
-            grids = [nid(i, n) for i in range(n + 1)]
+            grids = [nid(i, m) for i in range(n + 1)]
         lines += [f"SPC1,1,{comps},{g}" for g in grids]
     lines.append("ENDDATA")
     return "\n".join(lines) + "\n"
