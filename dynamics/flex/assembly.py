@@ -35,6 +35,7 @@ import scipy.sparse as sp
 
 from dynamics.flex import elements as el
 from dynamics.flex import solids
+from dynamics.flex.shells import property_row as shell_props
 from dynamics.flex.shells import shell_batch
 from dynamics.flex.bulk_data import (BulkData, BulkDataError, displacement_frame_rotation,
                                       vector_to_basic)
@@ -444,7 +445,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
 
 
 def _shell_data(bulk, elem, ctx, wt, idx, sections):
-    """(grid rows, props) of one CQUAD4/CTRIA3; props as :func:`shells.shell_batch` takes them."""
+    """(grid rows, property row of :func:`shells.shell_batch`) of one CQUAD4/CTRIA3."""
     model = bulk.model
     if float(elem.zoffset or 0.0) != 0.0:
         raise BulkDataError(f"{ctx}: ZOFFS = {elem.zoffset}; shell offsets are not supported")
@@ -453,29 +454,8 @@ def _shell_data(bulk, elem, ctx, wt, idx, sections):
         raise BulkDataError(f"{ctx}: repeated grid (degenerate element)")
     key = ("PSHELL", int(elem.pid))
     if key not in sections:
-        prop = _property(model, int(elem.pid), ("PSHELL",), ctx)
-        pctx = f"{ctx} -> PSHELL {prop.pid}"
-        mids = [prop.mid1, prop.mid2, prop.mid3]
-        if getattr(prop, "mid4", None):
-            raise BulkDataError(f"{pctx}: MID4 (membrane-bending coupling) is not supported")
-        given = [int(m) for m in mids if m]
-        if not given:
-            raise BulkDataError(f"{pctx}: no material (MID1, MID2 blank)")
-        mats = {m: _material(model, m, pctx) for m in set(given)}
-        if len(set(mats.values())) > 1:
-            raise BulkDataError(f"{pctx}: MID1, MID2, MID3 name different materials; only one "
-                                "isotropic MAT1 per PSHELL is supported")
-        E, G, rho = mats[given[0]]
-        nu = _poisson(model, given[0])
-        if not prop.mid1:
-            raise BulkDataError(f"{pctx}: MID1 blank (no membrane stiffness) is not supported")
-        bend = float(prop.twelveIt3 if prop.twelveIt3 is not None else 1.0) if prop.mid2 else 0.0
-        if prop.mid2 and int(prop.mid2) == -1:
-            raise BulkDataError(f"{pctx}: MID2 = -1 (plane strain) is not supported")
-        ts = float(prop.tst if prop.tst is not None else 0.833333)
-        sections[key] = (E, nu, G, rho, float(prop.t), float(prop.nsm or 0.0), bend, ts,
-                         0.0 if prop.mid3 else 1.0)
-    E, nu, G, rho, t, nsm, bend, ts, rigid = sections[key]
+        sections[key] = _pshell_moduli(model, int(elem.pid), ctx)
+    Gm, Gb, Gs, rho, t, nsm, bend, ts, rigid = sections[key]
     thick = [float(v) for v in (getattr(elem, "T1", None), getattr(elem, "T2", None),
                                 getattr(elem, "T3", None), getattr(elem, "T4", None))
              if v is not None and float(v) > 0.0]
@@ -483,7 +463,61 @@ def _shell_data(bulk, elem, ctx, wt, idx, sections):
         t = float(np.mean(thick))
     elif thick:
         t = t * float(np.mean(thick))
-    return rows, (E, nu, G, rho * wt, t, nsm * wt, bend, ts, rigid)
+    orient = elem.theta_mcid
+    theta, direction = 0.0, np.zeros(3)
+    if isinstance(orient, (int, np.integer)):
+        from dynamics.flex.bulk_data import coordinate_axes
+        _, axes, kind = coordinate_axes(model, int(orient), f"{ctx} MCID")
+        if kind != "R":
+            raise BulkDataError(f"{ctx}: MCID {orient} is not a rectangular system")
+        direction = axes[:, 0]
+    elif orient is not None:
+        theta = np.radians(float(orient))
+    return rows, shell_props(Gm, Gb, Gs, rho * wt, t, nsm * wt, bend, ts, rigid, theta,
+                             direction)
+
+
+def _plane_modulus(model, mid: int, context: str):
+    """(3x3 plane-stress modulus, 2x2 transverse shear modulus, rho) of a MAT1 or MAT2."""
+    mat = model.materials.get(mid)
+    if mat is None:
+        raise BulkDataError(f"{context}: material {mid} is not defined")
+    if mat.type == "MAT1":
+        E, G, rho = _material(model, mid, context)
+        nu = _poisson(model, mid)
+        c = E / (1.0 - nu * nu)
+        Q = np.array([[c, nu * c, 0.0], [nu * c, c, 0.0], [0.0, 0.0, G]])
+        return Q, G * np.eye(2), rho
+    if mat.type == "MAT2":
+        g = [float(v or 0.0) for v in (mat.G11, mat.G12, mat.G13, mat.G22, mat.G23, mat.G33)]
+        Q = np.array([[g[0], g[1], g[2]], [g[1], g[3], g[4]], [g[2], g[4], g[5]]])
+        return Q, np.array([[g[0], g[1]], [g[1], g[3]]]), float(mat.rho or 0.0)
+    raise BulkDataError(f"{context}: material {mid} is a {mat.type}; shells take MAT1 or MAT2")
+
+
+def _pshell_moduli(model, pid: int, ctx: str):
+    """Membrane, bending and shear moduli and the scalars of a PSHELL (NASTRAN QRG PSHELL)."""
+    prop = _property(model, pid, ("PSHELL",), ctx)
+    pctx = f"{ctx} -> PSHELL {prop.pid}"
+    if getattr(prop, "mid4", None):
+        raise BulkDataError(f"{pctx}: MID4 (membrane-bending coupling) is not supported")
+    if not prop.mid1:
+        raise BulkDataError(f"{pctx}: MID1 blank (no membrane stiffness) is not supported")
+    if prop.mid2 and int(prop.mid2) == -1:
+        raise BulkDataError(f"{pctx}: MID2 = -1 (plane strain) is not supported")
+    Gm, _, rho = _plane_modulus(model, int(prop.mid1), pctx)
+    if prop.mid2:
+        Gb, Gs_b, _ = _plane_modulus(model, int(prop.mid2), pctx)
+        bend = float(prop.twelveIt3 if prop.twelveIt3 is not None else 1.0)
+    else:
+        Gb, Gs_b, bend = Gm, np.eye(2), 0.0
+    if prop.mid3:
+        _, Gs, _ = _plane_modulus(model, int(prop.mid3), pctx)
+        rigid = False
+    else:
+        Gs, rigid = Gs_b, True
+    ts = float(prop.tst if prop.tst is not None else 0.833333)
+    return Gm, Gb, Gs, rho, float(prop.t), float(prop.nsm or 0.0), bend, ts, rigid
 
 
 _SOLID_KINDS = {("CHEXA", 8): solids.HEXA8, ("CHEXA", 20): solids.HEXA20,

@@ -38,7 +38,7 @@ import numpy as np
 SUPPORTED_CARDS = frozenset({
     "GRID", "GRDSET", "CORD2R", "CORD2C", "CORD1R",
     "CBAR", "PBAR", "PBARL", "CBEAM", "PBEAM", "PBEAML", "CROD", "PROD",
-    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1",
+    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1", "MAT2",
     "CQUAD4", "CTRIA3", "PSHELL", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
     "RBE2", "RBE3", "CBUSH", "PBUSH", "CORD2S", "CORD1C", "CORD1S",
     "SPC", "SPC1", "ASET", "ASET1", "PARAM", "ENDDATA",

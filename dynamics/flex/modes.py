@@ -283,10 +283,12 @@ class SymmetricLU:
 
 
 def solve_sparse(K, M, n_modes: int, shift: float | None = None, tol: float = 0.0,
-                 lu=None, groups: np.ndarray | None = None) -> EigenSolution:
+                 lu=None, groups: np.ndarray | None = None, refined: bool = True) -> EigenSolution:
     """Lowest ``n_modes`` eigenpairs by shift-invert Lanczos (scipy eigsh, ARPACK).
 
     ``groups``: grid index of every DOF, for the fill-reducing ordering of :class:`SymmetricLU`.
+    ``refined``: apply :func:`refine` (callers that refine anyway pass False and get ARPACK's
+    vectors with their Rayleigh quotients).
     """
     n = K.shape[0]
     if n_modes >= n - 1:
@@ -309,6 +311,11 @@ def solve_sparse(K, M, n_modes: int, shift: float | None = None, tol: float = 0.
     else:
         raise EigenSolutionError(f"Lanczos did not converge for {n_modes} modes with shifts "
                                  f"down to {sigma:.3g}")
+    if not refined:
+        vec = _mass_normalize(vec, M)
+        lam = rayleigh_quotients(K, M, vec)
+        order = np.argsort(lam)
+        return EigenSolution(lam[order], vec[:, order])
     # one step with extended-precision quotients: a long cantilever's lowest eigenvalue to
     # 1e-12 - 1e-11 (ARPACK alone: 2e-8; float64 quotients: up to 4e-9)
     return refine(K, M, vec, lu.solve)
@@ -316,11 +323,12 @@ def solve_sparse(K, M, n_modes: int, shift: float | None = None, tol: float = 0.
 
 def lowest_modes(K, M, n_modes: int | None = None, cutoff_hz: float | None = None,
                  extra: int = 0, shift: float | None = None,
-                 groups: np.ndarray | None = None) -> EigenSolution:
+                 groups: np.ndarray | None = None, lu=None,
+                 refined: bool = True) -> EigenSolution:
     """Lowest modes: ``n_modes + extra`` of them, or all below ``cutoff_hz`` (plus ``extra``).
 
     With a cutoff the sparse solver is re-run with a doubled count until the highest returned
-    frequency exceeds the cutoff.
+    frequency exceeds the cutoff. ``lu``: a :class:`SymmetricLU` of K - shift M to reuse.
     """
     n = K.shape[0]
     if (n_modes is None) == (cutoff_hz is None):
@@ -328,13 +336,15 @@ def lowest_modes(K, M, n_modes: int | None = None, cutoff_hz: float | None = Non
     if n <= DENSE_LIMIT:
         sol = solve_dense(K, M, shift=shift)
     elif n_modes is not None:
-        sol = solve_sparse(K, M, min(n_modes + extra, n - 2), shift, groups=groups)
+        sol = solve_sparse(K, M, min(n_modes + extra, n - 2), shift, groups=groups, lu=lu,
+                           refined=refined)
     else:
         sigma = default_shift(K, M) if shift is None else shift
-        lu = SymmetricLU(K - sigma * M, groups)
+        if lu is None:
+            lu = SymmetricLU(K - sigma * M, groups)
         k = max(20, extra + 10)
         while True:
-            sol = solve_sparse(K, M, min(k, n - 2), sigma, lu=lu)
+            sol = solve_sparse(K, M, min(k, n - 2), sigma, lu=lu, refined=refined)
             if sol.frequencies_hz[-1] > cutoff_hz or k >= n - 2:
                 break
             k *= 2
@@ -439,13 +449,15 @@ def free_free_modes(K, M, n_modes: int | None = None, cutoff_hz: float | None = 
     if rigid_vectors is None:
         rigid_vectors = np.zeros((n, 0))
     sigma = default_shift(K, M) if shift is None else shift
-    solve = shifted_solver(K, M, sigma, groups)
+    lu = SymmetricLU(K - sigma * M, groups) if n > DENSE_LIMIT else None
+    solve = lu.solve if lu is not None else shifted_solver(K, M, sigma, groups)
+    # one factorization for Lanczos and the refinement; refined once, after the rigid split
     if n_modes is not None:
         sol = lowest_modes(K, M, n_modes=min(n_modes + r, n), extra=guard, shift=sigma,
-                           groups=groups)
+                           groups=groups, lu=lu, refined=False)
     else:
         sol = lowest_modes(K, M, cutoff_hz=cutoff_hz, extra=r + guard, shift=sigma,
-                           groups=groups)
+                           groups=groups, lu=lu, refined=False)
     rigid, flex, split = separate_rigid_body_modes(K, M, sol.vectors, sol.eigenvalues,
                                                    rigid_vectors, solve)
     if np.any(flex.eigenvalues < 0.0):

@@ -5,14 +5,20 @@ diagonals' cross product); a warped CQUAD4 is projected on that plane (no warpin
 Local DOFs per grid ``[u, v, w, theta_x, theta_y, theta_z]``; the rotation vector theta moves a
 point at height z by ``theta x (0, 0, z)``, i.e. ``u = z theta_y``, ``v = -z theta_x``.
 
-* Membrane: plane stress, ``A = E t / (1 - nu^2) [[1, nu, 0], [nu, 1, 0], [0, 0, (1-nu)/2]]``;
+* Materials: MAT1 (``Q = E / (1 - nu^2) [[1, nu, 0], [nu, 1, 0], [0, 0, (1-nu)/2]]``) or MAT2
+  (Q = [[G11, G12, G13], [G12, G22, G23], [G13, G23, G33]], transverse shear from the MID3
+  MAT2's [[G11, G12], [G12, G22]]), in material axes at THETA from the element x axis or along
+  the projection of the MCID x axis, rotated to the element axes (Jones, Mechanics of
+  Composite Materials, 1999, eq. 2.84). Element x: G1 -> G2 for CTRIA3, the bisector of the
+  diagonals G1 -> G3 and G4 -> G2 for CQUAD4 (NASTRAN's element systems).
+* Membrane: plane stress, ``A = t Q``;
   CQUAD4 bilinear with Wilson-Taylor incompatible modes (QM6, Taylor, Beresford & Wilson,
   IJNME 10, 1976; Jacobian at the centre so it passes the patch test) condensed statically;
   CTRIA3 constant strain.
 * Bending: curvatures ``k_xx = theta_y,x``, ``k_yy = -theta_x,y``, ``k_xy = theta_y,y -
-  theta_x,x``; ``D = (12 I / T^3) E t^3 / (12 (1 - nu^2)) [...]``.
+  theta_x,x``; ``D = (12 I / T^3) t^3 / 12 Q`` (Q of MID2).
 * Transverse shear ``gamma_xz = w,x + theta_y``, ``gamma_yz = w,y - theta_x`` with
-  ``S = (TS/T) G t I``, by mixed interpolation of tensorial components, which removes shear
+  ``S = (TS/T) t G_s``, by mixed interpolation of tensorial components, which removes shear
   locking: CQUAD4 is MITC4 (Dvorkin & Bathe, Eng. Comput. 1, 1984; Bathe, Finite Element
   Procedures, 2014, sec. 5.4.2: covariant gamma_r tied at (0, +-1), gamma_s at (+-1, 0));
   CTRIA3 is MITC3 (Lee & Bathe, Comput. Struct. 82, 2004: covariant components tied at the edge
@@ -20,7 +26,7 @@ point at height z by ``theta x (0, 0, z)``, i.e. ``u = z theta_y``, ``v = -z the
   transverse shear flexibility in NASTRAN) gets ``1e3`` times the shear stiffness of MID2:
   the Kirchhoff limit, which the mixed interpolation reaches without locking.
 * Drilling: Hughes-Brezzi penalty ``gamma_d int (theta_z - omega)^2 dA``, ``omega = (v,x - u,y)/2``
-  (Hughes & Brezzi, CMAME 72, 1989) with ``gamma_d = DRILL * G t``, ``DRILL = 1e-4``, at the
+  (Hughes & Brezzi, CMAME 72, 1989) with ``gamma_d = DRILL * Q_33 t``, ``DRILL = 1e-4``, at the
   2 x 2 (quadrilateral) or 3 edge-midpoint (triangle) points, so no theta_z pattern is free;
   small enough to change membrane frequencies by O(1e-4) at most.
 * Mass: consistent ``int (rho t + nsm) N' N dA`` on the translations and the Mindlin rotary
@@ -47,11 +53,15 @@ def element_frame(xyz: np.ndarray):
     for i in range(n):
         c += xyz[i] / n
     if n == 4:
-        z = np.cross(xyz[2] - xyz[0], xyz[3] - xyz[1])
+        d13 = xyz[2] - xyz[0]
+        d24 = xyz[3] - xyz[1]
+        z = np.cross(d13, d24)
+        # NASTRAN's QUAD4 x axis: bisector of the diagonals G1->G3 and G4->G2
+        x = d13 / np.linalg.norm(d13) - d24 / np.linalg.norm(d24)
     else:
         z = np.cross(xyz[1] - xyz[0], xyz[2] - xyz[0])
+        x = xyz[1] - xyz[0]
     z = z / np.linalg.norm(z)
-    x = xyz[1] - xyz[0]
     x = x - (x @ z) * z
     x = x / np.linalg.norm(x)
     y = np.cross(z, x)
@@ -78,14 +88,35 @@ def _quad_shape(r, s):
 
 
 @njit(cache=True)
-def _materials(E, nu, G, t, bend_ratio, ts_t, shear_rigid):
-    c = E * t / (1 - nu * nu)
-    A = np.array([[c, nu * c, 0.0], [nu * c, c, 0.0], [0.0, 0.0, 0.5 * (1 - nu) * c]])
-    D = A * (bend_ratio * t * t / 12.0)
-    s = ts_t * G * t
-    if shear_rigid:
-        s = NO_SHEAR_FLEXIBILITY * (5.0 / 6.0) * G * t
-    return A, D, s
+def rotate_plane(C, c, s):
+    """C (3x3, Voigt with engineering shear) of axes at angle theta (c, s) in the element axes."""
+    T = np.array([[c * c, s * s, c * s], [s * s, c * c, -c * s],
+                  [-2 * c * s, 2 * c * s, c * c - s * s]])
+    return T.T @ C @ T
+
+
+@njit(cache=True)
+def _materials(p, Lam):
+    """A (membrane), D (bending), S (2x2 transverse shear), drilling modulus, in element axes.
+
+    p: the property row of :func:`shell_batch`. The material axes are at angle THETA from the
+    element x axis, or along the projection of the MCID x axis when one is given.
+    """
+    Gm = p[0:9].copy().reshape(3, 3)
+    Gb = p[9:18].copy().reshape(3, 3)
+    Gs = p[18:22].copy().reshape(2, 2)
+    t, bend_ratio, ts_t, shear_rigid, theta = p[23], p[25], p[26], p[27], p[28]
+    direction = p[29:32]
+    if direction @ direction > 0.0:
+        theta = np.arctan2(direction @ Lam[1], direction @ Lam[0])
+    c, s = np.cos(theta), np.sin(theta)
+    A = rotate_plane(Gm, c, s) * t
+    D = rotate_plane(Gb, c, s) * (bend_ratio * t ** 3 / 12.0)
+    R = np.array([[c, s], [-s, c]])
+    S = R.T @ Gs @ R * (ts_t * t)
+    if shear_rigid > 0.5:
+        S = R.T @ Gs @ R * (NO_SHEAR_FLEXIBILITY * (5.0 / 6.0) * t)
+    return A, D, S, Gm[2, 2] * t
 
 
 @njit(cache=True)
@@ -100,9 +131,8 @@ def _covariant_shear_row(dN_r, N, xr, yr, nn):
 
 
 @njit(cache=True)
-def quad4_local(loc, E, nu, G, rho, t, nsm, bend_ratio, ts_t, shear_rigid, coupled):
+def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled):
     """Local 24 x 24 K and M of a MITC4 / QM6 shell quadrilateral (module docstring)."""
-    A, D, s = _materials(E, nu, G, t, bend_ratio, ts_t, shear_rigid)
     K = np.zeros((24, 24))
     M = np.zeros((24, 24))
     x, y = loc[:, 0], loc[:, 1]
@@ -158,7 +188,7 @@ def quad4_local(loc, E, nu, G, rho, t, nsm, bend_ratio, ts_t, shear_rigid, coupl
             Bs = np.zeros((2, 24))
             Bs[0] = Ji[0, 0] * gr + Ji[0, 1] * gs
             Bs[1] = Ji[1, 0] * gr + Ji[1, 1] * gs
-            Kuu += (Bm.T @ A @ Bm + Bb.T @ D @ Bb + s * (Bs.T @ Bs)) * det
+            Kuu += (Bm.T @ A @ Bm + Bb.T @ D @ Bb + Bs.T @ S @ Bs) * det
             Kua += Bm.T @ A @ Ba * det
             Kaa += Ba.T @ A @ Ba * det
             # drilling: the grids' theta_z against the in-plane rotation, at every point
@@ -167,7 +197,7 @@ def quad4_local(loc, E, nu, G, rho, t, nsm, bend_ratio, ts_t, shear_rigid, coupl
                 bd[6 * i + 5] = N[i]
                 bd[6 * i] += 0.5 * dNx[1, i]
                 bd[6 * i + 1] -= 0.5 * dNx[0, i]
-            Kuu += DRILL * G * t * np.outer(bd, bd) * det
+            Kuu += DRILL * gt * np.outer(bd, bd) * det
             if coupled:
                 for i in range(4):
                     for j in range(4):
@@ -185,9 +215,8 @@ def quad4_local(loc, E, nu, G, rho, t, nsm, bend_ratio, ts_t, shear_rigid, coupl
 
 
 @njit(cache=True)
-def tria3_local(loc, E, nu, G, rho, t, nsm, bend_ratio, ts_t, shear_rigid, coupled):
+def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled):
     """Local 18 x 18 K and M of a MITC3 / CST shell triangle (module docstring)."""
-    A, D, s = _materials(E, nu, G, t, bend_ratio, ts_t, shear_rigid)
     x, y = loc[:, 0], loc[:, 1]
     # N = [1 - r - s, r, s]; constant derivatives
     dN = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])
@@ -228,7 +257,7 @@ def tria3_local(loc, E, nu, G, rho, t, nsm, bend_ratio, ts_t, shear_rigid, coupl
         Bs = np.zeros((2, 18))
         Bs[0] = Ji[0, 0] * gr + Ji[0, 1] * gs
         Bs[1] = Ji[1, 0] * gr + Ji[1, 1] * gs
-        Ks += s * (Bs.T @ Bs) * area / 3.0
+        Ks += (Bs.T @ S @ Bs) * area / 3.0
     K += Ks
     M = np.zeros((18, 18))
     mu = rho * t + nsm
@@ -240,7 +269,7 @@ def tria3_local(loc, E, nu, G, rho, t, nsm, bend_ratio, ts_t, shear_rigid, coupl
             bd[6 * i + 5] = N[i]
             bd[6 * i] += 0.5 * dNx[1, i]
             bd[6 * i + 1] -= 0.5 * dNx[0, i]
-        K += DRILL * G * t * np.outer(bd, bd) * area / 3.0
+        K += DRILL * gt * np.outer(bd, bd) * area / 3.0
         if coupled:
             for i in range(3):
                 for j in range(3):
@@ -256,12 +285,30 @@ def tria3_local(loc, E, nu, G, rho, t, nsm, bend_ratio, ts_t, shear_rigid, coupl
     return 0.5 * (K + K.T), M
 
 
+def isotropic_props(E, nu, rho, t, nsm=0.0, bend_ratio=1.0, ts_t=5.0 / 6.0, shear_rigid=False,
+                    theta=0.0, direction=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """A :func:`shell_batch` property row for one isotropic material (MAT1)."""
+    G = E / (2.0 * (1.0 + nu))
+    c = E / (1.0 - nu * nu)
+    Q = np.array([[c, nu * c, 0.0], [nu * c, c, 0.0], [0.0, 0.0, G]])
+    return property_row(Q, Q, G * np.eye(2), rho, t, nsm, bend_ratio, ts_t, shear_rigid,
+                        theta, direction)
+
+
+def property_row(Gm, Gb, Gs, rho, t, nsm, bend_ratio, ts_t, shear_rigid, theta, direction):
+    return np.concatenate([np.ravel(Gm), np.ravel(Gb), np.ravel(Gs),
+                           [rho, t, nsm, bend_ratio, ts_t, 1.0 if shear_rigid else 0.0, theta],
+                           np.asarray(direction, dtype=float)])
+
+
 @njit(cache=True)
 def shell_batch(xyz, props, coupled):
     """Basic-frame K, M, lumped M of many shells with the same grid count.
 
-    xyz (ne, nn, 3) grid positions; props (ne, 9): E, nu, G, rho, t, nsm, 12I/T^3, TS/T,
-    shear_rigid (0/1). Returns three (ne, 6 nn, 6 nn) arrays in [T; R] order per grid.
+    xyz (ne, nn, 3) grid positions; props (ne, 32): membrane modulus (3x3, plane stress, per
+    unit thickness), bending modulus (3x3), transverse shear modulus (2x2), rho, t, nsm,
+    12I/T^3, TS/T, shear_rigid (0/1), THETA [rad], MCID x axis in basic (3; zero: use THETA).
+    Returns three (ne, 6 nn, 6 nn) arrays in [T; R] order per grid.
     """
     ne, nn = xyz.shape[0], xyz.shape[1]
     nd = 6 * nn
@@ -269,12 +316,14 @@ def shell_batch(xyz, props, coupled):
     Mg = np.empty((ne, nd, nd))
     MLg = np.empty((ne, nd, nd))
     for e in range(ne):
-        E, nu, G, rho, t, nsm, br, ts, rigid = props[e]
+        p = props[e]
+        rho, t, nsm = p[22], p[23], p[24]
         Lam, loc, _ = element_frame(xyz[e])
+        A, D, S, gt = _materials(p, Lam)
         if nn == 4:
-            K, M = quad4_local(loc, E, nu, G, rho, t, nsm, br, ts, rigid > 0.5, coupled)
+            K, M = quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled)
         else:
-            K, M = tria3_local(loc, E, nu, G, rho, t, nsm, br, ts, rigid > 0.5, coupled)
+            K, M = tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled)
         area = 0.0
         for i in range(nn):
             j = (i + 1) % nn

@@ -22,7 +22,7 @@ from numpy.testing import assert_allclose
 
 import decks
 from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
-from dynamics.flex.shells import shell_batch
+from dynamics.flex.shells import isotropic_props, shell_batch
 
 E, NU, RHO = decks.E, decks.NU, decks.RHO
 G = E / (2 * (1 + NU))
@@ -38,7 +38,7 @@ def _patch_matrices(triangles: bool, t: float):
     xyz = np.zeros((len(elems), len(elems[0]), 3))
     for e, conn in enumerate(elems):
         xyz[e, :, :2] = PATCH[list(conn)]
-    props = np.tile([E, NU, G, RHO, t, 0.0, 1.0, 5.0 / 6.0, 0.0], (len(elems), 1))
+    props = np.tile(isotropic_props(E, NU, RHO, t), (len(elems), 1))
     Ke, _, _ = shell_batch(xyz, props, True)
     K = np.zeros((48, 48))
     for e, conn in enumerate(elems):
@@ -143,3 +143,134 @@ def test_cantilever_plate_bending_and_twist_without_locking(write_deck, t):
     leissa = lam / a**2 * np.sqrt(D / (RHO * t)) / (2 * np.pi)
     f = _plate_frequencies(write_deck, 16, 5, t=t, edges="CFFF")
     assert_allclose(f, leissa, rtol=1e-2)
+
+
+def _orthotropic_moduli(E1, E2, nu12, G12):
+    nu21 = nu12 * E2 / E1
+    d = 1.0 - nu12 * nu21
+    return E1 / d, nu12 * E2 / d, E2 / d, G12
+
+
+def mindlin_ss_orthotropic(m, n, a, b, t, Q, Gs, rho, kappa=5.0 / 6.0):
+    """Exact lowest frequency [Hz] of mode (m, n) of a specially orthotropic hard simply
+    supported Mindlin plate (the Navier solution of the isotropic case with D11, D22, D12, D66
+    and the two transverse shear moduli; Reddy, Mechanics of Laminated Composite Plates and
+    Shells, 2004, sec. 7.3)."""
+    al, be = m * np.pi / a, n * np.pi / b
+    D11, D12, D22, D66 = (q * t**3 / 12 for q in Q)
+    S1, S2 = kappa * Gs[0] * t, kappa * Gs[1] * t
+    K = np.array([[S1 * al**2 + S2 * be**2, S1 * al, S2 * be],
+                  [S1 * al, D11 * al**2 + D66 * be**2 + S1, (D12 + D66) * al * be],
+                  [S2 * be, (D12 + D66) * al * be, D66 * al**2 + D22 * be**2 + S2]])
+    Mm = np.diag([rho * t, rho * t**3 / 12, rho * t**3 / 12])
+    return np.sqrt(np.linalg.eigvals(np.linalg.solve(Mm, K)).real.min()) / (2 * np.pi)
+
+
+def _mat2_deck(n, a, b, t, theta=None, swap=False, mcid=False):
+    Q11, Q12, Q22, Q66 = _orthotropic_moduli(1.4e11, 1.0e10, 0.3, 5.0e9)
+    Gs = (5.0e9, 3.0e9)
+    if swap:
+        Q11, Q22 = Q22, Q11
+        Gs = Gs[::-1]
+    text = decks.plate_deck(n, a=a, b=b, t=t)
+    text = text.replace(f"MAT1,1,{E!r},,{NU!r},{RHO!r}",
+                        f"MAT2,1,{Q11!r},{Q12!r},0.0,{Q22!r},0.0,{Q66!r},1600.0\n"
+                        f"MAT2,3,{Gs[0]!r},0.0,0.0,{Gs[1]!r},0.0,1.0,1600.0")
+    text = text.replace("PSHELL,1,1,", "PSHELL,1,1,").replace(f"PSHELL,1,1,{t!r},1,,1",
+                                                              f"PSHELL,1,1,{t!r},1,,3")
+    if theta is not None or mcid:
+        lines = []
+        for ln in text.splitlines():
+            if ln.startswith("CQUAD4"):
+                ln += ",8" if mcid else f",{theta!r}"
+            lines.append(ln)
+        text = "\n".join(lines) + "\n"
+        if mcid:      # material x along basic y
+            text = text.replace("ENDDATA", "CORD2R,8,,0.0,0.0,0.0,0.0,0.0,1.0\n,0.0,1.0,0.0\nENDDATA")
+    return text, (Q11, Q12, Q22, Q66), Gs
+
+
+def test_mat2_orthotropic_plate_against_the_navier_solution(write_deck):
+    a, b, t = 1.0, 0.6, 0.01
+    errs = []
+    for n in (8, 16, 32):
+        text, Q, Gs = _mat2_deck(n, a, b, t)
+        f = _quiet_modes(write_deck, text, 3, f"ortho{n}.dat")
+        exact = np.sort([mindlin_ss_orthotropic(m, k, a, b, t, Q, Gs, 1600.0)
+                         for m, k in ((1, 1), (2, 1), (1, 2), (3, 1), (2, 2))])[:3]
+        errs.append(np.abs(f / exact - 1))
+    errs = np.array(errs)
+    print("orthotropic SS plate errors", errs)
+    assert np.all(errs[-1] < 1e-2)
+    assert np.all(np.log2(errs[-2] / errs[-1]) > 1.9)
+
+
+def test_mat2_axes_by_theta_and_mcid(write_deck):
+    """Material axes turned by THETA = 90 deg (or an MCID whose x axis is basic y) equal the
+    same plate with E1 and E2 (and the shear moduli) swapped."""
+    a, b, t = 1.0, 0.6, 0.01
+    swapped = _quiet_modes(write_deck, _mat2_deck(8, a, b, t, swap=True)[0], 4, "s.dat")
+    turned = _quiet_modes(write_deck, _mat2_deck(8, a, b, t, theta=90.0)[0], 4, "t.dat")
+    mcid = _quiet_modes(write_deck, _mat2_deck(8, a, b, t, mcid=True)[0], 4, "m.dat")
+    assert_allclose(turned, swapped, rtol=1e-10)
+    assert_allclose(mcid, swapped, rtol=1e-10)
+
+
+def test_mat2_with_isotropic_moduli_equals_mat1(write_deck):
+    c = E / (1 - NU**2)
+    text = decks.plate_deck(8, t=0.01).replace(
+        f"MAT1,1,{E!r},,{NU!r},{RHO!r}",
+        f"MAT2,1,{c!r},{NU * c!r},0.0,{c!r},0.0,{G!r},{RHO!r}\nMAT2,3,{G!r},0.0,0.0,{G!r},0.0,1.0")
+    text = text.replace("PSHELL,1,1,0.01,1,,1", "PSHELL,1,1,0.01,1,,3")
+    ref = _quiet_modes(write_deck, decks.plate_deck(8, t=0.01), 4, "i.dat")
+    assert_allclose(_quiet_modes(write_deck, text, 4, "o.dat"), ref, rtol=1e-12)
+
+
+def _quiet_modes(write_deck, text, count, name):
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fem2modal(write_deck(text, name), Fem2ModalOptions(n_modes=count)).frequencies_hz
+
+
+def _ring_deck(n, radius=1.0, length=0.05, t=0.01):
+    """Cylinder slice, n CQUAD4 around, one along z, nu = 0, axial translation held: the
+    in-plane modes of a thin ring."""
+    lines = ["PARAM,COUPMASS,1"]
+    for k in range(n):
+        phi = 2 * np.pi * k / n
+        x, y = float(radius * np.cos(phi)), float(radius * np.sin(phi))
+        lines.append(f"GRID,{k + 1},,{x!r},{y!r},0.0,,3")
+        lines.append(f"GRID,{n + k + 1},,{x!r},{y!r},{length!r},,3")
+    lines.append(f"MAT1,1,{E!r},,0.0,{RHO!r}")
+    lines.append(f"PSHELL,1,1,{t!r},1,,1")
+    for k in range(n):
+        k2 = (k + 1) % n
+        lines.append(f"CQUAD4,{k + 1},1,{k + 1},{k2 + 1},{n + k2 + 1},{n + k + 1}")
+    return "\n".join(lines + ["ENDDATA"]) + "\n"
+
+
+def test_cylindrical_shell_ring_modes_converge(write_deck):
+    """Flat facets on a curved surface (drilling DOFs at every fold): the inextensional modes of
+    a thin ring, omega_n^2 = E I n^2 (n^2 - 1)^2 / (rho A R^4 (n^2 + 1)) (Soedel, Vibrations of
+    Shells and Plates, 3rd ed., 2004, eq. 5.3.12; Love), n = 2, 3, 4. Each n is a pair; the
+    three rigid motions in the plane come out as rigid-body modes."""
+    R, Lz, t = 1.0, 0.05, 0.01
+    I, A = Lz * t**3 / 12, Lz * t
+    n = np.array([2.0, 3.0, 4.0])
+    exact = np.sqrt(E * I * n**2 * (n**2 - 1) ** 2 / (RHO * A * R**4 * (n**2 + 1))) / (2 * np.pi)
+    errs = []
+    for count in (32, 64, 128):
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            body = fem2modal(write_deck(_ring_deck(count, R, Lz, t), f"ring{count}.dat"),
+                             Fem2ModalOptions(n_modes=6))
+        assert body.n_rigid_modes_removed == 3
+        f = body.frequencies_hz
+        assert_allclose(f[0::2], f[1::2], rtol=1e-8)          # cos / sin pairs
+        errs.append(np.abs(f[0::2] / exact - 1))
+    errs = np.array(errs)
+    print("ring errors", errs)
+    assert np.all(errs[-1] < 1e-2)
+    assert np.all(np.log2(errs[-2] / errs[-1]) > 1.8)

@@ -48,9 +48,10 @@ def test_100k_dof_free_plate_100_modes(write_deck):
           f"solve, refine, shapes), bare eigsh {t_eigsh:.1f} s, peak RSS {peak_mb:.0f} MB; "
           f"f1 {body.frequencies_hz[0]:.6g} Hz, f100 {body.frequencies_hz[-1]:.6g} Hz")
     # same matrices. ARPACK's own eigenvalues of the bare call are up to 1.5e-7 above the
-    # pipeline's refined ones (measured); the Rayleigh quotients of the bare call's vectors,
-    # which are accurate to the square of the vectors' error, agree with the pipeline closely
+    # pipeline's refined ones, the Rayleigh quotients of its vectors up to 5e-9 (measured);
+    # both are upper bounds of the lowest eigenvalue, and the pipeline's is the lower
     assert_allclose(body.frequencies_hz, bare, rtol=5e-7)
-    assert_allclose(body.frequencies_hz, bare_rq, rtol=1e-9)
+    assert_allclose(body.frequencies_hz, bare_rq, rtol=5e-8)
+    assert body.frequencies_hz[0] <= bare_rq[0] * (1 + 1e-13)
     assert body.n_rigid_modes_removed == 6
     assert t_pipeline < 4 * t_eigsh + 30.0
