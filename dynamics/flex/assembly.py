@@ -447,8 +447,6 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
 def _shell_data(bulk, elem, ctx, wt, idx, sections):
     """(grid rows, property row of :func:`shells.shell_batch`) of one CQUAD4/CTRIA3."""
     model = bulk.model
-    if float(elem.zoffset or 0.0) != 0.0:
-        raise BulkDataError(f"{ctx}: ZOFFS = {elem.zoffset}; shell offsets are not supported")
     rows = [idx(int(g), ctx) for g in elem.nodes]
     if len(set(rows)) != len(rows):
         raise BulkDataError(f"{ctx}: repeated grid (degenerate element)")
@@ -474,7 +472,7 @@ def _shell_data(bulk, elem, ctx, wt, idx, sections):
     elif orient is not None:
         theta = np.radians(float(orient))
     return rows, shell_props(Gm, Gb, Gs, rho * wt, t, nsm * wt, bend, ts, rigid, theta,
-                             direction)
+                             direction, float(elem.zoffset or 0.0))
 
 
 def _plane_modulus(model, mid: int, context: str):

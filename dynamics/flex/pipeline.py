@@ -254,7 +254,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
         sm = assemble(bulk, separate_lumped=options.separate_lumped, progress=say,
                       interface=options.aset)
     say(f"g-set {sm.stiffness_g.shape[0]} DOFs, f-set {len(sm.f_dofs)} DOFs "
-        f"(RBE2 dependent {sm.rbe2_dependent_count}, SPC {sm.spc_count}, "
+        f"(RBE2/RBE3 dependent {sm.rbe2_dependent_count}, SPC + PS {sm.spc_count}, "
         f"AUTOSPC {sm.autospc_count})")
     K = sm.stiffness_f()
     M = sm.mass_f()

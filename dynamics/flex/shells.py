@@ -29,6 +29,8 @@ point at height z by ``theta x (0, 0, z)``, i.e. ``u = z theta_y``, ``v = -z the
   (Hughes & Brezzi, CMAME 72, 1989) with ``gamma_d = DRILL * Q_33 t``, ``DRILL = 1e-4``, at the
   2 x 2 (quadrilateral) or 3 edge-midpoint (triangle) points, so no theta_z pattern is free;
   small enough to change membrane frequencies by O(1e-4) at most.
+* ZOFFS: the element's reference plane lies ZOFFS along its normal from the grids, joined to
+  them by rigid links (``u = u_grid + theta x (0, 0, ZOFFS)``, as NASTRAN's shell offset).
 * Mass: consistent ``int (rho t + nsm) N' N dA`` on the translations and the Mindlin rotary
   inertia ``rho t^3 / 12`` on theta_x, theta_y (none on theta_z, as NASTRAN); lumped: the
   element's translational mass shared equally by its grids (NASTRAN COUPMASS <= 0).
@@ -286,19 +288,20 @@ def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled):
 
 
 def isotropic_props(E, nu, rho, t, nsm=0.0, bend_ratio=1.0, ts_t=5.0 / 6.0, shear_rigid=False,
-                    theta=0.0, direction=(0.0, 0.0, 0.0)) -> np.ndarray:
+                    theta=0.0, direction=(0.0, 0.0, 0.0), zoffset=0.0) -> np.ndarray:
     """A :func:`shell_batch` property row for one isotropic material (MAT1)."""
     G = E / (2.0 * (1.0 + nu))
     c = E / (1.0 - nu * nu)
     Q = np.array([[c, nu * c, 0.0], [nu * c, c, 0.0], [0.0, 0.0, G]])
     return property_row(Q, Q, G * np.eye(2), rho, t, nsm, bend_ratio, ts_t, shear_rigid,
-                        theta, direction)
+                        theta, direction, zoffset)
 
 
-def property_row(Gm, Gb, Gs, rho, t, nsm, bend_ratio, ts_t, shear_rigid, theta, direction):
+def property_row(Gm, Gb, Gs, rho, t, nsm, bend_ratio, ts_t, shear_rigid, theta, direction,
+                 zoffset=0.0):
     return np.concatenate([np.ravel(Gm), np.ravel(Gb), np.ravel(Gs),
                            [rho, t, nsm, bend_ratio, ts_t, 1.0 if shear_rigid else 0.0, theta],
-                           np.asarray(direction, dtype=float)])
+                           np.asarray(direction, dtype=float), [zoffset]])
 
 
 @njit(cache=True)
@@ -307,7 +310,8 @@ def shell_batch(xyz, props, coupled):
 
     xyz (ne, nn, 3) grid positions; props (ne, 32): membrane modulus (3x3, plane stress, per
     unit thickness), bending modulus (3x3), transverse shear modulus (2x2), rho, t, nsm,
-    12I/T^3, TS/T, shear_rigid (0/1), THETA [rad], MCID x axis in basic (3; zero: use THETA).
+    12I/T^3, TS/T, shear_rigid (0/1), THETA [rad], MCID x axis in basic (3; zero: use THETA),
+    ZOFFS (the reference plane's offset from the grids along the element normal).
     Returns three (ne, 6 nn, 6 nn) arrays in [T; R] order per grid.
     """
     ne, nn = xyz.shape[0], xyz.shape[1]
@@ -335,6 +339,12 @@ def shell_batch(xyz, props, coupled):
         T = np.zeros((nd, nd))
         for i in range(2 * nn):
             T[3 * i:3 * i + 3, 3 * i:3 * i + 3] = Lam
+        zoff = p[32]
+        if zoff != 0.0:
+            # rigid offset along the normal: u_plane = u_grid + theta x (0, 0, zoff)
+            for i in range(nn):
+                T[6 * i, :] += zoff * T[6 * i + 4, :]
+                T[6 * i + 1, :] -= zoff * T[6 * i + 3, :]
         Kg[e] = T.T @ K @ T
         Mg[e] = T.T @ M @ T
         MLg[e] = T.T @ ML @ T

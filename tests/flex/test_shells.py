@@ -274,3 +274,36 @@ def test_cylindrical_shell_ring_modes_converge(write_deck):
     print("ring errors", errs)
     assert np.all(errs[-1] < 1e-2)
     assert np.all(np.log2(errs[-2] / errs[-1]) > 1.8)
+
+
+def test_zoffs_equals_rigid_links_to_offset_grids(write_deck):
+    """A stiffened cantilever plate (CBAR stiffener on the grids along its centre line) whose
+    CQUAD4s carry ZOFFS = 0.02 equals the plate meshed on grids moved 0.02 along z and joined to
+    the original grids by RBE2s; the offset makes a T-section, so it changes the frequencies
+    (a uniform offset alone would only translate the whole plate)."""
+    n, z = 4, 0.02
+    base = decks.plate_deck(n, t=0.01, edges="CFFF", in_plane_held=False)
+    row = [1 + i + (n + 1) * (n // 2) for i in range(n + 1)]
+    stiffener = ["PBAR,7,1,4e-4,2e-8,2e-8,4e-8"] + [
+        f"CBAR,{900 + i},7,{a},{b},0.0,1.0,0.0" for i, (a, b) in enumerate(zip(row, row[1:]))]
+    base = base.replace("ENDDATA", "\n".join(stiffener) + "\nENDDATA")
+    offset = "\n".join(ln + f",,{z!r}" if ln.startswith("CQUAD4") else ln
+                       for ln in base.splitlines()) + "\n"
+    linked = []
+    for ln in base.splitlines():
+        if ln.startswith("GRID"):
+            f = ln.split(",")
+            gid = int(f[1])
+            linked.append(ln)
+            linked.append(f"GRID,{gid + 1000},,{f[3]},{f[4]},{z!r}")
+            linked.append(f"RBE2,{gid + 5000},{gid},123456,{gid + 1000}")
+        elif ln.startswith("CQUAD4") and not ln.startswith("CBAR"):
+            f = ln.split(",")
+            linked.append(",".join(f[:3] + [str(int(g) + 1000) for g in f[3:7]]))
+        else:
+            linked.append(ln)
+    a = _quiet_modes(write_deck, offset, 8, "zoffs.dat")
+    b = _quiet_modes(write_deck, "\n".join(linked) + "\n", 8, "linked.dat")
+    assert_allclose(a, b, rtol=1e-10)
+    plain = _quiet_modes(write_deck, base, 8, "plain.dat")
+    assert np.max(np.abs(a / plain - 1)) > 1e-3          # the offset does change the plate
