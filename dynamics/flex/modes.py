@@ -15,8 +15,7 @@ was 2e-8 off; refined, it agrees with a 40-digit solution of the same matrices t
 (tests/flex/test_defects.py).
 
 Rigid-body modes are the span of the geometry's rigid-body vectors, not modes below a
-frequency threshold (:func:`free_free_modes`); FModal's rigid_body_mode_thresh is kept only for
-bare matrix pairs (:func:`split_rigid`).
+frequency threshold (:func:`free_free_modes`, :func:`separate_rigid_body_modes`).
 """
 
 from __future__ import annotations
@@ -91,7 +90,7 @@ def _sign_convention(vectors: np.ndarray) -> np.ndarray:
     return vectors * signs
 
 
-def _massless_rows(M) -> np.ndarray:
+def massless_dofs(M) -> np.ndarray:
     """True for DOFs whose row of M is zero (to round-off)."""
     row = np.asarray(abs(M).sum(axis=1)).ravel()
     return row <= 1e-14 * max(row.max(initial=0.0), 1e-300)
@@ -107,7 +106,7 @@ def solve_dense(K: np.ndarray, M: np.ndarray, n_modes: int | None = None,
     """
     K = np.asarray(K.toarray() if sp.issparse(K) else K, dtype=float)
     M = np.asarray(M.toarray() if sp.issparse(M) else M, dtype=float)
-    o = _massless_rows(M)
+    o = massless_dofs(M)
     if not np.any(o) or np.all(o):
         return _solve_dense_pencil(K, M, n_modes, shift)
     a = ~o
@@ -358,40 +357,61 @@ def lowest_modes(K, M, n_modes: int | None = None, cutoff_hz: float | None = Non
     return EigenSolution(sol.eigenvalues[:count], sol.vectors[:, :count])
 
 
-def split_rigid(sol: EigenSolution, threshold_hz: float) -> tuple[EigenSolution, EigenSolution]:
-    """(modes with |f| < threshold, the others): for matrix pairs without geometry only."""
-    rigid = np.abs(sol.frequencies_hz) < threshold_hz
-    return (EigenSolution(sol.eigenvalues[rigid], sol.vectors[:, rigid]),
-            EigenSolution(sol.eigenvalues[~rigid], sol.vectors[:, ~rigid]))
-
-
 @dataclass
 class RigidSplit:
-    """How the rigid-body modes were told from the flexible ones (for the report).
+    """How the rigid-body (and mechanism) modes were told from the flexible ones.
 
     n_rigid : dimension of the rigid-body space given by the geometry.
-    computed_rigid_hz : largest |f| the eigen-solver returned for modes in that space (round-off).
-    first_flexible_hz : lowest flexible frequency; gap = first_flexible_hz / computed_rigid_hz.
-    alignment : smallest cosine between the lowest n_rigid computed modes and the rigid space
-        (1 when the eigen-solver's lowest modes are the rigid-body motions).
+    n_mechanisms : further zero-energy modes (a pin or free hinge inside the FE model).
+    computed_rigid_hz : largest |f| the eigen-solver returned for the rigid-body modes (round-off).
+    zero_hz : the frequency below which a mode counts as zero-energy (module docstring).
+    mechanism_hz : largest |f| of the mechanism modes removed (0 without any).
+    first_flexible_hz : lowest flexible frequency kept; gap = first_flexible_hz / the largest
+        zero-energy frequency.
+    alignment : smallest cosine between the rigid space and the eigen-solver's lowest modes
+        (1 when they contain the rigid-body motions).
     """
 
     n_rigid: int
     computed_rigid_hz: float
     first_flexible_hz: float
     alignment: float
+    n_mechanisms: int = 0
+    mechanism_hz: float = 0.0
+    zero_hz: float = 0.0
 
     @property
     def gap(self) -> float:
-        return self.first_flexible_hz / max(self.computed_rigid_hz, 1e-300)
+        return self.first_flexible_hz / max(self.computed_rigid_hz, self.mechanism_hz, 1e-300)
 
     def line(self) -> str:
-        if self.n_rigid == 0:
+        if self.n_rigid == 0 and self.n_mechanisms == 0:
             return "no rigid-body motion is free (the constraints or springs hold the body)"
-        return (f"{self.n_rigid} rigid-body modes from the geometry (free translations and "
+        text = (f"{self.n_rigid} rigid-body modes from the geometry (free translations and "
                 f"rotations the constraints allow, no strain energy); the eigen-solver's "
-                f"{self.n_rigid} lowest modes reach {self.computed_rigid_hz:.3g} Hz (round-off), "
-                f"first flexible {self.first_flexible_hz:.6g} Hz, gap {self.gap:.3g}")
+                f"{self.n_rigid} lowest modes reach {self.computed_rigid_hz:.3g} Hz (round-off)")
+        if self.n_mechanisms:
+            text += (f"; {self.n_mechanisms} mechanism mode(s) (zero-energy motion that is not "
+                     f"rigid: a pin or free hinge in the FE model) below the zero level "
+                     f"{self.zero_hz:.3g} Hz, the largest at {self.mechanism_hz:.3g} Hz, removed "
+                     "with them")
+        return text + f"; first flexible {self.first_flexible_hz:.6g} Hz, gap {self.gap:.3g}"
+
+
+def stiffness_scale(K, M) -> float:
+    """Largest diagonal stiffness-to-mass ratio over DOFs with mass (>= 1e-6 of the largest):
+    the scale of the round-off of every computed eigenvalue (~1e-16 of it)."""
+    kd = np.abs(K.diagonal())
+    md = np.abs(M.diagonal())
+    mask = md > 1e-6 * md.max(initial=0.0)
+    return float(np.max(kd[mask] / md[mask])) if np.any(mask) else 1.0
+
+
+# A flexible Ritz value below ZERO_RELATIVE x stiffness_scale (or below 1e3 x the round-off the
+# geometric rigid-body modes showed) is a zero-energy mode: computed zero eigenvalues sit at
+# ~1e-16 - 1e-15 of the scale (1.3e-3 Hz for a 100k-DOF plate whose scale puts this level at
+# 0.02 Hz and whose first mode is at 6.5 Hz).
+ZERO_RELATIVE = 1e-13
 
 
 def separate_rigid_body_modes(K, M, vectors: np.ndarray, eigenvalues: np.ndarray,
@@ -402,7 +422,8 @@ def separate_rigid_body_modes(K, M, vectors: np.ndarray, eigenvalues: np.ndarray
     body modes. The rigid-body modes returned are ``rigid_vectors`` M-orthonormalized (eigenvalue
     zero); the flexible ones are the refined Ritz pairs (:func:`refine`) of the computed vectors
     projected on the M-orthogonal complement, so no rigid-body motion leaks into them and no
-    near-zero round-off mode is kept as flexible, whatever its frequency.
+    near-zero round-off mode is kept as flexible, whatever its frequency. Ritz pairs at the zero
+    level (``ZERO_RELATIVE``) are mechanism modes: returned after the rigid-body ones.
     """
     r = rigid_vectors.shape[1]
     if r:
@@ -417,20 +438,28 @@ def separate_rigid_body_modes(K, M, vectors: np.ndarray, eigenvalues: np.ndarray
         W = _mass_normalize(vectors, M)
         _, _, Vt = np.linalg.svd(Phi_r.T @ (M @ W), full_matrices=True)
         W = W @ Vt[r:].T
+        computed = float(np.sqrt(np.abs(eigenvalues[:r]).max()) / TWO_PI)
     else:
         Phi_r = np.zeros((K.shape[0], 0))
         W = vectors
+        computed = 0.0
     flex = refine(K, M, W, solve, Phi_r)
+    zero = max(ZERO_RELATIVE * stiffness_scale(K, M), 1e3 * (TWO_PI * computed) ** 2)
+    mech = np.abs(flex.eigenvalues) <= zero
+    m = int(mech.sum())
+    mech_hz = float(np.abs(flex.frequencies_hz[mech]).max()) if m else 0.0
     if r:
-        low = _mass_normalize(vectors[:, :r], M)
+        low = _mass_normalize(vectors[:, :r + m], M)
         cosines = np.linalg.svd(Phi_r.T @ (M @ low), compute_uv=False)
         alignment = float(cosines.min())
-        computed = float(np.sqrt(np.abs(eigenvalues[:r]).max()) / TWO_PI)
     else:
-        alignment, computed = 1.0, 0.0
+        alignment = 1.0
+    rigid = EigenSolution(np.concatenate([np.zeros(r), flex.eigenvalues[mech]]),
+                          np.hstack([Phi_r, flex.vectors[:, mech]]))
+    flex = EigenSolution(flex.eigenvalues[~mech], flex.vectors[:, ~mech])
     first = float(flex.frequencies_hz[0]) if len(flex.eigenvalues) else float("inf")
-    rigid = EigenSolution(np.zeros(r), Phi_r)
-    return rigid, flex, RigidSplit(r, computed, first, alignment)
+    return rigid, flex, RigidSplit(r, computed, first, alignment, m, mech_hz,
+                                   float(np.sqrt(zero) / TWO_PI))
 
 
 def free_free_modes(K, M, n_modes: int | None = None, cutoff_hz: float | None = None,
@@ -451,7 +480,8 @@ def free_free_modes(K, M, n_modes: int | None = None, cutoff_hz: float | None = 
     sigma = default_shift(K, M) if shift is None else shift
     lu = SymmetricLU(K - sigma * M, groups) if n > DENSE_LIMIT else None
     solve = lu.solve if lu is not None else shifted_solver(K, M, sigma, groups)
-    # one factorization for Lanczos and the refinement; refined once, after the rigid split
+    # one factorization for Lanczos and the refinement; refined once, after the rigid split.
+    # ``guard`` also covers up to that many mechanism modes (a pin in the FE model).
     if n_modes is not None:
         sol = lowest_modes(K, M, n_modes=min(n_modes + r, n), extra=guard, shift=sigma,
                            groups=groups, lu=lu, refined=False)

@@ -31,7 +31,7 @@ from dynamics.flex.bulk_data import BulkData, BulkDataError, read_bulk_data
 from dynamics.flex.component_modes import craig_bampton, normalized_component_modes
 from dynamics.flex.mass_properties import rigid_body_mass_properties
 from dynamics.flex.modal_integrals import modal_integrals, point_mass_integrals
-from dynamics.flex.modes import RigidSplit, _massless_rows, free_free_modes
+from dynamics.flex.modes import RigidSplit, massless_dofs, free_free_modes
 from dynamics.flex.residual_vectors import append_residual_vectors, residual_vectors
 
 
@@ -201,15 +201,22 @@ def _check_central_inertia(deck, mass: float, cm: np.ndarray, inertia_ref: np.nd
 def _check_split(deck, split: RigidSplit, flex, threshold_hz) -> None:
     """Warnings for a rigid/flexible split that the spectrum does not confirm."""
     if split.n_rigid and split.alignment < 0.999:
+        # (the lowest n_rigid + n_mechanisms computed modes should contain the rigid space)
         warnings.warn(f"{deck}: the {split.n_rigid} lowest computed modes are not the "
                       f"rigid-body motions of the geometry (smallest cosine "
                       f"{split.alignment:.3g}): the structure has a zero-energy mechanism or a "
                       "flexible mode near zero frequency; the flexible set is what remains "
                       "M-orthogonal to the rigid-body motions", stacklevel=3)
-    elif split.n_rigid and split.gap < 1e3:
-        warnings.warn(f"{deck}: rigid-body round-off ({split.computed_rigid_hz:.3g} Hz) is within "
-                      f"a factor {split.gap:.3g} of the first flexible mode "
-                      f"({split.first_flexible_hz:.3g} Hz); its frequency may be inaccurate",
+    elif (split.n_rigid or split.n_mechanisms) and split.gap < 1e3:
+        warnings.warn(f"{deck}: the zero-energy modes (largest "
+                      f"{max(split.computed_rigid_hz, split.mechanism_hz):.3g} Hz) are within a "
+                      f"factor {split.gap:.3g} of the first flexible mode "
+                      f"({split.first_flexible_hz:.3g} Hz): the split is not clear-cut and the "
+                      "lowest flexible frequency may be inaccurate", stacklevel=3)
+    if split.n_mechanisms:
+        warnings.warn(f"{deck}: {split.n_mechanisms} mechanism mode(s) (zero-energy motion that "
+                      "is not a rigid-body motion, e.g. a pin or free hinge in the FE model) "
+                      "removed with the rigid-body modes; a scene needs a hinge for each",
                       stacklevel=3)
     if threshold_hz is not None and len(flex.eigenvalues) and \
             flex.frequencies_hz[0] < threshold_hz:
@@ -258,7 +265,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
         f"AUTOSPC {sm.autospc_count})")
     K = sm.stiffness_f()
     M = sm.mass_f()
-    n_massless = int(np.sum(_massless_rows(M)))
+    n_massless = int(np.sum(massless_dofs(M)))
     if n_massless:
         say(f"{n_massless} f-set DOFs carry no mass (e.g. lumped-mass rotations): dense solves "
             "condense them statically, the shift-invert Lanczos never returns their infinite "
@@ -310,8 +317,8 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
         mode_set = "free-free"
     n_rigid = len(rigid.eigenvalues)
     rigid_vectors = rigid.vectors if n_rigid else None
-    say(f"{len(flex.eigenvalues)} flexible modes, {n_rigid} rigid-body modes removed: "
-        + split.line())
+    say(f"{len(flex.eigenvalues)} flexible modes, {n_rigid} rigid-body and mechanism modes "
+        "removed: " + split.line())
     _check_split(deck, split, flex, options.rigid_threshold_hz)
 
     n_residual = 0

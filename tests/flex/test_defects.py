@@ -208,3 +208,25 @@ def test_mounting_warnings_for_component_modes(write_deck):
     assert any("duplicates" in w for w in body.mounting_warnings(1, "free"))
     free = _quiet(fem2modal, deck, Fem2ModalOptions(n_modes=4))
     assert free.mounting_warnings(None, "free") == []
+
+
+def test_a_pin_inside_the_model_is_a_mechanism_mode_not_a_flexible_one(write_deck):
+    """Two CBEAM beams joined by an RBE2 on components 12345 (a pin about z): six rigid-body modes
+    from the geometry plus one zero-energy mechanism, removed together and reported (the run
+    stopped on 'negative eigenvalue' before). Flexible modes against dense LAPACK on the same
+    matrices (Rayleigh quotients; its seven lowest are the zero-energy ones)."""
+    second = "\n".join(f"GRID,{1001 + i},,{2.0 + 0.25 * i!r},0.0,0.0" for i in range(9))
+    second += "\n" + "\n".join(f"CBEAM,{2001 + i},10,{1001 + i},{1002 + i},0.0,1.0,0.0"
+                               for i in range(8))
+    pin = second + "\nRBE2,5001,9,12345,1001"
+    deck = decks.beam_deck(8, 2.0, card="CBEAM", extra=pin)
+    with pytest.warns(UserWarning, match="1 mechanism mode"):
+        body = fem2modal(write_deck(deck, "pin.dat"), Fem2ModalOptions(n_modes=4))
+    assert body.n_rigid_modes_removed == 7
+    sm = _quiet(assemble, read_bulk_data(write_deck(deck, "pin2.dat")))
+    K, M = sm.stiffness_f().toarray(), sm.mass_f().toarray()
+    lam, vec = sla.eigh(K, M, subset_by_index=[0, 10])
+    rq = np.einsum("ij,ij->j", vec, K @ vec) / np.einsum("ij,ij->j", vec, M @ vec)
+    assert np.abs(rq[:7]).max() < 1e-9 * rq[7]
+    assert_allclose(body.frequencies_hz, np.sqrt(rq[7:11]) / (2 * np.pi), rtol=1e-9)
+    assert_allclose(body.modal_mass, np.eye(4), atol=1e-10)
