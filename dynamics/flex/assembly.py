@@ -2,9 +2,23 @@
 
 Set names follow NASTRAN: the g-set holds 6 DOFs per grid (``[T1 T2 T3 R1 R2 R3]`` in the
 grid's displacement frame CD, grids in ascending ID order); eliminating RBE2 dependent DOFs
-gives the n-set; removing single-point constraints (SPC/SPC1, plus AUTOSPC of DOFs that carry
-neither stiffness nor mass) gives the f-set on which the eigen-problems are solved. One sparse
-matrix ``T_gf`` (g x f) carries all of it: ``u_g = T_gf u_f``, ``K_ff = T_gf' K_gg T_gf``.
+gives the n-set; removing single-point constraints (SPC/SPC1, GRID PS, plus AUTOSPC of DOFs that
+carry neither stiffness nor mass) gives the f-set on which the eigen-problems are solved. One
+sparse matrix ``T_gf`` (g x f) carries all of it: ``u_g = T_gf u_f``, ``K_ff = T_gf' K_gg T_gf``.
+
+Massless mechanisms: a motion of the massless DOFs (zero rows of M_ff) with no strain energy,
+such as the spin of a lumped-mass CBAR line about its own axis, has neither mass nor stiffness,
+so K - sigma M is singular for every sigma. For a positive semi-definite K such a motion z
+satisfies K_oo z = 0 on the massless set o, and then K z = 0 and M z = 0 on the whole f-set. The
+null space of K_oo is found and one DOF per null vector (the largest entries, by a pivoted QR)
+is held, as NASTRAN's AUTOSPC does for grid-point singularities; any complement of the null
+space gives the same strain and kinetic energy, so no frequency or mass property changes. The
+held DOFs are reported in :attr:`StructuralModel.mechanisms`.
+
+Rigid-body vectors of the geometry (:meth:`StructuralModel.rigid_body_vectors`): for every
+connected part, the six motions ``u = t + theta x (x - x_c)``, ``rotation = theta`` of its
+grids, rotated to the CD frames, restricted to the combinations that carry no strain energy
+(round-off relative to the absolute-value energy |D|' |K| |D|) and have mass.
 
 Elements are assembled in the basic frame and rotated to the CD frames afterwards
 (``K_gg = R' K_basic R`` with R block-diagonal per grid); CELAS springs act on CD components
@@ -20,6 +34,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from dynamics.flex import elements as el
+from dynamics.flex import solids
+from dynamics.flex.shells import property_row as shell_props
+from dynamics.flex.shells import shell_batch
 from dynamics.flex.bulk_data import (BulkData, BulkDataError, displacement_frame_rotation,
                                       vector_to_basic)
 
@@ -57,6 +74,8 @@ class StructuralModel:
     autospc_count: int = 0
     spc_count: int = 0
     rbe2_dependent_count: int = 0
+    spc_dofs: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    mechanisms: list = field(default_factory=list)
 
     @property
     def grid_ids(self) -> np.ndarray:
@@ -73,6 +92,66 @@ class StructuralModel:
     def mass_f(self) -> sp.csr_matrix:
         T = self.T_gf
         return (T.T @ self.mass_g @ T).tocsr()
+
+    def describe_g(self, g: int) -> str:
+        return f"grid {self.grid_ids[g // 6]} component {g % 6 + 1}"
+
+    def rigid_body_vectors(self, stiffness_f=None, mass_f=None,
+                           energy_tol: float = 1e-10) -> np.ndarray:
+        """(n_f, r) f-set rigid-body motions that the constraints allow and K does not resist.
+
+        Per connected part of the structure (grids joined by K_f or M_f), the six motions
+        ``u = t + theta x (x - x_c)``, ``rotation = theta`` (rotations scaled by the part's size
+        so the columns are comparable) restricted to the free DOFs; combinations that vanish
+        there (all their DOFs held) are dropped, and a combination is rigid when its strain
+        energy is below ``energy_tol`` times its absolute-value energy |D|' |K| |D| (round-off
+        of K D is ~1e-16 of the latter; an element to a held DOF or a grounded CELAS spring
+        gives an O(1) fraction). Parts without mass (mechanisms) give no vector.
+        """
+        from scipy.sparse.csgraph import connected_components
+        K = self.stiffness_f() if stiffness_f is None else sp.csr_matrix(stiffness_f)
+        M = self.mass_f() if mass_f is None else sp.csr_matrix(mass_f)
+        nf = len(self.f_dofs)
+        grid_of = self.f_dofs // 6
+        C = (abs(K) + abs(M)).tocoo()
+        ng = self.n_grids
+        G = sp.csr_matrix((np.ones(C.nnz), (grid_of[C.row], grid_of[C.col])), shape=(ng, ng))
+        _, part = connected_components(G, directed=False)
+        pos = self.bulk.positions
+        Rcd = self.bulk.displacement_rotation
+        out = []
+        for label in np.unique(part[grid_of]):
+            rows = np.nonzero(part[grid_of] == label)[0]
+            grids = np.unique(grid_of[rows])
+            center = pos[grids].mean(axis=0)
+            size = max(float(np.max(np.abs(pos[grids] - center))), 1e-12)
+            r = (pos - center) / size
+            D = np.zeros((ng, 6, 6))
+            D[:, :3, :3] = np.eye(3)
+            D[:, 0, 4], D[:, 0, 5] = r[:, 2], -r[:, 1]      # theta x r
+            D[:, 1, 3], D[:, 1, 5] = -r[:, 2], r[:, 0]
+            D[:, 2, 3], D[:, 2, 4] = r[:, 1], -r[:, 0]
+            D[:, 3:, 3:] = np.eye(3) / size
+            D[:, :3] = np.einsum("nba,nbk->nak", Rcd, D[:, :3])
+            D[:, 3:] = np.einsum("nba,nbk->nak", Rcd, D[:, 3:])
+            Dc = np.zeros((nf, 6))
+            Dc[rows] = D.reshape(6 * ng, 6)[self.f_dofs[rows]]
+            U, sv, _ = np.linalg.svd(Dc[rows], full_matrices=False)
+            Dc = np.zeros((nf, int(np.sum(sv > 1e-8 * sv.max(initial=0.0)))))
+            if Dc.shape[1] == 0:
+                continue
+            Dc[rows] = U[:, :Dc.shape[1]]
+            absolute = np.abs(Dc).T @ (abs(K) @ np.abs(Dc))
+            scale = np.sqrt(np.maximum(np.diag(absolute), 1e-300))
+            E = (Dc.T @ (K @ Dc)) / np.outer(scale, scale)
+            w, V = np.linalg.eigh(0.5 * (E + E.T))
+            Dr = Dc @ V[:, np.abs(w) <= energy_tol]
+            if Dr.shape[1] == 0:
+                continue
+            Mr = Dr.T @ (M @ Dr)
+            w, V = np.linalg.eigh(0.5 * (Mr + Mr.T))
+            out.append(Dr @ V[:, w > 1e-12 * max(w.max(initial=0.0), 1e-300)])
+        return np.hstack(out) if out else np.zeros((nf, 0))
 
     def dof_index(self, grid_id: int, component: int, context: str) -> int:
         """g-set index of (grid, component 1..6)."""
@@ -157,7 +236,34 @@ def _property(model, pid: int, kinds: tuple, context: str):
     return prop
 
 
+def _round_section(prop, context: str):
+    """A, I1, I2, J of a PBARL/PBEAML ROD (DIM1 = radius): the closed forms of a circle.
+
+    NASTRAN gives these sections transverse shear flexibility with a shear area factor; 0.9
+    for ROD reproduces MSC Nastran's eigenvalues of the pyNastran beam_modes model to its
+    printed 7 digits (tests/flex/test_nastran_reference.py). Other shapes are refused until
+    their factor is verified the same way.
+    """
+    kind = str(prop.Type).strip().upper()
+    dims = np.asarray(prop.dim, dtype=float)
+    if dims.ndim > 1:                     # PBEAML: one row per station
+        if np.ptp(dims, axis=0).max() > 1e-12 * np.abs(dims).max():
+            raise BulkDataError(f"{context}: tapered PBEAML is not supported")
+        dims = dims[0]
+    if kind != "ROD":
+        raise BulkDataError(f"{context}: {prop.type} section {kind} is not supported (ROD)")
+    r = dims[0]
+    if not r > 0.0:
+        raise BulkDataError(f"{context}: ROD radius {r} must be > 0")
+    I = np.pi / 4.0 * r**4
+    return np.pi * r * r, I, I, 2.0 * I
+
+
 def _beam_section(prop, context: str):
+    if prop.type in ("PBARL", "PBEAML"):
+        A, I1, I2, J = _round_section(prop, context)
+        nsm = float(np.atleast_1d(np.asarray(prop.nsm, dtype=float))[0] or 0.0)
+        return A, I1, I2, J, nsm, 0.9, 0.9
     if prop.type == "PBAR":
         A, I1, I2, I12, J, nsm = (float(prop.A), float(prop.i1), float(prop.i2),
                                   float(prop.i12), float(prop.j), float(prop.nsm))
@@ -180,11 +286,13 @@ def _beam_section(prop, context: str):
     return A, I1, I2, J, nsm, k1, k2
 
 
-def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> StructuralModel:
+def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
+             interface: list = ()) -> StructuralModel:
     """Assemble g-set K and M (and the lumped M in basic), build T_gf.
 
     ``separate_lumped`` leaves CONM2 masses out of M (FModal's separateLumpedRigidBodies) and
-    returns them as :class:`LumpedMass` records.
+    returns them as :class:`LumpedMass` records. ``interface``: (grid, [components]) that
+    should stay free when a massless mechanism needs a DOF held (the a-set).
     """
     model = bulk.model
     n = len(bulk.grid_ids)
@@ -204,6 +312,8 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
     elems = model.elements
     n_elem = len(elems)
     beams: list = []
+    shells: list = []
+    solid_elems: list = []
     sections: dict = {}
     for count, (eid, elem) in enumerate(sorted(elems.items())):
         if progress is not None and count % 5000 == 0:
@@ -213,6 +323,12 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
             continue    # reported by read_bulk_data and accepted with allow_unsupported
         if elem.type in ("CBAR", "CBEAM"):
             beams.append(_beam_data(bulk, elem, ctx, wt, idx, sections))
+        elif elem.type in ("CQUAD4", "CTRIA3"):
+            shells.append(_shell_data(bulk, elem, ctx, wt, idx, sections))
+        elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
+            solid_elems.append(_solid_data(bulk, elem, ctx, wt, idx, sections))
+        elif elem.type == "CBUSH":
+            _add_bush(bulk, elem, ctx, K_b, idx)
         elif elem.type == "CROD":
             _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
         elif elem.type in ("CELAS1", "CELAS2"):
@@ -243,6 +359,34 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
             progress(f"element matrices for {len(beams)} beams")
         dofs, props, frames, wa, wb, torsion = _beam_batch(bulk, beams)
         Kg, Mg, MLg = el.beam_element_batch(props, frames, wa, wb, bulk.coupled_mass, torsion)
+        K_b.add_batch(dofs, Kg)
+        M_b.add_batch(dofs, Mg)
+        ML_b.add_batch(dofs, MLg)
+
+    for nn in (3, 4):
+        group = [sh for sh in shells if len(sh[0]) == nn]
+        if not group:
+            continue
+        if progress is not None:
+            progress(f"element matrices for {len(group)} {'CQUAD4' if nn == 4 else 'CTRIA3'}")
+        rows = np.array([sh[0] for sh in group], dtype=np.int64)
+        xyz = pos[rows]
+        props = np.array([sh[1] for sh in group], dtype=float)
+        Kg, Mg, MLg = shell_batch(xyz, props, bulk.coupled_mass)
+        dofs = (6 * rows[:, :, None] + np.arange(6)).reshape(len(group), 6 * nn)
+        K_b.add_batch(dofs, Kg)
+        M_b.add_batch(dofs, Mg)
+        ML_b.add_batch(dofs, MLg)
+
+    for kind in sorted({se[0] for se in solid_elems}):
+        group = [se for se in solid_elems if se[0] == kind]
+        if progress is not None:
+            progress(f"element matrices for {len(group)} {solids.NAMES[kind]}")
+        rows = np.array([se[1] for se in group], dtype=np.int64)
+        props = np.array([se[2] for se in group], dtype=float)
+        pts, wts = solids.RULES[kind]
+        Kg, Mg, MLg = solids.solid_batch(kind, pos[rows], props, pts, wts, bulk.coupled_mass)
+        dofs = (6 * rows[:, :, None] + np.arange(3)).reshape(len(group), 3 * rows.shape[1])
         K_b.add_batch(dofs, Kg)
         M_b.add_batch(dofs, Mg)
         ML_b.add_batch(dofs, MLg)
@@ -295,9 +439,119 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None) -> St
     structural = StructuralModel(bulk=bulk, stiffness_g=K_g, mass_g=M_g,
                                  mass_lumped_basic=ML_basic.tocsr(), T_gf=sp.identity(ng, format="csr"),
                                  f_dofs=np.arange(ng), lumped_masses=lumped)
-    apply_constraints(structural)
+    apply_constraints(structural, interface)
     structural.deck_aset = deck_aset(bulk)
     return structural
+
+
+def _shell_data(bulk, elem, ctx, wt, idx, sections):
+    """(grid rows, property row of :func:`shells.shell_batch`) of one CQUAD4/CTRIA3."""
+    model = bulk.model
+    rows = [idx(int(g), ctx) for g in elem.nodes]
+    if len(set(rows)) != len(rows):
+        raise BulkDataError(f"{ctx}: repeated grid (degenerate element)")
+    key = ("PSHELL", int(elem.pid))
+    if key not in sections:
+        sections[key] = _pshell_moduli(model, int(elem.pid), ctx)
+    Gm, Gb, Gs, rho, t, nsm, bend, ts, rigid = sections[key]
+    thick = [float(v) for v in (getattr(elem, "T1", None), getattr(elem, "T2", None),
+                                getattr(elem, "T3", None), getattr(elem, "T4", None))
+             if v is not None and float(v) > 0.0]
+    if thick and getattr(elem, "tflag", 0) == 0:
+        t = float(np.mean(thick))
+    elif thick:
+        t = t * float(np.mean(thick))
+    orient = elem.theta_mcid
+    theta, direction = 0.0, np.zeros(3)
+    if isinstance(orient, (int, np.integer)):
+        from dynamics.flex.bulk_data import coordinate_axes
+        _, axes, kind = coordinate_axes(model, int(orient), f"{ctx} MCID")
+        if kind != "R":
+            raise BulkDataError(f"{ctx}: MCID {orient} is not a rectangular system")
+        direction = axes[:, 0]
+    elif orient is not None:
+        theta = np.radians(float(orient))
+    return rows, shell_props(Gm, Gb, Gs, rho * wt, t, nsm * wt, bend, ts, rigid, theta,
+                             direction, float(elem.zoffset or 0.0))
+
+
+def _plane_modulus(model, mid: int, context: str):
+    """(3x3 plane-stress modulus, 2x2 transverse shear modulus, rho) of a MAT1 or MAT2."""
+    mat = model.materials.get(mid)
+    if mat is None:
+        raise BulkDataError(f"{context}: material {mid} is not defined")
+    if mat.type == "MAT1":
+        E, G, rho = _material(model, mid, context)
+        nu = _poisson(model, mid)
+        c = E / (1.0 - nu * nu)
+        Q = np.array([[c, nu * c, 0.0], [nu * c, c, 0.0], [0.0, 0.0, G]])
+        return Q, G * np.eye(2), rho
+    if mat.type == "MAT2":
+        g = [float(v or 0.0) for v in (mat.G11, mat.G12, mat.G13, mat.G22, mat.G23, mat.G33)]
+        Q = np.array([[g[0], g[1], g[2]], [g[1], g[3], g[4]], [g[2], g[4], g[5]]])
+        return Q, np.array([[g[0], g[1]], [g[1], g[3]]]), float(mat.rho or 0.0)
+    raise BulkDataError(f"{context}: material {mid} is a {mat.type}; shells take MAT1 or MAT2")
+
+
+def _pshell_moduli(model, pid: int, ctx: str):
+    """Membrane, bending and shear moduli and the scalars of a PSHELL (NASTRAN QRG PSHELL)."""
+    prop = _property(model, pid, ("PSHELL",), ctx)
+    pctx = f"{ctx} -> PSHELL {prop.pid}"
+    if getattr(prop, "mid4", None):
+        raise BulkDataError(f"{pctx}: MID4 (membrane-bending coupling) is not supported")
+    if not prop.mid1:
+        raise BulkDataError(f"{pctx}: MID1 blank (no membrane stiffness) is not supported")
+    if prop.mid2 and int(prop.mid2) == -1:
+        raise BulkDataError(f"{pctx}: MID2 = -1 (plane strain) is not supported")
+    Gm, _, rho = _plane_modulus(model, int(prop.mid1), pctx)
+    if prop.mid2:
+        Gb, Gs_b, _ = _plane_modulus(model, int(prop.mid2), pctx)
+        bend = float(prop.twelveIt3 if prop.twelveIt3 is not None else 1.0)
+    else:
+        Gb, Gs_b, bend = Gm, np.eye(2), 0.0
+    if prop.mid3:
+        _, Gs, _ = _plane_modulus(model, int(prop.mid3), pctx)
+        rigid = False
+    else:
+        Gs, rigid = Gs_b, True
+    ts = float(prop.tst if prop.tst is not None else 0.833333)
+    return Gm, Gb, Gs, rho, float(prop.t), float(prop.nsm or 0.0), bend, ts, rigid
+
+
+_SOLID_KINDS = {("CHEXA", 8): solids.HEXA8, ("CHEXA", 20): solids.HEXA20,
+                ("CTETRA", 4): solids.TETRA4, ("CTETRA", 10): solids.TETRA10,
+                ("CPENTA", 6): solids.PENTA6}
+
+
+def _solid_data(bulk, elem, ctx, wt, idx, sections):
+    """(kind, grid rows, (E, nu, rho)) of one CHEXA/CTETRA/CPENTA with PSOLID and MAT1."""
+    model = bulk.model
+    nodes = list(elem.nodes)
+    kind = _SOLID_KINDS.get((elem.type, len(nodes)))
+    if kind is None or any(g is None or int(g) == 0 for g in nodes):
+        given = sum(1 for g in nodes if g)
+        raise BulkDataError(f"{ctx}: {elem.type} with {given} grids is not supported (CHEXA 8 "
+                            "or 20, CTETRA 4 or 10, CPENTA 6, all mid-edge grids present)")
+    rows = [idx(int(g), ctx) for g in nodes]
+    key = ("PSOLID", int(elem.pid))
+    if key not in sections:
+        prop = _property(model, int(elem.pid), ("PSOLID",), ctx)
+        pctx = f"{ctx} -> PSOLID {prop.pid}"
+        if str(getattr(prop, "fctn", "SMECH") or "SMECH").strip() not in ("SMECH", "PFLUID"):
+            raise BulkDataError(f"{pctx}: FCTN = {prop.fctn} is not supported")
+        if str(getattr(prop, "fctn", "SMECH") or "SMECH").strip() == "PFLUID":
+            raise BulkDataError(f"{pctx}: FCTN = PFLUID (fluid element) is not supported")
+        E, G, rho = _material(model, int(prop.mid), pctx)
+        sections[key] = (E, _poisson(model, int(prop.mid)), rho * wt)
+    return kind, rows, sections[key]
+
+
+def _poisson(model, mid: int) -> float:
+    mat = model.materials[mid]
+    E, G, nu = mat.e, mat.g, mat.nu
+    if nu is not None:
+        return float(nu)
+    return float(E) / (2.0 * float(G)) - 1.0
 
 
 def _beam_data(bulk, elem, ctx, wt, idx, sections):
@@ -321,8 +575,8 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
         i0, x = -1, elem.x
     key = (elem.type, int(elem.pid))
     if key not in sections:
-        prop = _property(model, int(elem.pid), ("PBAR",) if elem.type == "CBAR"
-                         else ("PBEAM",), ctx)
+        prop = _property(model, int(elem.pid), ("PBAR", "PBARL") if elem.type == "CBAR"
+                         else ("PBEAM", "PBEAML"), ctx)
         A, I1, I2, J, nsm, k1, k2 = _beam_section(prop, f"{ctx} -> {prop.type} {prop.pid}")
         E, G, rho = _material(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
         sections[key] = (E, G, A, I1, I2, J, (rho * A + nsm) * wt, k1, k2)
@@ -367,6 +621,61 @@ def _beam_batch(bulk, beams):
     return dofs, props, frames, wa, wb, np.array([b[8] for b in beams])
 
 
+def _add_bush(bulk, elem, ctx, K_b, idx):
+    """CBUSH with PBUSH K1-K6 (MSC QRG CBUSH): springs in the element frame at the point
+    S along GA-GB, joined to the grids by rigid links; GB blank is a spring to ground.
+
+    Element frame: CID >= 0 its axes (CID 0: basic), else x from GA to GB and y in the plane
+    of x and the orientation vector (X in GA's CD frame, or G0). OCID/S1-S3 offsets, damping
+    (B, GE) and PBUSH mass are not modelled: offsets are refused, damping is reported.
+    """
+    model = bulk.model
+    prop = _property(model, int(elem.pid), ("PBUSH",), ctx)
+    k = np.array([float(v or 0.0) for v in (list(prop.Ki) + [0.0] * 6)[:6]])
+    if getattr(prop, "mass", None):
+        raise BulkDataError(f"{ctx} -> PBUSH {prop.pid}: mass M is not supported (use CONM2)")
+    if any(v for v in list(prop.Bi) + list(prop.GEi)):
+        warnings.warn(f"{ctx} -> PBUSH {prop.pid}: damping B/GE is not used (the body's "
+                      "damping is modal: --damping)", stacklevel=4)
+    ocid = elem.ocid if elem.ocid is not None else -1
+    if int(ocid) != -1:
+        raise BulkDataError(f"{ctx}: OCID = {ocid} (spring location offsets) is not supported")
+    ga, gb = elem.nodes[0], elem.nodes[1] if len(elem.nodes) > 1 else None
+    ia = idx(int(ga), ctx)
+    ib = idx(int(gb), ctx) if gb else None
+    xa = bulk.positions[ia]
+    xb = bulk.positions[ib] if ib is not None else xa
+    axis = xb - xa
+    L = float(np.linalg.norm(axis))
+    if elem.cid is not None and int(elem.cid) >= 0:
+        from dynamics.flex.bulk_data import coordinate_axes
+        _, axes, kind = coordinate_axes(model, int(elem.cid), ctx)
+        if kind != "R":
+            raise BulkDataError(f"{ctx}: CID {elem.cid} is not rectangular")
+        Lam = axes.T
+    else:
+        if L <= 1e-12:
+            raise BulkDataError(f"{ctx}: coincident grids need CID (the element axes)")
+        if elem.g0 is not None and int(elem.g0) > 0:
+            v = bulk.positions[idx(int(elem.g0), ctx)] - xa
+        elif elem.x is not None and elem.x[0] is not None:
+            v = bulk.displacement_rotation[ia] @ np.asarray(elem.x, float)
+        else:
+            raise BulkDataError(f"{ctx}: no orientation (CID, X1-X3 or G0)")
+        Lam = el.beam_frame(axis, v, ctx)
+    s_loc = float(elem.s if elem.s is not None else 0.5)
+    point = xa + s_loc * axis
+    # relative motion at the spring point: local (B - A), rigid links from each grid
+    ends = [(ia, -1.0)] + ([(ib, 1.0)] if ib is not None else [])
+    T = np.zeros((6, 6 * len(ends)))
+    for n, (i, sign) in enumerate(ends):
+        link = np.eye(6)
+        link[:3, 3:] = -el.skew(point - bulk.positions[i])
+        T[:, 6 * n:6 * n + 6] = sign * np.kron(np.eye(2), Lam) @ link
+    dofs = np.concatenate([6 * i + np.arange(6) for i, _ in ends])
+    K_b.add(dofs, T.T @ np.diag(k) @ T)
+
+
 def _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
     model = bulk.model
     ga, gb = (int(g) for g in elem.nodes)
@@ -401,7 +710,7 @@ def _selected_set(model, kind: str):
     return None
 
 
-def apply_constraints(sm: StructuralModel) -> None:
+def apply_constraints(sm: StructuralModel, interface: list = ()) -> None:
     bulk = sm.bulk
     model = bulk.model
     ng = 6 * sm.n_grids
@@ -415,8 +724,18 @@ def apply_constraints(sm: StructuralModel) -> None:
         ctx = f"{rig.type} {eid}"
         if rig.type in bulk.report.unsupported:
             continue
+        if rig.type == "RBE3":
+            for g, dofs, coeffs in rbe3_rows(bulk, rig, ctx):
+                if g in dependent:
+                    raise BulkDataError(f"{ctx}: DOF {g % 6 + 1} of grid {bulk.grid_ids[g // 6]} "
+                                        f"is already dependent in {dependent[g]}")
+                dependent[g] = ctx
+                rows.extend([g] * len(dofs))
+                cols.extend(dofs)
+                vals.extend(coeffs)
+            continue
         if rig.type != "RBE2":
-            raise BulkDataError(f"{ctx}: rigid element type not supported (RBE2 only)")
+            raise BulkDataError(f"{ctx}: rigid element type not supported (RBE2, RBE3)")
         ni = bulk.grid_index(int(rig.gn), ctx)
         comps = _components(rig.cm)
         for gm in rig.Gmi:
@@ -474,6 +793,13 @@ def apply_constraints(sm: StructuralModel) -> None:
                         raise BulkDataError(f"{ctx}: DOF {c} of grid {g} is an RBE2 dependent "
                                             f"DOF ({dependent[gi]}) and cannot also be an SPC")
                     spc_dofs.add(gi)
+    for gid, comps in bulk.permanent_spc:
+        for c in comps:
+            gi = 6 * bulk.grid_index(gid, "GRID PS") + c - 1
+            if gi in dependent:
+                raise BulkDataError(f"GRID {gid} PS: DOF {c} is an RBE2 dependent DOF "
+                                    f"({dependent[gi]}) and cannot also be held")
+            spc_dofs.add(gi)
     if sid is None and len(model.spcs) > 1:
         warnings.warn(f"{bulk.path}: no SPC selected in case control; applying all SPC sets "
                       f"{sorted(model.spcs)}", stacklevel=3)
@@ -489,10 +815,127 @@ def apply_constraints(sm: StructuralModel) -> None:
     null = (Kd <= 1e-14 * max(Kd.max(initial=0.0), 1e-300)) & \
         (Md <= 1e-14 * max(Md.max(initial=0.0), 1e-300))
     sm.autospc_count = int(null.sum())
-    sm.f_dofs = independent[~null]
-    sm.T_gf = T_gn[:, ~null].tocsr()
-    if len(sm.f_dofs) == 0:
+    sm.spc_dofs = np.array(sorted(spc_dofs), dtype=np.int64)
+    f_dofs = independent[~null]
+    T_gf = T_gn[:, ~null].tocsr()
+    if len(f_dofs) == 0:
         raise BulkDataError(f"{bulk.path}: every DOF is constrained; nothing can move")
+    avoid = np.zeros(len(f_dofs), dtype=bool)
+    for gid, comps in list(interface) + deck_aset(bulk):
+        i = row_of_grid(bulk, gid)
+        if i is not None:
+            avoid |= np.isin(f_dofs, 6 * i + np.asarray(comps, dtype=np.int64) - 1)
+    held = massless_mechanism_dofs(T_gf.T @ sm.stiffness_g @ T_gf, T_gf.T @ sm.mass_g @ T_gf,
+                                   avoid)
+    if len(held):
+        keep = np.setdiff1d(np.arange(len(f_dofs)), held)
+        sm.mechanisms = [sm.describe_g(int(g)) for g in f_dofs[held]]
+        sm.spc_dofs = np.union1d(sm.spc_dofs, f_dofs[held])
+        f_dofs, T_gf = f_dofs[keep], T_gf[:, keep].tocsr()
+        warnings.warn(f"{bulk.path}: {len(held)} massless mechanism(s) (motions with neither "
+                      "mass nor stiffness, e.g. a lumped-mass CBAR/CROD line spinning about its "
+                      "axis) removed by holding " + ", ".join(sm.mechanisms[:6])
+                      + (" ..." if len(held) > 6 else "") + " (as NASTRAN AUTOSPC does); "
+                      "frequencies and mass properties are unchanged", stacklevel=3)
+    sm.f_dofs, sm.T_gf = f_dofs, T_gf
+
+
+DENSE_NULL_LIMIT = 3000
+
+
+def row_of_grid(bulk: BulkData, gid: int):
+    i = int(np.searchsorted(bulk.grid_ids, gid))
+    return i if i < len(bulk.grid_ids) and bulk.grid_ids[i] == gid else None
+
+
+def massless_mechanism_dofs(K, M, avoid: np.ndarray | None = None) -> np.ndarray:
+    """f-set DOFs to hold so that no motion has both zero mass and zero stiffness.
+
+    The massless set o (zero rows of M) is where such motions live; their span is the null
+    space of K_oo (module docstring). Dense eigen-decomposition of K_oo up to
+    ``DENSE_NULL_LIMIT`` massless DOFs; above, one sparse LU decides that K_oo is regular (the
+    usual case) and a shift-invert Lanczos finds the null vectors otherwise. DOFs flagged in
+    ``avoid`` (interface DOFs) are held only when a mechanism lives on them alone.
+    """
+    import scipy.linalg as sla
+    import scipy.sparse.linalg as spla
+    M = sp.csr_matrix(M)
+    row = np.asarray(abs(M).sum(axis=1)).ravel()
+    o = np.nonzero(row <= 1e-14 * max(row.max(initial=0.0), 1e-300))[0]
+    if len(o) == 0:
+        return np.zeros(0, dtype=np.int64)
+    Koo = sp.csr_matrix(K)[o][:, o]
+    kmax = max(float(np.abs(Koo.diagonal()).max(initial=0.0)), 1e-300)
+    if len(o) <= DENSE_NULL_LIMIT:
+        w, V = np.linalg.eigh(Koo.toarray())
+        Z = V[:, w <= 1e-10 * kmax]
+    else:
+        try:
+            lu = spla.splu(Koo.tocsc())
+            d = np.abs(lu.U.diagonal())
+            if d.min() > 1e-10 * d.max():
+                return np.zeros(0, dtype=np.int64)
+        except RuntimeError:
+            pass
+        w, V = spla.eigsh(Koo.tocsc(), k=min(24, len(o) - 1), sigma=-1e-8 * kmax, which="LM")
+        Z = V[:, w <= 1e-10 * kmax]
+        if Z.shape[1] == V.shape[1]:
+            raise BulkDataError("24 or more massless mechanisms (motions with neither mass nor "
+                                "stiffness): give the rotations mass (PARAM COUPMASS 1, CBEAM, "
+                                "CONM2 inertia) or constrain them")
+    if Z.shape[1] == 0:
+        return np.zeros(0, dtype=np.int64)
+    weight = np.ones(len(o)) if avoid is None else np.where(avoid[o], 1e-6, 1.0)
+    _, _, piv = sla.qr(Z.T * weight, pivoting=True, mode="economic")
+    return np.sort(o[piv[:Z.shape[1]]])
+
+
+def rbe3_rows(bulk: BulkData, rig, ctx: str):
+    """Dependent rows of an RBE3: [(g-set DOF of REFGRID, independent g-set DOFs, coefficients)].
+
+    The reference grid moves with the rigid-body motion (u, theta) that fits the independent
+    grids' motions in the weighted least-squares sense (MSC Nastran QRG, RBE3 remarks;
+    MSC "RBE3 theory"): minimize sum_i w_i |S_i (u, theta) - u_i|^2 over the listed components,
+    S_i = R_i' [I, -skew(x_i - x_ref)] for translations and R_i' [0, I] for rotations (R_i the
+    grid's CD frame), rotation rows weighted by w_i L^2 with L the mean distance of the
+    independent grids from the reference (so both kinds of rows have the same units). Then
+    (u, theta) = (S' W S)^-1 S' W u_ind, rotated to the reference grid's CD frame.
+    """
+    if rig.Gmi:
+        raise BulkDataError(f"{ctx}: UM (alternate dependent DOFs) is not supported")
+    pos, Rcd = bulk.positions, bulk.displacement_rotation
+    ref = bulk.grid_index(int(rig.refgrid), ctx)
+    refc = _components(rig.refc)
+    if not refc:
+        raise BulkDataError(f"{ctx}: REFC is blank")
+    entries = []     # (g-set dof, weight, S row)
+    for weight, comp, grids in zip(rig.weights, rig.comps, rig.Gijs):
+        for gid in grids:
+            i = bulk.grid_index(int(gid), ctx)
+            d = pos[i] - pos[ref]
+            rigid = np.zeros((6, 6))
+            rigid[:3, :3] = np.eye(3)
+            rigid[:3, 3:] = -el.skew(d)
+            rigid[3:, 3:] = np.eye(3)
+            S6 = np.kron(np.eye(2), Rcd[i]).T @ rigid
+            for c in _components(comp):
+                entries.append((6 * i + c - 1, float(weight), S6[c - 1], c > 3))
+    if not entries:
+        raise BulkDataError(f"{ctx}: no independent grids")
+    grids = {e[0] // 6 for e in entries}
+    length = np.mean([np.linalg.norm(pos[g] - pos[ref]) for g in grids]) or 1.0
+    S = np.array([e[2] for e in entries])
+    w = np.array([e[1] * (length**2 if e[3] else 1.0) for e in entries])
+    A = S.T @ (w[:, None] * S)
+    ev = np.linalg.eigvalsh(A)
+    if ev[0] <= 1e-10 * ev[-1]:
+        raise BulkDataError(f"{ctx}: the independent grids and components do not determine the "
+                            "reference grid's rigid motion (e.g. collinear grids with "
+                            "translations only); add grids or rotation components")
+    G = np.linalg.solve(A, S.T * w)                       # (6, n_ind), basic
+    G = np.kron(np.eye(2), Rcd[ref]).T @ G                # reference grid's CD frame
+    dofs = np.array([e[0] for e in entries], dtype=np.int64)
+    return [(6 * ref + c - 1, dofs, G[c - 1]) for c in refc]
 
 
 def deck_aset(bulk: BulkData) -> list:

@@ -111,6 +111,38 @@ class ModalBody:
     def n_modes(self) -> int:
         return len(self.frequencies_hz)
 
+    def interface_grids(self) -> list[int]:
+        """Grids of the a-set (the interface of normalized component modes), ascending."""
+        return sorted({int(g) for g in self.aset[:, 0]}) if len(self.aset) else []
+
+    def mounting_warnings(self, child_grid: int | None, hinge: str) -> list[str]:
+        """What is suspicious about mounting this body with ``child_grid`` on a ``hinge``.
+
+        Normalized component modes (mode_set "normalized-component") contain the constraint
+        modes of the a-set, which represent the interface motion relative to the rest of the
+        body: (1) without ``child_grid`` the hinge frame sits at the reference point, not at the
+        interface, so the constraint modes are not held where the structure is attached; (2) on
+        a free (6-DOF) hinge a ``child_grid`` adds six hinge DOFs that the rigid-body part of
+        the constraint modes already spans, a singular mass matrix.
+        """
+        out = []
+        if self.mode_set != "normalized-component":
+            return out
+        grids = self.interface_grids()
+        if child_grid is None:
+            out.append(f"{self.source}: normalized component modes (interface grids {grids}) "
+                       "used without child_grid: the hinge does not hold the interface grid, so "
+                       f"the constraint modes are not restrained; set child_grid to one of {grids}")
+        elif int(child_grid) not in grids:
+            out.append(f"{self.source}: child_grid {child_grid} is not an interface (a-set) grid "
+                       f"of these normalized component modes ({grids})")
+        if child_grid is not None and hinge in ("free", "6dof", "floating"):
+            out.append(f"{self.source}: child_grid {child_grid} on a free hinge duplicates the "
+                       "rigid-body motion the constraint modes already contain (singular mass "
+                       "matrix, 'articulated inertia is singular'); use free-free modes for a "
+                       "free body, or a hinge that holds the interface")
+        return out
+
     def mode_shape(self, grid_id: int) -> np.ndarray:
         """6 x n block Pi(j) = [lambda; gamma] of grid ``grid_id``."""
         i = int(np.searchsorted(self.grid_ids, grid_id))

@@ -5,7 +5,8 @@ is parsed with pyNastran's BDF reader. Every card type is then sorted into one o
 reported by name and count, so nothing is silently dropped:
 
 * supported: modelled by :mod:`dynamics.flex.elements` / :mod:`dynamics.flex.assembly`
-  (GRID, CORD2R, CORD2C, CORD1R, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
+  (GRID, GRDSET, CORD2R, CORD2C, CORD2S, CORD1R, CORD1C, CORD1S, RBE3, CBUSH/PBUSH, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
+  CQUAD4/CTRIA3/PSHELL, CHEXA/CTETRA/CPENTA/PSOLID,
   CONM1, CONM2, MAT1, RBE2, SPC, SPC1, ASET, ASET1, PARAM WTMASS/COUPMASS/GRDPNT);
 * ignored: cards that carry no mass, stiffness or constraint (solution controls, output and
   load cards, SPOINTs without elements, other PARAMs): reported as a warning;
@@ -15,7 +16,11 @@ reported by name and count, so nothing is silently dropped:
 
 Grid geometry is resolved here: positions in the basic frame (CP frames) and, per grid, the
 rotation from its displacement frame (CD) to basic, including the position-dependent axes of a
-cylindrical CD frame (MSC Nastran Quick Reference Guide, GRID / CORD2C).
+cylindrical or spherical CD frame (MSC Nastran Quick Reference Guide, GRID / CORD2C / CORD2S). GRDSET supplies CP, CD
+and PS to GRIDs that leave them blank (QRG, GRDSET); pyNastran reads a blank CP/CD as 0, so an
+explicit 0 on a GRID cannot be told from a blank one and also takes the GRDSET value (the
+report says so). The GRID PS field (permanent single-point constraints, in the CD frame) is
+kept per grid and applied by :mod:`dynamics.flex.assembly` like an SPC1.
 """
 
 from __future__ import annotations
@@ -31,10 +36,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 SUPPORTED_CARDS = frozenset({
-    "GRID", "CORD2R", "CORD2C", "CORD1R",
-    "CBAR", "PBAR", "CBEAM", "PBEAM", "CROD", "PROD",
-    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1",
-    "RBE2", "SPC", "SPC1", "ASET", "ASET1", "PARAM", "ENDDATA",
+    "GRID", "GRDSET", "CORD2R", "CORD2C", "CORD1R",
+    "CBAR", "PBAR", "PBARL", "CBEAM", "PBEAM", "PBEAML", "CROD", "PROD",
+    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1", "MAT2",
+    "CQUAD4", "CTRIA3", "PSHELL", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
+    "RBE2", "RBE3", "CBUSH", "PBUSH", "CORD2S", "CORD1C", "CORD1S",
+    "SPC", "SPC1", "ASET", "ASET1", "PARAM", "ENDDATA",
 })
 # PARAMs that change the structural matrices or the products; all others are reported as ignored.
 USED_PARAMS = frozenset({"WTMASS", "COUPMASS", "GRDPNT"})
@@ -60,9 +67,10 @@ class CardReport:
     unsupported: dict[str, int] = field(default_factory=dict)
     parse_errors: dict[str, list[str]] = field(default_factory=dict)
     ignored_params: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
     def lines(self) -> list[str]:
-        out = ["supported cards: " + _fmt(self.supported)]
+        out = ["supported cards: " + _fmt(self.supported)] + list(self.notes)
         if self.ignored:
             out.append("ignored cards (no mass, stiffness or constraint): " + _fmt(self.ignored))
         if self.ignored_params:
@@ -90,6 +98,7 @@ class BulkData:
     wtmass : PARAM WTMASS (mass-unit scale applied to every mass term).
     coupled_mass : True when PARAM COUPMASS > 0 (consistent element mass matrices).
     grdpnt : PARAM GRDPNT grid (0 / None = basic origin).
+    permanent_spc : (grid id, [components]) from the GRID PS fields (after GRDSET).
     """
 
     path: str
@@ -101,6 +110,7 @@ class BulkData:
     coupled_mass: bool
     grdpnt: int | None
     report: CardReport
+    permanent_spc: list = field(default_factory=list)
 
     def grid_index(self, grid_id: int, context: str) -> int:
         """Row of ``grid_id`` in :attr:`grid_ids`; a :class:`BulkDataError` naming ``context``."""
@@ -168,6 +178,7 @@ def read_bulk_data(path: str | os.PathLike, allow_unsupported: bool = False) -> 
     if report.ignored or report.ignored_params or report.parse_errors:
         warnings.warn(f"{path}: " + "; ".join(report.lines()[1:]), stacklevel=2)
 
+    grdset_note = _apply_grdset(model, path)
     try:
         model.cross_reference(xref=True, xref_nodes=True, xref_elements=False,
                               xref_nodes_with_elements=False, xref_properties=False,
@@ -187,13 +198,56 @@ def read_bulk_data(path: str | os.PathLike, allow_unsupported: bool = False) -> 
         positions[i] = node.get_position()
         rotations[i] = displacement_frame_rotation(model, int(node.cd), positions[i],
                                                    f"GRID {nid}")
+    permanent_spc = []
+    for nid in grid_ids:
+        ps = str(model.nodes[int(nid)].ps or "").strip()
+        if ps not in ("", "0", "None"):
+            comps = sorted({int(c) for c in ps})
+            if any(c < 1 or c > 6 for c in comps):
+                raise BulkDataError(f"{path}: GRID {nid}: PS = {ps} must hold digits 1..6")
+            permanent_spc.append((int(nid), comps))
+    if grdset_note:
+        report.notes.append(grdset_note)
     coupmass = _param_value(model, "COUPMASS", -1)
     grdpnt = _param_value(model, "GRDPNT", -1)
     return BulkData(path=path, model=model, grid_ids=grid_ids, positions=positions,
                     displacement_rotation=rotations,
                     wtmass=float(_param_value(model, "WTMASS", 1.0)),
                     coupled_mass=int(coupmass) > 0,
-                    grdpnt=int(grdpnt) if int(grdpnt) > 0 else None, report=report)
+                    grdpnt=int(grdpnt) if int(grdpnt) > 0 else None, report=report,
+                    permanent_spc=permanent_spc)
+
+
+def _apply_grdset(model, path: str) -> str:
+    """Give GRIDs with blank (0) CP, CD and blank PS the GRDSET values; return a report line.
+
+    pyNastran keeps GRDSET apart and its own cross-reference does not apply it consistently,
+    so it is applied here and removed from the model before cross-referencing.
+    """
+    grdset = getattr(model, "grdset", None)
+    if grdset is None:
+        return ""
+    cp, cd = int(grdset.cp or 0), int(grdset.cd or 0)
+    ps = str(grdset.ps or "").strip()
+    seid = int(grdset.seid or 0)
+    if seid:
+        raise UnsupportedCardError(f"{path}: GRDSET SEID = {seid}: superelements are not "
+                                   "supported")
+    changed = Counter()
+    for node in model.nodes.values():
+        if cp and not node.cp:
+            node.cp = cp
+            changed["CP"] += 1
+        if cd and not node.cd:
+            node.cd = cd
+            changed["CD"] += 1
+        if ps not in ("", "0", "None") and str(node.ps or "").strip() in ("", "0", "None"):
+            node.ps = ps
+            changed["PS"] += 1
+    model.grdset = None
+    fields = ", ".join(f"{k} to {v} grid(s)" for k, v in changed.items()) or "no grid"
+    return (f"GRDSET (CP {cp}, CD {cd}, PS {ps or 'blank'}) applied: {fields} "
+            "(a GRID CP/CD of 0 counts as blank)")
 
 
 def _is_structural_name(name: str) -> bool:
@@ -238,11 +292,11 @@ def coordinate_axes(model, cid: int, context: str):
     coord = model.coords.get(cid)
     if coord is None:
         raise BulkDataError(f"{context}: coordinate system {cid} is not defined")
-    if coord.type not in ("CORD2R", "CORD2C", "CORD1R"):
+    if coord.type not in ("CORD2R", "CORD2C", "CORD2S", "CORD1R", "CORD1C", "CORD1S"):
         raise UnsupportedCardError(f"{context}: coordinate system {cid} is a {coord.type}; "
-                                   "supported are CORD2R, CORD2C, CORD1R")
+                                   "supported are CORD1R/C/S and CORD2R/C/S")
     axes = np.asarray(coord.beta(), dtype=float).T
-    kind = "C" if coord.type == "CORD2C" else "R"
+    kind = coord.type[-1]
     return np.asarray(coord.origin, dtype=float), axes, kind
 
 
@@ -253,9 +307,18 @@ def displacement_frame_rotation(model, cid: int, position_basic: np.ndarray,
     if kind == "R":
         return axes
     local = axes.T @ (position_basic - origin)
-    theta = np.arctan2(local[1], local[0])
-    c, s = np.cos(theta), np.sin(theta)
-    return axes @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    phi = np.arctan2(local[1], local[0])
+    c, s = np.cos(phi), np.sin(phi)
+    if kind == "C":        # (R, theta, Z): e_R, e_theta, e_z
+        return axes @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    # spherical (R, theta, phi), theta from the local z axis, phi about it from x (QRG CORD2S):
+    # columns e_R, e_theta, e_phi
+    th = np.arctan2(np.hypot(local[0], local[1]), local[2])
+    ct, st = np.cos(th), np.sin(th)
+    if np.hypot(local[0], local[1]) <= 1e-12 * max(np.linalg.norm(local), 1e-300):
+        raise BulkDataError(f"{context}: grid on the polar axis of spherical system {cid}: "
+                            "its displacement directions are undefined")
+    return axes @ np.array([[st * c, ct * c, -s], [st * s, ct * s, c], [ct, -st, 0.0]])
 
 
 def vector_to_basic(model, cid: int, vector: np.ndarray, at_basic: np.ndarray,

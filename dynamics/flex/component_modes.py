@@ -6,7 +6,9 @@ modes Pi_b = -K_ee^-1 K_eb (eq. A.2.3, one sparse LU of K_ee); fixed-interface m
 Pi_c = [[Pi_e, Pi_b], [0, I]] (eq. A.2.2) gives M_n = Pi_c' M Pi_c, K_n = Pi_c' K Pi_c
 (eqs. A.2.8, A.2.10-A.2.11). Normalized component modes solve (K_n - zeta M_n) Pi_hat = 0 (eq.
 A.2.9) and Pi_n = Pi_c Pi_hat (eq. A.2.12) is mass-normalized and diagonalizes K (eqs.
-A.2.13-A.2.15); its rigid-body modes are removed by a frequency threshold. Because span(Pi_n) =
+A.2.13-A.2.15); its rigid-body modes, the span of the geometry's rigid-body vectors (which
+the constraint modes reproduce: Pi_b R_b = R_e when K R = 0), are removed as in
+:func:`dynamics.flex.modes.separate_rigid_body_modes`. Because span(Pi_n) =
 span(Pi_c), constraining the interface DOFs of the normalized component model recovers the
 retained fixed-interface modes exactly (TM Table A1, comparison 4).
 """
@@ -20,7 +22,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from dynamics.flex.modes import EigenSolution, lowest_modes, solve_dense, split_rigid
+from dynamics.flex.modes import (EigenSolution, default_shift, lowest_modes,
+                                 separate_rigid_body_modes, shifted_solver, solve_dense)
 
 
 class CraigBamptonError(ValueError):
@@ -103,11 +106,21 @@ def craig_bampton(K, M, boundary: np.ndarray, n_modes: int | None = None,
                              basis=basis, mass=0.5 * (Mn + Mn.T), stiffness=0.5 * (Kn + Kn.T))
 
 
-def normalized_component_modes(cb: CraigBamptonModel, rigid_threshold_hz: float = 1e-4):
-    """(rigid, flexible) normalized component modes over the f-set (eqs. A.2.9-A.2.15)."""
+def normalized_component_modes(cb: CraigBamptonModel, rigid_vectors: np.ndarray):
+    """(rigid, flexible, RigidSplit) normalized component modes over the f-set (A.2.9-A.2.15).
+
+    ``rigid_vectors`` (n_f, r): the f-set rigid-body vectors; in Craig-Bampton coordinates they
+    are [0; R_b] (no fixed-interface participation, the boundary values).
+    """
     sol = solve_dense(cb.stiffness, cb.mass)
-    full = EigenSolution(sol.eigenvalues, cb.basis @ sol.vectors)
-    return split_rigid(full, rigid_threshold_hz)
+    nm = cb.n_modes
+    c_rigid = np.zeros((cb.mass.shape[0], rigid_vectors.shape[1]))
+    c_rigid[nm:] = rigid_vectors[cb.boundary]
+    solve = shifted_solver(cb.stiffness, cb.mass, default_shift(cb.stiffness, cb.mass, 1e-3))
+    rigid, flex, split = separate_rigid_body_modes(cb.stiffness, cb.mass, sol.vectors,
+                                                   sol.eigenvalues, c_rigid, solve)
+    return (EigenSolution(rigid.eigenvalues, cb.basis @ rigid.vectors),
+            EigenSolution(flex.eigenvalues, cb.basis @ flex.vectors), split)
 
 
 def constrained_modes(modes: np.ndarray, stiffness: np.ndarray, mass: np.ndarray,

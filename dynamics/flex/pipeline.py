@@ -31,7 +31,7 @@ from dynamics.flex.bulk_data import BulkData, BulkDataError, read_bulk_data
 from dynamics.flex.component_modes import craig_bampton, normalized_component_modes
 from dynamics.flex.mass_properties import rigid_body_mass_properties
 from dynamics.flex.modal_integrals import modal_integrals, point_mass_integrals
-from dynamics.flex.modes import free_free_modes
+from dynamics.flex.modes import RigidSplit, massless_dofs, free_free_modes
 from dynamics.flex.residual_vectors import append_residual_vectors, residual_vectors
 
 
@@ -45,6 +45,12 @@ class Fem2ModalOptions:
     grdpnt: reference grid for mass properties and the body frame (None: deck PARAM GRDPNT,
         else the basic origin).
     damping: modal damping ratio, one value for all modes or one per mode.
+    rigid_threshold_hz: rigid-body modes come from the geometry (see
+        :func:`dynamics.flex.modes.free_free_modes`); a flexible mode below this frequency is
+        reported as suspicious (a mechanism, or a near-rigid structure).
+    blas_threads: BLAS threads while the pipeline runs (threadpoolctl; None = unchanged). Its
+        dense products are small or memory-bound: more threads than cores thrash on a shared
+        machine (a 606-DOF Craig-Bampton reduction took 20 s instead of 0.1 s).
     """
 
     n_modes: int | None = None
@@ -55,13 +61,44 @@ class Fem2ModalOptions:
     modal_integrals: bool = False
     separate_lumped: bool = False
     damping: float | list = 0.0
-    rigid_threshold_hz: float = 1e-4
+    rigid_threshold_hz: float | None = None
     write_gset: bool = False
     write_fset: bool = False
     write_modal_matrix: bool = False
     allow_unsupported: bool = False
     op4: str | None = None
+    blas_threads: int | None = 1
 
+
+def validate_options(options: Fem2ModalOptions) -> None:
+    """ValueError naming the option (and its command-line flag) for values that cannot work."""
+    if (options.n_modes is None) == (options.cutoff_hz is None):
+        raise ValueError("give exactly one of n_modes (--modes) or cutoff_hz (--cutoff)")
+    has_aset = bool(options.aset)
+    if options.n_modes is not None:
+        if int(options.n_modes) != options.n_modes or options.n_modes < 0:
+            raise ValueError(f"--modes (n_modes) must be a whole number >= 0, got "
+                             f"{options.n_modes}")
+    if options.cutoff_hz is not None:
+        c = float(options.cutoff_hz)
+        if not np.isfinite(c) or c <= 0.0:
+            raise ValueError(f"--cutoff (cutoff_hz) must be a finite frequency > 0 Hz, got "
+                             f"{options.cutoff_hz}")
+    d = np.asarray(options.damping, dtype=float)
+    if d.ndim > 1 or not np.all(np.isfinite(d)) or np.any(d < 0.0):
+        raise ValueError(f"--damping (damping) must be a finite ratio >= 0 (0.01 = 1 % of "
+                         f"critical), got {options.damping}")
+    if np.any(d >= 1.0):
+        warnings.warn(f"--damping {options.damping}: ratios >= 1 are critically or over-damped "
+                      "modes", stacklevel=3)
+    t = options.rigid_threshold_hz
+    if t is not None and (not np.isfinite(t) or t <= 0.0):
+        raise ValueError(f"--rigid-threshold (rigid_threshold_hz) must be a finite frequency "
+                         f"> 0 Hz, got {t}")
+    if options.n_modes == 0 and not has_aset:
+        raise ValueError("--modes 0 (n_modes = 0) without an a-set leaves a free-free body with "
+                         "no flexible mode: ask for at least one mode, or use a rigid body "
+                         "(with --aset, --modes 0 gives the constraint modes alone)")
 
 def parse_grid_dofs(text: str) -> tuple[int, list[int]]:
     """"GRID:DOFS" (e.g. "101:123456") -> (101, [1, 2, 3, 4, 5, 6])."""
@@ -103,7 +140,8 @@ def node_masses(mass_lumped_basic: sp.csr_matrix, n_grids: int, context: str):
     return m, p, J
 
 
-def structural_model_from_matrices(bulk: BulkData, stiffness_g, mass_g) -> StructuralModel:
+def structural_model_from_matrices(bulk: BulkData, stiffness_g, mass_g,
+                                   interface: list = ()) -> StructuralModel:
     """A :class:`StructuralModel` from given g-set K and M (e.g. OP4 KGG, MGG)."""
     ng = 6 * len(bulk.grid_ids)
     for name, M in (("stiffness", stiffness_g), ("mass", mass_g)):
@@ -119,7 +157,7 @@ def structural_model_from_matrices(bulk: BulkData, stiffness_g, mass_g) -> Struc
     R = block_rotation(bulk.displacement_rotation)
     sm = StructuralModel(bulk=bulk, stiffness_g=K, mass_g=M, mass_lumped_basic=(R @ M @ R.T)
                          .tocsr(), T_gf=sp.identity(ng, format="csr"), f_dofs=np.arange(ng))
-    apply_constraints(sm)
+    apply_constraints(sm, interface)
     sm.deck_aset = deck_aset(bulk)
     return sm
 
@@ -143,6 +181,51 @@ def _uset(sm: StructuralModel, g_dofs: np.ndarray) -> np.ndarray:
     return np.stack([sm.grid_ids[g_dofs // 6], g_dofs % 6 + 1], axis=1).astype(np.int64)
 
 
+def _check_central_inertia(deck, mass: float, cm: np.ndarray, inertia_ref: np.ndarray) -> None:
+    """Warn when the inertia about the center of mass is singular (a straight lumped-mass line,
+    a point mass): the scene accepts such a body only where no hinge needs that inertia."""
+    c = np.asarray(cm, dtype=float)
+    J = inertia_ref - mass * (c @ c * np.eye(3) - np.outer(c, c))
+    w, V = np.linalg.eigh(0.5 * (J + J.T))
+    if w[-1] > 0.0 and w[0] > 1e-9 * w[-1]:
+        return
+    axes = [np.round(V[:, i], 6).tolist() for i in range(3) if w[i] <= 1e-9 * max(w[-1], 0.0)]
+    warnings.warn(f"{deck}: principal moments of inertia about the center of mass are "
+                  f"{np.round(w, 12).tolist()} kg m^2: no rotary inertia about axis(es) {axes} "
+                  "(basic frame). A free, spherical or revolute hinge about such an axis has no "
+                  "inertia to act on; give the deck rotary inertia there (CONM2 I11-I33, PARAM "
+                  "COUPMASS 1, or CBEAM, whose lumped mass carries the torsional moment), or "
+                  "mount the body with a locked hinge", stacklevel=3)
+
+
+def _check_split(deck, split: RigidSplit, flex, threshold_hz) -> None:
+    """Warnings for a rigid/flexible split that the spectrum does not confirm."""
+    if split.n_rigid and split.alignment < 0.999:
+        # (the lowest n_rigid + n_mechanisms computed modes should contain the rigid space)
+        warnings.warn(f"{deck}: the {split.n_rigid} lowest computed modes are not the "
+                      f"rigid-body motions of the geometry (smallest cosine "
+                      f"{split.alignment:.3g}): the structure has a zero-energy mechanism or a "
+                      "flexible mode near zero frequency; the flexible set is what remains "
+                      "M-orthogonal to the rigid-body motions", stacklevel=3)
+    elif (split.n_rigid or split.n_mechanisms) and split.gap < 1e3:
+        warnings.warn(f"{deck}: the zero-energy modes (largest "
+                      f"{max(split.computed_rigid_hz, split.mechanism_hz):.3g} Hz) are within a "
+                      f"factor {split.gap:.3g} of the first flexible mode "
+                      f"({split.first_flexible_hz:.3g} Hz): the split is not clear-cut and the "
+                      "lowest flexible frequency may be inaccurate", stacklevel=3)
+    if split.n_mechanisms:
+        warnings.warn(f"{deck}: {split.n_mechanisms} mechanism mode(s) (zero-energy motion that "
+                      "is not a rigid-body motion, e.g. a pin or free hinge in the FE model) "
+                      "removed with the rigid-body modes; a scene needs a hinge for each",
+                      stacklevel=3)
+    if threshold_hz is not None and len(flex.eigenvalues) and \
+            flex.frequencies_hz[0] < threshold_hz:
+        warnings.warn(f"{deck}: flexible mode 1 at {flex.frequencies_hz[0]:.3g} Hz is below "
+                      f"--rigid-threshold {threshold_hz:g} Hz but is not a rigid-body motion of "
+                      "the geometry: a mechanism (free hinge, unconnected part) or a very soft "
+                      "spring", stacklevel=3)
+
+
 def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
     """Run the pipeline on ``deck``; ``progress(message)`` receives step messages."""
     t0 = time.perf_counter()
@@ -151,10 +234,15 @@ def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
         if progress is not None:
             progress(f"[{time.perf_counter() - t0:7.2f} s] {msg}")
 
-    if (options.n_modes is None) == (options.cutoff_hz is None):
-        raise ValueError("give exactly one of n_modes (--modes) or cutoff_hz (--cutoff)")
-    if options.n_modes is not None and options.n_modes < 0:
-        raise ValueError(f"n_modes must be >= 0, got {options.n_modes}")
+    validate_options(options)
+    if options.blas_threads is None:
+        return _fem2modal(deck, options, say)
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(limits=options.blas_threads, user_api="blas"):
+        return _fem2modal(deck, options, say)
+
+
+def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
     say(f"reading {deck}")
     bulk = read_bulk_data(deck, allow_unsupported=options.allow_unsupported)
     say(f"{len(bulk.grid_ids)} grids; " + "; ".join(bulk.report.lines()))
@@ -167,15 +255,24 @@ def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
                                 f"{sorted(mats)})")
         if options.separate_lumped:
             raise ValueError("separate_lumped needs the deck's CONM2 cards, not OP4 matrices")
-        sm = structural_model_from_matrices(bulk, mats["KGG"], mats["MGG"])
+        sm = structural_model_from_matrices(bulk, mats["KGG"], mats["MGG"], options.aset)
         say(f"OP4 matrices KGG, MGG from {options.op4}")
     else:
-        sm = assemble(bulk, separate_lumped=options.separate_lumped, progress=say)
+        sm = assemble(bulk, separate_lumped=options.separate_lumped, progress=say,
+                      interface=options.aset)
     say(f"g-set {sm.stiffness_g.shape[0]} DOFs, f-set {len(sm.f_dofs)} DOFs "
-        f"(RBE2 dependent {sm.rbe2_dependent_count}, SPC {sm.spc_count}, "
+        f"(RBE2/RBE3 dependent {sm.rbe2_dependent_count}, SPC + PS {sm.spc_count}, "
         f"AUTOSPC {sm.autospc_count})")
     K = sm.stiffness_f()
     M = sm.mass_f()
+    n_massless = int(np.sum(massless_dofs(M)))
+    if n_massless:
+        say(f"{n_massless} f-set DOFs carry no mass (e.g. lumped-mass rotations): dense solves "
+            "condense them statically, the shift-invert Lanczos never returns their infinite "
+            "eigenvalues")
+    if sm.mechanisms:
+        say(f"massless mechanisms held (AUTOSPC): {', '.join(sm.mechanisms)}")
+    rigid_geometry = sm.rigid_body_vectors(K, M)
 
     aset_pairs = list(sm.deck_aset) + list(options.aset)
     cb_data = None
@@ -192,7 +289,7 @@ def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
                            describe=describe, groups=sm.f_dofs // 6)
         cb_data = CraigBamptonData(frequencies_hz=cb.fixed_interface.frequencies_hz,
                                    mass=cb.mass, stiffness=cb.stiffness, uset=b_uset)
-        rigid, flex = normalized_component_modes(cb, options.rigid_threshold_hz)
+        rigid, flex, split = normalized_component_modes(cb, rigid_geometry)
         massless = cb.mass.shape[0] - len(rigid.eigenvalues) - len(flex.eigenvalues)
         if massless:
             warnings.warn(
@@ -203,17 +300,26 @@ def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
                 f"{len(flex.eigenvalues) + massless}. Ask fewer "
                 "fixed-interface modes, or use PARAM COUPMASS 1 so every DOF has mass", stacklevel=2)
         mode_set = "normalized-component"
+        grids = sorted({int(g) for g in b_uset[:, 0]})
+        say("normalized component modes: their frequencies below are those of the free, "
+            "unmounted component, not of the body once a hinge holds it; the fixed-interface "
+            "frequencies (a-set held) are " + ", ".join(
+                f"{f:.6g}" for f in cb.fixed_interface.frequencies_hz[:6]) + " Hz. Mount the "
+            f"body with child_grid = one of the interface grids {grids} on a hinge that holds "
+            "it (not a free hinge)")
     else:
         say("free-free normal modes (shift-invert Lanczos)")
         b_uset = np.zeros((0, 2), dtype=np.int64)
-        rigid, flex = free_free_modes(K, M, n_modes=options.n_modes,
-                                      cutoff_hz=options.cutoff_hz,
-                                      rigid_threshold_hz=options.rigid_threshold_hz,
-                                      groups=sm.f_dofs // 6)
+        rigid, flex, split = free_free_modes(K, M, n_modes=options.n_modes,
+                                             cutoff_hz=options.cutoff_hz,
+                                             rigid_vectors=rigid_geometry,
+                                             groups=sm.f_dofs // 6)
         mode_set = "free-free"
     n_rigid = len(rigid.eigenvalues)
     rigid_vectors = rigid.vectors if n_rigid else None
-    say(f"{len(flex.eigenvalues)} flexible modes, {n_rigid} rigid-body modes removed")
+    say(f"{len(flex.eigenvalues)} flexible modes, {n_rigid} rigid-body and mechanism modes "
+        "removed: " + split.line())
+    _check_split(deck, split, flex, options.rigid_threshold_hz)
 
     n_residual = 0
     res_uset = np.zeros((0, 2), dtype=np.int64)
@@ -247,6 +353,7 @@ def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
         grdpnt, ref_point = 0, np.zeros(3)
     say("rigid-body mass properties")
     rbp = rigid_body_mass_properties(sm.mass_g, bulk.positions, Rcd, ref_point, grdpnt)
+    _check_central_inertia(deck, rbp.mass, rbp.cm_offset, rbp.inertia)
     nm, npos, nJ = node_masses(sm.mass_lumped_basic, N, bulk.path)
     l0 = bulk.positions - ref_point
 

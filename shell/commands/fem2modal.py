@@ -34,8 +34,9 @@ def register(subparsers) -> None:
                    help="take CONM2 masses out of the body and store them as child rigid bodies")
     p.add_argument("--damping", type=float, default=0.0, metavar="ZETA",
                    help="uniform modal damping ratio (default 0)")
-    p.add_argument("--rigid-threshold", type=float, default=1e-4, metavar="HZ",
-                   help="modes below this frequency are rigid-body modes (default 1e-4 Hz)")
+    p.add_argument("--rigid-threshold", type=float, default=None, metavar="HZ",
+                   help="warn when a flexible mode is below this frequency; rigid-body modes "
+                        "themselves come from the geometry (see docs/fem2modal.md)")
     p.add_argument("--op4", metavar="FILE",
                    help="take KGG and MGG from this OP4 file; the deck supplies grids and "
                         "constraints")
@@ -81,7 +82,15 @@ def run(args: argparse.Namespace) -> int:
             FileNotFoundError) as exc:
         print(f"flexshell fem2modal: error: {exc}", file=sys.stderr)
         return 1
-    progress(f"wrote {args.output}: {body.n_modes} modes ({body.mode_set}), "
-             f"mass {body.mass:.6g} kg, first frequencies [Hz] "
-             + ", ".join(f"{f:.6g}" for f in body.frequencies_hz[:6]))
+    first = ", ".join(f"{f:.6g}" for f in body.frequencies_hz[:6])
+    if body.mode_set == "normalized-component":
+        fixed = ", ".join(f"{f:.6g}" for f in body.craig_bampton.frequencies_hz[:6])
+        progress(f"wrote {args.output}: {body.n_modes} normalized component modes, mass "
+                 f"{body.mass:.6g} kg; fixed-interface frequencies (interface grids "
+                 f"{body.interface_grids()} held) [Hz]: {fixed}; free-free frequencies of the "
+                 f"unmounted component [Hz]: {first} (neither is the mounted body's spectrum, "
+                 "which depends on the hinge: mount with child_grid on an interface grid)")
+    else:
+        progress(f"wrote {args.output}: {body.n_modes} free-free modes, mass {body.mass:.6g} "
+                 f"kg, first flexible frequencies [Hz]: {first}")
     return 0

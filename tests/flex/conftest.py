@@ -20,3 +20,13 @@ def write_deck(tmp_path):
         path.write_text(text)
         return str(path)
     return _write
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked slow run only when asked for (-m slow), as pyproject's marker says."""
+    if "slow" in (config.getoption("-m") or ""):
+        return
+    skip = pytest.mark.skip(reason="slow: run with -m slow")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)

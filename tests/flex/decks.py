@@ -85,3 +85,120 @@ def single_length_beam_deck() -> str:
               "0.0000E+00, 0.0000E+00",
               "ENDDATA"]
     return "\n".join(lines) + "\n"
+
+
+def plate_deck(n: int, a: float = 1.0, b: float = 1.0, t: float = 0.01, edges: str = "SSSS",
+               coupled: bool = True, triangles: bool = False, in_plane_held: bool = True,
+               mid3: bool = True, ny: int | None = None) -> str:
+    """Flat rectangular plate in the basic x-y plane, n x ny CQUAD4 (or 2 n ny CTRIA3), PSHELL 1.
+
+    ``edges``: boundary of the edges x = 0, y = 0, x = a, y = b, each S (hard simply supported:
+    w and the rotation about the edge normal held), C (clamped) or F (free).
+    ``in_plane_held``: GRID PS 126 on every grid, so only plate (w, theta_x, theta_y) modes remain.
+    """
+    lines = []
+    if coupled:
+        lines.append("PARAM,COUPMASS,1")
+    ps = "126" if in_plane_held else ""
+    m = n if ny is None else ny
+    nid = lambda i, j: 1 + i + (n + 1) * j      # noqa: E731
+    for j in range(m + 1):
+        for i in range(n + 1):
+            lines.append(f"GRID,{nid(i, j)},,{a * i / n!r},{b * j / m!r},0.0,,{ps}")
+    lines.append(f"MAT1,1,{E!r},,{NU!r},{RHO!r}")
+    lines.append(f"PSHELL,1,1,{t!r},1,,{'1' if mid3 else ''}")
+    eid = 1
+    for j in range(m):
+        for i in range(n):
+            g = (nid(i, j), nid(i + 1, j), nid(i + 1, j + 1), nid(i, j + 1))
+            if triangles:
+                lines.append(f"CTRIA3,{eid},1,{g[0]},{g[1]},{g[2]}")
+                lines.append(f"CTRIA3,{eid + 1},1,{g[0]},{g[2]},{g[3]}")
+                eid += 2
+            else:
+                lines.append(f"CQUAD4,{eid},1,{g[0]},{g[1]},{g[2]},{g[3]}")
+                eid += 1
+    held = {"S": {0: "34", 1: "35"}, "C": {0: "345", 1: "345"}, "F": {0: "", 1: ""}}
+    for edge, kind in enumerate(edges):
+        comps = held[kind][edge % 2]    # x = const edges: theta_x along the edge is held (S)
+        if not comps:
+            continue
+        if edge == 0:
+            grids = [nid(0, j) for j in range(m + 1)]
+        elif edge == 2:
+            grids = [nid(n, j) for j in range(m + 1)]
+        elif edge == 1:
+            grids = [nid(i, 0) for i in range(n + 1)]
+        else:
+            grids = [nid(i, m) for i in range(n + 1)]
+        lines += [f"SPC1,1,{comps},{g}" for g in grids]
+    lines.append("ENDDATA")
+    return "\n".join(lines) + "\n"
+
+
+def solid_bar_deck(nx: int, ny: int, nz: int, length: float, width: float, height: float,
+                   element: str = "CHEXA8", nu: float = 0.0, clamp_root: bool = True,
+                   coupled: bool = True) -> str:
+    """Prismatic bar along x from solids: CHEXA8/CHEXA20 bricks, or each brick split into six
+    CTETRA4/CTETRA10 (Kuhn split along the brick diagonal, conforming in a structured mesh), or
+    two CPENTA6 wedges. Grid ids 1 + i + (nx+1)(j + (ny+1) k) on the corner lattice; mid-edge
+    grids of the quadratic elements follow. ``clamp_root``: SPC1 123 on the x = 0 face."""
+    lines = ["SOL 103", "CEND", "SPC = 1", "BEGIN BULK"]
+    if coupled:
+        lines.append("PARAM,COUPMASS,1")
+    quadratic = element in ("CHEXA20", "CTETRA10")
+    # lattice with spacing h/2 for quadratic elements so mid-edge grids are lattice points
+    f = 2 if quadratic else 1
+    mx, my, mz = f * nx, f * ny, f * nz
+    gid = lambda i, j, k: 1 + i + (mx + 1) * (j + (my + 1) * k)      # noqa: E731
+    used = set()
+    elements = []
+    corner = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1),
+              (0, 1, 1)]
+    kuhn = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
+    hex_edges = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7), (4, 5), (5, 6),
+                 (6, 7), (7, 4)]
+    tet_edges = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]
+    for k in range(nz):
+        for j in range(ny):
+            for i in range(nx):
+                c = [(f * (i + a), f * (j + b), f * (k + d)) for a, b, d in corner]
+
+                def mid(p, q):
+                    return tuple((p[t] + q[t]) // 2 for t in range(3))
+                if element == "CHEXA8":
+                    elements.append(("CHEXA", c))
+                elif element == "CHEXA20":
+                    elements.append(("CHEXA", c + [mid(c[a], c[b]) for a, b in hex_edges]))
+                elif element in ("CTETRA4", "CTETRA10"):
+                    for tet in kuhn:
+                        v = [c[t] for t in tet]
+                        if element == "CTETRA10":
+                            v += [mid(v[a], v[b]) for a, b in tet_edges]
+                        elements.append(("CTETRA", v))
+                elif element == "CPENTA6":
+                    elements.append(("CPENTA", [c[0], c[1], c[2], c[4], c[5], c[6]]))
+                    elements.append(("CPENTA", [c[0], c[2], c[3], c[4], c[6], c[7]]))
+                else:
+                    raise ValueError(element)
+    for _, v in elements:
+        used.update(v)
+    for (i, j, k) in sorted(used, key=lambda p: gid(*p)):
+        lines.append(f"GRID,{gid(i, j, k)},,{length * i / mx!r},{width * j / my!r},"
+                     f"{height * k / mz!r}")
+    lines.append(f"MAT1,1,{E!r},,{nu!r},{RHO!r}")
+    lines.append("PSOLID,1,1")
+    for e, (card, v) in enumerate(elements):
+        ids = [str(gid(*p)) for p in v]
+        fields = [card, str(e + 1), "1"] + ids
+        # free-field continuation every 8 data fields
+        text = ",".join(fields[:9])
+        rest = fields[9:]
+        while rest:
+            text += "\n," + ",".join(rest[:8])
+            rest = rest[8:]
+        lines.append(text)
+    if clamp_root:
+        lines += [f"SPC1,1,123,{gid(0, j, k)}" for (i, j, k) in sorted(used) if i == 0]
+    lines.append("ENDDATA")
+    return "\n".join(lines) + "\n"

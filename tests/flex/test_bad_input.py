@@ -16,14 +16,14 @@ OPT = Fem2ModalOptions(n_modes=3)
 
 
 def test_unsupported_structural_cards_are_named_and_counted(write_deck):
-    extra = ("GRID,90,,0.0,1.0,0.0\nGRID,91,,1.0,1.0,0.0\nPSHELL,20,1,0.01\n"
-             "CQUAD4,500,20,1,2,91,90\nCQUAD4,501,20,2,3,91,90")
+    extra = ("GRID,90,,0.0,1.0,0.0\nGRID,91,,1.0,1.0,0.0\nPSHEAR,20,1,0.01\n"
+             "CSHEAR,500,20,1,2,91,90\nCSHEAR,501,20,2,3,91,90")
     deck = write_deck(decks.beam_deck(4, 2.0, extra=extra))
-    with pytest.raises(UnsupportedCardError, match=r"CQUAD4 x2.*PSHELL x1"):
+    with pytest.raises(UnsupportedCardError, match=r"CSHEAR x2.*PSHEAR x1"):
         fem2modal(deck, OPT)
-    with pytest.warns(UserWarning, match="CQUAD4 x2"):
+    with pytest.warns(UserWarning, match="CSHEAR x2"):
         body = fem2modal(deck, Fem2ModalOptions(n_modes=3, allow_unsupported=True))
-    assert any("UNSUPPORTED" in line and "CQUAD4 x2" in line for line in body.card_report)
+    assert any("UNSUPPORTED" in line and "CSHEAR x2" in line for line in body.card_report)
 
 
 def test_missing_property_material_and_grid(write_deck):

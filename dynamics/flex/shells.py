@@ -1,0 +1,351 @@
+"""Flat shell elements for CQUAD4 / CTRIA3 with PSHELL: membrane + Mindlin plate + drilling.
+
+Each element lies in its mean plane (local x along the first edge, z the normal from the
+diagonals' cross product); a warped CQUAD4 is projected on that plane (no warping correction).
+Local DOFs per grid ``[u, v, w, theta_x, theta_y, theta_z]``; the rotation vector theta moves a
+point at height z by ``theta x (0, 0, z)``, i.e. ``u = z theta_y``, ``v = -z theta_x``.
+
+* Materials: MAT1 (``Q = E / (1 - nu^2) [[1, nu, 0], [nu, 1, 0], [0, 0, (1-nu)/2]]``) or MAT2
+  (Q = [[G11, G12, G13], [G12, G22, G23], [G13, G23, G33]], transverse shear from the MID3
+  MAT2's [[G11, G12], [G12, G22]]), in material axes at THETA from the element x axis or along
+  the projection of the MCID x axis, rotated to the element axes (Jones, Mechanics of
+  Composite Materials, 1999, eq. 2.84). Element x: G1 -> G2 for CTRIA3, the bisector of the
+  diagonals G1 -> G3 and G4 -> G2 for CQUAD4 (NASTRAN's element systems).
+* Membrane: plane stress, ``A = t Q``;
+  CQUAD4 bilinear with Wilson-Taylor incompatible modes (QM6, Taylor, Beresford & Wilson,
+  IJNME 10, 1976; Jacobian at the centre so it passes the patch test) condensed statically;
+  CTRIA3 constant strain.
+* Bending: curvatures ``k_xx = theta_y,x``, ``k_yy = -theta_x,y``, ``k_xy = theta_y,y -
+  theta_x,x``; ``D = (12 I / T^3) t^3 / 12 Q`` (Q of MID2).
+* Transverse shear ``gamma_xz = w,x + theta_y``, ``gamma_yz = w,y - theta_x`` with
+  ``S = (TS/T) t G_s``, by mixed interpolation of tensorial components, which removes shear
+  locking: CQUAD4 is MITC4 (Dvorkin & Bathe, Eng. Comput. 1, 1984; Bathe, Finite Element
+  Procedures, 2014, sec. 5.4.2: covariant gamma_r tied at (0, +-1), gamma_s at (+-1, 0));
+  CTRIA3 is MITC3 (Lee & Bathe, Comput. Struct. 82, 2004: covariant components tied at the edge
+  midpoints, the constant-plus-rotation field of their eq. 17). PSHELL without MID3 (no
+  transverse shear flexibility in NASTRAN) gets ``1e3`` times the shear stiffness of MID2:
+  the Kirchhoff limit, which the mixed interpolation reaches without locking.
+* Drilling: Hughes-Brezzi penalty ``gamma_d int (theta_z - omega)^2 dA``, ``omega = (v,x - u,y)/2``
+  (Hughes & Brezzi, CMAME 72, 1989) with ``gamma_d = DRILL * Q_33 t``, ``DRILL = 1e-4``, at the
+  2 x 2 (quadrilateral) or 3 edge-midpoint (triangle) points, so no theta_z pattern is free;
+  small enough to change membrane frequencies by O(1e-4) at most.
+* ZOFFS: the element's reference plane lies ZOFFS along its normal from the grids, joined to
+  them by rigid links (``u = u_grid + theta x (0, 0, ZOFFS)``, as NASTRAN's shell offset).
+* Mass: consistent ``int (rho t + nsm) N' N dA`` on the translations and the Mindlin rotary
+  inertia ``rho t^3 / 12`` on theta_x, theta_y (none on theta_z, as NASTRAN); lumped: the
+  element's translational mass shared equally by its grids (NASTRAN COUPMASS <= 0).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+DRILL = 1e-4
+NO_SHEAR_FLEXIBILITY = 1e3
+_G2 = 1.0 / np.sqrt(3.0)
+_QUAD_NODES = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+
+
+@njit(cache=True)
+def element_frame(xyz: np.ndarray):
+    """(Lambda rows = local x, y, z in basic; local 2-D coordinates (n, 2); centre)."""
+    n = xyz.shape[0]
+    c = np.zeros(3)
+    for i in range(n):
+        c += xyz[i] / n
+    if n == 4:
+        d13 = xyz[2] - xyz[0]
+        d24 = xyz[3] - xyz[1]
+        z = np.cross(d13, d24)
+        # NASTRAN's QUAD4 x axis: bisector of the diagonals G1->G3 and G4->G2
+        x = d13 / np.linalg.norm(d13) - d24 / np.linalg.norm(d24)
+    else:
+        z = np.cross(xyz[1] - xyz[0], xyz[2] - xyz[0])
+        x = xyz[1] - xyz[0]
+    z = z / np.linalg.norm(z)
+    x = x - (x @ z) * z
+    x = x / np.linalg.norm(x)
+    y = np.cross(z, x)
+    Lam = np.empty((3, 3))
+    Lam[0], Lam[1], Lam[2] = x, y, z
+    loc = np.empty((n, 2))
+    for i in range(n):
+        d = xyz[i] - c
+        loc[i, 0] = d @ x
+        loc[i, 1] = d @ y
+    return Lam, loc, c
+
+
+@njit(cache=True)
+def _quad_shape(r, s):
+    N = np.empty(4)
+    dN = np.empty((2, 4))
+    for i in range(4):
+        ri, si = _QUAD_NODES[i, 0], _QUAD_NODES[i, 1]
+        N[i] = 0.25 * (1 + ri * r) * (1 + si * s)
+        dN[0, i] = 0.25 * ri * (1 + si * s)
+        dN[1, i] = 0.25 * si * (1 + ri * r)
+    return N, dN
+
+
+@njit(cache=True)
+def rotate_plane(C, c, s):
+    """C (3x3, Voigt with engineering shear) of axes at angle theta (c, s) in the element axes."""
+    T = np.array([[c * c, s * s, c * s], [s * s, c * c, -c * s],
+                  [-2 * c * s, 2 * c * s, c * c - s * s]])
+    return T.T @ C @ T
+
+
+@njit(cache=True)
+def _materials(p, Lam):
+    """A (membrane), D (bending), S (2x2 transverse shear), drilling modulus, in element axes.
+
+    p: the property row of :func:`shell_batch`. The material axes are at angle THETA from the
+    element x axis, or along the projection of the MCID x axis when one is given.
+    """
+    Gm = p[0:9].copy().reshape(3, 3)
+    Gb = p[9:18].copy().reshape(3, 3)
+    Gs = p[18:22].copy().reshape(2, 2)
+    t, bend_ratio, ts_t, shear_rigid, theta = p[23], p[25], p[26], p[27], p[28]
+    direction = p[29:32]
+    if direction @ direction > 0.0:
+        theta = np.arctan2(direction @ Lam[1], direction @ Lam[0])
+    c, s = np.cos(theta), np.sin(theta)
+    A = rotate_plane(Gm, c, s) * t
+    D = rotate_plane(Gb, c, s) * (bend_ratio * t ** 3 / 12.0)
+    R = np.array([[c, s], [-s, c]])
+    S = R.T @ Gs @ R * (ts_t * t)
+    if shear_rigid > 0.5:
+        S = R.T @ Gs @ R * (NO_SHEAR_FLEXIBILITY * (5.0 / 6.0) * t)
+    return A, D, S, Gm[2, 2] * t
+
+
+@njit(cache=True)
+def _covariant_shear_row(dN_r, N, xr, yr, nn):
+    """Row (6 nn) of gamma_r = w,r + x,r theta_y - y,r theta_x at a point."""
+    row = np.zeros(6 * nn)
+    for i in range(nn):
+        row[6 * i + 2] = dN_r[i]
+        row[6 * i + 3] = -yr * N[i]
+        row[6 * i + 4] = xr * N[i]
+    return row
+
+
+@njit(cache=True)
+def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled):
+    """Local 24 x 24 K and M of a MITC4 / QM6 shell quadrilateral (module docstring)."""
+    K = np.zeros((24, 24))
+    M = np.zeros((24, 24))
+    x, y = loc[:, 0], loc[:, 1]
+    # tying points: gamma_r at (0, -1) [B] and (0, 1) [D]; gamma_s at (-1, 0) [A] and (1, 0) [C]
+    tie_r = np.zeros((2, 24))
+    tie_s = np.zeros((2, 24))
+    for k in range(2):
+        N, dN = _quad_shape(0.0, 2.0 * k - 1.0)
+        tie_r[k] = _covariant_shear_row(dN[0], N, dN[0] @ x, dN[0] @ y, 4)
+        N, dN = _quad_shape(2.0 * k - 1.0, 0.0)
+        tie_s[k] = _covariant_shear_row(dN[1], N, dN[1] @ x, dN[1] @ y, 4)
+    # incompatible membrane modes (1 - r^2), (1 - s^2) in u and v, with J at the centre
+    N0, dN0 = _quad_shape(0.0, 0.0)
+    J0 = np.array([[dN0[0] @ x, dN0[0] @ y], [dN0[1] @ x, dN0[1] @ y]])
+    J0i = np.linalg.inv(J0)
+    det0 = np.linalg.det(J0)
+    Kuu = np.zeros((24, 24))
+    Kua = np.zeros((24, 4))
+    Kaa = np.zeros((4, 4))
+    area = 0.0
+    mu = rho * t + nsm
+    I_rot = rho * t ** 3 / 12.0
+    for r in (-_G2, _G2):
+        for s_ in (-_G2, _G2):
+            N, dN = _quad_shape(r, s_)
+            J = np.array([[dN[0] @ x, dN[0] @ y], [dN[1] @ x, dN[1] @ y]])
+            det = np.linalg.det(J)
+            if det <= 0.0:
+                raise ValueError("CQUAD4: non-convex or badly ordered corners (Jacobian <= 0)")
+            Ji = np.linalg.inv(J)
+            dNx = Ji @ dN                      # rows: d/dx, d/dy
+            area += det
+            Bm = np.zeros((3, 24))
+            Bb = np.zeros((3, 24))
+            for i in range(4):
+                Bm[0, 6 * i] = dNx[0, i]
+                Bm[1, 6 * i + 1] = dNx[1, i]
+                Bm[2, 6 * i] = dNx[1, i]
+                Bm[2, 6 * i + 1] = dNx[0, i]
+                Bb[0, 6 * i + 4] = dNx[0, i]
+                Bb[1, 6 * i + 3] = -dNx[1, i]
+                Bb[2, 6 * i + 4] = dNx[1, i]
+                Bb[2, 6 * i + 3] = -dNx[0, i]
+            # incompatible modes: d(1-r^2)/d(x,y) = J0^-1 (-2r, 0) * det0/det (Taylor's correction)
+            g1 = J0i @ np.array([-2.0 * r, 0.0]) * (det0 / det)
+            g2 = J0i @ np.array([0.0, -2.0 * s_]) * (det0 / det)
+            Ba = np.zeros((3, 4))
+            Ba[0, 0], Ba[2, 0], Ba[1, 1], Ba[2, 1] = g1[0], g1[1], g1[1], g1[0]
+            Ba[0, 2], Ba[2, 2], Ba[1, 3], Ba[2, 3] = g2[0], g2[1], g2[1], g2[0]
+            # MITC4 covariant shear, then Cartesian: [g_xz, g_yz] = J^-1 [g_r, g_s]
+            gr = 0.5 * (1 - s_) * tie_r[0] + 0.5 * (1 + s_) * tie_r[1]
+            gs = 0.5 * (1 - r) * tie_s[0] + 0.5 * (1 + r) * tie_s[1]
+            Bs = np.zeros((2, 24))
+            Bs[0] = Ji[0, 0] * gr + Ji[0, 1] * gs
+            Bs[1] = Ji[1, 0] * gr + Ji[1, 1] * gs
+            Kuu += (Bm.T @ A @ Bm + Bb.T @ D @ Bb + Bs.T @ S @ Bs) * det
+            Kua += Bm.T @ A @ Ba * det
+            Kaa += Ba.T @ A @ Ba * det
+            # drilling: the grids' theta_z against the in-plane rotation, at every point
+            bd = np.zeros(24)
+            for i in range(4):
+                bd[6 * i + 5] = N[i]
+                bd[6 * i] += 0.5 * dNx[1, i]
+                bd[6 * i + 1] -= 0.5 * dNx[0, i]
+            Kuu += DRILL * gt * np.outer(bd, bd) * det
+            if coupled:
+                for i in range(4):
+                    for j in range(4):
+                        m = N[i] * N[j] * det
+                        for d in range(3):
+                            M[6 * i + d, 6 * j + d] += mu * m
+                        M[6 * i + 3, 6 * j + 3] += I_rot * m
+                        M[6 * i + 4, 6 * j + 4] += I_rot * m
+    Kuu -= Kua @ np.linalg.solve(Kaa, Kua.T)
+    if not coupled:
+        for i in range(4):
+            for d in range(3):
+                M[6 * i + d, 6 * i + d] = mu * area / 4.0
+    return 0.5 * (Kuu + Kuu.T), M
+
+
+@njit(cache=True)
+def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled):
+    """Local 18 x 18 K and M of a MITC3 / CST shell triangle (module docstring)."""
+    x, y = loc[:, 0], loc[:, 1]
+    # N = [1 - r - s, r, s]; constant derivatives
+    dN = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])
+    J = np.array([[dN[0] @ x, dN[0] @ y], [dN[1] @ x, dN[1] @ y]])
+    det = np.linalg.det(J)
+    if det <= 0.0:
+        raise ValueError("CTRIA3: degenerate triangle (zero area)")
+    Ji = np.linalg.inv(J)
+    dNx = Ji @ dN
+    area = 0.5 * det
+    Bm = np.zeros((3, 18))
+    Bb = np.zeros((3, 18))
+    for i in range(3):
+        Bm[0, 6 * i] = dNx[0, i]
+        Bm[1, 6 * i + 1] = dNx[1, i]
+        Bm[2, 6 * i] = dNx[1, i]
+        Bm[2, 6 * i + 1] = dNx[0, i]
+        Bb[0, 6 * i + 4] = dNx[0, i]
+        Bb[1, 6 * i + 3] = -dNx[1, i]
+        Bb[2, 6 * i + 4] = dNx[1, i]
+        Bb[2, 6 * i + 3] = -dNx[0, i]
+    K = (Bm.T @ A @ Bm + Bb.T @ D @ Bb) * area
+    # MITC3 (Lee & Bathe 2004): e_rt = e_rt^(1) + c s, e_st = e_st^(2) - c r with tying points
+    # (1) = (1/2, 0), (2) = (0, 1/2), (3) = (1/2, 1/2); the third condition ties the component
+    # along the hypotenuse, e_st - e_rt, at (3): c = (e_st^(2) - e_rt^(1)) - (e_st^(3) - e_rt^(3))
+    xr, yr = dN[0] @ x, dN[0] @ y
+    xs, ys = dN[1] @ x, dN[1] @ y
+    er1 = _covariant_shear_row(dN[0], np.array([0.5, 0.5, 0.0]), xr, yr, 3)
+    es2 = _covariant_shear_row(dN[1], np.array([0.5, 0.0, 0.5]), xs, ys, 3)
+    er3 = _covariant_shear_row(dN[0], np.array([0.0, 0.5, 0.5]), xr, yr, 3)
+    es3 = _covariant_shear_row(dN[1], np.array([0.0, 0.5, 0.5]), xs, ys, 3)
+    c = (es2 - er1) - (es3 - er3)
+    # integrate the linear field e_rt = er1 + c s, e_st = es2 - c r exactly (3 midpoint rule)
+    Ks = np.zeros((18, 18))
+    for r, s_ in ((0.5, 0.0), (0.5, 0.5), (0.0, 0.5)):
+        gr = er1 + c * s_
+        gs = es2 - c * r
+        Bs = np.zeros((2, 18))
+        Bs[0] = Ji[0, 0] * gr + Ji[0, 1] * gs
+        Bs[1] = Ji[1, 0] * gr + Ji[1, 1] * gs
+        Ks += (Bs.T @ S @ Bs) * area / 3.0
+    K += Ks
+    M = np.zeros((18, 18))
+    mu = rho * t + nsm
+    I_rot = rho * t ** 3 / 12.0
+    for r, s_ in ((0.5, 0.0), (0.5, 0.5), (0.0, 0.5)):
+        N = np.array([1.0 - r - s_, r, s_])
+        bd = np.zeros(18)
+        for i in range(3):
+            bd[6 * i + 5] = N[i]
+            bd[6 * i] += 0.5 * dNx[1, i]
+            bd[6 * i + 1] -= 0.5 * dNx[0, i]
+        K += DRILL * gt * np.outer(bd, bd) * area / 3.0
+        if coupled:
+            for i in range(3):
+                for j in range(3):
+                    m = N[i] * N[j] * area / 3.0
+                    for d in range(3):
+                        M[6 * i + d, 6 * j + d] += mu * m
+                    M[6 * i + 3, 6 * j + 3] += I_rot * m
+                    M[6 * i + 4, 6 * j + 4] += I_rot * m
+    if not coupled:
+        for i in range(3):
+            for d in range(3):
+                M[6 * i + d, 6 * i + d] = mu * area / 3.0
+    return 0.5 * (K + K.T), M
+
+
+def isotropic_props(E, nu, rho, t, nsm=0.0, bend_ratio=1.0, ts_t=5.0 / 6.0, shear_rigid=False,
+                    theta=0.0, direction=(0.0, 0.0, 0.0), zoffset=0.0) -> np.ndarray:
+    """A :func:`shell_batch` property row for one isotropic material (MAT1)."""
+    G = E / (2.0 * (1.0 + nu))
+    c = E / (1.0 - nu * nu)
+    Q = np.array([[c, nu * c, 0.0], [nu * c, c, 0.0], [0.0, 0.0, G]])
+    return property_row(Q, Q, G * np.eye(2), rho, t, nsm, bend_ratio, ts_t, shear_rigid,
+                        theta, direction, zoffset)
+
+
+def property_row(Gm, Gb, Gs, rho, t, nsm, bend_ratio, ts_t, shear_rigid, theta, direction,
+                 zoffset=0.0):
+    return np.concatenate([np.ravel(Gm), np.ravel(Gb), np.ravel(Gs),
+                           [rho, t, nsm, bend_ratio, ts_t, 1.0 if shear_rigid else 0.0, theta],
+                           np.asarray(direction, dtype=float), [zoffset]])
+
+
+@njit(cache=True)
+def shell_batch(xyz, props, coupled):
+    """Basic-frame K, M, lumped M of many shells with the same grid count.
+
+    xyz (ne, nn, 3) grid positions; props (ne, 32): membrane modulus (3x3, plane stress, per
+    unit thickness), bending modulus (3x3), transverse shear modulus (2x2), rho, t, nsm,
+    12I/T^3, TS/T, shear_rigid (0/1), THETA [rad], MCID x axis in basic (3; zero: use THETA),
+    ZOFFS (the reference plane's offset from the grids along the element normal).
+    Returns three (ne, 6 nn, 6 nn) arrays in [T; R] order per grid.
+    """
+    ne, nn = xyz.shape[0], xyz.shape[1]
+    nd = 6 * nn
+    Kg = np.empty((ne, nd, nd))
+    Mg = np.empty((ne, nd, nd))
+    MLg = np.empty((ne, nd, nd))
+    for e in range(ne):
+        p = props[e]
+        rho, t, nsm = p[22], p[23], p[24]
+        Lam, loc, _ = element_frame(xyz[e])
+        A, D, S, gt = _materials(p, Lam)
+        if nn == 4:
+            K, M = quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled)
+        else:
+            K, M = tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled)
+        area = 0.0
+        for i in range(nn):
+            j = (i + 1) % nn
+            area += 0.5 * (loc[i, 0] * loc[j, 1] - loc[j, 0] * loc[i, 1])
+        ML = np.zeros((nd, nd))
+        for i in range(nd):
+            if i % 6 < 3:
+                ML[i, i] = (rho * t + nsm) * area / nn
+        T = np.zeros((nd, nd))
+        for i in range(2 * nn):
+            T[3 * i:3 * i + 3, 3 * i:3 * i + 3] = Lam
+        zoff = p[32]
+        if zoff != 0.0:
+            # rigid offset along the normal: u_plane = u_grid + theta x (0, 0, zoff)
+            for i in range(nn):
+                T[6 * i, :] += zoff * T[6 * i + 4, :]
+                T[6 * i + 1, :] -= zoff * T[6 * i + 3, :]
+        Kg[e] = T.T @ K @ T
+        Mg[e] = T.T @ M @ T
+        MLg[e] = T.T @ ML @ T
+    return Kg, Mg, MLg
