@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dynamics.hinges import HINGE_NAMES, HINGE_NAXES, HINGE_NQ, HINGE_NU, HINGE_TYPES
+from dynamics.hinges import (FREE, HINGE_NAMES, HINGE_NAXES, HINGE_NQ, HINGE_NU, HINGE_TYPES, LOCKED, PRISMATIC,
+                             REVOLUTE, SPHERICAL, UJOINT)
 from dynamics.spatial import quaternion_to_rotation
 
 GROUND = None
@@ -157,10 +158,12 @@ class Multibody:
         if not np.isfinite(mass) or mass <= 0.0:
             raise ModelDefinitionError(f"{where}: mass must be positive and finite, got {mass!r} kg")
         com = _vector3(com, f"{where}: center of mass")
-        inertia = self._check_inertia(inertia, where)
         code = HINGE_TYPES[hinge]
         hinge_axes = self._check_axes(code, axis, axes, where)
         prescribed_flags = self._check_prescribed(code, prescribed, where)
+        inertia = self._check_inertia(inertia, where, code, hinge_axes, prescribed_flags, mass, com,
+                                      _vector3(outboard_position, f"{where}: outboard_position"),
+                                      _rotation(outboard_rotation, f"{where}: outboard_rotation"))
         if parent_node is not None:
             node = next((nd for nd in self.nodes if nd.name == parent_node), None)
             if node is None or node.body != parent:
@@ -270,7 +273,14 @@ class Multibody:
         return name
 
     @staticmethod
-    def _check_inertia(inertia, where):
+    def _check_inertia(inertia, where, code=FREE, hinge_axes=None, prescribed=None, mass=1.0, com=None,
+                       hinge_point=None, R_BM=None):
+        """The inertia about the center of mass as a symmetric 3x3 matrix. Positive definite is always
+        accepted. Positive semi-definite (a point mass, a line of point masses: no rotary inertia about some
+        axis) is accepted where the hinge never needs it: a locked, prismatic or fully prescribed hinge, a
+        revolute or U-joint whose axes see a positive moment of inertia about the hinge point
+        (``a' (J + m (|d|^2 I - d d')) a``, d = com - hinge point), a spherical hinge whose inertia about the
+        hinge point is positive definite; refused with the axes it lacks otherwise (always on a free hinge)."""
         try:
             J = np.asarray(inertia, dtype=np.float64)
         except (TypeError, ValueError) as exc:
@@ -284,11 +294,37 @@ class Multibody:
         if np.abs(J - J.T).max() > 1e-12 * scale:
             raise ModelDefinitionError(f"{where}: inertia matrix is not symmetric: {J.tolist()}")
         J = 0.5 * (J + J.T)
-        eig = np.linalg.eigvalsh(J)
+        eig, vectors = np.linalg.eigh(J)
         if eig[0] <= 0.0:
-            raise ModelDefinitionError(
-                f"{where}: inertia about the center of mass must be symmetric positive definite; "
-                f"principal moments are {eig.tolist()} kg m^2")
+            d = (np.zeros(3) if com is None else com) - (np.zeros(3) if hinge_point is None else hinge_point)
+            about_hinge = J + mass * (d @ d * np.eye(3) - np.outer(d, d))
+            tol = 1e-12 * max(np.abs(about_hinge).max(), mass * (d @ d), 1e-300)
+            if eig[0] < -1e-12 * scale:
+                raise ModelDefinitionError(
+                    f"{where}: inertia about the center of mass must be positive semi-definite; principal "
+                    f"moments are {eig.tolist()} kg m^2")
+            null = [np.round(vectors[:, k], 12).tolist() for k in range(3) if eig[k] <= 1e-12 * scale]
+            fully_prescribed = prescribed is not None and len(prescribed) > 0 and all(prescribed)
+            if code in (LOCKED, PRISMATIC) or fully_prescribed:
+                ok = True
+            elif code in (REVOLUTE, UJOINT):
+                R = np.eye(3) if R_BM is None else R_BM
+                n_axes = 1 if code == REVOLUTE else 2
+                ok = all((R @ a) @ about_hinge @ (R @ a) > tol for a in hinge_axes[:n_axes])
+            elif code == SPHERICAL:
+                ok = np.linalg.eigvalsh(about_hinge)[0] > tol
+            else:
+                ok = False
+            if not ok:
+                need = ("a free hinge turns the body about its center of mass: it needs rotary inertia about "
+                        "every axis" if code == FREE else f"its {HINGE_NAMES[code]} hinge turns it about an "
+                        "axis without inertia about the hinge point")
+                raise ModelDefinitionError(
+                    f"{where}: {need}; principal moments about the center of mass are {eig.tolist()} kg m^2, "
+                    f"none about {null} (body axes). Give the body rotary inertia there (in an FE deck: "
+                    f"CONM2 I11-I33, PARAM COUPMASS 1 or CBEAM elements), or use a hinge that does not turn "
+                    f"about that axis")
+            return J
         if eig[0] + eig[1] < eig[2] * (1.0 - 1e-9):
             warnings.warn(f"{where}: principal moments {eig.tolist()} violate the triangle inequality "
                           f"(I1 + I2 >= I3) that every physical mass distribution satisfies", stacklevel=3)

@@ -22,7 +22,7 @@ def builder():
     (dict(mass=0.0), ["arm", "mass must be positive", "0.0"]),
     (dict(mass=-2.0), ["arm", "mass must be positive"]),
     (dict(mass=float("nan")), ["arm", "mass"]),
-    (dict(inertia=[[1, 0, 0], [0, -1, 0], [0, 0, 1]]), ["arm", "positive definite", "principal moments"]),
+    (dict(inertia=[[1, 0, 0], [0, -1, 0], [0, 0, 1]]), ["arm", "positive semi-definite", "principal moments"]),
     (dict(inertia=[[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]), ["arm", "not symmetric"]),
     (dict(inertia=[1, 2]), ["arm", "inertia", "3x3"]),
     (dict(axis=(0, 0, 2)), ["arm", "not a unit vector", "norm 2"]),
@@ -118,3 +118,31 @@ def test_malformed_urdf_is_refused_with_the_item_named(tmp_path, body, fragments
 def test_urdf_missing_file_is_reported(tmp_path):
     with pytest.raises(UrdfError, match="cannot read"):
         Multibody.from_urdf(tmp_path / "nope.urdf")
+
+
+def test_missing_rotary_inertia_is_accepted_where_the_hinge_never_needs_it():
+    """A point mass or a line of point masses (a lumped-mass FE deck) has no rotary inertia about some axis:
+    accepted on hinges that do not turn the body about it, with the right dynamics; refused, naming the axis
+    and the fix, where they do (always on a free hinge)."""
+    from dynamics import Multibody
+
+    line = np.diag([0.0, 1.0, 1.0])  # no inertia about body x
+    for hinge, kwargs in (("prismatic", dict(axis=(1, 0, 0))), ("locked", {}),
+                          ("revolute", dict(axis=(0, 0, 1), prescribed=True))):
+        mb = builder()
+        mb.add_body("arm", "base", mass=2.0, inertia=np.zeros(3), hinge=hinge, **kwargs)  # point mass
+        mb.compile()
+    # turning about z through the hinge point at 0.5 m from the center of mass: J_z + m d^2
+    mb = Multibody()
+    mb.add_body("arm", None, mass=2.0, inertia=line, com=(0.5, 0.0, 0.0), hinge="revolute", axis=(0, 0, 1))
+    system = mb.compile()
+    udot = system.forward_dynamics(system.neutral_configuration(), np.zeros(1), tau=np.array([3.0]))
+    np.testing.assert_allclose(udot, [3.0 / (1.0 + 2.0 * 0.25)], rtol=1e-15)
+    for hinge, kwargs, fragment in (
+            ("revolute", dict(axis=(1, 0, 0), com=(0.5, 0.0, 0.0)), "revolute hinge turns it about an axis"),
+            ("free", {}, "free hinge turns the body about its center of mass")):
+        mb = Multibody()
+        with pytest.raises(ModelDefinitionError) as info:
+            mb.add_body("arm", None, mass=2.0, inertia=line, hinge=hinge, **kwargs)
+        for expected in (fragment, "none about [[1.0, 0.0, 0.0]]", "CONM2"):
+            assert expected in str(info.value), str(info.value)
