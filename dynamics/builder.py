@@ -229,6 +229,11 @@ class Multibody:
                                                      integrals=integrals, omit_terms=omit_terms)
             except ModelDefinitionError as exc:
                 raise ModelDefinitionError(f"body '{name}': {exc}") from None
+            # normalized component modes mounted where their interface is not held, or held twice (a free
+            # body without child_grid needs no holding: its modes span the interface motion)
+            if hasattr(modal, "mounting_warnings") and not (child_grid is None and hinge == "free"):
+                for message in modal.mounting_warnings(child_grid, hinge):
+                    warnings.warn(f"body '{name}': {message}", UserWarning, stacklevel=2)
         M0 = data.M0
         mass = M0[3, 3]
         com = np.array([M0[2, 4], M0[0, 5], M0[1, 3]]) / mass

@@ -230,3 +230,38 @@ def test_a_pin_inside_the_model_is_a_mechanism_mode_not_a_flexible_one(write_dec
     assert np.abs(rq[:7]).max() < 1e-9 * rq[7]
     assert_allclose(body.frequencies_hz, np.sqrt(rq[7:11]) / (2 * np.pi), rtol=1e-9)
     assert_allclose(body.modal_mass, np.eye(4), atol=1e-10)
+
+
+def test_the_scene_builder_warns_about_mounting_component_modes(write_deck):
+    """``Multibody.add_flexible_body`` passes the body file's mounting checks on as warnings naming the body:
+    normalized component modes on a hinge without child_grid, child_grid on a free hinge; none for the
+    correct mounting, nor for a free body without child_grid (nothing to hold)."""
+    import warnings
+
+    from dynamics import Multibody
+
+    deck = write_deck(decks.beam_deck(10, 2.0))
+    body = _quiet(fem2modal, deck, Fem2ModalOptions(n_modes=4, aset=[(1, [1, 2, 3, 4, 5, 6])], modal_integrals=True))
+
+    def messages(**kwargs):
+        mb = Multibody()
+        mb.add_body("bus", None, mass=10.0, inertia=[1.0, 1.0, 1.0], hinge="free")
+        mb.add_node("port", "bus")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            mb.add_flexible_body("beam", "bus", modal=body, parent_node="port", **kwargs)
+        return [str(w.message) for w in caught if "body 'beam'" in str(w.message)]
+
+    assert any("without child_grid" in m for m in messages(hinge="locked"))
+    assert messages(hinge="locked", child_grid=1) == []
+    # on a free hinge this lumped-mass beam (no rotary inertia about its axis) is then refused, naming the axis
+    from dynamics import ModelDefinitionError
+
+    for child_grid, expect_duplicate in ((1, True), (None, False)):
+        mb = Multibody()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with pytest.raises(ModelDefinitionError, match=r"free hinge .* none about \[\[1\.0, 0\.0, 0\.0\]\]"):
+                mb.add_flexible_body("beam", None, modal=body, hinge="free", child_grid=child_grid)
+        found = [str(w.message) for w in caught if "body 'beam'" in str(w.message) and "child_grid" in str(w.message)]
+        assert bool(found) == expect_duplicate and all("duplicates" in m for m in found)
