@@ -124,6 +124,19 @@ def check_scheduler(address: str, timeout: float = 5.0) -> None:
                                    f"({reason}); start one with `dask scheduler` or check the address") from None
 
 
+def guided_chunks(runs: list, workers: int, largest: int = 8) -> list:
+    """Runs grouped into tasks of decreasing size ("guided" scheduling): at most ``largest`` runs, and at most
+    1/4 of the remaining runs per worker, down to single runs at the end, so the workers finish within about
+    one run of each other (equal chunks of 8 left one of two workers 12 runs behind on 100 runs: 10 % of
+    the wall time) while the per-task overhead stays on few tasks."""
+    chunks, k = [], 0
+    while k < len(runs):
+        size = max(1, min(largest, (len(runs) - k) // (4 * max(workers, 1))))
+        chunks.append(runs[k:k + size])
+        k += size
+    return chunks
+
+
 def run_serial(campaign: Campaign, runs):
     from threadpoolctl import threadpool_limits
 
@@ -181,8 +194,7 @@ def run_dask(campaign: Campaign, runs, scheduler: str | None = None, workers: in
         shipped = client.scatter(campaign, broadcast=True)
         runs = list(runs)
         n_workers = max(len(client.scheduler_info().get("workers", {})), 1)
-        size = max(1, min(8, len(runs) // (4 * n_workers)))  # >= 4 tasks per worker keep the load balanced
-        chunks = [runs[k:k + size] for k in range(0, len(runs), size)]
+        chunks = guided_chunks(runs, n_workers)
         futures = [client.submit(run_campaign_chunk, shipped, chunk, pure=False,
                                  key=f"{campaign.name}-{campaign.fingerprint[:12]}-runs-{chunk[0]}-{chunk[-1]}")
                    for chunk in chunks]

@@ -73,3 +73,19 @@ def test_dask_scheduler_address(ramp_campaign, tmp_path):
     cluster = read_results(tmp_path / "cluster.h5")
     assert tables_equal(read_results(tmp_path / "serial.h5")["table"], cluster["table"])
     assert cluster["timing"]["compiled_kernels"].tolist() == [0] * 4
+
+
+def test_guided_chunks_cover_every_run_once_and_shrink_to_single_runs():
+    """Dask tasks: every run once, in order; at most 8 runs per task and never more than a quarter of the
+    remaining runs per worker, so the tasks end in single runs and the workers finish together."""
+    from shell.montecarlo.executors import guided_chunks
+
+    for n, workers in ((100, 2), (7, 2), (1000, 8), (1, 4), (0, 2)):
+        runs = list(range(n))
+        chunks = guided_chunks(runs, workers)
+        assert [i for chunk in chunks for i in chunk] == runs
+        sizes = [len(c) for c in chunks]
+        assert all(1 <= s <= 8 for s in sizes) and sizes == sorted(sizes, reverse=True)
+        if n >= 4 * workers:
+            assert sizes[-4 * workers:] == [1] * (4 * workers)  # the tail: single runs
+    assert guided_chunks(list(range(100)), 2)[0] == list(range(8))
