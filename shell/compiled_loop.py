@@ -310,30 +310,15 @@ def zero_crossings(k, engine, t, b, src, fac):
 @njit(cache=True)
 def update_model(i, k, engine, rngs, t, b):
     """Evaluate the outputs model ``i``'s inputs need, then run its compiled update (drawing its noise
-    first)."""
-    ops = b.update_ops
-    run_stages(b.input_stage_ops[ops[i, G0]:ops[i, G1]], ops[i, G1] - ops[i, G0], k, engine, t, b, b.src, b.fac)
-    gather_all(b, b.src, b.fac)
-    x = _view(b.X, ops[i, X0], ops[i, X1])
-    z = _view(b.Z, ops[i, Z0], ops[i, Z1])
-    u = _view(b.S, ops[i, U0], ops[i, U1])
-    p = _view(b.P, ops[i, P0], ops[i, P1])
-    f = ops[i, FN]
-    if ops[i, KIND] == UPDATE:
-        _update_kernel(k.update_fns[f, 0], k.update_fns[f, 1])(t, x, z, u, p)
-    else:
-        noise = _view(b.noise, ops[i, N0], ops[i, N1])
-        rng = rngs[ops[i, RNG]]
-        for n in range(noise.shape[0]):
-            noise[n] = rng.standard_normal()
-        _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, noise)
+    first, from its slot of ``rngs``)."""
+    update_model_alone(i, k, engine, rngs[b.update_ops[i, RNG]], t, b)
 
 
 @njit(cache=True)
 def update_model_alone(i, k, engine, rng, t, b):
-    """:func:`update_model` for a Python caller (a loop whose integrator stays in Python), given only model
-    ``i``'s random stream (any generator when it draws no noise): unboxing the tuple of every model's
-    stream costs more than most updates. Same operations, same numbers."""
+    """Model ``i``'s update given only its own random stream (any generator when it draws no noise): what
+    :func:`update_model` runs, and what a Python caller (a loop whose integrator stays in Python) calls
+    directly, since unboxing the tuple of every model's stream costs more than most updates."""
     ops = b.update_ops
     run_stages(b.input_stage_ops[ops[i, G0]:ops[i, G1]], ops[i, G1] - ops[i, G0], k, engine, t, b, b.src, b.fac)
     gather_all(b, b.src, b.fac)

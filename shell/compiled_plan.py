@@ -239,8 +239,7 @@ class CompiledPlan:
         """Model ``i``'s discrete update at the context's state, compiled: the outputs its inputs need, its
         noise drawn from its own generator, its kernel (the same numbers as ``Diagram.update``; for loops
         that stay in Python, e.g. with an adaptive or exponential integrator)."""
-        ops = self.buffers.update_ops
-        rng = self.rngs[ops[i, L.RNG]] if ops[i, L.KIND] == L.UPDATE_NOISE else self.rngs[-1]
+        rng = self.rngs[int(self.buffers.update_ops[i, L.RNG])]  # its own stream (slot 0, unused, without noise)
         L.update_model_alone(i, self.kernels, self.engine, rng, float(t), self.buffers)
 
     def stage_table(self, stages):
