@@ -133,6 +133,25 @@ def _covariant_shear_row(dN_r, N, xr, yr, nn):
 
 
 @njit(cache=True)
+def _membrane_bending_B(dNx, n):
+    """Membrane and bending strain-displacement rows (3 x 6n each) of an n-node plate element from the shape
+    function derivatives ``dNx`` (rows d/dx, d/dy): e = [u_x, v_y, u_y + v_x], kappa = [theta_y,x, -theta_x,y,
+    theta_y,y - theta_x,x] with the DOFs (u, v, w, theta_x, theta_y, theta_z) per node."""
+    Bm = np.zeros((3, 6 * n))
+    Bb = np.zeros((3, 6 * n))
+    for i in range(n):
+        Bm[0, 6 * i] = dNx[0, i]
+        Bm[1, 6 * i + 1] = dNx[1, i]
+        Bm[2, 6 * i] = dNx[1, i]
+        Bm[2, 6 * i + 1] = dNx[0, i]
+        Bb[0, 6 * i + 4] = dNx[0, i]
+        Bb[1, 6 * i + 3] = -dNx[1, i]
+        Bb[2, 6 * i + 4] = dNx[1, i]
+        Bb[2, 6 * i + 3] = -dNx[0, i]
+    return Bm, Bb
+
+
+@njit(cache=True)
 def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled):
     """Local 24 x 24 K and M of a MITC4 / QM6 shell quadrilateral (module docstring)."""
     K = np.zeros((24, 24))
@@ -167,17 +186,7 @@ def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled):
             Ji = np.linalg.inv(J)
             dNx = Ji @ dN                      # rows: d/dx, d/dy
             area += det
-            Bm = np.zeros((3, 24))
-            Bb = np.zeros((3, 24))
-            for i in range(4):
-                Bm[0, 6 * i] = dNx[0, i]
-                Bm[1, 6 * i + 1] = dNx[1, i]
-                Bm[2, 6 * i] = dNx[1, i]
-                Bm[2, 6 * i + 1] = dNx[0, i]
-                Bb[0, 6 * i + 4] = dNx[0, i]
-                Bb[1, 6 * i + 3] = -dNx[1, i]
-                Bb[2, 6 * i + 4] = dNx[1, i]
-                Bb[2, 6 * i + 3] = -dNx[0, i]
+            Bm, Bb = _membrane_bending_B(dNx, 4)
             # incompatible modes: d(1-r^2)/d(x,y) = J0^-1 (-2r, 0) * det0/det (Taylor's correction)
             g1 = J0i @ np.array([-2.0 * r, 0.0]) * (det0 / det)
             g2 = J0i @ np.array([0.0, -2.0 * s_]) * (det0 / det)
@@ -229,17 +238,7 @@ def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled):
     Ji = np.linalg.inv(J)
     dNx = Ji @ dN
     area = 0.5 * det
-    Bm = np.zeros((3, 18))
-    Bb = np.zeros((3, 18))
-    for i in range(3):
-        Bm[0, 6 * i] = dNx[0, i]
-        Bm[1, 6 * i + 1] = dNx[1, i]
-        Bm[2, 6 * i] = dNx[1, i]
-        Bm[2, 6 * i + 1] = dNx[0, i]
-        Bb[0, 6 * i + 4] = dNx[0, i]
-        Bb[1, 6 * i + 3] = -dNx[1, i]
-        Bb[2, 6 * i + 4] = dNx[1, i]
-        Bb[2, 6 * i + 3] = -dNx[0, i]
+    Bm, Bb = _membrane_bending_B(dNx, 3)
     K = (Bm.T @ A @ Bm + Bb.T @ D @ Bb) * area
     # MITC3 (Lee & Bathe 2004): e_rt = e_rt^(1) + c s, e_st = e_st^(2) - c r with tying points
     # (1) = (1/2, 0), (2) = (0, 1/2), (3) = (1/2, 1/2); the third condition ties the component

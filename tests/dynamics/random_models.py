@@ -8,6 +8,21 @@ from dynamics import Multibody
 from dynamics.samples import _random_inertia, _random_rotation
 
 
+def random_hinge_axes(rng, hinge):
+    """Keyword arguments with random unit hinge axes: ``axis`` (revolute, prismatic), two perpendicular
+    ``axes`` (U-joint), none otherwise."""
+    kwargs = {}
+    if hinge in ("revolute", "prismatic"):
+        a = rng.standard_normal(3)
+        kwargs["axis"] = a / np.linalg.norm(a)
+    elif hinge == "ujoint":
+        a1 = rng.standard_normal(3)
+        a1 /= np.linalg.norm(a1)
+        a2 = np.cross(a1, rng.standard_normal(3))
+        kwargs["axes"] = [a1, a2 / np.linalg.norm(a2)]
+    return kwargs
+
+
 def random_multibody(n_bodies, seed, hinges=("revolute", "prismatic", "ujoint", "spherical", "free"),
                      root_hinge=None, branched=True, offsets=True, gravity=(0.0, 0.0, -9.81),
                      nodes_per_body=1):
@@ -23,15 +38,7 @@ def random_multibody(n_bodies, seed, hinges=("revolute", "prismatic", "ujoint", 
         else:
             parent = names[-1]
         hinge = root_hinge if (i == 0 and root_hinge) else str(rng.choice(hinges))
-        kwargs = {}
-        if hinge in ("revolute", "prismatic"):
-            a = rng.standard_normal(3)
-            kwargs["axis"] = a / np.linalg.norm(a)
-        elif hinge == "ujoint":
-            a1 = rng.standard_normal(3)
-            a1 /= np.linalg.norm(a1)
-            a2 = np.cross(a1, rng.standard_normal(3))
-            kwargs["axes"] = [a1, a2 / np.linalg.norm(a2)]
+        kwargs = random_hinge_axes(rng, hinge)
         mass = rng.uniform(0.5, 3.0)
         mb.add_body(name, parent, mass=mass, com=rng.uniform(-0.3, 0.3, 3), inertia=_random_inertia(rng, mass),
                     hinge=hinge, inboard_position=rng.uniform(-0.5, 0.5, 3),

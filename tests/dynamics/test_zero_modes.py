@@ -27,21 +27,14 @@ from dynamics import kernels as K
 from dynamics.flexible_body import FlexibleBodyData
 from dynamics.samples import _random_inertia, _random_rotation
 from dynamics.spatial import spatial_inertia
+from .random_models import random_hinge_axes
 
 HINGES = ("locked", "revolute", "prismatic", "ujoint", "spherical", "free")
 NODES_PER_BODY = 3
 
 
 def _hinge_kwargs(rng, hinge, allow_prescribed=True):
-    kwargs = {}
-    if hinge in ("revolute", "prismatic"):
-        a = rng.standard_normal(3)
-        kwargs["axis"] = a / np.linalg.norm(a)
-    elif hinge == "ujoint":
-        a1 = rng.standard_normal(3)
-        a1 /= np.linalg.norm(a1)
-        a2 = np.cross(a1, rng.standard_normal(3))
-        kwargs["axes"] = [a1, a2 / np.linalg.norm(a2)]
+    kwargs = random_hinge_axes(rng, hinge)
     nu = {"locked": 0, "revolute": 1, "prismatic": 1, "ujoint": 2, "spherical": 3, "free": 6}[hinge]
     if nu and allow_prescribed:
         kwargs["prescribed"] = rng.uniform(size=nu) < 0.3
