@@ -288,13 +288,10 @@ def _term_vectors(coefficients, y, N, h, W):
                     W[t, i] += c * N[j, i]
 
 
-@njit(cache=True)
-def stage_real(Phi_stage, phi_at_zero, functions, coefficients, y, N, h, base, indices, is_linear, out, W, w_stack,
-               product):
-    """One stage with the real matrices: out = base + sum_t Phi[f_t] W_t on the linear components and
-    base + sum_t phi_{f_t}(0) W_t elsewhere; ``base`` may be empty (zero). ``Phi_stage`` holds the stage's
-    matrices side by side (m x n_terms m), so the linear components cost one BLAS gemv. Returns True if out is
-    finite."""
+@njit(cache=True, inline="always")
+def _outside_linear_part(phi_at_zero, functions, coefficients, y, N, h, base, is_linear, out, W):
+    """The stage's term vectors into ``W`` and ``out = base + sum_t phi_{f_t}(0) W_t`` on the components outside
+    the linear part (``base`` on the linear ones, which the caller completes); ``base`` may be empty (zero)."""
     n = y.shape[0]
     n_terms = functions.shape[0]
     _term_vectors(coefficients, y, N, h, W)
@@ -305,6 +302,17 @@ def stage_real(Phi_stage, phi_at_zero, functions, coefficients, y, N, h, base, i
             for t in range(n_terms):
                 acc += phi_at_zero[functions[t]] * W[t, i]
         out[i] = acc
+
+
+@njit(cache=True)
+def stage_real(Phi_stage, phi_at_zero, functions, coefficients, y, N, h, base, indices, is_linear, out, W, w_stack,
+               product):
+    """One stage with the real matrices: out = base + sum_t Phi[f_t] W_t on the linear components and
+    base + sum_t phi_{f_t}(0) W_t elsewhere; ``base`` may be empty (zero). ``Phi_stage`` holds the stage's
+    matrices side by side (m x n_terms m), so the linear components cost one BLAS gemv. Returns True if out is
+    finite."""
+    n_terms = functions.shape[0]
+    _outside_linear_part(phi_at_zero, functions, coefficients, y, N, h, base, is_linear, out, W)
     m = indices.shape[0]
     if m:
         for t in range(n_terms):
@@ -321,16 +329,8 @@ def stage_eigen(V, Vinv, phi_diag, phi_at_zero, functions, coefficients, y, N, h
                 W, z_acc, z_in, z_out):
     """As :func:`stage_real` with the linear components in the eigenbasis:
     out_lin = base_lin + Re(V sum_t phi_{f_t} (Vinv W_t,lin)) (complex BLAS gemv; z_* are (m,) scratch)."""
-    n = y.shape[0]
     n_terms = functions.shape[0]
-    _term_vectors(coefficients, y, N, h, W)
-    has_base = base.shape[0] == n
-    for i in range(n):
-        acc = base[i] if has_base else 0.0
-        if not is_linear[i]:
-            for t in range(n_terms):
-                acc += phi_at_zero[functions[t]] * W[t, i]
-        out[i] = acc
+    _outside_linear_part(phi_at_zero, functions, coefficients, y, N, h, base, is_linear, out, W)
     m = indices.shape[0]
     if m == 0:
         return kernels.all_finite(out)
