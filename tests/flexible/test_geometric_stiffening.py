@@ -24,7 +24,8 @@ from tests.flex.rotating_beam import rotating_beam_deck
 @pytest.fixture(scope="module")
 def free_beam(tmp_path_factory):
     deck = tmp_path_factory.mktemp("gs") / "beam.dat"
-    deck.write_text(rotating_beam_deck(20))
+    # a tip mass with rotary inertia: a free hinge needs inertia about the beam axis too
+    deck.write_text(rotating_beam_deck(20).replace("ENDDATA", "CONM2,900,21,,0.1\n,0.01,,0.01,,,0.01\nENDDATA"))
     return fem2modal(str(deck), Fem2ModalOptions(n_modes=4, modal_integrals=True, geometric_stiffness=True))
 
 
@@ -65,9 +66,11 @@ def test_free_tumbling_with_stiffening_conserves_energy_and_momentum(free_beam):
     off, q_off, energy_off, momentum_off = tumble(free_beam, False)
     assert "P2" not in off.summary()
     assert energy_off < 1e-8 and momentum_off < 1e-8, (energy_off, momentum_off)
-    # the stiffening changes the modal motion (at 2 rad/s on a 3.6 Hz beam: by a few per cent)
+    # the stiffening changes the modal motion (2 rad/s on a 3.6 Hz beam: the phase of the modes drifts)
     change = np.linalg.norm(q[7:] - q_off[7:]) / np.linalg.norm(q_off[7:])
-    assert 1e-3 < change < 0.5, change
+    assert change > 1e-2, change
+    print(f"drifts with stiffening: energy {energy_drift:.2e}, momentum {momentum_drift:.2e}; without: "
+          f"{energy_off:.2e}, {momentum_off:.2e}; modal change {change:.3f}")
 
 
 def test_stiffening_requested_without_data_is_refused(tmp_path):
