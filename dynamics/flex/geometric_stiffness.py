@@ -34,7 +34,9 @@ How the loads are reacted (the stress state depends on it):
   a-set DOFs are held (``reaction = "aset"``): the loads flow to the interface, as in a blade on its hub;
 * free-free bodies: inertia relief (``reaction = "inertia_relief"``): the load's rigid-body resultant is
   balanced by the rigid-body inertia ``M Phi_r a_r`` and the self-equilibrated remainder is solved with
-  the rigid motions removed (``[K, M Phi_r; Phi_r' M, 0]``).
+  the rigid motions removed (``[K, M Phi_r; Phi_r' M, 0]``);
+* bodies held by the deck's own SPCs (no rigid-body motion left, e.g. a cantilever clamped in the deck and
+  mounted by its reference frame): the SPCs react the loads (``reaction = "spc"``).
 
 Why these matrices give the stiffening (the engine side, :mod:`dynamics.flexible_body`): the foreshortening
 ``u2_j(eta)`` of the nodes (second order in eta, e.g. the axial pull-in of a bent beam) does work on any
@@ -85,7 +87,7 @@ class GeometricStiffness:
     ``sum_ab omega_a omega_b K_w[ab]`` over all nine (a, b) equals
     ``sum_k omega_k omega_k K[kk] + 2 sum_{a<b} omega_a omega_b K[ab]``; ``preload`` (p, n, n): the named
     preloads (1/s^2 with mass-normalized modes, per unit scale); ``reaction``: "aset" or
-    "inertia_relief"; ``elements``: element counts that contributed, e.g. "CBAR 40"."""
+    "inertia_relief" or "spc"; ``elements``: element counts that contributed, e.g. "CBAR 40"."""
 
     reaction: str
     translation: np.ndarray
@@ -313,7 +315,8 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
     cases = np.einsum("ec,eik,eil->ckl", axial, local_phi, Y)
     cases = 0.5 * (cases + cases.transpose(0, 2, 1))
     return GeometricStiffness(
-        reaction="aset" if held is not None and len(held) else "inertia_relief",
+        reaction="aset" if held is not None and len(held) else "inertia_relief" if rigid_vectors is not None
+        and np.asarray(rigid_vectors).size else "spc",
         translation=cases[:3].copy(), rotation=cases[3:6].copy(), angular_velocity=cases[6:12].copy(),
         preload_names=names, preload=cases[12:].copy() if names else None,
         elements=", ".join(f"{k} {v}" for k, v in sorted(counts.items())))

@@ -127,7 +127,6 @@ def test_command_line_linearize_gives_the_stiffened_frequencies(body_file, capsy
     np.testing.assert_allclose(got_chord, chord, rtol=1e-3)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("hub", [0.0, 1.0])
 def test_whole_table_lambda_0_to_12(body_file, hub):
     worst = 0.0
