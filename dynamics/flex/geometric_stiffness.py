@@ -269,14 +269,21 @@ def _static_displacements(sm, K, M, loads_f, held, rigid_vectors):
 
 
 def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vectors=None, preloads=(),
-                        context="") -> GeometricStiffness:
+                        context="", interface_row=None) -> GeometricStiffness:
     """The :class:`GeometricStiffness` of a structural model (module docstring).
 
     ``sm``: the :class:`dynamics.flex.assembly.StructuralModel`; ``K``, ``M``: f-set matrices; ``blocks``
     (N, 6, 6): lumped grid mass blocks (basic, [T; R]); ``l0`` (N, 3): grid positions from the reference
     point; ``rot``, ``trans`` (N, 3, n): the body's mode shapes (basic); ``held``: f-set indices of the
     a-set (reaction there), else inertia relief with ``rigid_vectors`` (n_f, r); ``preloads``: list of
-    (name, grid, component 1..6, value) in basic axes, several entries per name add up."""
+    (name, grid, component 1..6, value) in basic axes, several entries per name add up; ``interface_row``:
+    row of the interface grid (an a-set grid with all six components) whose frame holds the preloads.
+
+    The rigid-motion cases use the mode shapes as they are (the second-order kinematics of the body frame,
+    :mod:`dynamics.flexible_body`). A preload is a load fixed in the frame that holds the structure: for
+    normalized component modes, mounted by the interface grid while the body frame floats, its matrix uses
+    the shapes relative to the interface grid's rigid motion (else the rigid rotation the constraint modes
+    contain would turn the structure against its own preload)."""
     bulk = sm.bulk
     N = len(bulk.grid_ids)
     Rcd = bulk.displacement_rotation
@@ -313,6 +320,16 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
     local_phi = np.einsum("eij,ejk->eik", T, phi)
     Y = np.einsum("eij,ejk->eik", KG1, local_phi)
     cases = np.einsum("ec,eik,eil->ckl", axial, local_phi, Y)
+    if names and interface_row is not None:
+        r = int(interface_row)
+        arm = l0 - l0[r]
+        rel_rot = rot - rot[r][None]
+        rel_trans = trans - trans[r][None] - np.cross(rot[r][None].transpose(0, 2, 1),
+                                                      arm[:, None, :]).transpose(0, 2, 1)
+        phi = np.concatenate([rel_trans[ia], rel_rot[ia], rel_trans[ib], rel_rot[ib]], axis=1)
+        local_phi = np.einsum("eij,ejk->eik", T, phi)
+        Y = np.einsum("eij,ejk->eik", KG1, local_phi)
+        cases[12:] = np.einsum("ec,eik,eil->ckl", axial[:, 12:], local_phi, Y)
     cases = 0.5 * (cases + cases.transpose(0, 2, 1))
     return GeometricStiffness(
         reaction="aset" if held is not None and len(held) else "inertia_relief" if rigid_vectors is not None

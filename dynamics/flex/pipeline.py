@@ -232,6 +232,17 @@ def _check_split(deck, split: RigidSplit, flex, threshold_hz) -> None:
                       "spring", stacklevel=3)
 
 
+def _interface_row(bulk, aset_pairs):
+    """Row of the first a-set grid held in all six components (the frame of a preload), or None."""
+    comps = {}
+    for gid, cs in aset_pairs:
+        comps.setdefault(int(gid), set()).update(int(c) for c in cs)
+    for gid, cs in comps.items():
+        if cs == {1, 2, 3, 4, 5, 6}:
+            return bulk.grid_index(gid, "a-set grid")
+    return None
+
+
 def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
     """Run the pipeline on ``deck``; ``progress(message)`` receives step messages."""
     t0 = time.perf_counter()
@@ -370,7 +381,8 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
             + (f" and preloads {sorted({p[0] for p in options.preloads})}" if options.preloads else ""))
         gs = geometric_stiffness(sm, K, M, _grid_blocks(sm.mass_lumped_basic, N)[0], l0, rot, trans,
                                  held=b_idx if aset_pairs else None, rigid_vectors=rigid_geometry,
-                                 preloads=options.preloads, context=str(deck))
+                                 preloads=options.preloads, context=str(deck),
+                                 interface_row=_interface_row(bulk, aset_pairs))
         say(f"geometric stiffness: {gs.elements}, reaction {gs.reaction}")
 
     mi = pmi = None

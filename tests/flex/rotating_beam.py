@@ -115,3 +115,37 @@ integrator:
 stop:
   time: 0.01 s
 """
+
+
+def _axial_determinant(omega, tau, terms):
+    """Free-end determinant of w'''' - tau w'' = omega^2 w (constant axial force tau = P L^2 / EI, tension
+    positive, a dead load at the tip): w''(1) = 0, w'''(1) - tau w'(1) = 0, for one frequency or an array."""
+    w2 = np.asarray(omega, dtype=float) ** 2
+    cols = []
+    for start in ((1.0, 0.0), (0.0, 1.0)):
+        a = np.zeros((terms + 4,) + w2.shape)
+        a[2], a[3] = start
+        for k in range(terms):
+            a[k + 4] = (tau * (k + 2) * (k + 1) * a[k + 2] + w2 * a[k]) / ((k + 4) * (k + 3) * (k + 2) * (k + 1))
+        k = np.arange(terms + 4, dtype=float).reshape((-1,) + (1,) * w2.ndim)
+        d1 = np.sum(k * a, axis=0)
+        d2 = np.sum(k * (k - 1) * a, axis=0)
+        d3 = np.sum(k * (k - 1) * (k - 2) * a, axis=0)
+        cols.append((d2, d3 - tau * d1))
+    return cols[0][0] * cols[1][1] - cols[1][0] * cols[0][1]
+
+
+def axially_loaded_cantilever_frequencies(tau, count=3, terms=160):
+    """First ``count`` dimensionless bending frequencies of a cantilever under a constant axial tip load
+    (power series as :func:`rotating_beam_frequencies`; buckling at tau = -pi^2 / 4)."""
+    from scipy.optimize import brentq
+
+    grid = np.linspace(1e-3, 4.0 * (count + 1) ** 2 + 2.0 * abs(tau) + 40.0, 4000)
+    values = _axial_determinant(grid, tau, terms)
+    found = []
+    for w0, w1, f0, f1 in zip(grid[:-1], grid[1:], values[:-1], values[1:]):
+        if np.sign(f0) != np.sign(f1):
+            found.append(brentq(lambda w: float(_axial_determinant(w, tau, terms)), w0, w1, xtol=1e-14, rtol=1e-15))
+            if len(found) == count:
+                break
+    return np.array(found)
