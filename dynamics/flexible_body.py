@@ -26,7 +26,11 @@ G1     modal/modal, first order        G1                     O(n^3); also makes
 J2     rotational, second order        J2                     O(n^2)
 F2     rotational/modal, second order  F2                     O(n^3)
 G2     modal/modal, second order       G2                     O(n^4)
+P2     rotational/translational,       geometric stiffness    O(n^2)
+       second order                    (translation cases)
 =====  ==============================  =====================  ===================================
+
+Geometric stiffening (:func:`add_geometric_stiffening`, issue 15) adds to C1 and J2 and brings P2.
 
 G1, F2 and G2 come only from nodes with rotational inertia or centre-of-mass offsets (zero for point
 masses, TM eq. E.3.1); a user may leave them out (``omit_terms``, :data:`OMITTABLE_TERMS`). The kinetic
