@@ -60,10 +60,10 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dynamics.flex.geometric_stiffness import parse_preload
     from dynamics.flex.body_file import write_body_file
     from dynamics.flex.bulk_data import BulkDataError
     from dynamics.flex.component_modes import CraigBamptonError
+    from dynamics.flex.geometric_stiffness import parse_preload
     from dynamics.flex.modes import EigenSolutionError
     from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal, parse_grid_dofs
 
