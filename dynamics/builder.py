@@ -185,7 +185,8 @@ class Multibody:
         return name
 
     def add_flexible_body(self, name, parent=GROUND, *, modal, hinge, modes=None, max_frequency=None, order=None,
-                          damping_ratio=None, integrals="general", child_grid=None, omit_terms=(), **hinge_kwargs):
+                          damping_ratio=None, integrals="general", child_grid=None, omit_terms=(), geometric_stiffening=None,
+                          preload=None, **hinge_kwargs):
         """Add a flexible body whose reference frame is connected to ``parent`` by a hinge.
 
         ``modal``: a body file path (``flexshell fem2modal ... --modal-integrals``), a
@@ -197,7 +198,10 @@ class Multibody:
         recorded in :attr:`notes` and warned about), ``damping_ratio`` overrides the file's modal
         damping, ``integrals`` picks ``"general"`` or ``"point_mass"`` integrals, ``omit_terms`` leaves
         out terms of M(eta) that cost O(n^3) or O(n^4) per evaluation (a subset of ("G1", "F2", "G2"),
-        see :mod:`dynamics.flexible_body`). ``child_grid`` puts the hinge's outboard frame on that grid
+        see :mod:`dynamics.flexible_body`). ``geometric_stiffening`` (None: on when the body file has the
+        geometric stiffness of ``fem2modal --geometric-stiffness``; False: off; True: required) and ``preload``
+        ({name: scale} of the file's named preloads) add the stiffening of the rigid-motion and preload
+        stresses (:func:`dynamics.flexible_body.add_geometric_stiffening`). ``child_grid`` puts the hinge's outboard frame on that grid
         of this body, so the hinge holds the deforming interface grid (as DARTS does) rather than the
         body frame; ``outboard_position`` and ``outboard_rotation`` are then relative to the grid's node
         frame. Other keywords are those of :meth:`add_body` (hinge axes, frames, prescribed,
@@ -208,9 +212,10 @@ class Multibody:
 
         if isinstance(modal, FlexibleBodyData):
             data = modal.without(omit_terms)
-            if (modes is not None or max_frequency is not None or damping_ratio is not None
-                    or (order is not None and order != data.order)):
-                raise ModelDefinitionError(f"body '{name}': modes/max_frequency/damping_ratio/order apply to body files; "
+            if (modes is not None or max_frequency is not None or damping_ratio is not None or preload
+                    or geometric_stiffening or (order is not None and order != data.order)):
+                raise ModelDefinitionError(f"body '{name}': modes/max_frequency/damping_ratio/order/geometric_stiffening/"
+                                           f"preload apply to body files; "
                                            f"FlexibleBodyData is used as given (its order is {data.order})")
         else:
             if not hasattr(modal, "modal_integrals"):
@@ -226,7 +231,8 @@ class Multibody:
                     raise ModelDefinitionError(f"body '{name}': {exc}") from None
             try:
                 data = flexible_body_from_modal_body(modal, modes=modes, order=order, damping_ratio=damping_ratio,
-                                                     integrals=integrals, omit_terms=omit_terms)
+                                                     integrals=integrals, omit_terms=omit_terms,
+                                                     geometric_stiffening=geometric_stiffening, preload=preload)
             except ModelDefinitionError as exc:
                 raise ModelDefinitionError(f"body '{name}': {exc}") from None
             # normalized component modes mounted where their interface is not held, or held twice (a free

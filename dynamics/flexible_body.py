@@ -26,7 +26,11 @@ G1     modal/modal, first order        G1                     O(n^3); also makes
 J2     rotational, second order        J2                     O(n^2)
 F2     rotational/modal, second order  F2                     O(n^3)
 G2     modal/modal, second order       G2                     O(n^4)
+P2     rotational/translational,       geometric stiffness    O(n^2)
+       second order                    (translation cases)
 =====  ==============================  =====================  ===================================
+
+Geometric stiffening (:func:`add_geometric_stiffening`, issue 15) adds to C1 and J2 and brings P2.
 
 G1, F2 and G2 come only from nodes with rotational inertia or centre-of-mass offsets (zero for point
 masses, TM eq. E.3.1); a user may leave them out (``omit_terms``, :data:`OMITTABLE_TERMS`). The kinetic
@@ -60,7 +64,9 @@ class ModalMassTerms:
 
     ``R1`` (n, 6, 6) = M1[r, :6, :6]; ``C1`` (n, 6, n) = M1[r, :6, 6:]; ``G1`` (n, n, n) = M1[r, 6:, 6:];
     ``J2`` (n, n, 3, 3) = M2[r, s, :3, :3]; ``F2`` (n, n, 3, n) = M2[r, s, :3, 6:];
-    ``G2`` (n, n, n, n) = M2[r, s, 6:, 6:]. A term is None when it is absent: above the body's order,
+    ``G2`` (n, n, n, n) = M2[r, s, 6:, 6:]; ``P2`` (n, n, 3) the geometric-stiffening shift of the mass
+    centre, M2[r, s, :3, 3:6] = skew(P2[r, s]) = -M2[r, s, 3:6, :3] (:func:`add_geometric_stiffening`).
+    A term is None when it is absent: above the body's order,
     identically zero, or omitted. The other blocks of M1, M2 follow by symmetry (or are zero)."""
 
     R1: np.ndarray | None = None
@@ -69,6 +75,7 @@ class ModalMassTerms:
     J2: np.ndarray | None = None
     F2: np.ndarray | None = None
     G2: np.ndarray | None = None
+    P2: np.ndarray | None = None  # (n, n, 3): second-order mass-centre shift m p2 (geometric stiffening)
 
     def present(self):
         """Names of the terms that are present."""
@@ -249,8 +256,49 @@ def mass_matrix_polynomial(mi, order):
     return M0, M1, M2
 
 
+def add_geometric_stiffening(terms, stiffness, gs, preload=None, source=""):
+    """``terms`` (:class:`ModalMassTerms`) and modal ``stiffness`` with the geometric stiffening of ``gs``
+    (a :class:`dynamics.flex.geometric_stiffness.GeometricStiffness` for the same modes) added.
+
+    The foreshortening ``u2_j(eta)`` of the nodes (second order in eta) does the work
+    ``sum_j f_j . u2_j = -1/2 eta' K_G[f] eta`` on a load ``f``. The kinetic energy term linear in it,
+    ``sum_j m_j (v + omega x l_j) . (omega x u2_j + du2_j/dt)``, is then, with ``K_t[k]``, ``K_a[k]``,
+    ``K_w[ab]`` the translation, rotation and angular-velocity cases,
+
+        T_G = -eta' (sum_k v_k K_t[k] + omega_k K_a[k]) eta_dot
+              - 1/2 eta' (sum_ab omega_a omega_b K_w[ab] + sum_k (v x omega)_k K_t[k]) eta,
+
+    a quadratic form in the velocities with eta-dependent coefficients, i.e. an addition to M(eta):
+    ``C1[r, k, s] -= K_a[k][r, s]`` (k = 0..2), ``C1[r, 3 + k, s] -= K_t[k][r, s]``,
+    ``J2[r, s, a, b] -= K_w[ab][r, s]`` and ``P2[r, s, k] = -1/2 K_t[k][r, s]`` (``m p2 = P2 eta eta``: the
+    mass centre moves by the foreshortening). The equations of motion stay Lagrange's (energy conserved in
+    free spin); in steady spin the modal stiffness becomes ``K + sum omega_a omega_b K_w[ab] + ...`` (the
+    centrifugal stiffening), and ``d/dt`` of the modal momentum gives the acceleration terms
+    ``K_t[k] a_k + K_a[k] alpha_k`` of Banerjee and Dickens (JGCD 1990). ``preload``: {name: scale} of
+    the named preloads, added as ``scale * K_pre`` to the stiffness (a potential)."""
+    n = stiffness.shape[0]
+    if gs.n_modes != n:
+        raise ModelDefinitionError(f"{source}: geometric stiffness for {gs.n_modes} modes, body has {n}")
+    C1 = np.zeros((n, 6, n)) if terms.C1 is None else terms.C1.copy()
+    for k in range(3):
+        C1[:, k, :] -= gs.rotation[k]
+        C1[:, 3 + k, :] -= gs.translation[k]
+    J2 = np.zeros((n, n, 3, 3)) if terms.J2 is None else terms.J2.copy()
+    for a in range(3):
+        for b in range(3):
+            J2[:, :, a, b] -= gs.omega_matrix(a, b)
+    P2 = np.ascontiguousarray(-0.5 * gs.translation.transpose(1, 2, 0))
+    K = np.array(stiffness, dtype=np.float64)
+    for name, scale in (preload or {}).items():
+        if name not in gs.preload_names:
+            raise ModelDefinitionError(f"{source}: preload {name!r} is not in the body file (it has "
+                                       f"{gs.preload_names or 'none'}; fem2modal --preload NAME:GRID:COMP:VALUE)")
+        K = K + float(scale) * gs.preload[gs.preload_names.index(name)]
+    return dataclasses.replace(terms, C1=_nonzero(C1), J2=_nonzero(J2), P2=_nonzero(P2)), K
+
+
 def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=None, integrals="general",
-                                  omit_terms=()):
+                                  omit_terms=(), geometric_stiffening=None, preload=None):
     """Build :class:`FlexibleBodyData` from a ``dynamics.flex.body_file.ModalBody`` (a body file).
 
     ``modes``: indices of the modes to keep (default all); ``order``: modal-integral order 0, 1, 2, or
@@ -258,7 +306,9 @@ def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=No
     else 1; the choice is recorded in ``note``); ``damping_ratio``: overrides the file's damping (scalar
     or per kept mode); ``integrals``: ``"general"`` (nodes with their own inertia and offsets,
     E.2.2-E.2.5) or ``"point_mass"`` (E.3.1); ``omit_terms``: terms of M(eta) to leave out (subset of
-    :data:`OMITTABLE_TERMS`, see the module docstring).
+    :data:`OMITTABLE_TERMS`, see the module docstring); ``geometric_stiffening``: add the body file's
+    geometric stiffness (:func:`add_geometric_stiffening`); None (default) adds it when the file has it,
+    True requires it, False leaves it out; ``preload``: {name: scale} of the file's named preloads.
     """
     if order not in (None, 0, 1, 2):
         raise ModelDefinitionError(f"modal-integral order must be 0, 1 or 2, got {order!r}")
@@ -288,6 +338,16 @@ def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=No
     sub = _select_modes(mi, keep)
     terms = mass_terms_from_integrals(sub, order)
     K = np.asarray(body.modal_stiffness)[np.ix_(keep, keep)]
+    gs = getattr(body, "geometric_stiffness", None)
+    if geometric_stiffening and gs is None:
+        raise ModelDefinitionError(f"{body.source}: geometric_stiffening requested but the body file has no "
+                                   f"geometric stiffness; regenerate it with `flexshell fem2modal ... "
+                                   f"--geometric-stiffness`")
+    if preload and (gs is None or geometric_stiffening is False):
+        raise ModelDefinitionError(f"{body.source}: preload {sorted(preload)} needs the body file's geometric "
+                                   "stiffness (fem2modal --preload) with geometric stiffening on")
+    if gs is not None and geometric_stiffening is not False:
+        terms, K = add_geometric_stiffening(terms, K, gs.select(keep), preload, body.source)
     if damping_ratio is None:
         C = np.asarray(body.modal_damping)[np.ix_(keep, keep)]
     else:

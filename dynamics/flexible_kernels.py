@@ -67,7 +67,8 @@ FX_P_F = 24  # pool: force columns of the CRBA (6 x (6 + n))
 FX_P_SMALL = 25  # pool: the Woodbury system (V and Q r x r, [C | rhs] r x (r + 7), U and Z r x n)
 FX_RANK = 26  # r = 6 (child attachment nodes) + 12 (when the hinge sits on a node of the body)
 FX_P_MRR = 27  # pool: M_rr(eta) (6 x 6)
-N_FX = 28
+FX_P2 = 28  # params: (n, n, 3) second-order mass-centre shift of geometric stiffening (ModalMassTerms.P2)
+N_FX = 29
 
 # n-vectors of a flexible body in the pool (FX_P_VEC + k n)
 PV_FORCE = 0  # modal bias minus applied modal forces (ABA) / modal body force (RNEA)
@@ -423,6 +424,58 @@ def modal_mass_and_bias(fx, params, n, eta, V, e, with_bias, form_G, Mrr, Mre, G
                 Mdrr[2, 2] += d2 * J22
                 bm[r] -= (w0 * (J00 * w0 + J01 * w1 + J02 * w2) + w1 * (J10 * w0 + J11 * w1 + J12 * w2)
                           + w2 * (J20 * w0 + J21 * w1 + J22 * w2))
+    if fx[FX_P2] >= 0:
+        # geometric stiffening (dynamics.flexible_body): M_rr[:3, 3:6] += skew(p), M_rr[3:6, :3] -= skew(p),
+        # p = sum_rs eta_r eta_s P2[r, s]; T gains omega . (p x v) = (v x omega) . p
+        o = fx[FX_P2]
+        p0 = p1 = p2 = 0.0
+        d0 = d1 = d2 = 0.0
+        x0 = V[4] * w2 - V[5] * w1  # v x omega
+        x1 = V[5] * w0 - V[3] * w2
+        x2 = V[3] * w1 - V[4] * w0
+        for r in range(n):
+            g0 = g1 = g2 = 0.0
+            for s in range(n):
+                es = eta[s]
+                base = o + 3 * (r * n + s)
+                g0 += es * params[base]
+                g1 += es * params[base + 1]
+                g2 += es * params[base + 2]
+            er = eta[r]
+            p0 += er * g0
+            p1 += er * g1
+            p2 += er * g2
+            if with_bias:
+                dr = 2.0 * e[r]
+                d0 += dr * g0
+                d1 += dr * g1
+                d2 += dr * g2
+                bm[r] -= 2.0 * (x0 * g0 + x1 * g1 + x2 * g2)
+        Mrr[0, 4] -= p2
+        Mrr[0, 5] += p1
+        Mrr[1, 3] += p2
+        Mrr[1, 5] -= p0
+        Mrr[2, 3] -= p1
+        Mrr[2, 4] += p0
+        Mrr[4, 0] -= p2
+        Mrr[5, 0] += p1
+        Mrr[3, 1] += p2
+        Mrr[5, 1] -= p0
+        Mrr[3, 2] -= p1
+        Mrr[4, 2] += p0
+        if with_bias:
+            Mdrr[0, 4] -= d2
+            Mdrr[0, 5] += d1
+            Mdrr[1, 3] += d2
+            Mdrr[1, 5] -= d0
+            Mdrr[2, 3] -= d1
+            Mdrr[2, 4] += d0
+            Mdrr[4, 0] -= d2
+            Mdrr[5, 0] += d1
+            Mdrr[3, 1] += d2
+            Mdrr[5, 1] -= d0
+            Mdrr[3, 2] -= d1
+            Mdrr[4, 2] += d0
     if fx[FX_F2] >= 0:
         o = fx[FX_F2]
         for r in range(n):

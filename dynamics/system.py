@@ -343,7 +343,8 @@ class MultibodySystem:
             rows = 3 if not np.any(terms.C1[:, 3:6, :]) else 6  # no CG offsets: E1 = 0
             fx[FK.FX_C1_ROWS] = rows
             fx[FK.FX_C1] = params.push(terms.C1[:, :rows, :])
-        for col, term in ((FK.FX_G1, terms.G1), (FK.FX_J2, terms.J2), (FK.FX_F2, terms.F2), (FK.FX_G2, terms.G2)):
+        for col, term in ((FK.FX_G1, terms.G1), (FK.FX_J2, terms.J2), (FK.FX_F2, terms.F2), (FK.FX_G2, terms.G2),
+                          (FK.FX_P2, terms.P2)):
             if term is not None:
                 fx[col] = params.push(term)
         for col, diag_col, name in ((FK.FX_K, FK.FX_K_DIAGONAL, "stiffness"), (FK.FX_C, FK.FX_C_DIAGONAL, "damping")):
@@ -611,7 +612,8 @@ class MultibodySystem:
             if self.topology[i, K.FLEXIBLE]:
                 fx = self.topology[i, K.FLEX:]
                 terms = [term for term, col in (("R1", FK.FX_R1), ("C1", FK.FX_C1), ("G1", FK.FX_G1),
-                                                ("J2", FK.FX_J2), ("F2", FK.FX_F2), ("G2", FK.FX_G2)) if fx[col] >= 0]
+                                                ("J2", FK.FX_J2), ("F2", FK.FX_F2), ("G2", FK.FX_G2),
+                                                ("P2", FK.FX_P2)) if fx[col] >= 0]
                 kind = {FK.GINV_DIAGONAL: "diagonal G0", FK.GINV_DENSE: "G0^-1 precomputed",
                         FK.GINV_FACTORED: "G(eta) factored per call"}[int(fx[FK.FX_GINV_KIND])]
                 lines.append(f"  flexible body '{name}': {self.n_modes[i]} modes, modal-integral order "

@@ -20,9 +20,12 @@ import h5py
 import numpy as np
 import scipy.sparse as sp
 
+from dynamics.flex.geometric_stiffness import GeometricStiffness
 from dynamics.flex.modal_integrals import ModalIntegrals
 
-FORMAT_VERSION = "1.0"
+FORMAT_VERSION = "1.1"
+"""Layout version. 1.1 (issue 15) adds the optional ``GeometricStiffness`` group; 1.0 files (without it)
+read unchanged, with ``geometric_stiffness = None``."""
 
 
 @dataclass
@@ -104,6 +107,7 @@ class ModalBody:
     residual_dofs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     child_bodies: list = field(default_factory=list)
     card_report: list = field(default_factory=list)
+    geometric_stiffness: GeometricStiffness | None = None
     version: str = FORMAT_VERSION
     time_stamp: str = ""
 
@@ -254,6 +258,19 @@ def write_body_file(path, body: ModalBody) -> None:
             _write_set(h5, "Gset", body.gset)
         if body.fset is not None:
             _write_set(h5, "Fset", body.fset)
+        gs = body.geometric_stiffness
+        if gs is not None:
+            g = h5.create_group("GeometricStiffness")
+            g.attrs["reaction"] = gs.reaction
+            g.create_dataset("REACTION", data=gs.reaction)
+            g.create_dataset("ELEMENTS", data=gs.elements)
+            g.create_dataset("Translation", data=gs.translation)
+            g.create_dataset("Rotation", data=gs.rotation)
+            g.create_dataset("AngularVelocity", data=gs.angular_velocity)
+            if gs.preload_names:
+                g.create_dataset("PreloadNames", data=np.array(gs.preload_names, dtype=object),
+                                 dtype=h5py.string_dtype())
+                g.create_dataset("Preload", data=gs.preload)
         cbs = h5.create_group("ChildBodies")
         for k, child in enumerate(body.child_bodies):
             g = cbs.create_group(f"{k:04d}")
@@ -267,6 +284,15 @@ def write_body_file(path, body: ModalBody) -> None:
 def _str(ds) -> str:
     v = ds[()]
     return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def _read_geometric_stiffness(g) -> GeometricStiffness:
+    names = [s.decode() if isinstance(s, bytes) else str(s) for s in g["PreloadNames"][()]] \
+        if "PreloadNames" in g else []
+    return GeometricStiffness(reaction=_str(g["REACTION"]), translation=g["Translation"][()],
+                              rotation=g["Rotation"][()], angular_velocity=g["AngularVelocity"][()],
+                              preload_names=names, preload=g["Preload"][()] if names else None,
+                              elements=_str(g["ELEMENTS"]))
 
 
 def read_body_file(path) -> ModalBody:
@@ -321,6 +347,8 @@ def read_body_file(path) -> ModalBody:
                           for _, g in sorted(h5["ChildBodies"].items())],
             card_report=[s.decode() if isinstance(s, bytes) else str(s)
                          for s in h5["CARD_REPORT"][()]],
+            geometric_stiffness=_read_geometric_stiffness(h5["GeometricStiffness"])
+            if "GeometricStiffness" in h5 else None,
             version=version,
             time_stamp=_str(h5["TIME_STAMP"]),
         )

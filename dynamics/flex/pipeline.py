@@ -48,6 +48,10 @@ class Fem2ModalOptions:
     rigid_threshold_hz: rigid-body modes come from the geometry (see
         :func:`dynamics.flex.modes.free_free_modes`); a flexible mode below this frequency is
         reported as suspicious (a mechanism, or a near-rigid structure).
+    geometric_stiffness: also compute the modal geometric stiffness of the rigid-motion load cases
+        (:mod:`dynamics.flex.geometric_stiffness`; reacted at the a-set, or by inertia relief).
+    preloads: (name, grid, component 1..6, value) named static loads (basic axes) whose modal
+        geometric stiffness is stored too (implies geometric_stiffness).
     blas_threads: BLAS threads while the pipeline runs (threadpoolctl; None = unchanged). Its
         dense products are small or memory-bound: more threads than cores thrash on a shared
         machine (a 606-DOF Craig-Bampton reduction took 20 s instead of 0.1 s).
@@ -68,6 +72,8 @@ class Fem2ModalOptions:
     allow_unsupported: bool = False
     op4: str | None = None
     blas_threads: int | None = 1
+    geometric_stiffness: bool = False
+    preloads: list = field(default_factory=list)
 
 
 def validate_options(options: Fem2ModalOptions) -> None:
@@ -226,6 +232,17 @@ def _check_split(deck, split: RigidSplit, flex, threshold_hz) -> None:
                       "spring", stacklevel=3)
 
 
+def _interface_row(bulk, aset_pairs):
+    """Row of the first a-set grid held in all six components (the frame of a preload), or None."""
+    comps = {}
+    for gid, cs in aset_pairs:
+        comps.setdefault(int(gid), set()).update(int(c) for c in cs)
+    for gid, cs in comps.items():
+        if cs == {1, 2, 3, 4, 5, 6}:
+            return bulk.grid_index(gid, "a-set grid")
+    return None
+
+
 def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
     """Run the pipeline on ``deck``; ``progress(message)`` receives step messages."""
     t0 = time.perf_counter()
@@ -357,6 +374,17 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
     nm, npos, nJ = node_masses(sm.mass_lumped_basic, N, bulk.path)
     l0 = bulk.positions - ref_point
 
+    gs = None
+    if options.geometric_stiffness or options.preloads:
+        from dynamics.flex.geometric_stiffness import geometric_stiffness
+        say("geometric stiffness of the rigid-motion load cases"
+            + (f" and preloads {sorted({p[0] for p in options.preloads})}" if options.preloads else ""))
+        gs = geometric_stiffness(sm, K, M, _grid_blocks(sm.mass_lumped_basic, N)[0], l0, rot, trans,
+                                 held=b_idx if aset_pairs else None, rigid_vectors=rigid_geometry,
+                                 preloads=options.preloads, context=str(deck),
+                                 interface_row=_interface_row(bulk, aset_pairs))
+        say(f"geometric stiffness: {gs.elements}, reaction {gs.reaction}")
+
     mi = pmi = None
     if options.modal_integrals:
         say("modal integrals (TM App. E)")
@@ -373,7 +401,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
         rotation_shapes=rot, translation_shapes=trans, node_mass=nm, node_cm_offset=npos,
         node_inertia=nJ, modal_mass=0.5 * (Mr + Mr.T), modal_stiffness=0.5 * (Kr + Kr.T),
         modal_damping=np.diag(2.0 * damping * omega), damping_ratios=damping,
-        modal_integrals=mi, point_mass_integrals=pmi, craig_bampton=cb_data,
+        modal_integrals=mi, point_mass_integrals=pmi, craig_bampton=cb_data, geometric_stiffness=gs,
         gset=SparseModel(sm.mass_g, sm.stiffness_g, _uset(sm, np.arange(6 * N)))
         if options.write_gset else None,
         fset=SparseModel(M, K, _uset(sm, sm.f_dofs)) if options.write_fset else None,

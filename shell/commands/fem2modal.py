@@ -30,6 +30,13 @@ def register(subparsers) -> None:
                         "(default: PARAM GRDPNT, else the basic origin)")
     p.add_argument("--modal-integrals", action="store_true",
                    help="compute the modal integrals of TM-2020-5008164 App. E")
+    p.add_argument("--geometric-stiffness", action="store_true",
+                   help="also store the modal geometric stiffness of the rigid-motion load cases "
+                        "(stiffening of spinning or accelerating bodies; docs/geometric_stiffening.md)")
+    p.add_argument("--preload", action="append", default=[], metavar="NAME:GRID:COMP:VALUE",
+                   help="named static load (component 1-3 force N, 4-6 moment N m, basic axes) whose "
+                        "geometric stiffness is stored (a scene scales it); repeatable, entries with "
+                        "one NAME add up; implies --geometric-stiffness")
     p.add_argument("--separate-lumped", action="store_true",
                    help="take CONM2 masses out of the body and store them as child rigid bodies")
     p.add_argument("--damping", type=float, default=0.0, metavar="ZETA",
@@ -56,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
     from dynamics.flex.body_file import write_body_file
     from dynamics.flex.bulk_data import BulkDataError
     from dynamics.flex.component_modes import CraigBamptonError
+    from dynamics.flex.geometric_stiffness import parse_preload
     from dynamics.flex.modes import EigenSolutionError
     from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal, parse_grid_dofs
 
@@ -72,7 +80,9 @@ def run(args: argparse.Namespace) -> int:
             separate_lumped=args.separate_lumped, damping=args.damping,
             rigid_threshold_hz=args.rigid_threshold, write_gset=args.gset,
             write_fset=args.fset, write_modal_matrix=args.modal_matrix,
-            allow_unsupported=args.allow_unsupported, op4=args.op4)
+            allow_unsupported=args.allow_unsupported, op4=args.op4,
+            geometric_stiffness=args.geometric_stiffness,
+            preloads=[parse_preload(s) for s in args.preload])
         with warnings.catch_warnings():
             warnings.simplefilter("always")
             warnings.showwarning = lambda m, *a, **k: progress(f"warning: {m}")

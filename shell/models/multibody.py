@@ -87,8 +87,12 @@ BODY_KEYS = {
     "damping_ratio": "modal damping ratio overriding the body file's",
     "integrals": "general or point_mass modal integrals (default general)",
     "child_grid": "grid of this flexible body that the hinge holds (its deforming interface grid)",
+    "geometric_stiffening": "true/false: stiffening by the rigid-motion stresses (default: on when the body "
+                            "file has them, fem2modal --geometric-stiffness)",
+    "preload": "mapping preload name -> scale of the body file's named preloads (fem2modal --preload)",
 }
-FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "damping_ratio", "integrals", "child_grid")
+FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "damping_ratio", "integrals", "child_grid",
+                 "geometric_stiffening", "preload")
 INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
     "q": ("", "all"), "u": ("", "all"),
     "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
@@ -628,6 +632,19 @@ def _flexible_options(body, where) -> dict:
         if not isinstance(grid, int) or isinstance(grid, bool):
             raise where.child(body, "child_grid").error(f"expected an FE grid id (integer), given {grid!r}")
         options["child_grid"] = grid
+    if "geometric_stiffening" in body:
+        flag = body["geometric_stiffening"]
+        if not isinstance(flag, bool):
+            raise where.child(body, "geometric_stiffening").error(f"expected true or false, given {flag!r}")
+        options["geometric_stiffening"] = flag
+    if "preload" in body:
+        pre = body["preload"]
+        if (not isinstance(pre, dict) or not all(isinstance(k, str) for k in pre)
+                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+                           for v in pre.values())):
+            raise where.child(body, "preload").error(f"expected a mapping preload name -> scale (number), "
+                                                     f"e.g. {{thrust: 1.0}}, given {pre!r}")
+        options["preload"] = {k: float(v) for k, v in pre.items()}
     return options
 
 

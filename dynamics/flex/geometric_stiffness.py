@@ -1,0 +1,339 @@
+"""Geometric (differential) stiffness of a flexible body under the loads of its rigid motion and of a
+named preload, projected on its modes (issue 15: geometric stiffening).
+
+Why: a spinning or accelerating structure carries internal forces from its own inertia (the centrifugal
+tension of a rotor blade, the compression of a launch vehicle under thrust), and the stress state
+changes its bending stiffness. The modal integrals of the mass matrix alone miss this (a modal model of
+a spun-up beam then diverges; Kane, Ryan and Banerjee, JGCD 10(2), 1987). The remedy of Banerjee and
+Dickens ("Dynamics of an arbitrary flexible body in large rotation and translation", JGCD 13(2), 1990)
+and of the SID "standard input data" format (Wallrapp, Mech. Struct. Mach. 22(3), 1994: the
+geometric-stiffening terms of the SID) is to compute, once, the geometric stiffness of the structure
+under unit inertial load cases and to scale them in the equations of motion by the current rigid-body
+motion. Here the load cases are the d'Alembert loads of the body frame's motion on the lumped node
+masses ``B_j`` (6 x 6 grid blocks of the lumped mass matrix, the same nodal model as the modal
+integrals), with ``l_j`` the grid position from the reference point (body frame):
+
+==========  ======  ===========================================  ==========================================
+name        count   node load (translation part; rotation part)  scaled in the engine by
+==========  ======  ===========================================  ==========================================
+translation 3 (k)   B_j [e_k; 0]                                 v_k (with eta_dot), (v x omega)_k
+rotation    3 (k)   B_j [e_k x l_j; e_k]                         omega_k (with eta_dot)
+angular_    3 x 3   B_j [omega-product field; 0], field          omega_a omega_b
+velocity    (a, b)  delta_ab l_j - (e_a l_jb + e_b l_ja) / 2
+==========  ======  ===========================================  ==========================================
+
+(translation = the load of a unit acceleration -e_k, rotation = of a unit angular acceleration -e_k, the
+angular-velocity products sum to the centrifugal load ``m_j (|omega|^2 l_j - omega (omega . l_j))``.)
+For each case the static displacement ``u = K^-1 f`` gives every element's axial force ``N`` (tension
+positive) and the element's geometric stiffness ``K_G,e = N K_G1,e``; the modal matrix of the case is
+``Phi' (sum_e K_G,e) Phi`` (n x n, symmetric, with the body file's mode shapes).
+
+How the loads are reacted (the stress state depends on it):
+
+* bodies with an a-set (Craig-Bampton / normalized component modes, mounted at an interface grid): the
+  a-set DOFs are held (``reaction = "aset"``): the loads flow to the interface, as in a blade on its hub;
+* free-free bodies: inertia relief (``reaction = "inertia_relief"``): the load's rigid-body resultant is
+  balanced by the rigid-body inertia ``M Phi_r a_r`` and the self-equilibrated remainder is solved with
+  the rigid motions removed (``[K, M Phi_r; Phi_r' M, 0]``);
+* bodies held by the deck's own SPCs (no rigid-body motion left, e.g. a cantilever clamped in the deck and
+  mounted by its reference frame): the SPCs react the loads (``reaction = "spc"``).
+
+Why these matrices give the stiffening (the engine side, :mod:`dynamics.flexible_body`): the foreshortening
+``u2_j(eta)`` of the nodes (second order in eta, e.g. the axial pull-in of a bent beam) does work on any
+load ``f``: ``sum_j f_j . u2_j = -1/2 eta' K_G[f] eta`` (the geometric stiffness is the second variation of
+the load's potential). The kinetic energy term linear in ``u2``,
+``sum_j m_j (v + omega x l_j) . (omega x u2_j + du2_j/dt)``, is therefore a quadratic form in the
+velocities written with these matrices alone: it is added to the body mass matrix ``M(eta)`` (first-order
+rigid/modal block and second-order rigid/rigid block), which keeps the equations Lagrangian (energy
+conserved in free spin) and gives the angular-acceleration and linear-acceleration terms of Banerjee and
+Dickens through d/dt of the modal momentum. A named preload (``f`` given by the user, e.g. thrust through
+the structure) is a potential ``1/2 s eta' K_G[f] eta`` added to the modal stiffness, ``s`` its scale in
+the scene.
+
+Elements: CBAR and CBEAM (cubic Hermite transverse field, Przemieniecki, Theory of Matrix Structural
+Analysis, 1968, sec. 15.2, eq. 15.53 without the torsion term; element offsets through the same rigid
+links as the stiffness) and CROD (a string: N / L on the transverse translations). The geometry,
+properties and offsets are read through :mod:`dynamics.flex.assembly`'s own beam functions. Shells,
+solids, springs (CBUSH, CELAS) contribute no geometric stiffness here: the pipeline warns naming them.
+Limits: the shear-flexible beam (PBEAM K) uses the Euler-Bernoulli geometric stiffness; the torsional
+term (N I_p / (A L)) and the geometric stiffness of node rotary inertia loads are left out (both are
+second order for slender beams).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+# order of the angular-velocity products in the stored (6, n, n) array
+OMEGA_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0))
+"""(a, b) of the six angular-velocity product cases: xx, yy, zz, xy, yz, zx."""
+
+SUPPORTED_ELEMENTS = ("CBAR", "CBEAM", "CROD")
+
+
+@dataclass
+class GeometricStiffness:
+    """Modal geometric stiffness of a body under its rigid-motion load cases and named preloads.
+
+    ``translation`` (3, n, n): case k = nodes loaded by ``B_j [e_k; 0]`` (kg m/s^2 per unit acceleration:
+    the matrices are in 1/s^2 per m/s^2 with mass-normalized modes, i.e. 1/m); ``rotation`` (3, n, n): by
+    ``B_j [e_k x l_j; e_k]`` (per rad/s^2: dimensionless); ``angular_velocity`` (6, n, n): the products
+    :data:`OMEGA_PAIRS` (per (rad/s)^2: dimensionless), xy, yz, zx each the symmetric half-sum so that
+    ``sum_ab omega_a omega_b K_w[ab]`` over all nine (a, b) equals
+    ``sum_k omega_k omega_k K[kk] + 2 sum_{a<b} omega_a omega_b K[ab]``; ``preload`` (p, n, n): the named
+    preloads (1/s^2 with mass-normalized modes, per unit scale); ``reaction``: "aset" or
+    "inertia_relief" or "spc"; ``elements``: element counts that contributed, e.g. "CBAR 40"."""
+
+    reaction: str
+    translation: np.ndarray
+    rotation: np.ndarray
+    angular_velocity: np.ndarray
+    preload_names: list = field(default_factory=list)
+    preload: np.ndarray | None = None
+    elements: str = ""
+
+    @property
+    def n_modes(self) -> int:
+        return self.translation.shape[1]
+
+    def omega_matrix(self, a: int, b: int) -> np.ndarray:
+        """K_w[ab] (n x n) for any a, b in 0..2 (symmetric in a, b)."""
+        for k, (p, q) in enumerate(OMEGA_PAIRS):
+            if (p, q) in ((a, b), (b, a)):
+                return self.angular_velocity[k]
+        raise IndexError((a, b))
+
+    def select(self, keep) -> "GeometricStiffness":
+        """The same data for the modes ``keep`` (indices)."""
+        keep = np.asarray(keep, dtype=np.int64)
+
+        def sub(a):
+            return None if a is None else np.ascontiguousarray(a[:, keep][:, :, keep])
+
+        return GeometricStiffness(self.reaction, sub(self.translation), sub(self.rotation),
+                                  sub(self.angular_velocity), list(self.preload_names), sub(self.preload),
+                                  self.elements)
+
+
+def parse_preload(text: str) -> tuple[str, int, int, float]:
+    """"NAME:GRID:COMPONENT:VALUE" (component 1-3 force [N], 4-6 moment [N m], basic axes) ->
+    (name, grid, component, value)."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 4 or not parts[0].strip():
+            raise ValueError
+        name, grid, comp, value = parts[0].strip(), int(parts[1]), int(parts[2]), float(parts[3])
+    except ValueError:
+        raise ValueError(f"--preload expects NAME:GRID:COMPONENT:VALUE (e.g. thrust:11:1:-2000 for a "
+                         f"2000 N force along -x at grid 11), got {text!r}") from None
+    if comp < 1 or comp > 6:
+        raise ValueError(f"--preload {text!r}: component must be 1..6 (1-3 force, 4-6 moment, basic axes), "
+                         f"got {comp}")
+    if not np.isfinite(value):
+        raise ValueError(f"--preload {text!r}: value must be finite")
+    return name, grid, comp, value
+
+
+def hermite_geometric_stiffness(L: float) -> np.ndarray:
+    """4 x 4 geometric stiffness per unit axial force of cubic Hermite bending (v1, theta1, v2, theta2),
+    ``int v'^2 dx`` (Przemieniecki eq. 15.53): 1/(30 L) [[36, 3L, -36, 3L], ...]."""
+    return np.array([[36.0, 3.0 * L, -36.0, 3.0 * L],
+                     [3.0 * L, 4.0 * L * L, -3.0 * L, -L * L],
+                     [-36.0, -3.0 * L, 36.0, -3.0 * L],
+                     [3.0 * L, -L * L, -3.0 * L, 4.0 * L * L]]) / (30.0 * L)
+
+
+def beam_local_geometric_stiffness(L: float) -> np.ndarray:
+    """12 x 12 local geometric stiffness per unit axial force (tension positive) of a CBAR/CBEAM, local
+    DOFs [u v w tx ty tz] per end: plane 1 (v, theta_z), plane 2 (w, -theta_y)."""
+    K = np.zeros((12, 12))
+    h = hermite_geometric_stiffness(L)
+    for idx, flip in (([1, 5, 7, 11], [1.0, 1.0, 1.0, 1.0]), ([2, 4, 8, 10], [1.0, -1.0, 1.0, -1.0])):
+        f = np.asarray(flip)
+        K[np.ix_(idx, idx)] += h * np.outer(f, f)
+    return K
+
+
+def rod_local_geometric_stiffness(L: float) -> np.ndarray:
+    """12 x 12 local geometric stiffness per unit axial force of a CROD (a string on the translations)."""
+    K = np.zeros((12, 12))
+    for d in (1, 2):
+        K[np.ix_([d, 6 + d], [d, 6 + d])] = np.array([[1.0, -1.0], [-1.0, 1.0]]) / L
+    return K
+
+
+def _line_elements(sm):
+    """(grid rows a, b (ne,), T (ne, 12, 12) local <- grid basic [T; R], EA/L (ne,), axis (ne, 3), unit
+    local K_G (ne, 12, 12), counts {type: count}, the other element types {type: count})."""
+    from dynamics.flex import assembly as asm
+    from dynamics.flex import elements as el
+
+    bulk = sm.bulk
+    model = bulk.model
+    row_of = {int(g): i for i, g in enumerate(bulk.grid_ids)}
+
+    def idx(gid, ctx):
+        i = row_of.get(gid)
+        return bulk.grid_index(int(gid), ctx) if i is None else i
+
+    beams, rods, other, sections = [], [], {}, {}
+    for eid, elem in sorted(model.elements.items()):
+        if elem.type in bulk.report.unsupported:
+            continue
+        if elem.type in ("CBAR", "CBEAM"):
+            beams.append(asm._beam_data(bulk, elem, f"{elem.type} {eid}", bulk.wtmass, idx, sections))
+        elif elem.type == "CROD":
+            rods.append((eid, elem))
+        else:
+            other[elem.type] = other.get(elem.type, 0) + 1
+    ia, ib, T, ea_l, axes, KG = [], [], [], [], [], []
+    counts = {}
+    if beams:
+        dofs, props, frames, wa, wb, is_cbeam = asm._beam_batch(bulk, beams)
+        for e in range(len(beams)):
+            L, E, A = props[e, 0], props[e, 1], props[e, 3]  # props: L, E, G, A, I1, I2, J, mu, k1, k2
+            ia.append(int(dofs[e, 0]) // 6)
+            ib.append(int(dofs[e, 6]) // 6)
+            T.append(el.local_to_grids(frames[e], wa[e], wb[e]))
+            ea_l.append(E * A / L)
+            KG.append(beam_local_geometric_stiffness(L))
+        counts["CBEAM"] = int(np.sum(is_cbeam))
+        counts["CBAR"] = len(beams) - counts["CBEAM"]
+    for eid, elem in rods:
+        ctx = f"CROD {eid}"
+        a, b = (idx(int(g), ctx) for g in elem.nodes)
+        axis = bulk.positions[b] - bulk.positions[a]
+        Lam = el.beam_frame(axis, np.eye(3)[np.argmin(np.abs(axis))], ctx)
+        L = float(np.linalg.norm(axis))
+        prop = asm._property(model, int(elem.pid), ("PROD",), ctx)
+        E, _, _ = asm._material(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
+        ia.append(a)
+        ib.append(b)
+        T.append(el.local_to_grids(Lam, np.zeros(3), np.zeros(3)))
+        ea_l.append(E * float(prop.A) / L)
+        KG.append(rod_local_geometric_stiffness(L))
+    if rods:
+        counts["CROD"] = len(rods)
+    counts = {k: v for k, v in counts.items() if v}
+    ne = len(ia)
+    return (np.asarray(ia, dtype=np.int64), np.asarray(ib, dtype=np.int64),
+            np.asarray(T).reshape(ne, 12, 12), np.asarray(ea_l, dtype=float), np.asarray(KG).reshape(ne, 12, 12),
+            counts, other)
+
+
+def rigid_motion_loads(blocks: np.ndarray, l0: np.ndarray) -> np.ndarray:
+    """(N, 6, 12) node loads ([force; moment], basic) of the 12 rigid-motion cases (3 translation, 3
+    rotation, 6 angular-velocity products in :data:`OMEGA_PAIRS` order) from the lumped 6 x 6 grid
+    blocks ``blocks`` (N, 6, 6, [T; R]) and grid positions ``l0`` (N, 3) from the reference point."""
+    N = l0.shape[0]
+    field_ = np.zeros((N, 6, 12))
+    for k in range(3):
+        e = np.eye(3)[k]
+        field_[:, k, k] = 1.0
+        field_[:, :3, 3 + k] = np.cross(e, l0)
+        field_[:, 3 + k, 3 + k] = 1.0
+    for c, (a, b) in enumerate(OMEGA_PAIRS):
+        f = np.zeros((N, 3))
+        if a == b:
+            f += l0
+        f[:, a] -= 0.5 * l0[:, b]
+        f[:, b] -= 0.5 * l0[:, a]
+        field_[:, :3, 6 + c] = f
+    return np.einsum("nij,njc->nic", blocks, field_)
+
+
+def _static_displacements(sm, K, M, loads_f, held, rigid_vectors):
+    """f-set displacements for the f-set loads (n_f, c): ``held`` DOFs fixed (a-set) or, without them,
+    inertia relief with the rigid-body vectors."""
+    nf = K.shape[0]
+    if held is not None and len(held):
+        free = np.setdiff1d(np.arange(nf), held)
+        Kii = sp.csc_matrix(K[free][:, free])
+        u = np.zeros_like(loads_f)
+        u[free] = spla.splu(Kii).solve(np.ascontiguousarray(loads_f[free]))
+        return u
+    R = np.asarray(rigid_vectors)
+    if R.size == 0:
+        return spla.splu(sp.csc_matrix(K)).solve(np.ascontiguousarray(loads_f))
+    MR = np.asarray(M @ R)
+    relieved = loads_f - MR @ np.linalg.solve(R.T @ MR, R.T @ loads_f)
+    scale = max(abs(K).max(), 1e-300) / max(np.abs(MR).max(), 1e-300)
+    A = sp.bmat([[K, sp.csr_matrix(MR * scale)], [sp.csr_matrix(MR.T * scale), None]], format="csc")
+    rhs = np.vstack([relieved, np.zeros((R.shape[1], loads_f.shape[1]))])
+    return spla.splu(A).solve(np.ascontiguousarray(rhs))[:nf]
+
+
+def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vectors=None, preloads=(),
+                        context="", interface_row=None) -> GeometricStiffness:
+    """The :class:`GeometricStiffness` of a structural model (module docstring).
+
+    ``sm``: the :class:`dynamics.flex.assembly.StructuralModel`; ``K``, ``M``: f-set matrices; ``blocks``
+    (N, 6, 6): lumped grid mass blocks (basic, [T; R]); ``l0`` (N, 3): grid positions from the reference
+    point; ``rot``, ``trans`` (N, 3, n): the body's mode shapes (basic); ``held``: f-set indices of the
+    a-set (reaction there), else inertia relief with ``rigid_vectors`` (n_f, r); ``preloads``: list of
+    (name, grid, component 1..6, value) in basic axes, several entries per name add up; ``interface_row``:
+    row of the interface grid (an a-set grid with all six components) whose frame holds the preloads.
+
+    The rigid-motion cases use the mode shapes as they are (the second-order kinematics of the body frame,
+    :mod:`dynamics.flexible_body`). A preload is a load fixed in the frame that holds the structure: for
+    normalized component modes, mounted by the interface grid while the body frame floats, its matrix uses
+    the shapes relative to the interface grid's rigid motion (else the rigid rotation the constraint modes
+    contain would turn the structure against its own preload)."""
+    bulk = sm.bulk
+    N = len(bulk.grid_ids)
+    Rcd = bulk.displacement_rotation
+    ia, ib, T, ea_l, KG1, counts, other = _line_elements(sm)
+    if other:
+        warnings.warn(f"{context}: geometric stiffness from {', '.join(SUPPORTED_ELEMENTS)} only; the "
+                      f"stress in {', '.join(f'{k} ({v})' for k, v in sorted(other.items()))} does not "
+                      "stiffen the modes (their geometric stiffness is not implemented)", stacklevel=3)
+    if len(ia) == 0:
+        raise ValueError(f"{context}: --geometric-stiffness needs line elements ({', '.join(SUPPORTED_ELEMENTS)}); "
+                         "the deck has none")
+    names = []
+    for name, _, _, _ in preloads:
+        if name not in names:
+            names.append(name)
+    loads_basic = np.zeros((N, 6, 12 + len(names)))
+    loads_basic[:, :, :12] = rigid_motion_loads(blocks, l0)
+    for name, grid, comp, value in preloads:
+        loads_basic[bulk.grid_index(int(grid), f"--preload {name}"), comp - 1, 12 + names.index(name)] += value
+    # basic -> CD frames (g-set) -> f-set
+    g = np.empty_like(loads_basic)
+    g[:, :3] = np.einsum("nba,nbc->nac", Rcd, loads_basic[:, :3])
+    g[:, 3:] = np.einsum("nba,nbc->nac", Rcd, loads_basic[:, 3:])
+    loads_f = np.asarray(sm.T_gf.T @ g.reshape(6 * N, -1))
+    u_f = _static_displacements(sm, K, M, loads_f, held, rigid_vectors)
+    ug = np.asarray(sm.T_gf @ u_f).reshape(N, 6, -1)
+    ub = np.empty_like(ug)
+    ub[:, :3] = np.einsum("nab,nbc->nac", Rcd, ug[:, :3])
+    ub[:, 3:] = np.einsum("nab,nbc->nac", Rcd, ug[:, 3:])
+    ue = np.concatenate([ub[ia], ub[ib]], axis=1)  # (ne, 12, cases)
+    local = np.einsum("eij,ejc->eic", T, ue)
+    axial = ea_l[:, None] * (local[:, 6] - local[:, 0])  # (ne, cases), tension positive
+    phi = np.concatenate([trans[ia], rot[ia], trans[ib], rot[ib]], axis=1)  # (ne, 12, n)
+    local_phi = np.einsum("eij,ejk->eik", T, phi)
+    Y = np.einsum("eij,ejk->eik", KG1, local_phi)
+    cases = np.einsum("ec,eik,eil->ckl", axial, local_phi, Y)
+    if names and interface_row is not None:
+        r = int(interface_row)
+        arm = l0 - l0[r]
+        rel_rot = rot - rot[r][None]
+        rel_trans = trans - trans[r][None] - np.cross(rot[r][None].transpose(0, 2, 1),
+                                                      arm[:, None, :]).transpose(0, 2, 1)
+        phi = np.concatenate([rel_trans[ia], rel_rot[ia], rel_trans[ib], rel_rot[ib]], axis=1)
+        local_phi = np.einsum("eij,ejk->eik", T, phi)
+        Y = np.einsum("eij,ejk->eik", KG1, local_phi)
+        cases[12:] = np.einsum("ec,eik,eil->ckl", axial[:, 12:], local_phi, Y)
+    cases = 0.5 * (cases + cases.transpose(0, 2, 1))
+    return GeometricStiffness(
+        reaction="aset" if held is not None and len(held) else "inertia_relief" if rigid_vectors is not None
+        and np.asarray(rigid_vectors).size else "spc",
+        translation=cases[:3].copy(), rotation=cases[3:6].copy(), angular_velocity=cases[6:12].copy(),
+        preload_names=names, preload=cases[12:].copy() if names else None,
+        elements=", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
