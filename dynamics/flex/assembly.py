@@ -710,6 +710,34 @@ def _selected_set(model, kind: str):
     return None
 
 
+def _spc_sets(bulk, sid):
+    """SPC/SPC1 set ids that case control's SPC = sid selects: sid itself, or the union an SPCADD
+    sid names (NASTRAN: an SPCADD may not reference another SPCADD); None = all sets. A selected
+    id that is neither is refused (it used to select nothing, silently)."""
+    if sid is None:
+        return None
+    model = bulk.model
+    adds = getattr(model, "spcadds", {}) or {}
+    if sid in adds:
+        out = set()
+        for card in adds[sid]:
+            for s in card.sets:
+                s = int(s)
+                if s in adds:
+                    raise BulkDataError(f"{bulk.path}: SPCADD {sid} references SPCADD {s}; "
+                                        "NASTRAN does not allow nested SPCADDs")
+                if s not in model.spcs:
+                    raise BulkDataError(f"{bulk.path}: SPCADD {sid} references SPC set {s}, "
+                                        "which no SPC or SPC1 card defines")
+                out.add(s)
+        return out
+    if sid in model.spcs:
+        return {sid}
+    raise BulkDataError(f"{bulk.path}: case control selects SPC = {sid}, but no SPC, SPC1 or "
+                        f"SPCADD card has that set id (defined: SPC/SPC1 sets "
+                        f"{sorted(model.spcs)}, SPCADD sets {sorted(adds)})")
+
+
 def apply_constraints(sm: StructuralModel, interface: list = ()) -> None:
     bulk = sm.bulk
     model = bulk.model
@@ -772,9 +800,10 @@ def apply_constraints(sm: StructuralModel, interface: list = ()) -> None:
 
     # SPC / SPC1 (zero enforced values only)
     sid = _selected_set(model, "SPC")
+    selected = _spc_sets(bulk, sid)
     spc_dofs = set()
     for set_id, cards in sorted(model.spcs.items()):
-        if sid is not None and set_id != sid:
+        if selected is not None and set_id not in selected:
             continue
         for card in cards:
             ctx = f"{card.type} set {set_id}"

@@ -1,8 +1,9 @@
 """Generalized symmetric eigen-solutions (K - omega^2 M) phi = 0 and free-free normal modes.
 
 TM-2020-5008164 eqs. A.1.4-A.1.7: mass-normalized modes, Pi' M Pi = I, Pi' K Pi = diag(omega^2).
-Large problems use scipy.sparse.linalg.eigsh in shift-invert mode (one sparse LU of K - sigma M,
-ARPACK Lanczos on the inverted operator); small ones (<= ``DENSE_LIMIT`` DOFs) use LAPACK dense
+Large problems use scipy.sparse.linalg.eigsh in shift-invert mode (one sparse factorization of
+K - sigma M: CHOLMOD's Cholesky when the cholespy wheel is installed, else SuperLU's LU; ARPACK
+Lanczos on the inverted operator); small ones (<= ``DENSE_LIMIT`` DOFs) use LAPACK dense
 solvers, which give the 1e-16-level agreement the five-particle comparisons of TM Table A1 show.
 The shift is negative so that K - sigma M is non-singular for free-free bodies (K singular) and
 the rigid-body modes come out first. DOFs without mass (rotations of lumped-mass beams) give
@@ -265,7 +266,7 @@ def shifted_solver(K, M, sigma: float, groups: np.ndarray | None = None):
                 raise EigenSolutionError("K - sigma M is singular: a mechanism without mass"
                                          ) from exc
         return lambda b: sla.lu_solve(factor, b)
-    return SymmetricLU(K - sigma * M, groups).solve
+    return factorize(K - sigma * M, groups).solve
 
 
 def refine(K, M, vectors: np.ndarray, solve, rigid: np.ndarray | None = None,
@@ -293,6 +294,48 @@ def refine(K, M, vectors: np.ndarray, solve, rigid: np.ndarray | None = None,
     return rayleigh_ritz(K, M, W)
 
 
+def factorize(A, groups: np.ndarray | None = None):
+    """A factorization of the sparse symmetric positive-definite K - sigma M with ``.solve(b)``
+    (b a vector or an n x m block) and ``.method`` (what was used, for the reports).
+
+    CHOLMOD's Cholesky through the ``cholespy`` wheel (METIS / AMD ordering) when it is
+    installed and the matrix is positive definite; otherwise :class:`SymmetricLU` (SuperLU),
+    whose failure message names the mechanism. On the 98,826-DOF plate of tests/flex/
+    test_speed.py CHOLMOD factors in about half SuperLU's time and solves 2 - 3 times faster
+    (benchmarks/fem2modal_speed.py, docs/fem2modal.md).
+    """
+    if A.shape[0] > DENSE_LIMIT:
+        try:
+            return SparseCholesky(A)
+        except (ImportError, ValueError):
+            pass
+    return SymmetricLU(A, groups)
+
+
+class SparseCholesky:
+    """L L' = A by CHOLMOD (cholespy: SuiteSparse CHOLMOD with its METIS and AMD orderings)."""
+
+    method = "CHOLMOD sparse Cholesky (cholespy)"
+
+    def __init__(self, A):
+        import cholespy
+
+        L = sp.tril(sp.csc_matrix(A)).tocsc()
+        L.sort_indices()
+        self.n = A.shape[0]
+        # CHOLMOD prints "not positive definite" on stderr and cholespy raises ValueError
+        self.factor = cholespy.CholeskySolverD(self.n, L.indptr.astype(np.int32),
+                                               L.indices.astype(np.int32),
+                                               np.ascontiguousarray(L.data, dtype=float),
+                                               cholespy.MatrixType.CSC)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        b = np.ascontiguousarray(b, dtype=float)
+        x = np.empty_like(b)
+        self.factor.solve(b, x)
+        return x
+
+
 class SymmetricLU:
     """Sparse LU of a symmetric positive-definite matrix with a fill-reducing grid ordering.
 
@@ -301,6 +344,8 @@ class SymmetricLU:
     beam lattice directly); the factorization then runs without pivoting in SuperLU's
     symmetric mode. Without groups, SuperLU's default (COLAMD on the DOFs, partial pivoting).
     """
+
+    method = "SuperLU sparse LU (symmetric mode, grid ordering)"
 
     def __init__(self, A, groups: np.ndarray | None = None):
         A = sp.csc_matrix(A)
@@ -347,7 +392,7 @@ def solve_sparse(K, M, n_modes: int, shift: float | None = None, tol: float = 0.
         return solve_dense(K, M, n_modes, shift)
     sigma = default_shift(K, M) if shift is None else shift
     if lu is None:
-        lu = SymmetricLU(K - sigma * M, groups)
+        lu = factorize(K - sigma * M, groups)
     ncv = min(n, max(2 * n_modes + 1, n_modes + 32))
     for _ in range(3):
         op = spla.LinearOperator((n, n), matvec=lu.solve, dtype=float)
@@ -359,7 +404,7 @@ def solve_sparse(K, M, n_modes: int, shift: float | None = None, tol: float = 0.
             # the shift is far above the wanted eigenvalues, so their inverted values
             # cluster at 1/|sigma|: move it 1000 times closer to zero
             sigma *= 1e-3
-            lu = SymmetricLU(K - sigma * M, groups)
+            lu = factorize(K - sigma * M, groups)
     else:
         raise EigenSolutionError(f"Lanczos did not converge for {n_modes} modes with shifts "
                                  f"down to {sigma:.3g}")
@@ -393,7 +438,7 @@ def lowest_modes(K, M, n_modes: int | None = None, cutoff_hz: float | None = Non
     else:
         sigma = default_shift(K, M) if shift is None else shift
         if lu is None:
-            lu = SymmetricLU(K - sigma * M, groups)
+            lu = factorize(K - sigma * M, groups)
         k = max(20, extra + 10)
         while True:
             sol = solve_sparse(K, M, min(k, n - 2), sigma, lu=lu, refined=refined)
@@ -531,7 +576,7 @@ def free_free_modes(K, M, n_modes: int | None = None, cutoff_hz: float | None = 
     if rigid_vectors is None:
         rigid_vectors = np.zeros((n, 0))
     sigma = default_shift(K, M) if shift is None else shift
-    lu = SymmetricLU(K - sigma * M, groups) if n > DENSE_LIMIT else None
+    lu = factorize(K - sigma * M, groups) if n > DENSE_LIMIT else None
     solve = lu.solve if lu is not None else shifted_solver(K, M, sigma, groups)
     # one factorization for Lanczos and the refinement; refined once, after the rigid split.
     # ``guard`` also covers up to that many mechanism modes (a pin in the FE model).
