@@ -50,9 +50,16 @@ def test_spcadd_selected_by_case_control_is_applied():
     assert len(sm.f_dofs) == 30
 
 
-def test_case_control_spc_set_that_does_not_exist_is_refused(write_deck):
+def test_case_control_spc_set_that_does_not_exist_is_reported(write_deck):
     text = open(TET10).read().replace("SPC = 10", "SPC = 11")
-    with pytest.raises(BulkDataError, match=r"SPC = 11.*no SPC, SPC1 or SPCADD"):
+    with pytest.warns(UserWarning, match=r"SPC = 11.*no SPC, SPC1 or SPCADD.*no SPC set is "):
+        sm = assemble(read_bulk_data(write_deck(text)))
+    assert sm.spc_count == 0
+
+
+def test_spcadd_naming_a_missing_set_is_refused(write_deck):
+    text = open(TET10).read().replace("SPCADD  10      1", "SPCADD  10      1       7")
+    with pytest.raises(BulkDataError, match="SPCADD 10 references SPC set 7"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             assemble(read_bulk_data(write_deck(text)))
