@@ -75,3 +75,16 @@ def test_tet10_msc_eigenvalues_lie_between_our_lumped_and_consistent_mass(write_
     assert np.all(consistent > 1.1 * MSC_TET10_EIGENVALUES)
     assert np.all(lumped > 0.5 * MSC_TET10_EIGENVALUES)
     assert np.all(consistent < 2.1 * MSC_TET10_EIGENVALUES)
+
+
+def test_cli_on_the_spcadd_model(tmp_path, capsys):
+    """`flexshell fem2modal` on the transcribed MSC model: clamped (no rigid-body modes), ten
+    modes written."""
+    from shell.cli import main
+    from dynamics.flex.body_file import read_body_file
+    out = tmp_path / "tet10.h5"
+    rc = main(["fem2modal", TET10, "--modes", "10", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 0 and out.exists(), err
+    body = read_body_file(out)
+    assert len(body.frequencies_hz) == 10 and body.n_rigid_modes_removed == 0

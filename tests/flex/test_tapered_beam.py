@@ -124,3 +124,17 @@ def test_tapered_pbeam_with_bad_stations_is_refused(write_deck):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             fem2modal(write_deck(bad), Fem2ModalOptions(n_modes=2))
+
+
+def test_cli_reads_a_tapered_pbeam_deck(write_deck, tmp_path, capsys):
+    """The user's path: `flexshell fem2modal deck.dat` on a tapered cantilever writes a body
+    file whose frequencies are the pipeline's."""
+    from shell.cli import main
+    from dynamics.flex.body_file import read_body_file
+    deck = write_deck(_deck(8, True), "tapered.dat")
+    out = tmp_path / "tapered.h5"
+    rc = main(["fem2modal", deck, "--modes", "4", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 0 and out.exists(), err
+    body = read_body_file(out)
+    assert_allclose(body.frequencies_hz, _frequencies(write_deck, 8, True, modes=4), rtol=1e-12)
