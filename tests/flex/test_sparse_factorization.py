@@ -75,3 +75,27 @@ def test_rayleigh_quotients_survive_cancellation():
     assert abs(q - float(exact)) <= 1e-15 * abs(float(exact)) + 1e-30
     plain = (x @ (K @ x)) / (x @ x)
     assert abs(plain - float(exact)) > 1e-8 * abs(float(exact))
+
+
+def test_massless_mechanism_search_above_the_dense_limit(write_deck):
+    """More than DENSE_NULL_LIMIT massless DOFs (the sparse branch: one symmetric LU of K_oo,
+    eigsh when it is singular). A lumped-mass CBAR line of 1100 grids (3300 massless rotations)
+    has exactly one massless mechanism, the spin about its axis: one x-rotation is held. A
+    lumped 32 x 32 CQUAD4 plate (3267 massless rotations, drilling penalty) has none."""
+    from dynamics.flex.assembly import DENSE_NULL_LIMIT, massless_mechanism_dofs
+
+    def assembled(text):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return assemble(read_bulk_data(write_deck(text)))
+
+    sm = assembled(decks.beam_deck(1099, length=20.0, card="CBAR", coupled=False))
+    K, M = sm.stiffness_f(), sm.mass_f()
+    assert int(np.sum(modes.massless_dofs(M))) + len(sm.mechanisms) > DENSE_NULL_LIMIT
+    assert len(sm.mechanisms) == 1 and "component 4" in sm.mechanisms[0]
+    assert len(massless_mechanism_dofs(K, M)) == 0     # none left in the f-set
+    sm = assembled(decks.plate_deck(32, edges="FFFF", coupled=False, in_plane_held=False))
+    K, M = sm.stiffness_f(), sm.mass_f()
+    assert int(np.sum(modes.massless_dofs(M))) > DENSE_NULL_LIMIT
+    assert len(sm.mechanisms) == 0
+    assert len(massless_mechanism_dofs(K, M)) == 0
