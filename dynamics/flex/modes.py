@@ -21,6 +21,10 @@ frequency threshold (:func:`free_free_modes`, :func:`separate_rigid_body_modes`)
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import os
+import sys
 import warnings
 from dataclasses import dataclass
 
@@ -312,6 +316,29 @@ def factorize(A, groups: np.ndarray | None = None):
     return SymmetricLU(A, groups)
 
 
+@contextlib.contextmanager
+def _c_output_silenced():
+    """File descriptors 1 and 2 to /dev/null while the block runs, C stdio flushed before
+    they are restored (Python's own sys.stdout/sys.stderr are flushed first)."""
+    libc = ctypes.CDLL(None)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            os.dup2(null.fileno(), 2)
+            try:
+                yield
+            finally:
+                libc.fflush(None)
+    finally:
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        os.close(saved[0])
+        os.close(saved[1])
+
+
 class SparseCholesky:
     """L L' = A by CHOLMOD (cholespy: SuiteSparse CHOLMOD with its METIS and AMD orderings)."""
 
@@ -323,11 +350,13 @@ class SparseCholesky:
         L = sp.tril(sp.csc_matrix(A)).tocsc()
         L.sort_indices()
         self.n = A.shape[0]
-        # CHOLMOD prints "not positive definite" on stderr and cholespy raises ValueError
-        self.factor = cholespy.CholeskySolverD(self.n, L.indptr.astype(np.int32),
-                                               L.indices.astype(np.int32),
-                                               np.ascontiguousarray(L.data, dtype=float),
-                                               cholespy.MatrixType.CSC)
+        # a matrix that is not positive definite: cholespy raises ValueError (the caller falls
+        # back to the LU, whose message names the mechanism) after CHOLMOD has printed a
+        # warning with its own source path through C stdio, which is silenced here
+        args = (self.n, L.indptr.astype(np.int32), L.indices.astype(np.int32),
+                np.ascontiguousarray(L.data, dtype=float), cholespy.MatrixType.CSC)
+        with _c_output_silenced():
+            self.factor = cholespy.CholeskySolverD(*args)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         b = np.ascontiguousarray(b, dtype=float)
