@@ -7,6 +7,13 @@ sparse pipeline must at least spend. Ratio = whole pipeline (read, assemble, sol
 properties, mode shapes, modal integrals) / bare eigsh.
 
 Run:  python3 benchmarks/fem2modal_speed.py [--nx 100 --ny 200 --modes 100]
+      python3 benchmarks/fem2modal_speed.py --plate [--repeat 2]
+
+``--plate``: the 98,826-DOF free plate of tests/flex/test_speed.py (180 x 90 CQUAD4, lumped
+mass), 100 flexible modes: the whole pipeline and one bare scipy eigsh (shift-invert, SuperLU,
+k = 106) on the same f-set matrices, each in its own process (peak RSS per process), interleaved
+``--repeat`` times, with the load average before each run; wall and CPU time of the measured
+call (CPU time is the less load-sensitive of the two on a shared machine).
 
 OpenBLAS is limited to one thread (unless OPENBLAS_NUM_THREADS is set): ARPACK's level-2 BLAS
 on long vectors gains nothing from threads and loses badly when the cores are shared (30k-DOF
@@ -20,6 +27,8 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS
 
 import argparse  # noqa: E402
+import resource  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -108,15 +117,67 @@ def bench_lattice(tmp: str, nx: int, ny: int, n_modes: int) -> None:
           f"{np.round(body.frequencies_hz[:3], 4)} Hz")
 
 
+def plate_run(which: str, tmp: str) -> None:
+    """One measurement in this process: 'pipeline' or 'eigsh'; prints one line."""
+    path = os.path.join(tmp, "plate100k.dat")
+    if not os.path.exists(path):
+        with open(path, "w") as fh:
+            fh.write(decks.plate_deck(180, a=2.0, b=1.0, t=0.005, edges="FFFF", coupled=False,
+                                      in_plane_held=False, ny=90))
+    if which == "pipeline":
+        steps = []
+        t0, c0 = time.perf_counter(), time.process_time()
+        body = fem2modal(path, Fem2ModalOptions(n_modes=100, write_modal_matrix=True),
+                         progress=lambda m: steps.append(f"{time.perf_counter() - t0:6.1f} s {m}"))
+        dt = time.perf_counter() - t0
+        f = body.frequencies_hz
+        detail = " | ".join(x[:60] for x in steps if "normal modes" in x or "flexible modes" in x
+                            or "g-set" in x)
+    else:
+        sm = assemble(read_bulk_data(path))
+        K, M = sm.stiffness_f().tocsc(), sm.mass_f().tocsc()
+        t0, c0 = time.perf_counter(), time.process_time()
+        lam, _ = spla.eigsh(K, k=106, M=M, sigma=-1.0, which="LM")
+        dt = time.perf_counter() - t0
+        f = np.sqrt(np.sort(lam)[6:]) / (2 * np.pi)
+        detail = f"{K.shape[0]} DOFs"
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    peak = ru.ru_maxrss / 1024
+    cpu = time.process_time() - c0
+    print(f"  {which:8s} {dt:7.1f} s wall, {cpu:7.1f} s CPU  peak RSS {peak:6.0f} MB  "
+          f"f1 {f[0]:.7g} Hz  "
+          f"f100 {f[99]:.7g} Hz  [{detail}]", flush=True)
+
+
+def bench_plate(tmp: str, repeat: int) -> None:
+    print("98,826-DOF free plate, 100 flexible modes: whole pipeline vs one bare eigsh, "
+          "each in its own process, interleaved")
+    for _ in range(repeat):
+        for which in ("pipeline", "eigsh"):
+            print(f"  load average {os.getloadavg()[0]:.1f}", flush=True)
+            subprocess.run([sys.executable, __file__, "--plate-run", which, "--tmp", tmp],
+                           check=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--nx", type=int, default=100)
     ap.add_argument("--ny", type=int, default=200)
     ap.add_argument("--modes", type=int, default=100)
+    ap.add_argument("--plate", action="store_true", help="the 98,826-DOF plate study only")
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--plate-run", choices=("pipeline", "eigsh"), help=argparse.SUPPRESS)
+    ap.add_argument("--tmp", help=argparse.SUPPRESS)
     args = ap.parse_args()
     warnings.simplefilter("ignore")
+    if args.plate_run:
+        plate_run(args.plate_run, args.tmp)
+        return
     print(f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")
     with tempfile.TemporaryDirectory() as tmp:
+        if args.plate:
+            bench_plate(tmp, args.repeat)
+            return
         bench_beam(tmp)
         bench_lattice(tmp, args.nx, args.ny, args.modes)
 

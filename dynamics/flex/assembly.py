@@ -263,7 +263,7 @@ def _beam_section(prop, context: str):
     if prop.type in ("PBARL", "PBEAML"):
         A, I1, I2, J = _round_section(prop, context)
         nsm = float(np.atleast_1d(np.asarray(prop.nsm, dtype=float))[0] or 0.0)
-        return A, I1, I2, J, nsm, 0.9, 0.9
+        return A, I1, I2, J, nsm, 0.9, 0.9, None
     if prop.type == "PBAR":
         A, I1, I2, I12, J, nsm = (float(prop.A), float(prop.i1), float(prop.i2),
                                   float(prop.i12), float(prop.j), float(prop.nsm))
@@ -272,18 +272,39 @@ def _beam_section(prop, context: str):
     else:
         arrays = [np.atleast_1d(np.asarray(getattr(prop, n), dtype=float))
                   for n in ("A", "i1", "i2", "i12", "j", "nsm")]
-        if any(np.ptp(a) > 1e-12 * max(np.max(np.abs(a)), 1e-300) for a in arrays):
-            raise BulkDataError(f"{context}: PBEAM {prop.pid} is tapered (section varies "
-                                "between stations); only prismatic PBEAMs are supported")
-        A, I1, I2, I12, J, nsm = (float(a[0]) for a in arrays)
         k1 = float(prop.k1 if prop.k1 is not None else 1.0)
         k2 = float(prop.k2 if prop.k2 is not None else 1.0)
+        if any(np.ptp(a) > 1e-12 * max(np.max(np.abs(a)), 1e-300) for a in arrays):
+            return _tapered_section(prop, arrays, k1, k2, context)
+        A, I1, I2, I12, J, nsm = (float(a[0]) for a in arrays)
     if I12 != 0.0:
         raise BulkDataError(f"{context}: {prop.type} {prop.pid} has I12 = {I12}; unsymmetric "
                             "sections are not supported")
     if A <= 0.0:
         raise BulkDataError(f"{context}: {prop.type} {prop.pid} has area A = {A} (must be > 0)")
-    return A, I1, I2, J, nsm, k1, k2
+    return A, I1, I2, J, nsm, k1, k2, None
+
+
+def _tapered_section(prop, arrays, k1, k2, context: str):
+    """A PBEAM whose stations differ: values at end A for the prismatic placeholder, and the
+    stations (x/XB, (ns, 5) A, I1, I2, J, NSM) for
+    :func:`~dynamics.flex.elements.tapered_beam_local_matrices`."""
+    A, I1, I2, I12, J, nsm = arrays
+    xxb = np.atleast_1d(np.asarray(prop.xxb, dtype=float))
+    if len(xxb) != len(A) or abs(xxb[0]) > 1e-12 or abs(xxb[-1] - 1.0) > 1e-12 \
+            or np.any(np.diff(xxb) < 0.0):
+        raise BulkDataError(f"{context}: PBEAM {prop.pid} stations X/XB {list(xxb)} must rise "
+                            "from 0 to 1, one per section")
+    if np.any(I12 != 0.0):
+        raise BulkDataError(f"{context}: PBEAM {prop.pid} has I12 = {list(I12)}; unsymmetric "
+                            "sections are not supported")
+    for name, v in (("A", A), ("I1", I1), ("I2", I2)):
+        if np.any(v <= 0.0):
+            raise BulkDataError(f"{context}: PBEAM {prop.pid} has {name} = {list(v)} at its "
+                                "stations (must be > 0 at every station)")
+    sections = np.column_stack([A, I1, I2, J, nsm])
+    return (float(A[0]), float(I1[0]), float(I2[0]), float(J[0]), float(nsm[0]), k1, k2,
+            (xxb, sections))
 
 
 def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
@@ -359,6 +380,22 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
             progress(f"element matrices for {len(beams)} beams")
         dofs, props, frames, wa, wb, torsion = _beam_batch(bulk, beams)
         Kg, Mg, MLg = el.beam_element_batch(props, frames, wa, wb, bulk.coupled_mass, torsion)
+        for e, beam in enumerate(beams):
+            if beam[9] is None:
+                continue
+            stations, secs, rho = beam[9]
+            L, E, G = props[e, 0], props[e, 1], props[e, 2]
+            k1, k2 = props[e, 8], props[e, 9]
+            T = el.local_to_grids(frames[e], wa[e], wb[e])
+            Kl, Ml = el.tapered_beam_local_matrices(L, E, G, stations, secs, rho, k1, k2,
+                                                    bulk.coupled_mass, bool(torsion[e]))
+            Kg[e], Mg[e] = T.T @ Kl @ T, T.T @ Ml @ T
+            if bulk.coupled_mass:
+                _, Mlump = el.tapered_beam_local_matrices(L, E, G, stations, secs, rho, k1, k2,
+                                                          False, bool(torsion[e]))
+                MLg[e] = T.T @ Mlump @ T
+            else:
+                MLg[e] = Mg[e]
         K_b.add_batch(dofs, Kg)
         M_b.add_batch(dofs, Mg)
         ML_b.add_batch(dofs, MLg)
@@ -555,7 +592,8 @@ def _poisson(model, mid: int) -> float:
 
 
 def _beam_data(bulk, elem, ctx, wt, idx, sections):
-    """Raw fields of one CBAR/CBEAM: (eid, ia, ib, x, i_g0, wa, wb, section, is_cbeam)."""
+    """Raw fields of one CBAR/CBEAM: (eid, ia, ib, x, i_g0, wa, wb, section, is_cbeam, taper);
+    taper None or (stations, (ns, 5) A I1 I2 J NSM*WTMASS, rho*WTMASS) of a tapered PBEAM."""
     model = bulk.model
     offt = getattr(elem, "offt", "GGG")
     if elem.type == "CBEAM" and getattr(elem, "bit", None) is not None:
@@ -577,12 +615,18 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
     if key not in sections:
         prop = _property(model, int(elem.pid), ("PBAR", "PBARL") if elem.type == "CBAR"
                          else ("PBEAM", "PBEAML"), ctx)
-        A, I1, I2, J, nsm, k1, k2 = _beam_section(prop, f"{ctx} -> {prop.type} {prop.pid}")
+        A, I1, I2, J, nsm, k1, k2, taper = _beam_section(prop,
+                                                         f"{ctx} -> {prop.type} {prop.pid}")
         E, G, rho = _material(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
+        if taper is not None:
+            # mass per length rho A + NSM, both scaled by WTMASS
+            taper = (taper[0], taper[1] * np.array([1.0, 1.0, 1.0, 1.0, wt]), rho * wt)
         sections[key] = (E, G, A, I1, I2, J, (rho * A + nsm) * wt, k1, k2)
+        sections[("taper",) + key] = taper
     wa = _ZERO3 if elem.wa is None else elem.wa
     wb = _ZERO3 if elem.wb is None else elem.wb
-    return (int(elem.eid), ia, ib, x, i0, wa, wb, sections[key], elem.type == "CBEAM")
+    return (int(elem.eid), ia, ib, x, i0, wa, wb, sections[key], elem.type == "CBEAM",
+            sections[("taper",) + key])
 
 
 _ZERO3 = np.zeros(3)
@@ -710,6 +754,36 @@ def _selected_set(model, kind: str):
     return None
 
 
+def _spc_sets(bulk, sid):
+    """SPC/SPC1 set ids that case control's SPC = sid selects: sid itself, or the union an SPCADD
+    sid names (NASTRAN: an SPCADD may not reference another SPCADD); None = all sets. A selected
+    id that is neither selects nothing, with a warning (it used to, silently: an SPCADD was
+    never applied)."""
+    if sid is None:
+        return None
+    model = bulk.model
+    adds = getattr(model, "spcadds", {}) or {}
+    if sid in adds:
+        out = set()
+        for card in adds[sid]:
+            for s in card.sets:
+                s = int(s)
+                if s in adds:
+                    raise BulkDataError(f"{bulk.path}: SPCADD {sid} references SPCADD {s}; "
+                                        "NASTRAN does not allow nested SPCADDs")
+                if s not in model.spcs:
+                    raise BulkDataError(f"{bulk.path}: SPCADD {sid} references SPC set {s}, "
+                                        "which no SPC or SPC1 card defines")
+                out.add(s)
+        return out
+    if sid in model.spcs:
+        return {sid}
+    warnings.warn(f"{bulk.path}: case control selects SPC = {sid}, but no SPC, SPC1 or SPCADD "
+                  f"card has that set id (defined: SPC/SPC1 sets {sorted(model.spcs)}, SPCADD "
+                  f"sets {sorted(adds)}); no SPC set is applied (GRID PS still is)", stacklevel=4)
+    return set()
+
+
 def apply_constraints(sm: StructuralModel, interface: list = ()) -> None:
     bulk = sm.bulk
     model = bulk.model
@@ -772,9 +846,10 @@ def apply_constraints(sm: StructuralModel, interface: list = ()) -> None:
 
     # SPC / SPC1 (zero enforced values only)
     sid = _selected_set(model, "SPC")
+    selected = _spc_sets(bulk, sid)
     spc_dofs = set()
     for set_id, cards in sorted(model.spcs.items()):
-        if sid is not None and set_id != sid:
+        if selected is not None and set_id not in selected:
             continue
         for card in cards:
             ctx = f"{card.type} set {set_id}"
@@ -871,7 +946,11 @@ def massless_mechanism_dofs(K, M, avoid: np.ndarray | None = None) -> np.ndarray
         Z = V[:, w <= 1e-10 * kmax]
     else:
         try:
-            lu = spla.splu(Koo.tocsc())
+            # K_oo is positive semi-definite: symmetric mode, minimum degree on A' + A, no
+            # pivoting (half the time of the default COLAMD + partial pivoting on the
+            # 49,413 massless rotations of the 98,826-DOF plate)
+            lu = spla.splu(Koo.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options=dict(SymmetricMode=True))
             d = np.abs(lu.U.diagonal())
             if d.min() > 1e-10 * d.max():
                 return np.zeros(0, dtype=np.int64)

@@ -41,7 +41,7 @@ SUPPORTED_CARDS = frozenset({
     "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1", "MAT2",
     "CQUAD4", "CTRIA3", "PSHELL", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
     "RBE2", "RBE3", "CBUSH", "PBUSH", "CORD2S", "CORD1C", "CORD1S",
-    "SPC", "SPC1", "ASET", "ASET1", "PARAM", "ENDDATA",
+    "SPC", "SPC1", "SPCADD", "ASET", "ASET1", "PARAM", "ENDDATA",
 })
 # PARAMs that change the structural matrices or the products; all others are reported as ignored.
 USED_PARAMS = frozenset({"WTMASS", "COUPMASS", "GRDPNT"})

@@ -195,3 +195,86 @@ def conm2_inertia(I6) -> np.ndarray:
     """CONM2 I11, I21, I22, I31, I32, I33 to the inertia matrix (NASTRAN sign convention)."""
     i11, i21, i22, i31, i32, i33 = (float(v) for v in I6)
     return np.array([[i11, -i21, -i31], [-i21, i22, -i32], [-i31, -i32, i33]])
+
+
+def _station_values(stations: np.ndarray, values: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Piecewise-linear interpolation in s = x / L of the station values (columns of values)."""
+    return np.stack([np.interp(s, stations, v) for v in values.T], axis=1)
+
+
+def tapered_beam_local_matrices(L, E, G, stations, sections, rho, k1, k2, coupled,
+                                lumped_torsion, n_gauss: int = 16):
+    """Local 12 x 12 stiffness and mass of a tapered beam (NASTRAN PBEAM with stations).
+
+    ``stations`` (ns,) ascending x / L from 0 to 1; ``sections`` (ns, 5) A, I1, I2, J, NSM at
+    the stations, each interpolated linearly in x between stations (the documented assumption:
+    MSC's QRG gives the station values, not the law between them). ``rho`` the material
+    density (mu = rho A + NSM per length).
+
+    Stiffness: exact for the interpolated section under end loads, by the flexibility method
+    (Przemieniecki, Theory of Matrix Structural Analysis, 1968, sec. 5.5 - 5.6): end B's
+    flexibility relative to a clamped end A, f11 = int (L - x)^2 / EI + int 1 / (k G A),
+    f12 = int (L - x) / EI, f22 = int 1 / EI, inverted and carried to both ends by
+    equilibrium, K = R' F^-1 R with R the relative (deformation) map; axial 1 / int 1/EA,
+    torsion 1 / int 1/GJ. For a prismatic section this is :func:`beam_local_matrices`' stiffness
+    exactly. Consistent mass: cubic Hermite (shear-free) bending shapes and linear axial /
+    torsion shapes integrated with mu(x) and rho (I1 + I2)(x); lumped mass: the element mass and
+    torsional moment split between the ends by the lever rule (int mu (1 - x/L), int mu x/L).
+    Integrals by Gauss-Legendre, ``n_gauss`` points per interval between stations: 1 / EI(x)
+    with EI linear and end ratios up to 10 is integrated to ~1e-14.
+    """
+    g, w = np.polynomial.legendre.leggauss(n_gauss)
+    s_pts, s_w = [], []
+    for a, b in zip(stations[:-1], stations[1:]):
+        if b > a:
+            s_pts.append(0.5 * (a + b) + 0.5 * (b - a) * g)
+            s_w.append(0.5 * (b - a) * w)
+    s = np.concatenate(s_pts)
+    ws = np.concatenate(s_w) * L                  # weights in x
+    x = s * L
+    A, I1, I2, J, nsm = _station_values(np.asarray(stations, float), np.asarray(sections, float),
+                                        s).T
+    if np.any(A <= 0.0) or np.any(I1 <= 0.0) or np.any(I2 <= 0.0):
+        raise ValueError("tapered beam: A, I1 and I2 must be > 0 along the element")
+    K = np.zeros((12, 12))
+    M = np.zeros((12, 12))
+    ea = 1.0 / np.sum(ws / (E * A))
+    K[np.ix_([0, 6], [0, 6])] = ea * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    if G > 0.0 and np.all(J > 0.0):
+        gj = 1.0 / np.sum(ws / (G * J))
+        K[np.ix_([3, 9], [3, 9])] = gj * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    R = np.array([[-1.0, -L, 1.0, 0.0], [0.0, -1.0, 0.0, 1.0]])
+    for idx, flip, I, k in (([1, 5, 7, 11], [1.0, 1.0, 1.0, 1.0], I1, k1),
+                            ([2, 4, 8, 10], [1.0, -1.0, 1.0, -1.0], I2, k2)):
+        EI = E * I
+        F = np.empty((2, 2))
+        F[0, 0] = np.sum(ws * (L - x) ** 2 / EI)
+        F[0, 1] = F[1, 0] = np.sum(ws * (L - x) / EI)
+        F[1, 1] = np.sum(ws / EI)
+        if not (k == 0.0 or k >= 1e8 or G == 0.0):
+            F[0, 0] += np.sum(ws / (k * G * A))
+        kb = R.T @ np.linalg.inv(F) @ R
+        f = np.asarray(flip)
+        K[np.ix_(idx, idx)] += kb * np.outer(f, f)
+    mu = rho * A + nsm
+    mu_t = rho * (I1 + I2)
+    if coupled:
+        xi = s
+        N = np.stack([1 - 3 * xi**2 + 2 * xi**3, L * (xi - 2 * xi**2 + xi**3),
+                      3 * xi**2 - 2 * xi**3, L * (-xi**2 + xi**3)], axis=1)
+        mb = np.einsum("q,qa,qb->ab", ws * mu, N, N)
+        for idx, flip in (([1, 5, 7, 11], [1.0, 1.0, 1.0, 1.0]),
+                          ([2, 4, 8, 10], [1.0, -1.0, 1.0, -1.0])):
+            M[np.ix_(idx, idx)] += mb * np.outer(flip, flip)
+        Nl = np.stack([1 - xi, xi], axis=1)
+        M[np.ix_([0, 6], [0, 6])] += np.einsum("q,qa,qb->ab", ws * mu, Nl, Nl)
+        M[np.ix_([3, 9], [3, 9])] += np.einsum("q,qa,qb->ab", ws * mu_t, Nl, Nl)
+    else:
+        ma, mbb = np.sum(ws * mu * (1 - s)), np.sum(ws * mu * s)
+        for i in (0, 1, 2):
+            M[i, i] = ma
+            M[i + 6, i + 6] = mbb
+        if lumped_torsion:
+            M[3, 3] = np.sum(ws * mu_t * (1 - s))
+            M[9, 9] = np.sum(ws * mu_t * s)
+    return 0.5 * (K + K.T), M
