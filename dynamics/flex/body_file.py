@@ -333,7 +333,7 @@ def read_body_file(path) -> ModalBody:
             version=version,
             time_stamp=_str(h5["TIME_STAMP"]),
         )
-    body.element_types, body.element_grids = _read_geometry(h5)
+        body.element_types, body.element_grids = _read_geometry(h5)
     return body
 
 

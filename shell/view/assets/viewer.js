@@ -337,5 +337,17 @@
   }
   requestAnimationFrame(tick);
   window.flexshellView = { state, update, frames: F, ready: true };
+  if (query.has("probe")) {  // the tests read what the page computed: frame, deformed grids, body poses
+    const probe = document.createElement("pre");
+    probe.id = "probe";
+    probe.textContent = JSON.stringify({
+      frame: state.frame, scale: state.scale,
+      flexible: bodies.filter((b) => b.kind === "flexible").map((b) => Array.from(b.positions)),
+      bodies: bodies.map((b) => [b.group.position.toArray(), b.group.quaternion.toArray()]),
+      wheels: wheels.map((w) => w.spin.rotation.z),
+      plumes: thrusters.map((t) => t.plume.visible),
+    });
+    document.body.appendChild(probe);
+  }
   document.title = S.title;
 })();

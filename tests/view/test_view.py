@@ -1,0 +1,253 @@
+"""flexshell view: the scene's geometry and poses against analytic values and the engine's own node
+kinematics, the page's deformation (computed by the browser) against numpy, and the pages drawn in headless
+Chromium (Debian package ``chromium``, installed by .ci/run): non-blank where the bodies are, and different
+at two instants of a log in which only the flexible body deforms.
+
+The log of these tests is written directly (LogWriter) with a prescribed motion of configs/lqr_plant.yaml
+(a rigid bus on a revolute hinge carrying a cantilevered flexible array, configs/lqr_data/array.h5), so the
+expected poses are known in closed form and no simulation runs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from shell.cli import main
+from shell.log_file import LoggedSignal, LogWriter
+from shell.view.scene import component_labels, element_drawing, from_log, inertia_box, nice_scale
+
+REPO = Path(__file__).resolve().parents[2]
+PLANT = REPO / "configs" / "lqr_plant.yaml"
+BACKGROUND = np.array([0x1B, 0x1F, 0x27])
+WINDOW = (1000, 640)
+PANEL = 380  # px of the signal panel on the right
+BAR = 44     # px of the control bar at the bottom
+
+
+def chromium() -> str:
+    path = shutil.which("chromium") or shutil.which("chromium-browser")
+    assert path, "headless Chromium is needed (Debian: apt-get install chromium; .ci/run installs it)"
+    return path
+
+
+def _browser(html: Path, query: str, *extra: str, timeout: int = 120) -> subprocess.CompletedProcess:
+    args = [chromium(), "--headless", "--no-sandbox", "--disable-gpu-sandbox", "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader", "--hide-scrollbars", f"--window-size={WINDOW[0]},{WINDOW[1]}",
+            "--virtual-time-budget=5000", *extra, html.resolve().as_uri() + query]
+    return subprocess.run(args, capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, "HOME": str(html.parent)})
+
+
+def screenshot(html: Path, query: str, png: Path) -> np.ndarray:
+    """The page as an (h, w, 3) uint8 array."""
+    import matplotlib.image
+
+    _browser(html, query, f"--screenshot={png}")
+    assert png.is_file(), f"chromium wrote no screenshot of {html}"
+    return (matplotlib.image.imread(png)[..., :3] * 255).round().astype(np.uint8)
+
+
+def probe(html: Path, query: str) -> dict:
+    """What the page computed (viewer.js writes it into <pre id=probe> with ?probe=1)."""
+    out = _browser(html, query + "&probe=1", "--dump-dom").stdout
+    match = re.search(r'<pre id="probe">(.*?)</pre>', out, re.S)
+    assert match, f"no probe in the page's DOM ({out[:300]!r})"
+    return json.loads(match.group(1).replace("&quot;", '"'))
+
+
+def view_region(image: np.ndarray) -> np.ndarray:
+    h, w, _ = image.shape
+    return image[30:h - BAR, :w - PANEL]
+
+
+def drawn_fraction(image: np.ndarray) -> float:
+    region = view_region(image).astype(int)
+    return float(np.mean(np.abs(region - BACKGROUND).sum(axis=2) > 30))
+
+
+# -- geometry --------------------------------------------------------------------------------------------
+
+def test_equivalent_inertia_box_has_the_bodys_inertia():
+    """The box's own inertia, m/12 (b^2 + c^2) ... about its axes, rotated back, is the input (1e-12:
+    an eigen-decomposition and square roots)."""
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        m, edges = rng.uniform(1, 1000), rng.uniform(0.1, 5, 3)
+        R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        a2 = edges ** 2
+        J = R @ np.diag(m / 12 * np.array([a2[1] + a2[2], a2[0] + a2[2], a2[0] + a2[1]])) @ R.T
+        found, axes = inertia_box(m, J)
+        f2 = found ** 2
+        back = axes @ np.diag(m / 12 * np.array([f2[1] + f2[2], f2[0] + f2[2], f2[0] + f2[1]])) @ axes.T
+        assert np.allclose(back, J, rtol=0, atol=1e-12 * np.abs(J).max())
+        assert np.allclose(sorted(found), sorted(edges), rtol=1e-10)
+        assert np.linalg.det(axes) > 0
+
+
+def test_element_drawing_of_bars_shells_solids_and_rigid_elements():
+    ids = np.arange(1, 13)
+    types = ["CBAR", "CQUAD4", "CTRIA3", "CHEXA", "RBE2", "CWELD"]
+    grids = np.array([[1, 2, 0, 0, 0, 0, 0, 0], [1, 2, 3, 4, 0, 0, 0, 0], [1, 3, 5, 0, 0, 0, 0, 0],
+                      [1, 2, 3, 4, 5, 6, 7, 8], [9, 10, 11, 12, 0, 0, 0, 0], [1, 2, 0, 0, 0, 0, 0, 0]])
+    edges, triangles, skipped = element_drawing(types, grids, ids)
+    assert skipped == ["CWELD"]
+    assert len(triangles) == 2 + 1 + 12
+    edge_set = {tuple(e) for e in edges.tolist()}
+    assert (0, 1) in edge_set and (8, 9) in edge_set and (8, 11) in edge_set  # bar, RBE2 star
+    hexa = {tuple(sorted((a - 1, b - 1))) for a, b in [(1, 2), (2, 3), (3, 4), (4, 1), (5, 6), (6, 7), (7, 8),
+                                                         (8, 5), (1, 5), (2, 6), (3, 7), (4, 8)]}
+    assert hexa <= edge_set
+    assert edges.max() < len(ids) and triangles.max() < len(ids)
+
+
+def test_body_file_keeps_element_geometry_and_reads_old_files(tmp_path):
+    from dynamics.flex.body_file import read_body_file, read_body_geometry, write_body_file
+
+    old = REPO / "configs" / "lqr_data" / "array.h5"
+    types, grids, source = read_body_geometry(old)  # written before the Geometry group existed
+    assert types is None and source.endswith("cantilever_array.dat")
+    body = read_body_file(old)
+    assert body.element_types == [] and body.element_grids.size == 0
+    body.element_types, body.element_grids = ["CBAR", "CQUAD4"], np.array([[1, 2, 0, 0], [1, 2, 3, 4]])
+    write_body_file(tmp_path / "new.h5", body)
+    again = read_body_file(tmp_path / "new.h5")
+    assert again.element_types == ["CBAR", "CQUAD4"]
+    assert np.array_equal(again.element_grids, body.element_grids)
+    assert np.array_equal(again.translation_shapes, body.translation_shapes)
+
+
+def test_labels_and_scale():
+    assert component_labels("multibody.acs.attitude", (4,)) == ["w", "x", "y", "z"]
+    assert component_labels("imu.angular_rate", (3,)) == ["x", "y", "z"]
+    assert component_labels("wheels.rw1.wheel_speed", ()) == ["wheel_speed"]
+    assert [nice_scale(v) for v in (0.3, 1.0, 7.3, 49.0, 2.0e4)] == [1.0, 1.0, 5.0, 20.0, 2.0e4]
+
+
+# -- a log with a prescribed motion ------------------------------------------------------------------------
+
+MODE_FREQUENCY = 0.5  # Hz, of the prescribed modal motion
+AMPLITUDE = 0.05      # of eta_0 and eta_1
+
+
+def write_plant_log(path: Path, turning: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A log of configs/lqr_plant.yaml: bus angle 0.2 t (if ``turning``, else 5 deg held), eta_0, eta_1
+    oscillating. Returns (time, q)."""
+    t = np.arange(0.0, 4.0 + 1e-9, 0.1)
+    q = np.zeros((len(t), 7))
+    q[:, 0] = 0.2 * t if turning else np.radians(5.0)
+    q[:, 1] = AMPLITUDE * np.sin(2 * np.pi * MODE_FREQUENCY * t)
+    q[:, 2] = -0.5 * AMPLITUDE * np.cos(2 * np.pi * MODE_FREQUENCY * t)
+    writer = LogWriter(path, {"every_0.1s": [LoggedSignal("multibody.q", (7,), "", "generalized coordinates"),
+                                             LoggedSignal("multibody.bus.q", (1,), "rad", "hinge angle")]},
+                       {"scenario": PLANT.read_text(), "scenario_file": str(PLANT)})
+    writer.append_rows("every_0.1s", t, np.hstack([q, q[:, :1]]))
+    writer.close()
+    return t, q
+
+
+@pytest.fixture(scope="module")
+def plant_log(tmp_path_factory):
+    path = tmp_path_factory.mktemp("view") / "plant.h5"
+    return (path, *write_plant_log(path, turning=True))
+
+
+def test_log_poses_against_closed_form_and_engine_node_kinematics(plant_log):
+    """Bus: rotation by the logged angle about z; array: at the array_root node (1, 0, 0) of the bus.
+    The page's deformation formula, body pose (l0 + sum eta gamma), reproduces the engine's own node
+    kinematics at the array tip (grid 21) to round-off: the view draws what the engine computes."""
+    path, t, q = plant_log
+    view = from_log(path)
+    assert len(view.time) == len(t)
+    bus, array = view.bodies
+    assert (bus.kind, array.kind) == ("box", "flexible")
+    angle = q[:, 0]
+    expected = np.stack([np.zeros_like(angle), np.zeros_like(angle), np.sin(angle / 2), np.cos(angle / 2)], 1)
+    assert np.allclose(bus.quaternion, expected, atol=2e-7)  # stored as float32
+    assert np.allclose(array.position, np.stack([np.cos(angle), np.sin(angle), 0 * angle], 1), atol=1e-12)
+    assert np.array_equal(array.eta, q[:, 1:])
+    assert len(array.edges) >= 20  # the 20 CBARs of the deck (array.h5 predates element geometry)
+    from scipy.spatial.transform import Rotation
+
+    tip = view.nodes[[n["name"] for n in view.nodes].index("array_tip")]
+    grid = array.vertices[-1]  # grid 21, the last
+    shapes = array.shapes.reshape(array.shapes.shape[0], -1, 3)[:, -1, :]
+    for f in range(0, len(t), 7):
+        local = grid + array.eta[f] @ shapes
+        world = array.position[f] + Rotation.from_quat(array.quaternion[f].astype(float)).apply(local)
+        assert np.allclose(world, tip["position"][f], atol=2e-6)  # float32 quaternion of the body
+    assert array.max_deformation > 0
+    assert any("largest elastic displacement" in note for note in view.notes)
+
+
+def test_cli_refuses_bad_input(plant_log, tmp_path, capsys):
+    path = plant_log[0]
+    text = tmp_path / "notes.txt"
+    text.write_text("keep me")
+    assert main(["view", str(path), "-o", str(text)]) == 1
+    assert "not an HTML page" in capsys.readouterr().err and text.read_text() == "keep me"
+    assert main(["view", str(path), "--mode", "1", "-o", str(tmp_path / "a.html")]) == 1
+    assert "--mode" in capsys.readouterr().err
+    assert main(["view", str(path), "--scale", "big", "-o", str(tmp_path / "a.html")]) == 1
+    assert "--scale" in capsys.readouterr().err
+    assert main(["view", str(path), "--signals", "nothing", "-o", str(tmp_path / "a.html")]) == 1
+    assert "no signal 'nothing'" in capsys.readouterr().err
+    assert main(["view", str(tmp_path / "missing.h5")]) == 1
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_browser_deforms_the_array_as_numpy_does(plant_log, tmp_path):
+    """The grids the page computed at t = 1.3 s with scale 40 equal l0 + 40 sum eta gamma (float32)."""
+    path, t, q = plant_log
+    html = tmp_path / "plant.html"
+    assert main(["view", str(path), "-o", str(html), "--signals", "multibody.bus.q"]) == 0
+    view = from_log(path)
+    array = view.bodies[1]
+    found = probe(html, "?t=1.3&scale=40")
+    frame = int(np.searchsorted(t, 1.3 + 1e-9) - 1)
+    assert found["frame"] == frame
+    expected = array.vertices.ravel() + 40 * (array.eta[frame] @ array.shapes)
+    assert np.allclose(found["flexible"][0], expected, atol=1e-5 * np.abs(expected).max())
+    assert not np.allclose(found["flexible"][0], array.vertices.ravel(), atol=1e-3)
+
+
+def test_browser_draws_the_log_and_its_deformation(tmp_path):
+    """The bus held, only the array deforming: the pictures at two instants differ, and both are drawn."""
+    path = tmp_path / "held.h5"
+    write_plant_log(path, turning=False)
+    html = tmp_path / "held.html"
+    assert main(["view", str(path), "-o", str(html), "--scale", "60"]) == 0
+    a = screenshot(html, "?t=0.5", tmp_path / "a.png")   # eta_0 at its peak
+    b = screenshot(html, "?t=1.5", tmp_path / "b.png")   # eta_0 at its trough
+    assert drawn_fraction(a) > 0.01 and drawn_fraction(b) > 0.01
+    changed = np.abs(view_region(a).astype(int) - view_region(b).astype(int)).sum(axis=2) > 30
+    assert changed.mean() > 0.002, f"only {changed.mean():.4%} of the view changed"
+    same = screenshot(html, "?t=0.5", tmp_path / "c.png")
+    assert np.array_equal(view_region(a), view_region(same))  # a deterministic picture: the change is motion
+
+
+def test_browser_draws_a_scenario_with_wheels_and_thrusters(tmp_path):
+    """configs/spacecraft_slew.yaml, initial configuration: a box, 4 wheels and 16 thrusters found on
+    their nodes, drawn."""
+    html = tmp_path / "slew.html"
+    cwd = os.getcwd()
+    os.chdir(REPO)  # the scenario's flight-software file is relative to the repository root
+    try:
+        assert main(["view", "configs/spacecraft_slew.yaml", "-o", str(html)]) == 0
+    finally:
+        os.chdir(cwd)
+    found = probe(html, "?t=0")
+    assert len(found["wheels"]) == 4 and len(found["plumes"]) == 16
+    image = screenshot(html, "?t=0", tmp_path / "slew.png")
+    h, w, _ = image.shape
+    centre = image[h // 2 - 40:h // 2 + 40, (w - PANEL) // 2 - 40:(w - PANEL) // 2 + 40].astype(int)
+    assert np.mean(np.abs(centre - BACKGROUND).sum(axis=2) > 30) > 0.9  # the bus is in the middle
+    assert drawn_fraction(image) > 0.05
