@@ -5,12 +5,17 @@
 // ?t=SECONDS shows that instant paused, &scale=S sets the deformation scale, &follow=0 stops following.
 (function () {
   "use strict";
+  const marks = { start: performance.now() };
   const S = JSON.parse(document.getElementById("scene-data").textContent);
+  marks.parsed = performance.now();
 
   function decode(a) {
     if (a === null || a === undefined) return null;
-    const bytes = Uint8Array.from(atob(a.b64), (c) => c.charCodeAt(0));
+    const t0 = performance.now();
+    const text = atob(a.b64), n = text.length, bytes = new Uint8Array(n);
+    for (let i = 0; i < n; i++) bytes[i] = text.charCodeAt(i);
     const T = { f4: Float32Array, f8: Float64Array, i4: Int32Array }[a.dtype];
+    marks.decoding = (marks.decoding || 0) + performance.now() - t0;
     return new T(bytes.buffer);
   }
   const query = new URLSearchParams(window.location.search);
@@ -24,6 +29,7 @@
   renderer.setPixelRatio(window.devicePixelRatio || 1);
   renderer.setClearColor(0x1b1f27);
   host.insertBefore(renderer.domElement, host.firstChild);
+  marks.renderer = performance.now();
   const scene = new THREE.Scene();
   const camera = new THREE.PerspectiveCamera(45, 1, L * 1e-3, L * 1e5);
   camera.up.set(0, 0, 1);
@@ -104,6 +110,7 @@
     return item;
   });
 
+  marks.bodies = performance.now();
   // ---- nodes, wheels, thrusters, track -------------------------------------------------------------------
   const nodes = S.nodes.map((n) => {
     const group = new THREE.Group();
@@ -319,7 +326,9 @@
   if (query.has("scale")) { state.scale = parseFloat(query.get("scale")); scaleInput.value = state.scale; }
   if (query.has("follow")) { state.follow = query.get("follow") !== "0"; follow.checked = state.follow; }
   if (query.has("t")) state.t = parseFloat(query.get("t"));
+  marks.built = performance.now();
   resize();
+  marks.drawn = performance.now();
   if (!query.has("t") && F > 1) setPlaying(true);
 
   let last = performance.now();
@@ -341,7 +350,7 @@
     const probe = document.createElement("pre");
     probe.id = "probe";
     probe.textContent = JSON.stringify({
-      frame: state.frame, scale: state.scale,
+      frame: state.frame, scale: state.scale, load_ms: performance.now(), marks,
       flexible: bodies.filter((b) => b.kind === "flexible").map((b) => Array.from(b.positions)),
       bodies: bodies.map((b) => [b.group.position.toArray(), b.group.quaternion.toArray()]),
       wheels: wheels.map((w) => w.spin.rotation.z),
