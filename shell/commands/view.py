@@ -151,7 +151,8 @@ def view(args) -> int:
 
                     t_final = stop_time(args.t_final, str(source))
                 scene = from_scenario(source, overrides=args.overrides, meshes=meshes, scale=scale, t_final=t_final,
-                                      rate=args.rate, signals=args.signals, max_frames=args.max_frames)
+                                      rate=args.rate, signals=args.signals, max_frames=args.max_frames,
+                                      say=lambda text: print(f"flexshell view: {text}", flush=True))
         for warning in caught:
             if not issubclass(warning.category, (DeprecationWarning, PendingDeprecationWarning)):
                 print(f"flexshell view: warning: {warning.message}", file=sys.stderr)

@@ -629,8 +629,9 @@ def from_log(path, *, signals=None, scenario=None, overrides=(), meshes=None, sc
 # -- from a scenario ------------------------------------------------------------------------------------
 
 def from_scenario(path, *, overrides=(), meshes=None, scale="auto", t_final=None, rate=None, signals=None,
-                  max_frames: int = DEFAULT_MAX_FRAMES) -> ViewScene:
-    """A scenario's initial configuration, or (``t_final`` seconds) a short run of it viewed as its log."""
+                  max_frames: int = DEFAULT_MAX_FRAMES, say=None) -> ViewScene:
+    """A scenario's initial configuration, or (``t_final`` seconds) a short run of it viewed as its log;
+    ``say(text)`` announces the run (its first time compiles the loop for minutes)."""
     from shell.scenario import build_simulation, load_scenario
 
     spec = load_scenario(path, list(overrides or []))
@@ -648,6 +649,9 @@ def from_scenario(path, *, overrides=(), meshes=None, scale="auto", t_final=None
     engine = _engine_of(simulation.models)
     view_rate = rate or spec.log_rate or "10 Hz"
     simulation.log([f"{engine.path}.q"], view_rate)
+    if say is not None:
+        say(f"{spec.name}: running {t_final:g} s to view it (logging {engine.path}.q at {view_rate}; a first run "
+            "compiles the simulation loop, which takes minutes)")
     with tempfile.TemporaryDirectory(prefix="flexshell-view-") as tmp:
         log_path = Path(tmp) / "view.h5"
         simulation.run(float(t_final), log_path=str(log_path),

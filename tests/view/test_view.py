@@ -251,3 +251,19 @@ def test_browser_draws_a_scenario_with_wheels_and_thrusters(tmp_path):
     centre = image[h // 2 - 40:h // 2 + 40, (w - PANEL) // 2 - 40:(w - PANEL) // 2 + 40].astype(int)
     assert np.mean(np.abs(centre - BACKGROUND).sum(axis=2) > 30) > 0.9  # the bus is in the middle
     assert drawn_fraction(image) > 0.05
+
+
+def test_user_mesh_replaces_the_inertia_box(tmp_path):
+    """--mesh BODY=FILE: the body is drawn with the mesh trimesh reads (an STL box 1 x 2 x 3 m here)."""
+    import trimesh
+
+    from shell.view.scene import ViewError, from_scenario
+
+    stl = tmp_path / "bus.stl"
+    trimesh.creation.box(extents=[1.0, 2.0, 3.0]).export(stl)
+    view = from_scenario(PLANT, meshes={"bus": str(stl)})
+    bus = view.bodies[0]
+    assert bus.kind == "mesh" and len(bus.faces) == 12
+    assert np.allclose(np.ptp(bus.vertices, axis=0), [1.0, 2.0, 3.0])
+    with pytest.raises(ViewError, match="no body wing"):
+        from_scenario(PLANT, meshes={"wing": str(stl)})

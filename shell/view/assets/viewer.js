@@ -290,9 +290,12 @@
   };
   const speed = document.getElementById("speed");
   const span = time[F - 1] - time[0];
-  const natural = S.loop ? [0.01, 0.1, 0.25, 1] : [0.1, 0.5, 1, 2, 5, 10, 30, 100];
+  // a mode shape: one period in about 2 s of wall time (slow motion for a fast mode), else real time
+  const period = F > 1 ? span + (time[1] - time[0]) : 1;
+  const natural = S.loop ? [0.25, 0.5, 1, 2, 4].map((k) => +(k * period / 2).toPrecision(3))
+                         : [0.1, 0.5, 1, 2, 5, 10, 30, 100];
   for (const v of natural) { const o = document.createElement("option"); o.value = v; o.textContent = v + "x"; speed.appendChild(o); }
-  state.speed = S.loop ? (span > 0 ? Math.min(1, 1.5 / (span * 1.0)) : 1) : (span > 120 ? 10 : 1);
+  state.speed = S.loop ? natural[2] : (span > 120 ? 10 : 1);
   if (!natural.includes(state.speed)) { const o = document.createElement("option"); o.value = state.speed; o.textContent = state.speed.toPrecision(2) + "x"; speed.appendChild(o); }
   speed.value = state.speed;
   speed.onchange = () => { state.speed = parseFloat(speed.value); };
@@ -337,7 +340,7 @@
     if (state.playing) {
       state.t += dt * state.speed;
       if (state.t > time[F - 1]) {
-        if (S.loop) state.t = time[0] + (state.t - time[0]) % (span > 0 ? span + (time[1] - time[0]) : 1);
+        if (S.loop) state.t = time[0] + (state.t - time[0]) % period;
         else { state.t = time[F - 1]; setPlaying(false); }
       }
       update();
