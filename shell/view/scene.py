@@ -618,6 +618,13 @@ def from_log(path, *, signals=None, scenario=None, overrides=(), meshes=None, sc
     engine, models, connections = _build(spec)
     engine.description = spec.document.get("multibody")
     time, q = _coordinate_frames(engine, data, info, notes, max_frames)
+    finite = np.all(np.isfinite(q), axis=1)
+    if not finite.all():  # a failed run's last samples
+        if not finite.any():
+            raise ViewError(f"{path}: every logged sample of the engine's coordinates is NaN or infinite")
+        notes.append(f"{int((~finite).sum())} frames with non-finite coordinates left out (from t = "
+                     f"{time[~finite][0]:.6g} s)")
+        time, q = time[finite], q[finite]
     view = _assemble(engine, spec.file, meshes or {}, time, q, notes, f"{spec.name}: {Path(path).name}",
                      str(path), scale)
     view.wheels, view.thrusters = _devices(engine, models, connections, data, info, time, notes)

@@ -267,3 +267,66 @@ def test_user_mesh_replaces_the_inertia_box(tmp_path):
     assert np.allclose(np.ptp(bus.vertices, axis=0), [1.0, 2.0, 3.0])
     with pytest.raises(ViewError, match="no body wing"):
         from_scenario(PLANT, meshes={"wing": str(stl)})
+
+
+def write_plant_linear_model(path: Path) -> np.ndarray:
+    """The linear model of configs/lqr_plant.yaml at rest, x = [q; u], A = [[0, I], [-M^-1 K, -M^-1 D]] from
+    the engine's mass, stiffness and damping matrices (exact at rest without gravity), written as
+    flexshell linearize writes it. Returns the undamped frequencies [Hz] of K phi = w^2 M phi."""
+    from scipy.linalg import eigh
+
+    from shell.analysis.linear_model_file import write_linear_model
+    from shell.analysis.linearize import LinearModel
+    from shell.scenario import build_root, load_scenario
+    from shell.view.scene import _engine_of
+
+    from shell.assembly import flatten
+
+    engine = _engine_of(flatten(build_root(load_scenario(PLANT)))[0])
+    s = engine.system
+    q0 = np.asarray(engine._initial_q, float)
+    M, K, D = s.mass_matrix(q0), s.stiffness_matrix(), s.damping_matrix()
+    n = s.nu
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, D)]])
+    names = [f"multibody.q[{k}]" for k in range(n)] + [f"multibody.u[{k}]" for k in range(n)]
+    x0 = np.concatenate([q0, np.zeros(n)])
+    model = LinearModel(A, np.zeros((2 * n, 1)), np.eye(2 * n), np.zeros((2 * n, 1)), names, [""] * 2 * n,
+                        ["multibody.bus.torque"], ["N*m"], names, [""] * 2 * n,
+                        {k: np.zeros(m.shape) for k, m in (("A", A), ("B", np.zeros((2 * n, 1))),
+                                                          ("C", np.eye(2 * n)), ("D", np.zeros((2 * n, 1))))},
+                        {"t": 0.0, "x": x0, "z": np.zeros(0), "u": np.zeros(1), "y": x0, "xdot": np.zeros(2 * n),
+                         "tangent": x0},
+                        {"multibody.q": np.arange(n), "multibody.u": np.arange(n, 2 * n)},
+                        {"multibody.bus.torque": np.array([0])}, {"multibody.q": np.arange(2 * n)},
+                        {"points": 4, "richardson": True, "tolerance": 1e-8, "order": 6,
+                         "state_steps": np.ones(2 * n), "input_steps": np.ones(1)},
+                        {"scenario": str(PLANT), "overrides": "[]"})
+    write_linear_model(path, model)
+    w2 = eigh(K, M, eigvals_only=True)
+    return np.sqrt(np.clip(w2[w2 > 1e-9], 0, None)) / (2 * np.pi)
+
+
+def test_linear_model_mode_is_animated_over_one_period(tmp_path, capsys):
+    """flexshell view LIN.h5 --mode 1: the frames span one period of the lowest flexible system mode (the
+    generalized eigenproblem K phi = w^2 M phi, scipy.linalg.eigh; 1e-6 relative: the 0.5 % damping shifts
+    |lambda| by less), the modal coordinates move along the mode's shape, the page is drawn."""
+    lin = tmp_path / "lin.h5"
+    frequencies = write_plant_linear_model(lin)
+    html = tmp_path / "mode.html"
+    assert main(["view", str(lin), "--mode", "1", "-o", str(html)]) == 0
+    assert "system mode 1 of 6" in capsys.readouterr().out
+    from shell.view.scene import from_linear_model
+
+    view = from_linear_model(lin, 1)
+    period = view.time[1] * len(view.time)
+    assert period == pytest.approx(1.0 / frequencies[0], rel=1e-6)
+    array = view.bodies[1]
+    # undamped: every frame's modal coordinates are a multiple of one real shape (the mode's)
+    shape = array.eta[np.argmax(np.abs(array.eta).sum(axis=1))]
+    residual = array.eta - np.outer(array.eta @ shape / (shape @ shape), shape)
+    assert np.abs(residual).max() < 1e-2 * np.abs(shape).max()
+    assert view.loop and array.max_deformation > 0.05 * view.length  # shown at about 10 % of the scene
+    assert main(["view", str(lin), "--mode", "9", "-o", str(html)]) == 1
+    assert "6 oscillatory modes" in capsys.readouterr().err
+    image = screenshot(html, "?t=0", tmp_path / "mode.png")
+    assert drawn_fraction(image) > 0.01
