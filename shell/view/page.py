@@ -43,6 +43,7 @@ def scene_payload(view: ViewScene) -> dict:
     return {
         "title": view.title, "source": view.source, "time": _array(view.time, "f8"), "length": view.length,
         "deformation_scale": view.deformation_scale, "loop": view.loop, "track_body": view.track_body,
+        "center": [float(c) for c in view.center],
         "bodies": bodies,
         "nodes": [{"name": n["name"], "body": n["body"], "position": _array(n["position"], "f8"),
                    "quaternion": _array(n["quaternion"], "f4")} for n in view.nodes],

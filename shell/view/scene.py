@@ -89,6 +89,7 @@ class ViewScene:
     deformation_scale: float = 1.0
     loop: bool = False                         # a mode shape: play in a loop
     track_body: int = 0                        # the body whose path is drawn (root of the tree)
+    center: np.ndarray = field(default_factory=lambda: np.zeros(3))  # of the first frame, from the track body
 
 
 # -- the scene's models ------------------------------------------------------------------------------
@@ -419,9 +420,18 @@ def _assemble(engine, scenario_file, meshes, time, q_frames, notes, title, sourc
     nodes = [{"name": name, "body": system.node_bodies[k], "position": node_pos[:, k],
               "quaternion": node_quat[:, k].astype(np.float32)} for k, name in enumerate(system.node_names)]
     roots = [b for b, p in enumerate(system.parents) if p < 0]
+    from scipy.spatial.transform import Rotation
+
+    points = [body_pos[0]] + ([node_pos[0]] if system.nnodes else [])
+    for b, body in enumerate(bodies):
+        if body.vertices is not None and len(body.vertices):
+            points.append(body_pos[0, b] + Rotation.from_quat(body_quat[0, b]).apply(body.vertices))
+    points = np.vstack(points)
+    track = roots[0] if roots else 0
+    center = 0.5 * (points.min(axis=0) + points.max(axis=0)) - body_pos[0, track]
     return ViewScene(title=title, source=source, time=np.asarray(time, float), bodies=bodies, nodes=nodes,
                      notes=notes, length=float(length), deformation_scale=factor, loop=loop,
-                     track_body=roots[0] if roots else 0)
+                     track_body=track, center=center)
 
 
 # -- from a log -----------------------------------------------------------------------------------------

@@ -33,9 +33,10 @@
   const scene = new THREE.Scene();
   const camera = new THREE.PerspectiveCamera(45, 1, L * 1e-3, L * 1e5);
   camera.up.set(0, 0, 1);
-  camera.position.set(1.6 * L, -2.0 * L, 1.2 * L);
+  const C = S.center || [0, 0, 0];
+  camera.position.set(C[0] + 1.1 * L, C[1] - 1.4 * L, C[2] + 0.85 * L);
   const controls = new THREE.OrbitControls(camera, renderer.domElement);
-  controls.target.set(0, 0, 0);
+  controls.target.set(C[0], C[1], C[2]);
   scene.add(new THREE.AmbientLight(0xffffff, 0.55));
   const sun = new THREE.DirectionalLight(0xffffff, 0.75);
   sun.position.set(1, -1.5, 2);
