@@ -673,8 +673,10 @@ def from_scenario(path, *, overrides=(), meshes=None, scale="auto", t_final=None
         log_path = Path(tmp) / "view.h5"
         simulation.run(float(t_final), log_path=str(log_path),
                        log_attributes={"scenario": spec.text, "scenario_file": str(path)})
-        return from_log(log_path, signals=signals, scenario=str(path), overrides=overrides, meshes=meshes,
+        view = from_log(log_path, signals=signals, scenario=str(path), overrides=overrides, meshes=meshes,
                         scale=scale, max_frames=max_frames)
+    view.title, view.source = f"{spec.name}: run of {t_final:g} s", str(path)
+    return view
 
 
 # -- from a linear model --------------------------------------------------------------------------------

@@ -330,3 +330,21 @@ def test_linear_model_mode_is_animated_over_one_period(tmp_path, capsys):
     assert "6 oscillatory modes" in capsys.readouterr().err
     image = screenshot(html, "?t=0", tmp_path / "mode.png")
     assert drawn_fraction(image) > 0.01
+
+
+@pytest.mark.slow
+def test_view_a_scenario_run_from_the_command_line(tmp_path, capsys):
+    """flexshell view SCENE.yaml --t-final: the scenario runs (logging multibody.q) and its run is drawn;
+    the bus starts at the scenario's 5 deg and the frames are the requested rate's."""
+    html = tmp_path / "run.html"
+    assert main(["view", str(PLANT), "--t-final", "2 s", "--rate", "10 Hz", "--set",
+                 "multibody.bus.initial.angle_rate=2 deg/s", "-o", str(html)]) == 0
+    out = capsys.readouterr().out
+    assert "running 2 s" in out and "21 frames" in out
+    from shell.view.scene import from_scenario
+
+    view = from_scenario(PLANT, t_final=2.0, rate="10 Hz", overrides=["multibody.bus.initial.angle_rate=2 deg/s"])
+    angle = 2 * np.arctan2(view.bodies[0].quaternion[:, 2], view.bodies[0].quaternion[:, 3])
+    assert angle[0] == pytest.approx(np.radians(5.0), abs=1e-6)
+    assert angle[-1] - angle[0] == pytest.approx(np.radians(4.0), rel=0.05)  # ~2 deg/s for 2 s, torque-free
+    assert drawn_fraction(screenshot(html, "?t=1", tmp_path / "run.png")) > 0.01
