@@ -7,7 +7,8 @@ Three sources give a :class:`ViewScene`:
   logged engine coordinates ``<engine>.q`` (or the per-body ``<engine>.<body>.q`` / ``.modal_q`` ports;
   a body whose coordinates are not logged stays at its initial pose, said in the notes);
 * a scenario (:func:`from_scenario`): its initial configuration, or, with ``t_final``, a short run that
-  logs ``<engine>.q`` (and the scenario's own signals) to a temporary log, then as above;
+  logs ``<engine>.q``, the wheels' speeds and the thrusters' thrust (and the scenario's own signals) to a
+  temporary log, then as above;
 * a linear model (:func:`from_linear_model`): one system mode, ``q(phi) = q0 (+) s Re(v e^{i phi})`` over
   one period (:func:`shell.analysis.system_modes.state_space_modes`; ``(+)`` adds plain coordinates and
   composes hinge quaternions with ``Exp`` of the rotation-vector rows, as the linearization's tangent
@@ -665,9 +666,16 @@ def from_scenario(path, *, overrides=(), meshes=None, scale="auto", t_final=None
     simulation = build_simulation(spec)
     engine = _engine_of(simulation.models)
     view_rate = rate or spec.log_rate or "10 Hz"
-    simulation.log([f"{engine.path}.q"], view_rate)
+    from shell.models.reaction_wheel import ReactionWheel
+    from shell.models.thruster import Thruster
+
+    # what the view draws: the engine's coordinates, the wheels' speeds, the thrusters' thrust
+    simulation.log([f"{engine.path}.q"] + [f"{m.path}.wheel_speed" for m in simulation.models
+                                           if isinstance(m, ReactionWheel)]
+                   + [f"{m.path}.thrust" for m in simulation.models if isinstance(m, Thruster)], view_rate)
     if say is not None:
-        say(f"{spec.name}: running {t_final:g} s to view it (logging {engine.path}.q at {view_rate}; a first run "
+        say(f"{spec.name}: running {t_final:g} s to view it (logging {engine.path}.q, wheel speeds and thrusts at "
+            f"{view_rate}; a first run "
             "compiles the simulation loop, which takes minutes)")
     with tempfile.TemporaryDirectory(prefix="flexshell-view-") as tmp:
         log_path = Path(tmp) / "view.h5"
