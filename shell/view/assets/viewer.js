@@ -200,7 +200,7 @@
     c.fillText(t0.toPrecision(4) + " s", x0, h - 6);
     const right = t1.toPrecision(4) + " s"; c.fillText(right, x1 - c.measureText(right).width, h - 6);
     c.fillStyle = "#dde3ea"; c.font = "12px system-ui, sans-serif";
-    c.fillText(p.s.name + (p.s.unit ? " [" + p.s.unit + "]" : ""), x0, 14);
+    c.fillText(p.s.name + (p.s.unit && p.s.unit !== "1" ? " [" + p.s.unit + "]" : ""), x0, 14);
     let lx = x1;
     for (let j = p.m - 1; j >= 0 && p.m <= 8; j--) {
       const label = p.s.labels[j]; lx -= c.measureText(label).width + 8;
