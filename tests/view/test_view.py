@@ -348,3 +348,19 @@ def test_view_a_scenario_run_from_the_command_line(tmp_path, capsys):
     assert angle[0] == pytest.approx(np.radians(5.0), abs=1e-6)
     assert angle[-1] - angle[0] == pytest.approx(np.radians(4.0), rel=0.05)  # ~2 deg/s for 2 s, torque-free
     assert drawn_fraction(screenshot(html, "?t=1", tmp_path / "run.png")) > 0.01
+
+
+def test_fem2modal_keeps_the_decks_elements(tmp_path):
+    """The body file of a deck holds its elements: configs/fem/spacecraft.dat's 160 CQUAD4, 11 CBAR, 1 CBUSH,
+    RBE2 and RBE3 (card counts of its own report), drawn as the view draws them."""
+    from dynamics.flex.body_file import read_body_geometry, write_body_file
+    from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
+
+    body = fem2modal(str(REPO / "configs" / "fem" / "spacecraft.dat"), Fem2ModalOptions(n_modes=2))
+    write_body_file(tmp_path / "sc.h5", body)
+    types, grids, _ = read_body_geometry(tmp_path / "sc.h5")
+    counts = {kind: types.count(kind) for kind in set(types)}
+    assert counts == {"CQUAD4": 160, "CBAR": 11, "CBUSH": 1, "RBE2": 1, "RBE3": 1}
+    assert set(grids[grids > 0].ravel()) <= set(body.grid_ids.tolist())
+    edges, triangles, skipped = element_drawing(types, grids, body.grid_ids)
+    assert skipped == [] and len(triangles) == 2 * 160
