@@ -205,18 +205,26 @@ def test_cli_refuses_bad_input(plant_log, tmp_path, capsys):
 
 
 def test_browser_deforms_the_array_as_numpy_does(plant_log, tmp_path):
-    """The grids the page computed at t = 1.3 s with scale 40 equal l0 + 40 sum eta gamma (float32)."""
+    """The grids the page computed at t = 1.33 s with scale 40 equal l0 + 40 sum eta gamma (float32), eta
+    interpolated linearly between the samples at 1.3 and 1.4 s; the body's pose likewise (slerp)."""
+    from scipy.spatial.transform import Rotation, Slerp
+
     path, t, q = plant_log
     html = tmp_path / "plant.html"
     assert main(["view", str(path), "-o", str(html), "--signals", "multibody.bus.q"]) == 0
     view = from_log(path)
     array = view.bodies[1]
-    found = probe(html, "?t=1.3&scale=40")
-    frame = int(np.searchsorted(t, 1.3 + 1e-9) - 1)
-    assert found["frame"] == frame
-    expected = array.vertices.ravel() + 40 * (array.eta[frame] @ array.shapes)
+    found = probe(html, "?t=1.33&scale=40")
+    frame = int(np.searchsorted(t, 1.33, side="right") - 1)
+    a = (1.33 - t[frame]) / (t[frame + 1] - t[frame])
+    assert found["frame"] == frame and found["alpha"] == pytest.approx(a, abs=1e-12)
+    eta = (1 - a) * array.eta[frame] + a * array.eta[frame + 1]
+    expected = array.vertices.ravel() + 40 * (eta @ array.shapes)
     assert np.allclose(found["flexible"][0], expected, atol=1e-5 * np.abs(expected).max())
     assert not np.allclose(found["flexible"][0], array.vertices.ravel(), atol=1e-3)
+    bus = view.bodies[0].quaternion[frame:frame + 2].astype(float)
+    slerp = Slerp([0.0, 1.0], Rotation.from_quat(bus))([a]).as_quat()[0]
+    assert np.allclose(np.abs(np.dot(found["bodies"][0][1], slerp)), 1.0, atol=1e-6)
 
 
 def test_browser_draws_the_log_and_its_deformation(tmp_path):

@@ -230,7 +230,7 @@
   if (!plots.length && !S.notes.length) document.getElementById("panel").style.display = "none";
 
   // ---- state and frame update ----------------------------------------------------------------------------
-  const state = { t: time[0], playing: false, speed: 1, scale: S.deformation_scale, follow: true, frame: -1 };
+  const state = { t: time[0], playing: false, speed: 1, scale: S.deformation_scale, follow: true, frame: -1, alpha: 0 };
   function frameAt(t) {  // last frame at or before t
     let lo = 0, hi = F - 1;
     if (t <= time[0]) return 0;
@@ -238,11 +238,11 @@
     while (hi - lo > 1) { const mid = (lo + hi) >> 1; if (time[mid] <= t) lo = mid; else hi = mid; }
     return lo;
   }
-  function deform(b, f) {
+  function deform(b, f, g, a) {  // x = l0 + s sum_k eta_k gamma_k, eta interpolated between frames f and g
     const n = b.n, eta = b.eta, shapes = b.shapes, rest = b.rest, out = b.positions, m = rest.length;
     out.set(rest);
     for (let k = 0; k < n; k++) {
-      const e = state.scale * eta[f * n + k];
+      const e = state.scale * ((1 - a) * eta[f * n + k] + a * eta[g * n + k]);
       if (e === 0) continue;
       const base = k * m;
       for (let i = 0; i < m; i++) out[i] += e * shapes[base + i];
@@ -250,21 +250,31 @@
     b.attribute.needsUpdate = true;
     for (const g of b.geometries) g.computeVertexNormals();
   }
+  function lerp3(array, f, g, a, k) {
+    return array[3 * f + k] + a * (array[3 * g + k] - array[3 * f + k]);
+  }
   function update(force) {
+    // between frames f and g = f + 1 (a mode shape: the last frame is followed by the first), linearly
+    // (positions, modal coordinates, wheel angles) and by slerp (attitudes); a thruster holds frame f
     const f = frameAt(state.t);
-    if (f !== state.frame || force) {
-      state.frame = f;
-      const o = state.follow ? [trackBody.position[3 * f], trackBody.position[3 * f + 1], trackBody.position[3 * f + 2]] : origin0;
+    const g = f + 1 < F ? f + 1 : (S.loop && F > 1 ? 0 : f);
+    const tg = g === f ? time[f] : (g === 0 ? time[F - 1] + (time[1] - time[0]) : time[g]);
+    const a = tg > time[f] ? Math.min(1, Math.max(0, (state.t - time[f]) / (tg - time[f]))) : 0;
+    if (f !== state.frame || a !== state.alpha || force) {
+      state.frame = f; state.alpha = a;
+      const o = state.follow ? [0, 1, 2].map((k) => lerp3(trackBody.position, f, g, a, k)) : origin0;
       for (const b of bodies) {
-        b.group.position.set(b.position[3 * f] - o[0], b.position[3 * f + 1] - o[1], b.position[3 * f + 2] - o[2]);
-        b.group.quaternion.copy(quaternion(b.quaternion, f));
-        if (b.kind === "flexible") deform(b, f);
+        b.group.position.set(lerp3(b.position, f, g, a, 0) - o[0], lerp3(b.position, f, g, a, 1) - o[1],
+                             lerp3(b.position, f, g, a, 2) - o[2]);
+        b.group.quaternion.copy(quaternion(b.quaternion, f).slerp(quaternion(b.quaternion, g), a));
+        if (b.kind === "flexible") deform(b, f, g, a);
       }
       for (const n of nodes) {
-        n.group.position.set(n.position[3 * f] - o[0], n.position[3 * f + 1] - o[1], n.position[3 * f + 2] - o[2]);
-        n.group.quaternion.copy(quaternion(n.quaternion, f));
+        n.group.position.set(lerp3(n.position, f, g, a, 0) - o[0], lerp3(n.position, f, g, a, 1) - o[1],
+                             lerp3(n.position, f, g, a, 2) - o[2]);
+        n.group.quaternion.copy(quaternion(n.quaternion, f).slerp(quaternion(n.quaternion, g), a));
       }
-      for (const w of wheels) if (w.angle) w.spin.rotation.z = w.angle[f] % (2 * Math.PI);
+      for (const w of wheels) if (w.angle) w.spin.rotation.z = ((1 - a) * w.angle[f] + a * w.angle[g]) % (2 * Math.PI);
       for (const th of thrusters) {
         const level = th.level ? th.level[f] : 0;
         th.plume.visible = level > 0.01;
@@ -354,7 +364,7 @@
     const probe = document.createElement("pre");
     probe.id = "probe";
     probe.textContent = JSON.stringify({
-      frame: state.frame, scale: state.scale, load_ms: performance.now(), marks,
+      frame: state.frame, alpha: state.alpha, scale: state.scale, load_ms: performance.now(), marks,
       flexible: bodies.filter((b) => b.kind === "flexible").map((b) => Array.from(b.positions)),
       bodies: bodies.map((b) => [b.group.position.toArray(), b.group.quaternion.toArray()]),
       wheels: wheels.map((w) => w.spin.rotation.z),
