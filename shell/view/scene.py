@@ -458,16 +458,18 @@ def _coordinate_frames(engine, data: dict, info: dict, notes: list, max_frames: 
     pieces = [(f"{engine.path}.{port}", start, count) for port, start, count in engine._coordinate_ports["q"]]
     logged = [p for p in pieces if p[0] in data]
     initial = np.asarray(engine._initial_q, float)
-    if not logged:
-        notes.append(f"the log has no coordinates of the multibody engine ({q_name} or {engine.path}.<body>.q): "
-                     f"the scene is drawn at its initial configuration; add {q_name} to the log's signals to see "
-                     "it move")
+    from_nodes = _root_bodies_from_nodes(engine, data, {p[0] for p in logged})
+    timed = [signals[p[0]]["time"] for p in logged] + [signals[f"{engine.path}.{n}.attitude"]["time"]
+                                                      for _, n in from_nodes]
+    if not timed:
+        notes.append(f"the log has no coordinates of the multibody engine ({q_name}, {engine.path}.<body>.q, or "
+                     "a node attitude of a free body): the scene is drawn at its initial configuration; add "
+                     f"{q_name} to the log's signals to see it move")
         groups = sorted({meta["time"] for meta in signals.values()})
         time = data[groups[0]] if groups else np.zeros(1)
         keep = _frames(len(time), max_frames)
         return time[keep], np.tile(initial, (len(keep), 1))
-    base = max(logged, key=lambda p: len(data[signals[p[0]]["time"]]))
-    time_full = data[signals[base[0]]["time"]]
+    time_full = data[max(timed, key=lambda name: len(data[name]))]
     keep = _frames(len(time_full), max_frames)
     time = time_full[keep]
     q = np.tile(initial, (len(time), 1))
@@ -476,13 +478,69 @@ def _coordinate_frames(engine, data: dict, info: dict, notes: list, max_frames: 
         values = data[name].reshape(len(t), -1)
         for k in range(count):
             q[:, start + k] = np.interp(time, t, values[:, k])
+    derived = set()
+    for b, node in from_nodes:
+        _hinge_from_node(engine, b, node, data, signals, time, q)
+        derived.add(f"{engine.path}.{system.body_names[b]}.q")
+        notes.append(f"the pose of {system.body_names[b]} is derived from the logged {engine.path}.{node}.attitude"
+                     + (f" and .position" if f"{engine.path}.{node}.position" in data else
+                        " (its position is held: log the node's position or the body's coordinates)"))
     for k in system.quaternion_q_indices:
         q[:, k:k + 4] /= np.linalg.norm(q[:, k:k + 4], axis=1, keepdims=True)
-    missing = [p[0] for p in pieces if p[0] not in data]
+    missing = [p[0] for p in pieces if p[0] not in data and p[0] not in derived]
     if missing:
         notes.append(f"not logged: {', '.join(missing)}: held at their initial values (log {q_name} to see "
                      "every body move)")
     return time, q
+
+
+def _root_bodies_from_nodes(engine, data: dict, logged: set) -> list[tuple[int, str]]:
+    """(body, node) for each rigid body on a free or spherical hinge to the world whose hinge coordinates
+    are not logged but a node's attitude on it is (a node with a logged position preferred)."""
+    system = engine.system
+    out = []
+    for b, body in enumerate(system.body_names):
+        if (system.parents[b] >= 0 or system.hinge_names[b] not in ("free", "spherical") or system.n_modes[b]
+                or f"{engine.path}.{body}.q" in logged):
+            continue
+        candidates = [n for k, n in enumerate(system.node_names) if system.node_bodies[k] == body
+                      and f"{engine.path}.{n}.attitude" in data]
+        candidates.sort(key=lambda n: f"{engine.path}.{n}.position" not in data)
+        if candidates:
+            out.append((b, candidates[0]))
+    return out
+
+
+def _hinge_from_node(engine, b: int, node: str, data: dict, signals: dict, time, q) -> None:
+    """Fill the hinge coordinates of root body ``b`` from its node's logged attitude (and position):
+    ``R_body = R_node R_n^T``, ``p_body = p_node - R_body p_n`` (node frame (R_n, p_n) in the body), then
+    the hinge's ``R_FM = R_in^T R_body R_out``, ``p_FM = R_in^T (p_body + R_body p_out - p_in)`` (inboard
+    frame F on the world, outboard frame M on the body: CONVENTIONS.md, free hinge = quaternion of M in F,
+    then the position of M's origin in F)."""
+    from scipy.spatial.transform import Rotation
+
+    system = engine.system
+    definition = system.definitions[0][b]
+    k = system.node_names.index(node)
+    R_n, p_n = system.node_rot[k], system.node_pos[k]
+    name = f"{engine.path}.{node}.attitude"
+    t = data[signals[name]["time"]]
+    wxyz = data[name].reshape(len(t), 4)
+    wxyz = np.stack([np.interp(time, t, wxyz[:, a]) for a in range(4)], axis=1)
+    R_node = Rotation.from_quat(wxyz[:, [1, 2, 3, 0]]).as_matrix()
+    R_body = R_node @ R_n.T
+    R_in, p_in = definition.inboard_rotation, definition.inboard_position
+    R_out, p_out = definition.outboard_rotation, definition.outboard_position
+    R_fm = R_in.T @ R_body @ R_out
+    xyzw = Rotation.from_matrix(R_fm).as_quat()
+    start = system.q_slices[b].start
+    q[:, start:start + 4] = xyzw[:, [3, 0, 1, 2]]
+    position = f"{engine.path}.{node}.position"
+    if system.hinge_names[b] == "free" and position in data:
+        tp = data[signals[position]["time"]]
+        p_node = np.stack([np.interp(time, tp, data[position].reshape(len(tp), 3)[:, a]) for a in range(3)], 1)
+        p_body = p_node - R_body @ p_n
+        q[:, start + 4:start + 7] = (R_in.T @ (p_body + R_body @ p_out - p_in)[..., None])[..., 0]
 
 
 def _resample(t_from, values, t_to, hold=False):
