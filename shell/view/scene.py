@@ -410,6 +410,21 @@ def _assemble(engine, scenario_file, meshes, time, q_frames, notes, title, sourc
     for body in bodies:  # bodies too small to see (a massless frame, a point mass) get a marker size
         if body.kind == "box" and body.box.max() < 0.02 * length:
             body.box = np.maximum(body.box, 0.02 * length)
+    nodes = [{"name": name, "body": system.node_bodies[k], "position": node_pos[:, k],
+              "quaternion": node_quat[:, k].astype(np.float32)} for k, name in enumerate(system.node_names)]
+    roots = [b for b, p in enumerate(system.parents) if p < 0]
+    from scipy.spatial.transform import Rotation
+
+    points = [body_pos[0]] + ([node_pos[0]] if system.nnodes else [])
+    corners = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
+    for b, body in enumerate(bodies):
+        local = body.vertices
+        if body.kind == "box":
+            local = body.box_center + Rotation.from_quat(body.box_quaternion).apply(corners * body.box)
+        if local is not None and len(local):
+            points.append(body_pos[0, b] + Rotation.from_quat(body_quat[0, b]).apply(local))
+    points = np.vstack(points)
+    length = max(length, float(np.ptp(points, axis=0).max()))
     deformation = max((b.max_deformation for b in bodies), default=0.0)
     if scale == "auto":
         factor = nice_scale(0.08 * length / deformation) if deformation > 0 else 1.0
@@ -418,16 +433,6 @@ def _assemble(engine, scenario_file, meshes, time, q_frames, notes, title, sourc
     if deformation > 0:
         notes.append(f"largest elastic displacement {deformation:.3g} m, drawn x{factor:g} "
                      f"({factor * deformation:.3g} m on a scene of {length:.3g} m)")
-    nodes = [{"name": name, "body": system.node_bodies[k], "position": node_pos[:, k],
-              "quaternion": node_quat[:, k].astype(np.float32)} for k, name in enumerate(system.node_names)]
-    roots = [b for b, p in enumerate(system.parents) if p < 0]
-    from scipy.spatial.transform import Rotation
-
-    points = [body_pos[0]] + ([node_pos[0]] if system.nnodes else [])
-    for b, body in enumerate(bodies):
-        if body.vertices is not None and len(body.vertices):
-            points.append(body_pos[0, b] + Rotation.from_quat(body_quat[0, b]).apply(body.vertices))
-    points = np.vstack(points)
     track = roots[0] if roots else 0
     center = 0.5 * (points.min(axis=0) + points.max(axis=0)) - body_pos[0, track]
     return ViewScene(title=title, source=source, time=np.asarray(time, float), bodies=bodies, nodes=nodes,
