@@ -46,7 +46,7 @@ def scene_payload(view: ViewScene) -> dict:
         "center": [float(c) for c in view.center],
         "bodies": bodies,
         "nodes": [{"name": n["name"], "body": n["body"], "position": _array(n["position"], "f8"),
-                   "quaternion": _array(n["quaternion"], "f4")} for n in view.nodes],
+                   "quaternion": _array(n["quaternion"], "f4"), "hinge": bool(n.get("hinge"))} for n in view.nodes],
         "wheels": [{"name": w["name"], "node": w["node"], "axis": _array(w["axis"], "f4"),
                     "angle": _array(w["angle"], "f4")} for w in view.wheels],
         "thrusters": [{"name": t["name"], "node": t["node"], "position": _array(t["position"], "f4"),

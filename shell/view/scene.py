@@ -411,10 +411,19 @@ def _assemble(engine, scenario_file, meshes, time, q_frames, notes, title, sourc
         if body.kind == "box" and body.box.max() < 0.02 * length:
             body.box = np.maximum(body.box, 0.02 * length)
     nodes = [{"name": name, "body": system.node_bodies[k], "position": node_pos[:, k],
-              "quaternion": node_quat[:, k].astype(np.float32)} for k, name in enumerate(system.node_names)]
-    roots = [b for b, p in enumerate(system.parents) if p < 0]
+              "quaternion": node_quat[:, k].astype(np.float32), "hinge": False}
+             for k, name in enumerate(system.node_names)]
     from scipy.spatial.transform import Rotation
 
+    for b, definition in enumerate(system.definitions[0]):  # hinge frames: the outboard frame M of each hinge
+        if system.parents[b] < 0:
+            continue
+        R = Rotation.from_quat(body_quat[:, b])
+        M = R * Rotation.from_matrix(definition.outboard_rotation)
+        nodes.append({"name": f"hinge of {definition.name}", "body": definition.name,
+                      "position": body_pos[:, b] + R.apply(definition.outboard_position),
+                      "quaternion": M.as_quat().astype(np.float32), "hinge": True})
+    roots = [b for b, p in enumerate(system.parents) if p < 0]
     points = [body_pos[0]] + ([node_pos[0]] if system.nnodes else [])
     corners = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
     for b, body in enumerate(bodies):

@@ -115,7 +115,9 @@
   // ---- nodes, wheels, thrusters, track -------------------------------------------------------------------
   const nodes = S.nodes.map((n) => {
     const group = new THREE.Group();
-    group.add(triad(0.07 * L));
+    group.add(triad((n.hinge ? 0.1 : 0.07) * L));
+    if (n.hinge) group.add(new THREE.Mesh(new THREE.SphereGeometry(0.015 * L, 12, 8),
+                                         new THREE.MeshBasicMaterial({ color: 0xffe066 })));
     scene.add(group);
     return { group, position: decode(n.position), quaternion: decode(n.quaternion) };
   });
@@ -324,7 +326,7 @@
     camera.position.set(1.2 * r, -1.5 * r, 1.0 * r);
     update(true);
   };
-  document.getElementById("legend").textContent = "frames: body (long axes), nodes (short axes): x red, y green, z blue";
+  document.getElementById("legend").textContent = "frames: body (long axes), hinge (yellow dot), nodes (short axes): x red, y green, z blue";
 
   function resize() {
     const w = host.clientWidth, h = host.clientHeight;
