@@ -67,8 +67,10 @@ def _kind(path: Path) -> str:
         return "log"
     if found == "flexshell-linear-model":
         return "linear"
-    raise ValueError(f"{path}: an HDF5 file of format {found!r}; flexshell view reads a log (flexshell run), a "
-                     "linear model (flexshell linearize) or a scenario (YAML)")
+    what = "an HDF5 file without a format attribute (a body file? view a scenario that uses it)" if found is None \
+        else f"an HDF5 file of format {found!r}"
+    raise ValueError(f"{path}: {what}; flexshell view reads a log (flexshell run), a linear model (flexshell "
+                     "linearize) or a scenario (YAML)")
 
 
 def _meshes(items) -> dict:

@@ -296,8 +296,8 @@ def _bodies_geometry(engine, scenario_file: str, meshes: dict, notes: list) -> l
             flexible = definition.flexible
             item["kind"] = "flexible"
             item["vertices"] = np.asarray(flexible.grid_positions, float)
-            item["shapes"] = np.ascontiguousarray(
-                np.transpose(np.asarray(flexible.grid_shapes, float)[:, 3:6, :], (2, 0, 1)).reshape(flexible.n_modes, -1))
+            translation = np.asarray(flexible.grid_shapes, float)[:, 3:6, :]  # (G, 3, n) gamma
+            item["shapes"] = np.ascontiguousarray(np.transpose(translation, (2, 0, 1)).reshape(flexible.n_modes, -1))
             item["frequencies"] = np.asarray(flexible.frequencies_hz, float)
             if name in files:
                 item["edges"], item["faces"] = _flexible_geometry(files[name], flexible, notes)
