@@ -108,6 +108,10 @@ class ModalBody:
     child_bodies: list = field(default_factory=list)
     card_report: list = field(default_factory=list)
     geometric_stiffness: GeometricStiffness | None = None
+    # element geometry for drawing (flexshell view): NASTRAN card name and corner grids (0-padded) per
+    # element; empty when unknown (files written before it was kept)
+    element_types: list = field(default_factory=list)
+    element_grids: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
     version: str = FORMAT_VERSION
     time_stamp: str = ""
 
@@ -271,6 +275,11 @@ def write_body_file(path, body: ModalBody) -> None:
                 g.create_dataset("PreloadNames", data=np.array(gs.preload_names, dtype=object),
                                  dtype=h5py.string_dtype())
                 g.create_dataset("Preload", data=gs.preload)
+        if len(body.element_types):
+            geometry = h5.create_group("Geometry")
+            geometry.create_dataset("ElementType", data=np.array(body.element_types, dtype=object),
+                                    dtype=h5py.string_dtype())
+            geometry.create_dataset("ElementGrids", data=np.asarray(body.element_grids, dtype=np.int64))
         cbs = h5.create_group("ChildBodies")
         for k, child in enumerate(body.child_bodies):
             g = cbs.create_group(f"{k:04d}")
@@ -352,4 +361,45 @@ def read_body_file(path) -> ModalBody:
             version=version,
             time_stamp=_str(h5["TIME_STAMP"]),
         )
+        body.element_types, body.element_grids = _read_geometry(h5)
     return body
+
+
+def _read_geometry(h5: h5py.File):
+    if "Geometry" not in h5:
+        return [], np.zeros((0, 0), dtype=np.int64)
+    g = h5["Geometry"]
+    types = [s.decode() if isinstance(s, bytes) else str(s) for s in g["ElementType"][()]]
+    return types, g["ElementGrids"][()]
+
+
+def read_body_geometry(path):
+    """(element types or None when the file keeps none, element grids, SOURCE) of a body file, without
+    reading its matrices (the 3D view's need)."""
+    with h5py.File(path, "r") as h5:
+        types, grids = _read_geometry(h5)
+        return (types if types else None), grids, _str(h5["SOURCE"])
+
+
+def elements_of_deck(model) -> tuple[list, np.ndarray]:
+    """(card names, corner grids padded with 0) of a pyNastran model's elements and rigid elements, in
+    element-id order: the body file's ``Geometry`` group. RBE2: independent grid then dependent grids;
+    RBE3: reference grid then the weighted grids."""
+    types, rows = [], []
+    for _, elem in sorted(model.elements.items()):
+        types.append(elem.type)
+        rows.append([int(g) if g else 0 for g in elem.node_ids])
+    for _, elem in sorted(model.rigid_elements.items()):
+        if elem.type == "RBE2":
+            grids = [elem.gn] + list(elem.Gmi_node_ids)
+        elif elem.type == "RBE3":
+            grids = [elem.refgrid] + [int(g) for group in elem.Gijs for g in group]
+        else:
+            grids = list(elem.independent_nodes) + list(elem.dependent_nodes)
+        types.append(elem.type)
+        rows.append([int(g) for g in grids])
+    width = max((len(r) for r in rows), default=0)
+    grids = np.zeros((len(rows), width), dtype=np.int64)
+    for k, r in enumerate(rows):
+        grids[k, :len(r)] = r
+    return types, grids

@@ -26,7 +26,7 @@ import scipy.sparse as sp
 
 from dynamics.flex.assembly import (StructuralModel, apply_constraints, assemble,
                                      block_rotation, deck_aset)
-from dynamics.flex.body_file import (ChildRigidBody, CraigBamptonData, ModalBody, SparseModel)
+from dynamics.flex.body_file import (ChildRigidBody, CraigBamptonData, ModalBody, SparseModel, elements_of_deck)
 from dynamics.flex.bulk_data import BulkData, BulkDataError, read_bulk_data
 from dynamics.flex.component_modes import craig_bampton, normalized_component_modes
 from dynamics.flex.mass_properties import rigid_body_mass_properties
@@ -412,5 +412,6 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
                                                                                   "CONM2")],
                                      lm.inertia_cg) for lm in sm.lumped_masses],
         card_report=bulk.report.lines())
+    body.element_types, body.element_grids = elements_of_deck(bulk.model)
     say("done")
     return body
