@@ -64,9 +64,12 @@ def register(subparsers) -> None:
 # units and labels
 def pretty_unit(unit) -> str:
     """``N m`` for ``m*N``, ``kg m²`` for ``kg*m^2``, ``N m s/rad``; "" for a dimensionless unit."""
-    from shell.units import parse_unit, ureg
+    from shell.units import UnitError, parse_unit, ureg
 
-    u = parse_unit(unit if unit is not None else "")
+    try:
+        u = parse_unit(unit if unit is not None else "")
+    except UnitError:
+        return str(unit)  # a label that is not a unit (a choice draw's "index") prints as written
     if u == ureg.dimensionless:
         return ""
     symbols = {ureg.get_symbol(name): power for name, power in u._units.items()}
