@@ -21,6 +21,7 @@ against analytic values where there is one:
 from __future__ import annotations
 
 import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -33,8 +34,9 @@ GALLERY_DIR = ROOT / "configs" / "gallery"
 
 
 def _gallery():
-    spec = importlib.util.spec_from_file_location("gallery", GALLERY_DIR / "gallery.py")
+    spec = importlib.util.spec_from_file_location("flexshell_gallery", GALLERY_DIR / "gallery.py")
     module = importlib.util.module_from_spec(spec)
+    sys.modules["flexshell_gallery"] = module  # dataclasses look their module up there
     spec.loader.exec_module(module)
     return module
 
