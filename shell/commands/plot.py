@@ -166,18 +166,24 @@ def commanded_attitude(scenario_text: str, signal: str):
     if len(parts) < 3 or not isinstance(document, dict):
         return None
     node = parts[-2]
+    commands = []  # (attached to this node, command) of every model with an attitude_command
     for spec in (document.get("models") or {}).values():
         if not isinstance(spec, dict):
             continue
         attach = spec.get("attach") or {}
         command = (spec.get("parameters") or {}).get("attitude_command")
-        if isinstance(attach, dict) and attach.get("node") == node and command is not None:
-            try:
-                r = np.asarray(command, float).reshape(4)
-            except (TypeError, ValueError):
-                return None
-            return r / np.linalg.norm(r)
-    return None
+        if command is not None:
+            commands.append((isinstance(attach, dict) and attach.get("node") == node, command))
+    attached = [c for here, c in commands if here]
+    # the controller attached to the node; else the scene's only one (wired by connections)
+    chosen = attached[0] if attached else commands[0][1] if len(commands) == 1 else None
+    if chosen is None:
+        return None
+    try:
+        r = np.asarray(chosen, float).reshape(4)
+    except (TypeError, ValueError):
+        return None
+    return r / np.linalg.norm(r) if np.isfinite(r).all() and np.linalg.norm(r) > 0 else None
 
 
 # ----------------------------------------------------------------------------------------------------
