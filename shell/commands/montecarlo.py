@@ -30,33 +30,32 @@ def register(subparsers) -> None:
 
 
 class CampaignProgress:
-    """One-line progress on stderr: runs done, failures, runs per minute, estimated time left."""
+    """Campaign progress on stderr (tqdm): runs done of the total, runs per minute, ETA, runs that did
+    not complete."""
 
     def __init__(self, enabled: bool):
         self.enabled = enabled
-        self.start = time.perf_counter()
-        self.first_done = None
         self.bad = 0
+        self.bar = None
 
     def __call__(self, record, done: int, total: int) -> None:
         if record.status not in ("completed", "stopped"):
             self.bad += 1
-        if self.first_done is None:
-            self.first_done = done - 1
         if not self.enabled:
             return
-        elapsed = time.perf_counter() - self.start
-        rate = (done - self.first_done) / elapsed * 60 if elapsed > 0 else 0.0
-        left = (total - done) / rate * 60 if rate > 0 else float("nan")
-        width = 30
-        filled = int(round(width * done / max(total, 1)))
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} runs, {self.bad} not completed, "
-                         f"{rate:6.1f} runs/min, {left:6.0f} s left ")
-        sys.stderr.flush()
+        if self.bar is None:
+            from tqdm import tqdm
+
+            # a resumed campaign starts at the runs already done: the rate and ETA count this session only
+            self.bar = tqdm(total=total, initial=done - 1, unit="run", file=sys.stderr, dynamic_ncols=True,
+                            smoothing=0.1, mininterval=0.2)
+        self.bar.set_postfix_str(f"{self.bad} not completed", refresh=False)
+        self.bar.update(done - self.bar.n)
 
     def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
 
 def run(args) -> int:

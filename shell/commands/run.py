@@ -31,34 +31,61 @@ def register(subparsers) -> None:
 
 
 class ProgressBar:
-    """A one-line text progress bar on stderr, redrawn at most every 0.2 s."""
+    """Simulated time against the stop time on stderr (tqdm): fraction, wall time spent, ETA, speed in
+    simulated seconds per wall second; redrawn at most every 0.2 s."""
 
     def __init__(self, t_start: float, t_final: float, enabled: bool):
+        from tqdm import tqdm
+
         self.t_start, self.t_final = t_start, t_final
         self.enabled = enabled
-        self.wall_start = time.perf_counter()
-        self.last_draw = 0.0
+        self.done = 0.0
+        self.bar = tqdm(total=max(t_final - t_start, 0.0), unit="s", unit_scale=False, disable=not enabled,
+                        file=sys.stderr, mininterval=0.2, leave=True, dynamic_ncols=True,
+                        bar_format="{l_bar}{bar}| t = {n:.4g} / {total:.4g} s [{elapsed} < {remaining}, "
+                                   "{rate_fmt}]") if enabled else None
 
     def __call__(self, t: float) -> None:
-        now = time.perf_counter()
-        if not self.enabled or (now - self.last_draw < 0.2 and t < self.t_final):
+        if self.bar is None:
             return
-        self.last_draw = now
-        span = max(self.t_final - self.t_start, 1e-300)
-        fraction = min(max((t - self.t_start) / span, 0.0), 1.0)
-        width = 30
-        filled = int(round(width * fraction))
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] t = {t:10.4f} s / {self.t_final:g} s "
-                         f"({now - self.wall_start:6.1f} s wall)")
-        sys.stderr.flush()
+        done = min(max(t - self.t_start, 0.0), self.bar.total)
+        if done > self.done:
+            self.bar.update(done - self.done)
+            self.done = done
 
     def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
+def compiling_line(label: str, work, enabled: bool):
+    """Run ``work()`` while a tqdm line shows ``label`` and the seconds spent (refreshed by a thread:
+    numba compiles without reporting progress, so an ETA would be invented); returns work's result."""
+    if not enabled:
+        return work()
+    from tqdm import tqdm
+
+    line = tqdm(total=None, desc=label, file=sys.stderr, bar_format="{desc}: {elapsed} elapsed", leave=True)
+    finished = threading.Event()
+
+    def tick():
+        while not finished.wait(0.5):
+            line.refresh()
+
+    ticker = threading.Thread(target=tick, daemon=True)
+    ticker.start()
+    try:
+        return work()
+    finally:
+        finished.set()
+        ticker.join()
+        line.close()
 
 
 def announce_compilation(quiet: bool) -> None:
-    """The first run after installing flexshell compiles its loop (numba); say so instead of a silent minute."""
+    """The first run after installing flexshell compiles its loop (numba); say so, with the time spent
+    ticking, instead of a silent minute."""
     from shell.compiled_plan import loop_is_cached, prepare
 
     if loop_is_cached():
@@ -66,7 +93,7 @@ def announce_compilation(quiet: bool) -> None:
     if not quiet:
         print("flexshell: compiling the simulation loop (first run after installing or updating flexshell; "
               "cached for every later run and scene)...", file=sys.stderr, flush=True)
-    seconds = prepare()
+    seconds = compiling_line("flexshell: compiling (numba)", prepare, not quiet and sys.stderr.isatty())
     if not quiet:
         print(f"flexshell: compiled in {seconds:.0f} s", file=sys.stderr, flush=True)
 

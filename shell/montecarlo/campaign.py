@@ -40,7 +40,7 @@ import h5py
 import numpy as np
 
 from shell.montecarlo.draws import DISTRIBUTIONS, CorrelationGroup, Dispersion, draw_run
-from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples
+from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples, parse_requirement
 from shell.scenario import ScenarioError, build_simulation, decode_scenario, load_yaml, parse_scenario, show
 from shell.scenario import _expect_mapping
 from shell.scenario import _Where as scenario_Where
@@ -128,6 +128,7 @@ METRIC_KEYS = {
     "of": f"one of {list(MAPPINGS)} (default value)", "component": "component index of a vector signal",
     "unit": "unit of the result", "tolerance": "settling_time band", "target": "settling_time target (default 0)",
     "reference": "quaternion_angle: unit quaternion [w, x, y, z] the error is measured from (default identity)",
+    "requirement": "pass bound drawn and counted by the report, e.g. '<= 0.5 deg' (in the metric's unit)",
 }
 
 
@@ -324,6 +325,12 @@ def _parse_metric(name: str, spec, where: _Where) -> Metric:
     elif "tolerance" in spec or "target" in spec:
         raise where.child(spec, "tolerance" if "tolerance" in spec else "target").error(
             "tolerance and target belong to statistic: settling_time")
+    if "requirement" in spec:
+        result_unit = "s" if metric.statistic == "settling_time" else (metric.unit or "")  # as the results file
+        try:
+            metric.requirement = parse_requirement(spec["requirement"], result_unit)
+        except ValueError as exc:
+            raise where.child(spec, "requirement").error(str(exc)) from None
     return metric
 
 

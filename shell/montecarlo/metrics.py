@@ -17,6 +17,10 @@ then over time (``statistic``):
 * ``settling_time``: the first log instant t_k such that ``|y_j - target| <= tolerance`` for every
   j >= k; ``inf`` if the last sample is outside the band (not settled). Its resolution is the log period.
 
+A metric may carry a ``requirement`` (``"<= 0.5 deg"``, ``">= 10 s"``, or a bare number in the metric's
+unit after an operator): the report draws it as a line on the metric's histogram and scatter plots and
+counts the runs that meet it (:func:`parse_requirement`, :func:`meets`).
+
 Values are converted from the log's unit to the metric's ``unit`` (angles of ``quaternion_angle``
 are in rad). Only numpy, after the run: nothing here runs inside the integration loop.
 """
@@ -27,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+REQUIREMENT_OPERATORS = ("<=", ">=", "<", ">")
 STATISTICS = ("final", "max", "min", "max_abs", "mean", "rms", "settling_time")
 MAPPINGS = ("value", "norm", "quaternion_angle")
 
@@ -43,6 +48,7 @@ class Metric:
     target: float = 0.0             # settling_time target, in ``unit``
     reference: tuple = (1.0, 0.0, 0.0, 0.0)  # quaternion_angle: attitude the error is measured from
     size: int = 1                   # number of columns (set from the signal's logged shape)
+    requirement: tuple | None = None  # (operator, bound in the result unit): drawn and counted by the report
 
     def columns(self) -> list[str]:
         return [self.name] if self.size == 1 else [f"{self.name}[{k}]" for k in range(self.size)]
@@ -101,3 +107,33 @@ def evaluate(metric: Metric, time: np.ndarray, samples: np.ndarray) -> np.ndarra
                 result[c] = time[out[-1] + 1]
         return result
     raise ValueError(f"unknown statistic {s!r}")
+
+
+def parse_requirement(text, unit: str) -> tuple[str, float]:
+    """(operator, bound in ``unit``) of a requirement such as ``"<= 0.5 deg"``; ValueError if malformed."""
+    from shell.units import UnitError, to_magnitude
+
+    if not isinstance(text, str):
+        raise ValueError(f"expected a requirement such as '<= 0.5 deg' or '>= 10 s', given {text!r}")
+    stripped = text.strip()
+    operator = next((op for op in REQUIREMENT_OPERATORS if stripped.startswith(op)), None)
+    if operator is None:
+        raise ValueError(f"expected a requirement starting with one of {list(REQUIREMENT_OPERATORS)} "
+                         f"(e.g. '<= 0.5 deg'), given {text!r}")
+    bound_text = stripped[len(operator):].strip()
+    try:
+        bound = float(to_magnitude(bound_text, unit or "", (), "requirement"))
+    except (UnitError, ValueError) as exc:
+        raise ValueError(f"requirement {text!r}: the bound must be a number in {unit or 'the metric unit'} "
+                         f"or carry a unit convertible to it ({exc})") from None
+    if not np.isfinite(bound):
+        raise ValueError(f"requirement {text!r}: the bound must be finite")
+    return operator, bound
+
+
+def meets(values: np.ndarray, requirement: tuple[str, float]) -> np.ndarray:
+    """Per value, True where it meets ``requirement`` (NaN never does; +inf meets only a '>' bound)."""
+    operator, bound = requirement
+    values = np.asarray(values, float)
+    with np.errstate(invalid="ignore"):
+        return {"<=": values <= bound, ">=": values >= bound, "<": values < bound, ">": values > bound}[operator]

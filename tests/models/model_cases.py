@@ -58,8 +58,6 @@ def cases(tmp_path):
         ("motor", "reaction_wheel", "ReactionWheelMotor", {}),
         ("slosh", "slosh", "SloshSpringDamper", dict(dofs=2)),
         ("slosh_translational", "slosh", "SloshSpringDamper", dict(dofs=1, kind="translational")),
-        ("ball", "test_plants", "BouncingBall", {}),
-        ("escape", "test_plants", "FiniteEscape", {}),
         ("jet_pwm", "thruster", "Thruster", dict(mode="pwm", max_thrust=2.0, isp=200.0)),
         ("jet_on_off", "thruster", "Thruster", dict(mode="on_off", max_thrust=2.0, isp=200.0)),
         ("jet_proportional", "thruster", "Thruster", dict(mode="proportional", max_thrust=2.0, isp=200.0)),

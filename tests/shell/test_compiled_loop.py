@@ -114,7 +114,7 @@ def test_restore_continues_bit_identically_in_the_compiled_loop():
 
 
 def test_non_finite_state_is_named_and_located_like_the_interpreted_loop():
-    from shell.models.test_plants import FiniteEscape
+    from tests.plants import FiniteEscape
 
     messages = []
     for mode in ("interpreted", "compiled"):
@@ -146,7 +146,7 @@ def test_python_output_kernels_run_interpreted_and_say_why():
 def test_zero_crossings_are_found_and_handled_like_the_interpreted_loop(detection, stop, tmp_path):
     """A bouncing ball (12 contacts in 12 s, located to 1e-12 s, state reset by the handler), logged at a
     rate that is not a multiple of the step; with a terminal event the run stops at the first contact."""
-    from shell.models.test_plants import BouncingBall
+    from tests.plants import BouncingBall
 
     runs = []
     for mode in ("interpreted", "compiled"):

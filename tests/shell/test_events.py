@@ -6,7 +6,7 @@ from numba import njit
 
 from shell.assembly import Assembly
 from shell.model import Model, State, ZeroCrossing
-from shell.models.test_plants import BouncingBall
+from tests.plants import BouncingBall
 from shell.simulation import Simulation
 
 H0, G, E = 10.0, 9.81, 0.8

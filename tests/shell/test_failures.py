@@ -10,7 +10,7 @@ from numba import njit
 from shell.assembly import Assembly
 from shell.log_file import read_log
 from shell.model import Model, OutputPort, State
-from shell.models.test_plants import FiniteEscape
+from tests.plants import FiniteEscape
 from shell.simulation import Simulation, SimulationError
 
 

@@ -175,7 +175,7 @@ def test_unknown_port_and_output_used_as_input(scene):
 
 
 def test_parameter_out_of_bounds():
-    from shell.models.test_plants import BouncingBall
+    from tests.plants import BouncingBall
 
     with pytest.raises(ModelError, match=r"parameter restitution: expected within \[0.0, 1.0\]"):
         BouncingBall("ball", restitution=1.5)

@@ -1,5 +1,9 @@
 """Test plants with analytic solutions, for verifying the framework (events, failures, multi-rate).
 
+They live with the tests, not among the user's models: tests/conftest.py imports this module so that
+its ``@register_model`` decorators run and YAML scenes of the tests can name ``BouncingBall`` and
+``FiniteEscape``; ``flexshell models`` does not list them.
+
 BouncingBall: h' = v, v' = -g; zero crossing g(h) = h falling; at contact v <- -e v. Contact times
 from the free-fall solution: t_1 = (v0 + sqrt(v0^2 + 2 g h0)) / g, then each flight lasts
 2 e^k v_1 / g with v_1 = sqrt(v0^2 + 2 g h0) the impact speed.
