@@ -82,6 +82,7 @@ multibody:
         angular_velocity: "{w0}"
   nodes:
     - {name: cm, body: sat}
+    - {name: mtq, body: sat}                # the rods' frame: a node takes one torque source
 models:
   gravity: {type: CentralBodyGravity, attach: {node: cm}, parameters: {mass: 20 kg, gravity_gradient: 0}}
   field:
@@ -91,7 +92,7 @@ models:
     attach: {node: cm}
   magnetometer: {type: Magnetometer, rate: 2 Hz}
   bdot: {type: BDot, rate: 2 Hz, parameters: {gain: "{gain}", max_dipole: "[0.2, 0.2, 0.2] A*m^2"}}
-  torquers: {type: Magnetorquer, attach: {node: cm}, parameters: {max_dipole: "[0.2, 0.2, 0.2] A*m^2"}}
+  torquers: {type: Magnetorquer, attach: {node: mtq}, parameters: {max_dipole: "[0.2, 0.2, 0.2] A*m^2"}}
 connections:
   - field.field -> magnetometer.true_field
   - magnetometer.field -> bdot.field
@@ -198,16 +199,20 @@ def test_bdot_command_and_momentum_dumping_torque():
 
 def test_bdot_detumbles_through_a_scenario(tmp_path):
     from shell.log_file import read_log
-    sim = _scene(degree=1, gain="2e4 A*m^2*s/T")
-    sim.run(3000.0, log_path=tmp_path / "d.h5")
+    sim = _scene(degree=1, gain="1e5 A*m^2*s/T")
+    sim.run(4500.0, log_path=tmp_path / "d.h5")
     log = read_log(tmp_path / "d.h5")
     w = log["multibody.cm.angular_velocity"]
     J = np.diag([0.3, 0.4, 0.5])
     energy = 0.5 * np.einsum("ki,ij,kj->k", w, J, w)
-    # B-dot takes energy out: -k |omega x B|^2 in the continuous limit; sampled at 2 Hz with 0.07 rad
-    # per sample the energy still falls at every logged point (10 s apart)
-    assert np.all(np.diff(energy) < 0)
-    assert energy[-1] < 0.05 * energy[0]
+    # B-dot takes energy out: -k |omega x B|^2 in the continuous limit, while the body rate is well
+    # above the field's own rotation in body axes (~2 orbit rates, 2.2e-3 rad/s: there B-dot settles);
+    # sampled at 2 Hz the energy falls at every logged point (10 s apart) while |omega| > 30 orbit
+    # rates (at 18 it rose by 1e-7 of itself over 10 s with omega nearly along B)
+    orbit_rate = np.sqrt(3.986004418e14 / 6878137.0**3)
+    fast = np.linalg.norm(w, axis=1)[1:] > 30 * orbit_rate
+    assert fast.sum() > 100 and np.all(np.diff(energy)[fast] < 0)
+    assert energy[-1] < 0.07 * energy[0]  # measured 0.050 after 4500 s (5.4 deg/s -> 1.1 deg/s)
     assert np.abs(log["torquers.dipole"]).max() <= 0.2 + 1e-15
     with pytest.raises(ModelError, match="whole number"):
         MagneticField("f", degree=2.5)
