@@ -13,8 +13,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
 
 @pytest.fixture(scope="module")
-def bsk():
-    pytest.importorskip("Basilisk")  # the bench extra; under -m slow only
+def bsk(request):
+    if "slow" not in (request.config.getoption("-m") or ""):
+        pytest.skip("slow: run with -m slow")  # as tests/flex/conftest.py does for the whole suite
+    pytest.importorskip("Basilisk")  # the bench extra
     import basilisk_environment
     warnings.simplefilter("ignore")  # Basilisk 2.12's deprecation notice on EclipseMsgPayload.shadowFactor
     return basilisk_environment
