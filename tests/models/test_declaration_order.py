@@ -24,7 +24,7 @@ DECLARATION_SUFFIXES = ("PARAMETERS", "INPUTS", "OUTPUTS", "CONTINUOUS", "DISCRE
 #: modules with module-level declaration tuples (the test below checks that the list is complete)
 REORDERED = ["aerodynamics", "allocation", "controllers", "eclipse", "ephemeris", "gimbaled_engine", "gravity", "imu",
              "magnetic", "magnetic_control", "mass_depletion", "pd_attitude", "reaction_wheel", "slosh", "srp",
-             "star_tracker", "sun_sensors", "test_plants", "thruster"]
+             "star_tracker", "sun_sensors", "test_plants", "third_body", "thruster"]
 
 
 def _is_declarations(node):
