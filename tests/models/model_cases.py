@@ -74,6 +74,7 @@ def cases(tmp_path):
         ("dumping", "magnetic_control", "MomentumDumping", dict(period=1.0)),
         ("tracker", "star_tracker", "StarTracker", dict(period=0.2, latency=0.4, sun_exclusion=0.5)),
         ("css", "sun_sensors", "CoarseSunSensors", dict(sensors=4, period=0.1, albedo=0.3)),
+        ("drag", "atmosphere", "AtmosphericDrag", dict(area=1.0, log_density=np.full((181, 19, 25), -20.0))),
         ("third_body", "third_body", "ThirdBodyGravity", dict(mass=10.0)),
         ("user", "user_hook", "UserFunction",
          dict(function="tests.models.model_cases:hold_inputs", inputs={"a": {"shape": [3]}},
