@@ -161,7 +161,7 @@ def _dcm_to_quaternion(R):
     """Quaternion [w, x, y, z] of the rotation matrix R (vectors of the rotated frame into the base)."""
     w = 0.5 * np.sqrt(max(1.0 + np.trace(R), 0.0))
     if w > 1e-6:
-        return np.array([w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w)])
+        return np.array([w, R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / np.r_[1.0, 4 * w, 4 * w, 4 * w]
     raise ValueError("rotation of 180 deg: choose another random orientation")
 
 

@@ -15,7 +15,8 @@ Sun (Montenbruck & Gill, "Satellite Orbits", 2000, sec. 3.3.2, eqs. 3.43-3.46), 
     r_sun  = R_x(-eps) r [cos lambda, sin lambda, 0],            eps = 23.43929111 deg
 
 (the 0.32327 deg T perihelion advance in J2000 axes is added from Standish's JPL table of approximate
-planetary elements: M&G hold the perihelion fixed, which drifts 12 arcsec a year from J2000). Moon (same section, eqs. 3.47-3.49): Brown's lunar theory truncated to its largest terms, with the
+planetary elements: M&G hold the perihelion fixed, which drifts 12 arcsec a year from J2000). Moon (same
+section, eqs. 3.47-3.49): Brown's lunar theory truncated to its largest terms, with the
 mean arguments ``L0, l, l', F, D`` (the 1.3972 deg T precession removed so that longitudes refer to the
 equinox of J2000)::
 

@@ -15,7 +15,8 @@ with the Schmidt semi-normalized Legendre functions from the recursions (Wertz A
 ``P_n^n = sqrt((2n-1)/2n) sin theta P_{n-1}^{n-1}`` (``P_1^1 = sin theta``) and
 ``P_n^m = ((2n-1) cos theta P_{n-1}^m - sqrt((n-1)^2 - m^2) P_{n-2}^m) / sqrt(n^2 - m^2)``, run per order m
 with two scalars (nothing allocated); ``P_n^m / sin theta`` (in B_p) follows the same recursions from
-``P_1^1 / sin theta = 1``, so the poles need no special case. The Gauss coefficients (parameters ``g``, ``h``, T) come from the
+``P_1^1 / sin theta = 1``, so the poles need no special case. The Gauss coefficients (parameters ``g``,
+``h``, T) come from the
 maintained ``ppigrf`` package's IGRF-14 file, linearly interpolated to the scene epoch (as ppigrf
 does) and held over the run (secular variation ~0.3 nT per day), unless given. Parameter ``degree``: 13
 (full IGRF, default) down to 1, the **tilted centered dipole** (the cheap choice), whose closed form is
@@ -39,8 +40,6 @@ axes, from ``MagneticField.field``); torque ``T = m x B`` on the node (Wertz sec
 from __future__ import annotations
 
 import datetime as _datetime
-from dataclasses import replace
-
 import numpy as np
 from numba import njit
 

@@ -21,7 +21,6 @@ across the field at the rate k (1/s); the component along B cannot be removed at
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from shell.model import InputPort, Model, OutputPort, Parameter, State, named_offsets

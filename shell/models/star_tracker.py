@@ -123,6 +123,15 @@ def _angle_below(b0, b1, b2, d0, d1, d2, limit):
 
 
 @njit(cache=True)
+def _body_excluded(b0, b1, b2, u, r, body, limit):
+    """The boresight is within limit of the body at u[body:body + 3] seen from u[r:r + 3]; False for a
+    zero limit or an unconnected (zero) body position."""
+    if limit <= 0.0 or (u[body] == 0.0 and u[body + 1] == 0.0 and u[body + 2] == 0.0):
+        return False
+    return _angle_below(b0, b1, b2, u[body] - u[r], u[body + 1] - u[r + 1], u[body + 2] - u[r + 2], limit)
+
+
+@njit(cache=True)
 def _tracker_outputs(t, x, z, u, p, y):
     oldest = z.shape[0] - RECORD_SIZE
     for i in range(4):
@@ -147,16 +156,10 @@ def _tracker_sample(t, x, z, u, p, noise):
     # boresight (sensor z) in world axes: third column of the rotation of the true sensor attitude
     w, qx, qy, qz = qt
     b0, b1, b2 = 2.0 * (qx * qz + w * qy), 2.0 * (qy * qz - w * qx), 1.0 - 2.0 * (qx * qx + qy * qy)
-    r, s, mo = U.position, U.sun_position, U.moon_position
+    r = U.position
     rn = np.sqrt(u[r] ** 2 + u[r + 1] ** 2 + u[r + 2] ** 2)
-    valid = True
-    if p[P.sun_exclusion] > 0.0 and _angle_below(b0, b1, b2, u[s] - u[r], u[s + 1] - u[r + 1], u[s + 2] - u[r + 2],
-                                                 p[P.sun_exclusion]) and (u[s] != 0.0 or u[s + 1] != 0.0 or u[s + 2] != 0.0):
-        valid = False
-    if p[P.moon_exclusion] > 0.0 and _angle_below(b0, b1, b2, u[mo] - u[r], u[mo + 1] - u[r + 1],
-                                                  u[mo + 2] - u[r + 2], p[P.moon_exclusion]) and (
-            u[mo] != 0.0 or u[mo + 1] != 0.0 or u[mo + 2] != 0.0):
-        valid = False
+    valid = not (_body_excluded(b0, b1, b2, u, r, U.sun_position, p[P.sun_exclusion])
+                 or _body_excluded(b0, b1, b2, u, r, U.moon_position, p[P.moon_exclusion]))
     if rn > p[P.body_radius]:
         limb = np.arcsin(p[P.body_radius] / rn) + p[P.earth_exclusion]
         if _angle_below(b0, b1, b2, -u[r], -u[r + 1], -u[r + 2], limb):

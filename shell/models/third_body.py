@@ -10,7 +10,8 @@ The acceleration relative to the Earth (Montenbruck & Gill, "Satellite Orbits", 
 (the second term is the Earth's own acceleration toward the body: the frame is Earth-centred). The two
 terms nearly cancel near the Earth (their difference is O(|r|/|s|) of each): in double precision that
 costs about log10(|s|/|r|) digits, 4 of 16 for the Sun and 2 for the Moon, so the direct form is kept
-(tests/models/test_third_body.py measures it against a 50-digit evaluation). Outputs: ``force = m R^T a`` (node axes) and
+(tests/models/test_third_body.py measures it against a 50-digit evaluation). Outputs: ``force = m R^T a``
+(node axes) and
 ``gravitational_acceleration`` (node axes).
 """
 

@@ -12,8 +12,7 @@ from shell.models.ephemeris import (J2000, TT_MINUS_UTC, SunMoonEphemeris, earth
                                     greenwich_mean_sidereal_time, julian_date, moon_position, sun_position)
 from shell.scenario import build_simulation, parse_scenario
 
-import astropy  # noqa: E402,F401  (the test extra)
-from astropy import units as u  # noqa: E402
+from astropy import units as u  # noqa: E402  (astropy: the test extra)
 from astropy.coordinates import GCRS, ITRS, CartesianRepresentation, get_body, solar_system_ephemeris  # noqa: E402
 from astropy.time import Time  # noqa: E402
 from astropy.utils import iers  # noqa: E402

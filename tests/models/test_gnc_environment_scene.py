@@ -15,7 +15,7 @@ SCENE = Path(__file__).resolve().parents[2] / "configs" / "gnc" / "detumble_envi
 
 def test_detumble_scene_checks_and_runs_from_the_command_line(tmp_path, capsys):
     assert main(["check", str(SCENE)]) in (0, None)
-    assert "models: 11" in capsys.readouterr().out
+    assert "models: 13" in capsys.readouterr().out
     log_path = tmp_path / "detumble.h5"
     assert main(["run", str(SCENE), "-o", str(log_path), "--set", "stop.time=2400 s"]) in (0, None)
     log = read_log(log_path)
@@ -30,6 +30,8 @@ def test_detumble_scene_checks_and_runs_from_the_command_line(tmp_path, capsys):
     assert np.all(log["css.signals"][nu == 0.0] < 0.05)            # albedo and noise only, Earth dark side
     assert 2e-5 < np.linalg.norm(log["field.field_inertial"], axis=1).min()
     assert set(np.unique(log["tracker.valid"])) <= {0.0, 1.0}
+    assert np.all((log["drag.density"] > 1e-14) & (log["drag.density"] < 1e-11))   # 550 km, F10.7 = 150
+    assert np.all(np.linalg.norm(log["third_body.force"], axis=1) < 20 * 2e-6)     # lunisolar: ~1e-6 m/s^2
 
 
 def test_detumble_scene_compiled_equals_interpreted():
