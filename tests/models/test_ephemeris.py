@@ -99,3 +99,11 @@ def test_ephemeris_through_a_scenario_at_the_june_solstice():
     # RA = 90 - 1.0904 x 0.3005 = 89.672 deg, declination the obliquity 23.4393 deg (to 1e-5 deg)
     assert_allclose(np.degrees(np.arcsin(s[2])), 23.4393, atol=0.01)
     assert_allclose(np.degrees(np.arctan2(s[1], s[0])), 89.672, atol=0.03)
+
+
+def test_a_bad_epoch_in_yaml_names_the_file_line_and_key(tmp_path):
+    from shell.scenario import ScenarioError, load_scenario
+    path = tmp_path / "bad.yaml"
+    path.write_text('models:\n  eph: {type: SunMoonEphemeris, config: {epoch: "yesterday"}}\n')
+    with pytest.raises(ScenarioError, match=r"bad.yaml:2: models.eph: .*ISO 8601"):
+        build_simulation(load_scenario(path))

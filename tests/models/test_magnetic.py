@@ -216,3 +216,10 @@ def test_bdot_detumbles_through_a_scenario(tmp_path):
     assert np.abs(log["torquers.dipole"]).max() <= 0.2 + 1e-15
     with pytest.raises(ModelError, match="whole number"):
         MagneticField("f", degree=2.5)
+
+
+def test_an_epoch_outside_igrf_is_refused_with_the_file_line():
+    from shell.scenario import ScenarioError
+    text = 'models:\n  field: {type: MagneticField, config: {epoch: "1850-01-01T00:00:00"}}\n'
+    with pytest.raises(ScenarioError, match=r"old.yaml:2: models.field: .*outside the IGRF coefficient file"):
+        build_simulation(parse_scenario(text, "old.yaml", None))
