@@ -51,14 +51,15 @@ MAX_DEGREE = 13
 NT = 1e-9
 
 
-def igrf_coefficients(epoch_julian_date: float, degree: int = MAX_DEGREE):
+def igrf_coefficients(epoch_julian_date: float, degree: int = MAX_DEGREE, coefficient_file=None):
     """IGRF Gauss coefficients g, h (T, arrays (14, 14) indexed [n, m]) at a UTC Julian date, read from
-    the ppigrf package's IGRF file and linearly interpolated in time (ppigrf's own rule)."""
+    the ppigrf package's IGRF file (default its newest, IGRF-14; ``coefficient_file`` another .shc file
+    such as ``ppigrf.ppigrf.shc_fn_igrf13``) and linearly interpolated in time (ppigrf's own rule)."""
     import pandas as pd
     from ppigrf.ppigrf import read_shc
 
     date = _datetime.datetime(2000, 1, 1, 12) + _datetime.timedelta(days=float(epoch_julian_date) - J2000)
-    g_table, h_table = read_shc()
+    g_table, h_table = read_shc() if coefficient_file is None else read_shc(coefficient_file)
     first, last = g_table.index[0], g_table.index[-1]
     if not first <= pd.Timestamp(date) <= last:
         raise ModelError(f"epoch {date.isoformat()}: outside the IGRF coefficient file ({first.date()} to "
