@@ -392,6 +392,11 @@ class Model:
                 raise ModelError(f"model {self.path}: duplicate {kind} port names in {names}")
             for d in decls:
                 parse_unit(d.unit, f"model {self.path}: {kind} {d.name}")
+        shared = sorted({d.name for d in self.inputs} & {d.name for d in self.outputs})
+        if shared:
+            # a port is addressed as `model.name` in connections and logs: one name cannot mean two ports
+            raise ModelError(f"model {self.path}: {shared} declared both as input and as output port; "
+                             f"give the input and the output different names")
         if any(o.feedthrough for o in self.outputs) and self.feedthrough_outputs is None:
             raise ModelError(f"{type(self).__name__}: feedthrough outputs declared without a feedthrough_outputs kernel")
         if self.zero_crossings and self.zero_crossing_values is None:

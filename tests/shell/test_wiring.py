@@ -201,3 +201,16 @@ def test_driven_twice_in_python_names_the_assembly():
     root.connect("a.y", "i.u")
     with pytest.raises(WiringError, match="driven twice"):
         Simulation(root)
+
+
+def test_a_name_used_for_an_input_and_an_output_is_refused():
+    """`model.name` addresses one port in connections and logs; a model declaring an input and an output
+    of the same name had one of them silently shadowed (found with the star tracker's `attitude`)."""
+    from shell.model import InputPort, Model, OutputPort
+
+    class Echo(Model):
+        inputs = (InputPort("attitude", "", (4,), "in"),)
+        outputs = (OutputPort("attitude", "", (4,), "out"),)
+
+    with pytest.raises(ModelError, match=r"\['attitude'\] declared both as input and as output"):
+        Echo("echo")
