@@ -23,7 +23,8 @@ MODELS = Path(__file__).resolve().parents[2] / "shell" / "models"
 DECLARATION_SUFFIXES = ("PARAMETERS", "INPUTS", "OUTPUTS", "CONTINUOUS", "DISCRETE")
 #: modules with module-level declaration tuples (the test below checks that the list is complete)
 REORDERED = ["aerodynamics", "allocation", "controllers", "gimbaled_engine", "gravity", "imu", "mass_depletion",
-             "pd_attitude", "reaction_wheel", "slosh", "test_plants", "thruster"]
+             "pd_attitude", "reaction_wheel", "slosh", "test_plants", "thruster",
+             "mrp_feedback", "guidance", "mekf"]
 
 
 def _is_declarations(node):
