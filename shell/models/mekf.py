@@ -17,12 +17,12 @@ gives it):
                 Phi12 = -(I dt - (1 - cos(n dt))/n^2 W + (n dt - sin(n dt))/n^3 W^2)
                 Q = [[(s_v^2 dt + s_u^2 dt^3 / 3) I, -s_u^2 dt^2 / 2 I], [-s_u^2 dt^2 / 2 I, s_u^2 dt I]]
     update      (star tracker valid) q_m = q_st (x) q_align^*   (sensor -> world, then node -> world)
-                y = 2 sign(w_e) v_e of q_e = q^* (x) q_m,  H = [I 0],  R = diag(s_st^2)
+                y = 2 sign(w_e) v_e of q_e = q^* (x) q_m,  H = [I 0],  R = C diag(s_st^2) C^T (C: sensor -> node)
                 K = P H^T (H P H^T + R)^-1,  dx = K y,  q <- q (x) [1, dx_theta / 2] normalized,
                 beta <- beta + dx_beta,  P <- (I - K H) P (I - K H)^T + K R K^T   (Joseph form)
 
 Initialization: at the first sample with a valid star-tracker quaternion, ``q = q_m``, ``beta = 0``,
-``P = diag(s_st^2, s_b0^2)``; before it the outputs are the identity with ``initialized`` 0.
+``P = diag(R, s_b0^2 I)``; before it the outputs are the identity with ``initialized`` 0.
 The covariance and a scratch area are discrete states (no allocation in the kernel): ``covariance``
 (6 x 6 row-major) and ``scratch`` (two 6 x 6 blocks).
 """
@@ -34,7 +34,7 @@ from numba import njit
 
 from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
 from shell.models.attitude_kinematics import (axis_angle_quaternion, quaternion_conjugate, quaternion_multiply,
-                                              quaternion_normalized)
+                                              quaternion_normalized, rotate)
 from shell.registry import register_model
 
 PARAMETERS = (
@@ -146,6 +146,32 @@ def _propagate(z, p, w, dt):
 
 
 @njit(cache=True)
+def _measurement_covariance(p):
+    """R in node axes: C diag(s_st^2) C^T, C the sensor -> node rotation (columns: sensor axes)."""
+    al = P.star_tracker_alignment
+    q_align = (p[al], p[al + 1], p[al + 2], p[al + 3])
+    c0, c1, c2 = rotate(q_align, (1.0, 0.0, 0.0)), rotate(q_align, (0.0, 1.0, 0.0)), rotate(q_align, (0.0, 0.0, 1.0))
+    v0, v1, v2 = p[P.star_tracker_noise] ** 2, p[P.star_tracker_noise + 1] ** 2, p[P.star_tracker_noise + 2] ** 2
+    return ((c0[0] * v0 * c0[0] + c1[0] * v1 * c1[0] + c2[0] * v2 * c2[0],
+             c0[0] * v0 * c0[1] + c1[0] * v1 * c1[1] + c2[0] * v2 * c2[1],
+             c0[0] * v0 * c0[2] + c1[0] * v1 * c1[2] + c2[0] * v2 * c2[2]),
+            (c0[1] * v0 * c0[0] + c1[1] * v1 * c1[0] + c2[1] * v2 * c2[0],
+             c0[1] * v0 * c0[1] + c1[1] * v1 * c1[1] + c2[1] * v2 * c2[1],
+             c0[1] * v0 * c0[2] + c1[1] * v1 * c1[2] + c2[1] * v2 * c2[2]),
+            (c0[2] * v0 * c0[0] + c1[2] * v1 * c1[0] + c2[2] * v2 * c2[0],
+             c0[2] * v0 * c0[1] + c1[2] * v1 * c1[1] + c2[2] * v2 * c2[1],
+             c0[2] * v0 * c0[2] + c1[2] * v1 * c1[2] + c2[2] * v2 * c2[2]))
+
+
+@njit(cache=True)
+def _measurement_covariance_into(z, p):
+    r = _measurement_covariance(p)
+    for i in range(3):
+        for j in range(3):
+            z[Z.covariance + 6 * i + j] = r[i][j]
+
+
+@njit(cache=True)
 def _update(z, p, q_m):
     """Star-tracker update (module docstring), Joseph form."""
     q = (z[Z.attitude], z[Z.attitude + 1], z[Z.attitude + 2], z[Z.attitude + 3])
@@ -153,11 +179,11 @@ def _update(z, p, q_m):
     sg = 2.0 if qe[0] >= 0.0 else -2.0
     y0, y1, y2 = sg * qe[1], sg * qe[2], sg * qe[3]
     cov = Z.covariance
-    r = (p[P.star_tracker_noise] ** 2, p[P.star_tracker_noise + 1] ** 2, p[P.star_tracker_noise + 2] ** 2)
+    r = _measurement_covariance(p)
     # S = P11 + R and its inverse (adjugate)
-    s00, s01, s02 = z[cov] + r[0], z[cov + 1], z[cov + 2]
-    s10, s11, s12 = z[cov + 6], z[cov + 7] + r[1], z[cov + 8]
-    s20, s21, s22 = z[cov + 12], z[cov + 13], z[cov + 14] + r[2]
+    s00, s01, s02 = z[cov] + r[0][0], z[cov + 1] + r[0][1], z[cov + 2] + r[0][2]
+    s10, s11, s12 = z[cov + 6] + r[1][0], z[cov + 7] + r[1][1], z[cov + 8] + r[1][2]
+    s20, s21, s22 = z[cov + 12] + r[2][0], z[cov + 13] + r[2][1], z[cov + 14] + r[2][2]
     c00, c01, c02 = s11 * s22 - s12 * s21, s02 * s21 - s01 * s22, s01 * s12 - s02 * s11
     c10, c11, c12 = s12 * s20 - s10 * s22, s00 * s22 - s02 * s20, s02 * s10 - s00 * s12
     c20, c21, c22 = s10 * s21 - s11 * s20, s01 * s20 - s00 * s21, s00 * s11 - s01 * s10
@@ -197,8 +223,9 @@ def _update(z, p, q_m):
             acc = 0.0
             for k in range(6):
                 acc += z[kb + 6 * i + k] * z[a + 6 * j + k]
-            acc += (k_copy[3 * i] * r[0] * k_copy[3 * j] + k_copy[3 * i + 1] * r[1] * k_copy[3 * j + 1]
-                    + k_copy[3 * i + 2] * r[2] * k_copy[3 * j + 2])
+            for m in range(3):
+                for n in range(3):
+                    acc += k_copy[3 * i + m] * r[m][n] * k_copy[3 * j + n]
             z[cov + 6 * i + j] = acc
 
 
@@ -219,8 +246,9 @@ def _mekf_update(t, x, z, u, p):
             z[Z.attitude + i] = q_m[i]
         for i in range(36):
             z[Z.covariance + i] = 0.0
+        # the first measurement's error covariance (node axes) and the bias prior
+        _measurement_covariance_into(z, p)
         for i in range(3):
-            z[Z.covariance + 7 * i] = p[P.star_tracker_noise + i] ** 2
             z[Z.covariance + 7 * (i + 3)] = p[P.initial_bias_sigma] ** 2
             z[Z.gyro_bias + i] = 0.0
             z[Z.angular_velocity + i] = u[g + i]
