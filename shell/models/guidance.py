@@ -33,8 +33,11 @@ Dynamics and Control", 2nd ed., sec. 7.3.4)::
                = theta_f - a (T - tau)^2 / 2              t_a + t_c <= tau < T = 2 t_a + t_c
     q_R = q_0 (x) q(e, theta),   omega_RN = R(q_0) e theta',   omega_RN' = R(q_0) e theta''
 
-The outputs are functions of time (state outputs), exact at any instant a controller samples them.
-Discrete states name the captured start and the profile's numbers.
+Before the start the outputs are the reference on the ``hold_*`` inputs when one is connected (e.g. a
+``SunPointing`` the slew takes over from; an all-zero ``hold_attitude``, the unconnected default, means
+none) or else the attitude measured at the first sample, with zero rates. The outputs are functions of
+time and of the hold inputs (feedthrough), exact at any instant a controller samples them. Discrete
+states name the captured start and the profile's numbers.
 """
 
 from __future__ import annotations
@@ -216,10 +219,16 @@ SLEW_INPUTS = (
     InputPort("attitude", "", (4,), "measured quaternion, node -> world (captured at the start)"),
     InputPort("trigger", "", (), "the slew starts at the first sample after start_time with trigger >= 0.5",
               required=False, default=1.0),
+    InputPort("hold_attitude", "", (4,), "reference passed through before the start (unconnected, zero: hold "
+              "the attitude measured at the first sample)", feedthrough=True, required=False),
+    InputPort("hold_angular_velocity", "rad/s", (3,), "its angular velocity, world axes", feedthrough=True,
+              required=False),
+    InputPort("hold_angular_acceleration", "rad/s^2", (3,), "its angular acceleration, world axes",
+              feedthrough=True, required=False),
 )
-SLEW_OUTPUTS = REFERENCE_OUTPUTS + (
-    OutputPort("slew_angle", "rad", (), "profile angle theta(t) (0 before the start)"),
-    OutputPort("complete", "", (), "1 once the profile has ended, else 0"),
+SLEW_OUTPUTS = tuple(replace(o, feedthrough=True) for o in REFERENCE_OUTPUTS) + (
+    OutputPort("slew_angle", "rad", (), "profile angle theta(t) (0 before the start)", feedthrough=True),
+    OutputPort("complete", "", (), "1 once the profile has ended, else 0", feedthrough=True),
 )
 SLEW_DISCRETE = (
     State("start_attitude", "", (4,), (1.0, 0.0, 0.0, 0.0), "q_0: held attitude, then the slew's start"),
@@ -263,6 +272,16 @@ def _slew_outputs(t, x, z, u, p, y):
                                              z[Z.accel_time], z[Z.coast_time], z[Z.peak_rate])
         if t - z[Z.start] >= 2.0 * z[Z.accel_time] + z[Z.coast_time]:
             done = 1.0
+    h = U_SLEW.hold_attitude
+    if z[Z.start] < 0.0 and (u[h] * u[h] + u[h + 1] * u[h + 1] + u[h + 2] * u[h + 2] + u[h + 3] * u[h + 3]) > 0.25:
+        for i in range(4):
+            y[Y_SLEW.reference_attitude + i] = u[h + i]
+        for i in range(3):
+            y[Y_SLEW.reference_angular_velocity + i] = u[U_SLEW.hold_angular_velocity + i]
+            y[Y_SLEW.reference_angular_acceleration + i] = u[U_SLEW.hold_angular_acceleration + i]
+        y[Y_SLEW.slew_angle] = 0.0
+        y[Y_SLEW.complete] = 0.0
+        return
     q = quaternion_multiply(q0, axis_angle_quaternion(e, theta))
     e_world = rotate(q0, e)
     for i in range(4):
@@ -318,7 +337,7 @@ class EigenaxisSlew(_TargetModel):
     discrete_states = SLEW_DISCRETE
     offsets = {"p": P_SLEW, "u": U_SLEW, "y": Y_SLEW, "z": Z_SLEW}
     default_period = "0.1 s"
-    state_outputs = staticmethod(_slew_outputs)
+    feedthrough_outputs = staticmethod(_slew_outputs)
     update = staticmethod(_slew_update)
 
 

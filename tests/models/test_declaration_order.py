@@ -24,7 +24,7 @@ DECLARATION_SUFFIXES = ("PARAMETERS", "INPUTS", "OUTPUTS", "CONTINUOUS", "DISCRE
 #: modules with module-level declaration tuples (the test below checks that the list is complete)
 REORDERED = ["aerodynamics", "allocation", "controllers", "gimbaled_engine", "gravity", "imu", "mass_depletion",
              "pd_attitude", "reaction_wheel", "slosh", "test_plants", "thruster",
-             "mrp_feedback", "guidance", "mekf"]
+             "mrp_feedback", "guidance", "mekf", "mode_manager"]
 
 
 def _is_declarations(node):
