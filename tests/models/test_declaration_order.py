@@ -22,8 +22,9 @@ from tests.models.model_cases import DRAWS, assert_identical, cases, kernel_resu
 MODELS = Path(__file__).resolve().parents[2] / "shell" / "models"
 DECLARATION_SUFFIXES = ("PARAMETERS", "INPUTS", "OUTPUTS", "CONTINUOUS", "DISCRETE")
 #: modules with module-level declaration tuples (the test below checks that the list is complete)
-REORDERED = ["aerodynamics", "allocation", "controllers", "gimbaled_engine", "gravity", "imu", "mass_depletion",
-             "pd_attitude", "reaction_wheel", "slosh", "test_plants", "thruster",
+REORDERED = ["aerodynamics", "allocation", "atmosphere", "controllers", "eclipse", "ephemeris", "gimbaled_engine", "gravity", "imu",
+             "magnetic", "magnetic_control", "mass_depletion", "pd_attitude", "reaction_wheel", "slosh", "srp",
+             "star_tracker", "sun_sensors", "test_plants", "third_body", "thruster",
              "mrp_feedback", "guidance", "mekf", "mode_manager"]
 
 
