@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tests.models import mrp_feedback_basilisk as bsk_case
-from shell.models.mrp_feedback import INPUTS, U, Y, Z, MrpFeedback, _mrp_feedback_update
+from shell.models.mrp_feedback import INPUTS, U, Z, MrpFeedback, _mrp_feedback_update
 from shell.log_file import read_log
 from shell.scenario import build_simulation, parse_scenario
 
