@@ -61,6 +61,8 @@ def cases(tmp_path):
         ("sun", "guidance", "SunPointing", {}),
         ("slew", "guidance", "EigenaxisSlew",
          dict(period=0.1, max_rate=0.02, max_acceleration=0.002, target={"euler": [0.3, 0.2, 0.1], "sequence": "ZYX"})),
+        ("cmgs", "cmg", "CmgCluster", dict(wheel_momentum=2.0)),
+        ("cmg_steering", "cmg", "CmgSteering", dict(period=0.1, wheel_momentum=2.0)),
         ("modes", "mode_manager", "AttitudeModeManager", dict(period=1.0, rate_threshold=0.01, pointing_threshold=0.02)),
         ("mekf", "mekf", "AttitudeMekf",
          dict(period=0.1, gyro_random_walk=1e-5, gyro_bias_random_walk=1e-7, star_tracker_noise=[1e-5, 2e-5, 5e-5])),

@@ -25,7 +25,7 @@ DECLARATION_SUFFIXES = ("PARAMETERS", "INPUTS", "OUTPUTS", "CONTINUOUS", "DISCRE
 REORDERED = ["aerodynamics", "allocation", "atmosphere", "controllers", "eclipse", "ephemeris", "gimbaled_engine", "gravity", "imu",
              "magnetic", "magnetic_control", "mass_depletion", "pd_attitude", "reaction_wheel", "slosh", "srp",
              "star_tracker", "sun_sensors", "test_plants", "third_body", "thruster",
-             "mrp_feedback", "guidance", "mekf", "mode_manager"]
+             "mrp_feedback", "guidance", "mekf", "mode_manager", "cmg"]
 
 
 def _is_declarations(node):
