@@ -9,11 +9,15 @@ condition for every demand to be producible by push-only jets.
 ``PseudoInverseAllocator``: commands ``c = A^+ d`` for a demanded vector d (torque, or [torque; force])
 and an actuator effectiveness matrix A (columns: what one unit command of each actuator produces),
 the minimum-norm solution of ``A c = d`` (Moore-Penrose, e.g. Wie sec. 7.5 for wheel clusters); the
-pseudo-inverse is formed once at build time. ``NodeLoadSum`` adds the torques and forces of several
+pseudo-inverse is formed once at build time. Saturation-aware: with ``max_command`` > 0, a solution
+whose largest command exceeds it is scaled as a whole by ``max_command / max |c_k|``, so the actuators
+produce ``s d`` (0 < s <= 1): the demand's direction is kept and no actuator is asked beyond its limit
+(clipping each command instead would turn the produced torque away from the demand). ``NodeLoadSum`` adds the torques and forces of several
 actuators acting at one node, so a cluster attaches to a node with one torque and one force.
 
 Array layouts depend on the numbers of actuators n and demands m (configuration): ``effectiveness``
-(m x n, row-major) starts the parameters and ``pseudo_inverse`` (n x m) follows it at ``m n``; the
+(m x n, row-major) starts the parameters, ``pseudo_inverse`` (n x m) follows it at ``m n`` and
+``max_command`` at ``2 m n``; the
 commands are one scalar output (and held state) per actuator in actuator order, ``command_k`` at
 ``k - 1``; NodeLoadSum's inputs repeat the block ``LOAD_INPUTS`` (torque, force) once per load, load k
 at ``k * LOAD_SIZE``. Each model sets the named offsets of its instance from these rules, and its
@@ -34,7 +38,7 @@ from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parame
 from shell.registry import register_model
 
 
-P_PINV = namedtuple("PseudoInverseParameters", "effectiveness pseudo_inverse")(0, None)
+P_PINV = namedtuple("PseudoInverseParameters", "effectiveness pseudo_inverse max_command")(0, None, None)
 U_PINV = namedtuple("PseudoInverseInputs", "demand")(0)
 P_NONNEGATIVE = namedtuple("NonnegativeParameters", "effectiveness max_command")(0, None)
 Z_NONNEGATIVE = namedtuple("NonnegativeDiscrete", "command")(0)
@@ -51,11 +55,18 @@ def _allocate(t, x, z, u, p, y):
     n = y.shape[0]
     m = u.shape[0]
     start = P_PINV.effectiveness + m * n  # pseudo_inverse follows the m x n effectiveness
+    largest = 0.0
     for i in range(n):
         acc = 0.0
         for j in range(m):
             acc += p[start + i * m + j] * u[U_PINV.demand + j]
         y[i] = acc
+        largest = max(largest, abs(acc))
+    limit = p[start + n * m]  # max_command follows the n x m pseudo-inverse
+    if limit > 0.0 and largest > limit:
+        scale = limit / largest  # the whole command scaled: the produced vector keeps the demand's direction
+        for i in range(n):
+            y[i] *= scale
 
 
 @register_model
@@ -80,6 +91,9 @@ class PseudoInverseAllocator(Model):
                       "A: column k is the demand produced by a unit command of actuator k"),
             Parameter("pseudo_inverse", f"({self.command_unit})/({self.demand_unit})", np.zeros((n, m)), (n, m),
                       None, "computed from A at build time (do not give)"),
+            Parameter("max_command", self.command_unit, 0.0, (), (0.0, None),
+                      "largest single command; a larger solution is scaled down as a whole, keeping the "
+                      "direction of the produced vector (0: no limit)"),
         )
         self.inputs = (InputPort("demand", self.demand_unit, (m,), "demanded vector d", feedthrough=True),)
         self.outputs = tuple(OutputPort(f"command_{k + 1}", self.command_unit, (), f"command of actuator {k + 1}",

@@ -3,7 +3,12 @@
 Momentum representation (the wheel is a state of this model, the bus a body of the engine): the wheel's
 absolute spin momentum ``h = J_w (a . omega + Omega)`` about its unit spin axis ``a`` (node axes) obeys
 
-    dh/dt = tau_m - tau_f(Omega),        tau_f = c tanh(Omega / Omega_s) + b Omega     (Coulomb + viscous)
+    dh/dt = tau_m - tau_f(Omega),
+    tau_f = [c + s exp(-(Omega / Omega_st)^2)] tanh(Omega / Omega_s) + b Omega
+
+(Coulomb c, viscous b and the Stribeck excess s of the breakaway torque c + s over the Coulomb
+level, decaying over the Stribeck speed Omega_st: Armstrong-Helouvry, Dupont and Canudas de Wit,
+Automatica 30(7), 1994, eq. 4; the sign function regularized by tanh over Omega_s)
 
 and the wheel acts on the node with the torque ``-(tau_m - tau_f) a - omega x (h a)``: the reaction of
 the motor and the gyroscopic coupling of the stored momentum. With the bus inertia in the engine
@@ -45,6 +50,9 @@ WHEEL_PARAMETERS = (
     Parameter("coulomb_smoothing_speed", "rad/s", 0.1, (), (1e-9, None),
               "speed over which the Coulomb torque reaches its level (tanh regularization)"),
     Parameter("viscous_friction", "N*m*s/rad", 0.0, (), (0.0, None), "viscous friction coefficient"),
+    Parameter("stribeck_friction", "N*m", 0.0, (), (0.0, None),
+              "Stribeck excess: breakaway torque minus Coulomb torque (0: no Stribeck effect)"),
+    Parameter("stribeck_speed", "rad/s", 1.0, (), (1e-9, None), "speed over which the Stribeck excess decays"),
     Parameter("static_imbalance", "kg*m", 0.0, (), (0.0, None), "static imbalance U_s (datasheet g*cm)"),
     Parameter("dynamic_imbalance", "kg*m^2", 0.0, (), (0.0, None), "dynamic imbalance U_d (g*cm^2)"),
 )
@@ -96,8 +104,14 @@ def motor_torque(command, speed, max_torque, max_speed):
 
 
 @njit(cache=True)
-def friction_torque(speed, coulomb, smoothing_speed, viscous):
-    return coulomb * np.tanh(speed / smoothing_speed) + viscous * speed
+def friction_torque(speed, coulomb, smoothing_speed, viscous, stribeck=0.0, stribeck_speed=1.0):
+    """Coulomb + Stribeck + viscous friction torque (module docstring); stribeck = 0: the exact
+    Coulomb + viscous value."""
+    level = coulomb
+    if stribeck > 0.0:
+        ratio = speed / stribeck_speed
+        level = coulomb + stribeck * np.exp(-ratio * ratio)
+    return level * np.tanh(speed / smoothing_speed) + viscous * speed
 
 
 @njit(cache=True)
@@ -108,7 +122,7 @@ def _wheel_motor_torque(x, u, p, speed):
 @njit(cache=True)
 def _wheel_friction(p, speed):
     return friction_torque(speed, p[P_WHEEL.coulomb_friction], p[P_WHEEL.coulomb_smoothing_speed],
-                           p[P_WHEEL.viscous_friction])
+                           p[P_WHEEL.viscous_friction], p[P_WHEEL.stribeck_friction], p[P_WHEEL.stribeck_speed])
 
 
 @njit(cache=True)
@@ -167,6 +181,8 @@ MOTOR_PARAMETERS = (
     Parameter("coulomb_friction", "N*m", 0.0, (), (0.0, None), "Coulomb friction torque"),
     Parameter("coulomb_smoothing_speed", "rad/s", 0.1, (), (1e-9, None), "tanh regularization speed"),
     Parameter("viscous_friction", "N*m*s/rad", 0.0, (), (0.0, None), "viscous friction coefficient"),
+    Parameter("stribeck_friction", "N*m", 0.0, (), (0.0, None), "Stribeck excess over the Coulomb torque"),
+    Parameter("stribeck_speed", "rad/s", 1.0, (), (1e-9, None), "speed over which the Stribeck excess decays"),
 )
 MOTOR_INPUTS = (
     InputPort("torque_command", "N*m", (), "commanded motor torque", feedthrough=True),
@@ -185,7 +201,7 @@ def _motor_torque(t, x, z, u, p, y):
     speed = u[U_MOTOR.u]
     tau = motor_torque(u[U_MOTOR.torque_command], speed, p[P.max_torque], p[P.max_speed])
     y[Y_MOTOR.torque] = tau - friction_torque(speed, p[P.coulomb_friction], p[P.coulomb_smoothing_speed],
-                                              p[P.viscous_friction])
+                                              p[P.viscous_friction], p[P.stribeck_friction], p[P.stribeck_speed])
     y[Y_MOTOR.motor_torque] = tau
 
 

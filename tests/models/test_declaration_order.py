@@ -24,7 +24,8 @@ DECLARATION_SUFFIXES = ("PARAMETERS", "INPUTS", "OUTPUTS", "CONTINUOUS", "DISCRE
 #: modules with module-level declaration tuples (the test below checks that the list is complete)
 REORDERED = ["aerodynamics", "allocation", "atmosphere", "controllers", "eclipse", "ephemeris", "gimbaled_engine", "gravity", "imu",
              "magnetic", "magnetic_control", "mass_depletion", "pd_attitude", "reaction_wheel", "slosh", "srp",
-             "star_tracker", "sun_sensors", "third_body", "thruster"]
+             "star_tracker", "sun_sensors", "third_body", "thruster",
+             "mrp_feedback", "guidance", "mekf", "mode_manager", "cmg"]
 
 
 def _is_declarations(node):
