@@ -11,16 +11,16 @@ geometric-stiffening terms of the SID) is to compute, once, the geometric stiffn
 under unit inertial load cases and to scale them in the equations of motion by the current rigid-body
 motion. Here the load cases are the d'Alembert loads of the body frame's motion on the lumped node
 masses ``B_j`` (6 x 6 grid blocks of the lumped mass matrix, the same nodal model as the modal
-integrals), with ``l_j`` the grid position from the reference point (body frame):
+integrals), with ``l_j`` the grid position from the reference point (body frame)::
 
-==========  ======  ===========================================  ==========================================
-name        count   node load (translation part; rotation part)  scaled in the engine by
-==========  ======  ===========================================  ==========================================
-translation 3 (k)   B_j [e_k; 0]                                 v_k (with eta_dot), (v x omega)_k
-rotation    3 (k)   B_j [e_k x l_j; e_k]                         omega_k (with eta_dot)
-angular_    3 x 3   B_j [omega-product field; 0], field          omega_a omega_b
-velocity    (a, b)  delta_ab l_j - (e_a l_jb + e_b l_ja) / 2
-==========  ======  ===========================================  ==========================================
+    ==========  ======  ===========================================  ==========================================
+    name        count   node load (translation part; rotation part)  scaled in the engine by
+    ==========  ======  ===========================================  ==========================================
+    translation 3 (k)   B_j [e_k; 0]                                 v_k (with eta_dot), (v x omega)_k
+    rotation    3 (k)   B_j [e_k x l_j; e_k]                         omega_k (with eta_dot)
+    angular_    3 x 3   B_j [omega-product field; 0], field          omega_a omega_b
+    velocity    (a, b)  delta_ab l_j - (e_a l_jb + e_b l_ja) / 2
+    ==========  ======  ===========================================  ==========================================
 
 (translation = the load of a unit acceleration -e_k, rotation = of a unit angular acceleration -e_k, the
 angular-velocity products sum to the centrifugal load ``m_j (|omega|^2 l_j - omega (omega . l_j))``.)

@@ -73,7 +73,7 @@ def _bdot_update(t, x, z, u, p):
 
 @register_model
 class BDot(Model):
-    """B-dot detumbling law m = -k dB/dt (backward difference of the sampled field), direction-preserving
+    """B-dot detumbling law ``m = -k dB/dt`` (backward difference of the sampled field), direction-preserving
     dipole limits; see the module docstring."""
 
     summary = "B-dot detumbling: field (node axes) in, dipole_command = -k dB/dt out (held, limited)"
@@ -118,7 +118,7 @@ def _dump_update(t, x, z, u, p):
 
 @register_model
 class MomentumDumping(Model):
-    """Magnetic momentum dumping m = k (h x B) / |B|^2, direction-preserving dipole limits."""
+    """Magnetic momentum dumping ``m = k (h x B) / |B|^2``, direction-preserving dipole limits."""
 
     summary = "magnetic momentum dumping: field and wheel_momentum in, dipole_command = k h x B / |B|^2 out"
     parameters = DUMP_PARAMETERS

@@ -9,7 +9,7 @@ sec. 7.2.4 (Table 7.1), with the gyro model of sec. 4.7.1 (Farrenkopf):
 ``gyro_bias_random_walk``). The estimate is ``q`` (node -> world) and ``beta``; the six error states
 are the small rotation ``dtheta`` in node axes (``q_true = q (x) [1, dtheta/2]``) and ``dbeta``.
 At each sample (period dt, the gyro's rate ``omega_meas`` the mean over the last period, as the IMU
-gives it):
+gives it)::
 
     propagate   w = omega_meas - beta,  q <- q (x) exp(w dt / 2),  P <- Phi P Phi^T + Q      (eqs. 7.39-7.47)
                 Phi = [[Phi11, Phi12], [0, I]],  with |w| = n, W = [w x]:

@@ -1,7 +1,7 @@
 """Attitude mode manager: detumble -> Sun pointing -> fine pointing, with switching conditions.
 
 Sampled at its own rate, it keeps the mode (0 detumble, 1 pointing, 2 fine pointing / slew) as a
-discrete state and advances it, never back:
+discrete state and advances it, never back::
 
     0 -> 1  when |omega_meas| < rate_threshold has held for hold_time (and the mode lasted min_time)
     1 -> 2  when the pointing error 4 atan |sigma| < pointing_threshold has held for hold_time

@@ -3,7 +3,7 @@
 At each sample t_k the model reads the measured attitude ``q_BN`` (node -> world) and rate
 ``omega_BN`` (node axes), the reference ``q_RN`` (reference -> world) with its angular velocity
 ``omega_RN`` and acceleration ``omega_RN'`` (world axes, as Basilisk's attitude reference message)
-and, optionally, the wheels' spin momentum ``h_s`` (node axes), and holds until the next sample
+and, optionally, the wheels' spin momentum ``h_s`` (node axes), and holds until the next sample::
 
     sigma      = MRP of q_BR = q_RN^* (x) q_BN           (short rotation, |sigma| <= 1)
     d_omega    = omega_BN - omega_RN                      (node axes)

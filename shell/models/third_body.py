@@ -8,8 +8,8 @@ The acceleration relative to the Earth (Montenbruck & Gill, "Satellite Orbits", 
     a = mu_b [ (s - r) / |s - r|^3 - s / |s|^3 ]        for each body b at s
 
 (the second term is the Earth's own acceleration toward the body: the frame is Earth-centred). The two
-terms nearly cancel near the Earth (their difference is O(|r|/|s|) of each): in double precision that
-costs about log10(|s|/|r|) digits, 4 of 16 for the Sun and 2 for the Moon, so the direct form is kept
+terms nearly cancel near the Earth (their difference is ``O(|r|/|s|)`` of each): in double precision that
+costs about ``log10(|s|/|r|)`` digits, 4 of 16 for the Sun and 2 for the Moon, so the direct form is kept
 (tests/models/test_third_body.py measures it against a 50-digit evaluation). Outputs: ``force = m R^T a``
 (node axes) and
 ``gravitational_acceleration`` (node axes).
@@ -48,7 +48,7 @@ P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUT
 
 @njit(cache=True)
 def third_body_acceleration(r0, r1, r2, s0, s1, s2, mu):
-    """mu [(s - r)/|s - r|^3 - s/|s|^3] (M&G eq. 3.37); zero for s = 0."""
+    """``mu [(s - r)/|s - r|^3 - s/|s|^3]`` (M&G eq. 3.37); zero for s = 0."""
     sn2 = s0 * s0 + s1 * s1 + s2 * s2
     if sn2 == 0.0:
         return 0.0, 0.0, 0.0
