@@ -170,12 +170,7 @@ class EngineWork(NamedTuple):
     status: np.ndarray          # (1,) int64: 0, or 1 + the body whose articulated inertia was singular
 
 
-# _nrt=False (engine_kernel, _solve_accelerations): no reference counting inside. Both allocate nothing
-# (numba refuses to compile them otherwise), and with reference counting every call increfed and decrefed the
-# 32 arrays of the engine data at entry and exit: ~0.4 us per call, three calls per derivative (measured:
-# a call that only normalizes the quaternion 0.54 -> 0.12 us; a derivative of the reaction-wheel scene
-# 7.1 -> 4.2 us). Callees keep their own (balanced) counting; the caller owns every array.
-@njit(cache=True, _nrt=False)
+@njit(cache=True)
 def _solve_accelerations(x, u, d):
     """Scatter the input ports into the engine's arrays and run its forward dynamics into ``work.udot``.
     A singular articulated inertia records the body in ``work.status`` and makes the accelerations NaN,
@@ -210,7 +205,7 @@ def _copy_blocks(source, blocks, y):
 STATE_OUTPUTS, FEEDTHROUGH_OUTPUTS, DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, NORMALIZE = range(5)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True)
 def engine_kernel(op, t, x, z, u, p, d, out):
     """Every kernel of the engine model in one compiled function (``op`` selects it), so the engine's
     code is compiled once, not once per kernel: state outputs, feedthrough outputs (forward dynamics and
