@@ -173,7 +173,7 @@ def test_sigterm_closes_the_log_as_interrupted(tmp_path):
     try:
         _wait_for_samples(path, process)
         process.send_signal(signal.SIGTERM)
-        # Python runs the handler only between bytecodes: a numba compilation in progress (a cold cache compiles
+        # Python runs the handler only between bytecodes: most likely a numba compilation in progress (a cold cache compiles
         # some kernels after the first samples are logged) defers it until the compilation ends, which took over
         # 60 s once on this 2-core machine; the exit itself is what is checked, not its latency
         _, err = process.communicate(timeout=600)
