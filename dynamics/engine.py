@@ -34,10 +34,46 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 
 from dynamics import kernels as K
 from dynamics import single_body as SB
+
+
+def _strip_references(context, builder, typ, value):
+    """``value`` of numba type ``typ`` with every array's meminfo (and parent) set to null: see
+    :func:`borrowed`."""
+    if isinstance(typ, types.Array):
+        model = context.data_model_manager[typ]
+        for field in ("meminfo", "parent"):
+            index = model.get_field_position(field)
+            value = builder.insert_value(value, ir.Constant(value.type.elements[index], None), index)
+        return value
+    if isinstance(typ, types.BaseTuple):
+        for index, member in enumerate(typ.types):
+            if isinstance(member, (types.Array, types.BaseTuple)):
+                stripped = _strip_references(context, builder, member, builder.extract_value(value, index))
+                value = builder.insert_value(value, stripped, index)
+    return value
+
+
+@intrinsic
+def borrowed(typingctx, value):
+    """``value`` (an array, or a tuple / named tuple of arrays, nested) as *borrowed* references: the
+    same arrays with their meminfo set to null, so numba's reference counting of them (an atomic
+    increment and decrement each time one is passed to or taken from a function, ~32 arrays per engine
+    call) becomes a null test. Valid only while the owner keeps the arrays alive: the engine's arrays
+    belong to the simulation's context, which outlives every compiled call on them. Measured on the
+    reaction-wheel scene: see ``shell.models.multibody.engine_kernel``."""
+    if not isinstance(value, (types.Array, types.BaseTuple)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        return _strip_references(context, builder, sig.args[0], args[0])
+
+    return value(value), codegen
 
 
 class EngineData(NamedTuple):
