@@ -103,7 +103,7 @@ def engine_data(system) -> EngineData:
         system.ws_mat, system.pool, np.zeros((system.nbodies, 6)))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def forward_dynamics(d, q, u, tau, node_forces, udot, tau_out):
     """Accelerations of all DOFs into ``udot`` (which holds the prescribed accelerations on entry) and the
     generalized forces into ``tau_out`` (``tau`` at free DOFs, the force realizing the prescribed motion
@@ -120,7 +120,7 @@ def forward_dynamics(d, q, u, tau, node_forces, udot, tau_out):
                               d.zero_body_forces, udot, tau_out, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def node_kinematics(d, q, u, udot, rotation, position, velocity, acceleration):
     """Per node: ``rotation`` (nnodes, 3, 3) node -> world, ``position`` (nnodes, 3) world,
     ``velocity`` (nnodes, 6) ``[omega; v]`` and ``acceleration`` (nnodes, 6) ``[omega_dot; a]`` (classical
@@ -133,7 +133,7 @@ def node_kinematics(d, q, u, udot, rotation, position, velocity, acceleration):
                       velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def node_kinematics_after_dynamics(d, q, u, udot, rotation, position, velocity, acceleration):
     """:func:`node_kinematics` (same outputs) for the ``udot`` that :func:`forward_dynamics` just returned
     at the same ``q``, ``u`` with the same ``d``: it reuses the poses, velocities and accelerations left in
@@ -147,13 +147,13 @@ def node_kinematics_after_dynamics(d, q, u, udot, rotation, position, velocity, 
                                      position, velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def coordinate_rates(d, q, u, qdot):
     """``qdot = f(q, u)`` (quaternion kinematics for spherical and free hinges, identity elsewhere)."""
     K.coordinate_rates(d.topology, q, u, qdot)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def normalize_quaternions(d, q):
     """Divide every hinge quaternion of ``q`` by its norm, in place (a sequential sum of squares, the
     same arithmetic in the interpreted and the compiled loop)."""

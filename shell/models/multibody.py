@@ -170,7 +170,7 @@ class EngineWork(NamedTuple):
     status: np.ndarray          # (1,) int64: 0, or 1 + the body whose articulated inertia was singular
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _solve_accelerations(x, u, d):
     """Scatter the input ports into the engine's arrays and run its forward dynamics into ``work.udot``.
     A singular articulated inertia records the body in ``work.status`` and makes the accelerations NaN,
@@ -193,7 +193,7 @@ def _solve_accelerations(x, u, d):
             work.udot[k] = np.nan
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _copy_blocks(source, blocks, y):
     for b in range(blocks.shape[0]):
         y0, s0, n = blocks[b, 0], blocks[b, 1], blocks[b, 2]
