@@ -87,7 +87,7 @@ def msis_log_density_profile(epoch_julian_date, latitude_deg, longitude_deg, alt
     epoch = np.datetime64(_epoch_datetime(epoch_julian_date).replace(microsecond=0))
     out = pymsis.calculate(epoch, float(longitude_deg), float(latitude_deg), np.asarray(altitudes_m) / 1e3,
                            f107s=f107, f107as=f107_average, aps=[[ap] * 7], version=2.1)
-    return np.log(np.squeeze(out[..., pymsis.Variable.MASS_DENSITY]))
+    return np.log(out[..., pymsis.Variable.MASS_DENSITY]).reshape(np.shape(altitudes_m))
 
 
 def msis_log_density_table(epoch_julian_date, f107, f107_average, ap):
