@@ -160,7 +160,8 @@ class Aerodynamics(Model):
     atmosphere (config: atmosphere, epoch)."""
 
     summary = ("launch-vehicle aerodynamics at a node: C_N_alpha, C_A, center of pressure; exponential or "
-               "NRLMSIS 2.1 atmosphere (config: atmosphere, epoch)")
+               "NRLMSIS 2.1 atmosphere (config: atmosphere: nrlmsis, epoch; then parameters latitude, longitude, "
+               "f107, f107_average, ap instead of sea_level_density, scale_height)")
     parameters = PARAMETERS
     inputs = INPUTS
     outputs = OUTPUTS
