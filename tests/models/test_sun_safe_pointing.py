@@ -130,11 +130,13 @@ def test_sun_safe_scene_through_the_command_line(tmp_path):
     truth_body = np.einsum("kji,kj->ki", rotation, to_sun)             # R^T s: the Sun in body axes
     assert np.degrees(np.arccos(truth_body[0, 2])) > 80.0              # +z starts ~90 deg from the Sun
     assert np.all(log["sun_estimate.valid"] == 1.0)
-    # the estimate against the true Sun direction: 0.2 % noise on four lit corner cells is ~0.2 deg
+    # the estimate against the true Sun direction: 0.2 % noise on three or four lit corner cells, measured
+    # 0.14 deg RMS (0.42 deg max) after 300 s
     error = np.degrees(np.arccos(np.clip(np.einsum("ki,ki->k", log["sun_estimate.sun_direction"], truth_body), -1, 1)))
     settled = t >= 300.0
-    assert np.sqrt(np.mean(error[settled] ** 2)) < 0.3 and error.max() < 1.5
-    # the true pointing: +z on the Sun within the estimate's noise once settled
+    assert np.sqrt(np.mean(error[settled] ** 2)) < 0.2 and error.max() < 1.0
+    # the true pointing: +z on the Sun, the estimate's noise filtered by the slow loop (measured below 1 deg
+    # at 193 s, then at most 0.074 deg)
     pointing = np.degrees(np.arccos(np.clip(truth_body[:, 2], -1, 1)))
-    assert pointing[settled].max() < 0.5
-    assert np.degrees(np.linalg.norm(log["multibody.cm.angular_velocity"][settled], axis=1)).max() < 0.05
+    assert pointing[settled].max() < 0.2
+    assert np.degrees(np.linalg.norm(log["multibody.cm.angular_velocity"][settled], axis=1)).max() < 0.01
