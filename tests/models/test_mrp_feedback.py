@@ -200,11 +200,11 @@ def test_closed_loop_with_wheels_equals_basilisk_scenario_attitude_feedback_rw(t
     log = logs[True]
     assert_allclose(log["time"][:len(t)], t, atol=1e-9)
     assert np.abs(log["controller.torque"]).max() > 0.2          # saturated: the wheels' limit is in play
-    # same RK4 at 10 ms, same hold: round-off over 30,000 steps (measured over 100 s: 6.8e-14 rad,
-    # 3.1e-15 rad/s, wheel speeds 2.8e-11 rad/s of 170 rad/s)
+    # same RK4 at 10 ms, same hold: round-off over 30,000 steps (measured 1.5e-13 rad, 6.5e-15 rad/s, wheel
+    # speeds 7.1e-11 rad/s of 291 rad/s)
     assert angle(log).max() < 1e-11
     assert np.abs(log["multibody.bus.angular_velocity"][:len(t)] - omega_b).max() < 1e-12
     speeds = np.column_stack([log[f"rw{k}.wheel_speed"] for k in (1, 2, 3)])[:len(t)]
     assert np.abs(speeds - speeds_b).max() < 1e-9
-    # without the wheels' momentum the same loop departs from Basilisk's: the input matters
-    assert angle(logs[False]).max() > 1e-4
+    # without the wheels' momentum the same loop departs from Basilisk's (measured 0.17 rad): the input matters
+    assert angle(logs[False]).max() > 1e-2
