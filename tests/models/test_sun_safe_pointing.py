@@ -29,9 +29,9 @@ def _rotation(q):
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def _signals(normals, sun_dir, noise=None, sigma=0.0):
+def _signals(normals, sun_dir, noise=None, sigma=0.0, css=None):
     """The CoarseSunSensors kernel's outputs (node = world axes, 1 AU from the Sun, no albedo)."""
-    css = CoarseSunSensors("css", sensors=len(normals), normal=normals, noise=sigma)
+    css = css or CoarseSunSensors("css", sensors=len(normals), normal=normals, noise=sigma)
     position = np.array([7e6, 0.0, 0.0])
     u = np.r_[position, np.eye(3).ravel(), position + ASTRONOMICAL_UNIT * np.asarray(sun_dir), 1.0]
     z = css.initial_discrete_state()
@@ -89,9 +89,10 @@ def test_estimate_noise_against_the_least_squares_covariance():
     projector = np.eye(3) - np.outer(s, s)
     predicted = np.sqrt(sigma**2 * np.trace(projector @ np.linalg.inv(lit.T @ lit) @ projector))
     rng = np.random.default_rng(9)
+    css = CoarseSunSensors("css", sensors=8, normal=CORNERS, noise=sigma)
     angles = []
     for _ in range(4000):
-        signals = _signals(CORNERS, s, noise=rng.normal(size=8), sigma=sigma)
+        signals = _signals(CORNERS, s, noise=rng.normal(size=8), css=css)
         signals[CORNERS @ s <= 0] = 0.0   # the unlit cells' noise clips at zero; keep them out (threshold 0)
         direction, valid, _ = _estimate(model, signals)
         assert valid == 1.0
