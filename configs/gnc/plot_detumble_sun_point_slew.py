@@ -42,6 +42,9 @@ def summary(log) -> dict:
         angle = log["slew.slew_angle"][slew]
         done = np.flatnonzero(np.diff(angle) == 0.0)
         out["slew_angle_deg"] = float(np.degrees(angle.max()))
+        # tracking: from the start to the end of the profile (the first sample at its final angle)
+        profile = slew & (t <= t[slew][np.argmax(angle >= angle.max())])
+        out["slew_tracking_error_deg_max"] = float(pointing[profile].max())
         end = t[-1]
         last = t > end - 200.0
         out["final_pointing_error_deg_max_last_200s"] = float(pointing[last].max())

@@ -73,11 +73,28 @@ LAT0, DLAT = float(LATITUDES[0]), float(LATITUDES[1] - LATITUDES[0])
 DLST = float(LOCAL_TIMES[1] - LOCAL_TIMES[0])
 
 
+def _epoch_datetime(epoch_julian_date):
+    """The UTC date-time of a Julian date, to the microsecond."""
+    return _datetime.datetime(2000, 1, 1, 12) + _datetime.timedelta(days=float(epoch_julian_date) - J2000)
+
+
+def msis_log_density_profile(epoch_julian_date, latitude_deg, longitude_deg, altitudes_m, f107, f107_average, ap):
+    """ln(total mass density, kg/m^3) from pymsis (NRLMSIS 2.1) at one site (geodetic latitude and
+    longitude, deg) and one instant (the epoch, to the second) at the given altitudes (m), with the given
+    daily F10.7, its 81-day mean and a constant Ap (no space-weather file downloaded)."""
+    import pymsis
+
+    epoch = np.datetime64(_epoch_datetime(epoch_julian_date).replace(microsecond=0))
+    out = pymsis.calculate(epoch, float(longitude_deg), float(latitude_deg), np.asarray(altitudes_m) / 1e3,
+                           f107s=f107, f107as=f107_average, aps=[[ap] * 7], version=2.1)
+    return np.log(out[..., pymsis.Variable.MASS_DENSITY]).reshape(np.shape(altitudes_m))
+
+
 def msis_log_density_table(epoch_julian_date, f107, f107_average, ap):
     """ln(total mass density, kg/m^3) from pymsis (NRLMSIS 2.1) on the module's grid at the epoch."""
     import pymsis
 
-    epoch = _datetime.datetime(2000, 1, 1, 12) + _datetime.timedelta(days=float(epoch_julian_date) - J2000)
+    epoch = _epoch_datetime(epoch_julian_date)
     ut_hours = epoch.hour + epoch.minute / 60.0 + epoch.second / 3600.0
     table = np.empty((N_ALT, N_LAT, N_LST))
     for k, lst in enumerate(LOCAL_TIMES):

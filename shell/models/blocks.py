@@ -1,17 +1,19 @@
-"""Signal blocks: constant, gain, integrator, sample-and-hold and noisy sampler.
+"""Signal blocks: constant, gain, sum, integrator, sample-and-hold and noisy sampler.
 
 Small framework-level models used to wire scenes, to test the framework, and as the "trivial models"
 of the orchestration-overhead benchmark. Each block's port unit and shape are chosen at construction
 (``unit="deg/s"``, ``shape=(3,)``; in YAML under ``config:``); parameters take the port unit.
 
-Equations: Constant y = c; Gain y = k u (direct feedthrough); Integrator x' = u, y = x;
+Equations: Constant y = c; Gain y = k u (direct feedthrough); Sum y = u_1 + ... + u_n (direct
+feedthrough, e.g. the wheels' spin momenta into one controller input); Integrator x' = u, y = x;
 SampleHold z(t_k) = u(t_k), y = z (zero-order hold, TM-2020-5008164 App. D.1 multi-rate models), with a
 sample counter; NoisySampler z(t_k) = u(t_k) + sigma n_k, n_k ~ N(0, 1) from the model's own stream.
 
 Array layouts: a block's port shape is a construction option, so its offsets are not compile-time
 constants beyond the first declaration of each array: the named tuples below hold those (always 0)
 and ``None`` where the kernel derives the offset from array sizes (SampleHold's sample counter follows
-the held sample: at ``Z_HOLD.held + u.shape[0]``). The construction check refuses any other order.
+the held sample: at ``Z_HOLD.held + u.shape[0]``; Sum's input k starts at ``(k - 1) y.shape[0]``). The
+construction check refuses any other order.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, OutputPort, Parameter, State
+from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State
 from shell.registry import register_model
 
 
@@ -31,6 +33,7 @@ def _offsets(typename, **offsets):
 
 P_CONSTANT, Y_CONSTANT = _offsets("ConstantParameters", value=0), _offsets("ConstantOutputs", y=0)
 P_GAIN, U_GAIN, Y_GAIN = _offsets("GainParameters", k=0), _offsets("GainInputs", u=0), _offsets("GainOutputs", y=0)
+Y_SUM = _offsets("SumOutputs", y=0)
 U_INTEGRATOR, Y_INTEGRATOR = _offsets("IntegratorInputs", u=0), _offsets("IntegratorOutputs", y=0)
 X_INTEGRATOR = _offsets("IntegratorStates", x=0)
 U_HOLD, Y_HOLD = _offsets("SampleHoldInputs", u=0), _offsets("SampleHoldOutputs", y=0)
@@ -50,6 +53,16 @@ def _constant(t, x, z, u, p, y):
 def _gain(t, x, z, u, p, y):
     for i in range(y.shape[0]):
         y[Y_GAIN.y + i] = p[P_GAIN.k] * u[U_GAIN.u + i]
+
+
+@njit(cache=True)
+def _sum(t, x, z, u, p, y):
+    m = y.shape[0]
+    for i in range(m):
+        y[Y_SUM.y + i] = 0.0
+    for k in range(u.shape[0] // m):  # input k + 1 starts at k m
+        for i in range(m):
+            y[Y_SUM.y + i] += u[k * m + i]
 
 
 @njit(cache=True)
@@ -130,6 +143,28 @@ class Gain(_Block):
         self.parameters = (Parameter("k", gain_unit, 1.0, description="gain"),)
         self.inputs = (InputPort("u", self.unit, self.shape, "input", feedthrough=True),)
         self.outputs = (OutputPort("y", self.output_unit, self.shape, "k u", feedthrough=True),)
+
+
+@register_model
+class Sum(_Block):
+    """y = u_1 + ... + u_count, direct feedthrough (config: count, unit, shape)."""
+
+    summary = "sum of count inputs u_1 .. u_count of one unit and shape (config: count, unit, shape)"
+    feedthrough_outputs = staticmethod(_sum)
+
+    def __init__(self, name: str, *, count: int = 2, unit: str = "", shape=(), **kwargs):
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
+            raise ModelError(f"model {name}: config count: expected an integer >= 1 (the number of inputs), "
+                             f"given {count!r}")
+        self.count = int(count)
+        super().__init__(name, unit=unit, shape=shape, **kwargs)
+
+    def declare(self):
+        self.inputs = tuple(InputPort(f"u_{k}", self.unit, self.shape, f"term {k}", feedthrough=True)
+                            for k in range(1, self.count + 1))
+        self.outputs = (OutputPort("y", self.unit, self.shape, "sum of the inputs", feedthrough=True),)
+        self.offsets = {"u": _offsets("SumInputs", **{f"u_{k}": 0 if k == 1 else None
+                                                    for k in range(1, self.count + 1)}), "y": Y_SUM}
 
 
 @register_model

@@ -20,6 +20,21 @@ the Sun ephemeris model or a constant), ``secondary`` towards the world directio
 replaces it, so the frame is always defined). Zero reference rates: the Sun line moves about
 2e-7 rad/s in Earth orbit, a tracking error of ``P 2e-7 / K`` (MRP) with MrpFeedback's gains.
 
+``SunSafePointing``: Sun pointing from a Sun direction measured in node axes (``SunDirectionEstimate``
+on the coarse sun sensors), with no attitude estimate (the law of Basilisk's ``sunSafePoint``). With the
+unit ``boresight`` b and the measured direction s, the reference frame R is the node frame turned by the
+shortest rotation taking b onto s (angle ``theta = acos(b . s)`` about ``e = b x s / |b x s|``); R's
+boresight is on the Sun, so ``C_RB s = b`` and::
+
+    q_BR = [cos(theta/2), -sin(theta/2) e]        (node -> R; MRP -tan(theta/4) e)
+
+Output ``attitude`` is q_BR: wire it to ``MrpFeedback.attitude`` with the controller's reference inputs
+unconnected (identity, zero rates) and a gyro on its ``angular_velocity``; MrpFeedback's
+``-K sigma - P omega`` then turns b about e onto the Sun and damps the rate (the Sun line moves about
+2e-7 rad/s in Earth orbit). Antiparallel (theta = pi) e is any axis perpendicular to b; with ``valid``
+below 0.5 (eclipse, fewer than three lit cells) the output is the identity: rate damping only. Output
+``pointing_error`` theta.
+
 ``EigenaxisSlew`` (sampled): holds the attitude measured at its first sample; at the first sample
 at or after ``start_time`` with ``trigger`` >= 0.5 (unconnected: always) it captures the measured
 attitude ``q_0`` and rotates about the fixed eigenaxis ``e`` of ``q_0^* (x) q_target`` by the angle
@@ -346,3 +361,55 @@ def slew_duration(angle: float, max_rate: float, max_acceleration: float) -> flo
     if angle >= max_rate**2 / max_acceleration:
         return angle / max_rate + max_rate / max_acceleration
     return 2.0 * np.sqrt(angle / max_acceleration)
+
+
+# ------------------------------------------------------------------------------------------------
+SAFE_PARAMETERS = (Parameter("boresight", "", (0.0, 0.0, 1.0), (3,), None, "body axis pointed at the Sun"),)
+SAFE_INPUTS = (
+    InputPort("sun_direction", "", (3,), "measured Sun direction, node axes (SunDirectionEstimate)", feedthrough=True),
+    InputPort("valid", "", (), "the measurement is usable (>= 0.5)", feedthrough=True, required=False, default=1.0),
+)
+SAFE_OUTPUTS = (
+    OutputPort("attitude", "", (4,), "q_BR, node -> Sun-pointing frame (MrpFeedback.attitude)", feedthrough=True),
+    OutputPort("pointing_error", "rad", (), "angle between the boresight and the measured Sun direction",
+               feedthrough=True),
+)
+P_SAFE, U_SAFE, Y_SAFE = named_offsets(SAFE_PARAMETERS), named_offsets(SAFE_INPUTS), named_offsets(SAFE_OUTPUTS)
+
+
+@njit(cache=True)
+def _sun_safe_attitude(t, x, z, u, p, y):
+    b = unit((p[P_SAFE.boresight], p[P_SAFE.boresight + 1], p[P_SAFE.boresight + 2]))
+    d = (u[U_SAFE.sun_direction], u[U_SAFE.sun_direction + 1], u[U_SAFE.sun_direction + 2])
+    q = (1.0, 0.0, 0.0, 0.0)
+    theta = 0.0
+    if u[U_SAFE.valid] >= 0.5 and dot(d, d) > 0.0:
+        s = unit(d)
+        c = cross(b, s)
+        sine = np.sqrt(dot(c, c))
+        theta = np.arctan2(sine, dot(b, s))
+        if sine > 1e-12:
+            e = (c[0] / sine, c[1] / sine, c[2] / sine)
+        else:  # parallel (theta = 0: no turn) or antiparallel: any axis perpendicular to b
+            h = (1.0, 0.0, 0.0) if abs(b[0]) < 0.9 else (0.0, 1.0, 0.0)
+            e = unit(cross(b, h))
+        q = axis_angle_quaternion(e, -theta)
+    for i in range(4):
+        y[Y_SAFE.attitude + i] = q[i]
+    y[Y_SAFE.pointing_error] = theta
+
+
+@register_model
+class SunSafePointing(Model):
+    """Sun pointing from a measured Sun direction (node axes), no attitude estimate; see the module docstring."""
+
+    summary = "Sun-safe pointing from a measured Sun direction (node axes): q_BR for MrpFeedback, no attitude estimate"
+    parameters = SAFE_PARAMETERS
+    inputs = SAFE_INPUTS
+    outputs = SAFE_OUTPUTS
+    offsets = {"p": P_SAFE, "u": U_SAFE, "y": Y_SAFE}
+    feedthrough_outputs = staticmethod(_sun_safe_attitude)
+
+    def configure(self):
+        if np.linalg.norm(self.parameter("boresight")) < 1e-12:
+            raise ModelError(f"model {self.path}: parameter boresight: expected a nonzero vector")

@@ -31,6 +31,11 @@ a static imbalance ``U_s`` (kg m) gives the radial force ``U_s Omega^2 e(theta)`
 imbalance ``U_d`` (kg m^2) the rocking torque ``U_d Omega^2 e(theta)``, both rotating with the wheel
 angle theta (``e(theta) = cos theta e1 + sin theta e2``, e1, e2 perpendicular to a); the force acts
 at the node (give each wheel its own node at its mounting point to get the lever arm exactly).
+
+Outputs: ``torque``, ``force`` (node axes), ``wheel_speed`` Omega, ``motor_torque``, and ``spin_momentum``
+``h a`` (node axes), the vector a controller's gyroscopic term needs (Basilisk's mrpFeedback forms the
+same ``sum_k J_k (a_k . omega + Omega_k) a_k`` from its wheel speeds); sum it over the wheels with a
+``Sum`` block into ``MrpFeedback.wheel_momentum``.
 """
 
 from __future__ import annotations
@@ -67,6 +72,8 @@ WHEEL_OUTPUTS = (
     OutputPort("force", "N", (3,), "static-imbalance force on the node", feedthrough=True),
     OutputPort("wheel_speed", "rad/s", (), "spin speed relative to the node", feedthrough=True),
     OutputPort("motor_torque", "N*m", (), "applied motor torque after limits", feedthrough=True),
+    OutputPort("spin_momentum", "N*m*s", (3,), "spin momentum vector h a = J_w (a . omega + Omega) a, node axes "
+               "(summed over the wheels: MrpFeedback.wheel_momentum)", feedthrough=True),
 )
 WHEEL_CONTINUOUS = (
     State("momentum", "N*m*s", (), 0.0, "absolute spin momentum J_w (a . omega + Omega)"),
@@ -146,6 +153,7 @@ def _wheel_loads(t, x, z, u, p, y):
         y[Y.force + i] = p[P.static_imbalance] * s2 * direction
     y[Y.wheel_speed] = speed
     y[Y.motor_torque] = tau_m
+    y[Y.spin_momentum], y[Y.spin_momentum + 1], y[Y.spin_momentum + 2] = h * a0, h * a1, h * a2
 
 
 @njit(cache=True)

@@ -23,6 +23,21 @@ Output ``signals`` (N, scale units, held between samples).
 
 Layout: the scalar parameters first (``PARAMETERS``), then ``normal`` (N, 3); the kernel derives N from
 the parameter vector's length, ``N = (len(p) - SCALAR_SIZE) / 3``.
+
+``SunDirectionEstimate`` -- the Sun direction in node axes from the cells' outputs (wire
+``CoarseSunSensors.signals`` to ``signals``; give the same ``normal`` and ``scale``). The cells whose output
+exceeds ``threshold`` (lit, above the noise) form ``H`` (their normals as rows) and ``y`` (outputs over
+``scale``); with three or more whose normals span space, the least-squares solution (Basilisk's
+``cssWlsEst`` with unit weights; Wertz sec. 7.1)::
+
+    s = (H^T H)^-1 H^T y,    sun_direction = s / |s|,    valid = 1
+
+and with one or two lit cells the minimum-norm solution ``s = H^T (H H^T)^-1 y`` (the direction is then
+only known in their span), ``valid = 0``; no lit cell (eclipse): a zero vector, ``valid = 0``. For cosine
+cells without albedo or noise, ``y = H s_true |s|`` and the estimate is exact; the albedo term biases it
+towards the Earth. Outputs ``sun_direction`` (unit, node axes), ``valid`` and ``lit_cells``, for a
+Sun-safe controller that needs no attitude estimate (``SunSafePointing`` in :mod:`shell.models.guidance`).
+Layout as ``CoarseSunSensors``: the scalars first, then ``normal`` (N, 3).
 """
 
 from __future__ import annotations
@@ -140,3 +155,116 @@ class CoarseSunSensors(Model):
             k = int(np.argmax(np.abs(norms - 1.0)))
             raise ModelError(f"model {self.path}: parameter normal: expected unit vectors, cell {k + 1} has "
                              f"norm {norms[k]:.12g}")
+
+
+ESTIMATE_PARAMETERS = (
+    Parameter("scale", "", 1.0, (), (1e-300, None), "output of a cell facing the Sun at 1 AU (as the sensors')"),
+    Parameter("threshold", "", 0.05, (), (0.0, None), "outputs at or below it are ignored (unlit or noise)"),
+)
+ESTIMATE_INPUTS = (InputPort("signals", "", (1,), "cell outputs (CoarseSunSensors.signals)", feedthrough=True),)
+ESTIMATE_OUTPUTS = (
+    OutputPort("sun_direction", "", (3,), "estimated unit Sun direction, node axes (zero: no lit cell)",
+               feedthrough=True),
+    OutputPort("valid", "", (), "1: three or more lit cells spanning space, else 0", feedthrough=True),
+    OutputPort("lit_cells", "", (), "number of cells above the threshold", feedthrough=True),
+)
+ESTIMATE_SCALAR_SIZE = Layout.of(ESTIMATE_PARAMETERS).size
+P_EST = named_offsets(ESTIMATE_PARAMETERS + (NORMAL,))._replace(normal=None)
+U_EST, Y_EST = named_offsets(ESTIMATE_INPUTS), named_offsets(ESTIMATE_OUTPUTS)
+
+
+@njit(cache=True)
+def _sun_direction_estimate(t, x, z, u, p, y):
+    n = (p.shape[0] - ESTIMATE_SCALAR_SIZE) // 3
+    normal = ESTIMATE_SCALAR_SIZE
+    # normal matrix H^T H (symmetric: a00 a01 a02 a11 a12 a22) and H^T y over the lit cells
+    a00 = a01 = a02 = a11 = a12 = a22 = 0.0
+    b0 = b1 = b2 = 0.0
+    lit = 0
+    first, second = -1, -1
+    for k in range(n):
+        value = u[U_EST.signals + k] / p[P_EST.scale]
+        if u[U_EST.signals + k] <= p[P_EST.threshold]:
+            continue
+        n0, n1, n2 = p[normal + 3 * k], p[normal + 3 * k + 1], p[normal + 3 * k + 2]
+        a00 += n0 * n0
+        a01 += n0 * n1
+        a02 += n0 * n2
+        a11 += n1 * n1
+        a12 += n1 * n2
+        a22 += n2 * n2
+        b0 += n0 * value
+        b1 += n1 * value
+        b2 += n2 * value
+        if lit == 0:
+            first = k
+        elif lit == 1:
+            second = k
+        lit += 1
+    # adjugate of H^T H: its determinant tells whether the lit normals span space
+    c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11
+    c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    valid = 0.0
+    s0 = s1 = s2 = 0.0
+    if lit >= 3 and det > 1e-9:
+        s0 = (c00 * b0 + c01 * b1 + c02 * b2) / det
+        s1 = (c01 * b0 + c11 * b1 + c12 * b2) / det
+        s2 = (c02 * b0 + c12 * b1 + c22 * b2) / det
+        valid = 1.0
+    elif lit >= 1:
+        # minimum norm over the first (one or two) lit cells: s = H^T (H H^T)^-1 y
+        i = normal + 3 * first
+        y1 = u[U_EST.signals + first] / p[P_EST.scale]
+        if second < 0:
+            s0, s1, s2 = y1 * p[i], y1 * p[i + 1], y1 * p[i + 2]
+        else:
+            j = normal + 3 * second
+            y2 = u[U_EST.signals + second] / p[P_EST.scale]
+            g = p[i] * p[j] + p[i + 1] * p[j + 1] + p[i + 2] * p[j + 2]
+            d = 1.0 - g * g
+            if d > 1e-12:
+                w1, w2 = (y1 - g * y2) / d, (y2 - g * y1) / d
+            else:  # parallel cells: one direction
+                w1, w2 = 0.5 * (y1 + y2), 0.0
+            s0, s1, s2 = w1 * p[i] + w2 * p[j], w1 * p[i + 1] + w2 * p[j + 1], w1 * p[i + 2] + w2 * p[j + 2]
+    norm = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    if norm > 0.0:
+        s0, s1, s2 = s0 / norm, s1 / norm, s2 / norm
+    y[Y_EST.sun_direction], y[Y_EST.sun_direction + 1], y[Y_EST.sun_direction + 2] = s0, s1, s2
+    y[Y_EST.valid] = valid
+    y[Y_EST.lit_cells] = lit
+
+
+@register_model
+class SunDirectionEstimate(Model):
+    """Least-squares Sun direction from N cosine cells (config: sensors); see the module docstring."""
+
+    summary = "Sun direction in node axes from coarse-sun-sensor outputs: least squares over the lit cells"
+    outputs = ESTIMATE_OUTPUTS
+    offsets = {"p": P_EST, "u": U_EST, "y": Y_EST}
+    feedthrough_outputs = staticmethod(_sun_direction_estimate)
+
+    def __init__(self, name: str, *, sensors: int = 3, **kwargs):
+        if isinstance(sensors, bool) or not isinstance(sensors, (int, np.integer)) or sensors < 1:
+            raise ModelError(f"model {name}: config sensors: expected a positive whole number of cells, "
+                             f"given {sensors!r}")
+        self.sensor_count = int(sensors)
+        super().__init__(name, **kwargs)
+
+    def declare(self):
+        n = self.sensor_count
+        self.parameters = ESTIMATE_PARAMETERS + (Parameter(NORMAL.name, NORMAL.unit, None, (n, 3), NORMAL.bounds,
+                                                           "cell normals, node axes (as the sensors')"),)
+        self.inputs = (InputPort("signals", "", (n,), "cell outputs (CoarseSunSensors.signals)", feedthrough=True),)
+
+    def configure(self):
+        normals = self.parameter("normal")
+        norms = np.linalg.norm(normals, axis=1)
+        if np.any(np.abs(norms - 1.0) > 1e-9):
+            k = int(np.argmax(np.abs(norms - 1.0)))
+            raise ModelError(f"model {self.path}: parameter normal: expected unit vectors, cell {k + 1} has "
+                             f"norm {norms[k]:.12g}")
+        if np.linalg.matrix_rank(normals) < 3:
+            raise ModelError(f"model {self.path}: parameter normal: the {len(normals)} normals do not span space "
+                             f"(rank {np.linalg.matrix_rank(normals)}); no cell set can give a 3-D direction")

@@ -35,6 +35,9 @@ def cases(tmp_path):
     jets = np.c_[thrusters, -thrusters]  # +-pairs: a strictly positive null vector exists
     return [
         ("aero", "aerodynamics", "Aerodynamics", dict(reference_area=2.0, normal_force_slope=3.0)),
+        ("aero_msis", "aerodynamics", "Aerodynamics",
+         dict(atmosphere="nrlmsis", epoch_julian_date=2460755.0, latitude=28.5, longitude=-80.6, reference_area=2.0,
+              normal_force_slope=3.0, log_density=np.linspace(0.2, -35.0, 4001))),
         ("pinv", "allocation", "PseudoInverseAllocator",
          dict(demand=3, actuators=4, effectiveness=rng.normal(size=(3, 4)))),
         ("loads", "allocation", "NodeLoadSum", dict(count=3)),
@@ -42,6 +45,7 @@ def cases(tmp_path):
          dict(demand=3, actuators=16, effectiveness=jets, max_command=0.7)),
         ("constant", "blocks", "Constant", dict(shape=(3,), value=[1.0, 2.0, 3.0])),
         ("gain", "blocks", "Gain", dict(shape=(2, 2))),
+        ("sum", "blocks", "Sum", dict(count=3, shape=(2,))),
         ("integrator", "blocks", "Integrator", dict(shape=(3,))),
         ("hold", "blocks", "SampleHold", dict(shape=(3,), period=0.1)),
         ("noisy", "blocks", "NoisySampler", dict(shape=(3,), period=0.1, sigma=0.3)),
@@ -84,6 +88,9 @@ def cases(tmp_path):
         ("dumping", "magnetic_control", "MomentumDumping", dict(period=1.0)),
         ("tracker", "star_tracker", "StarTracker", dict(period=0.2, latency=0.4, sun_exclusion=0.5)),
         ("css", "sun_sensors", "CoarseSunSensors", dict(sensors=4, period=0.1, albedo=0.3)),
+        ("sun_estimate", "sun_sensors", "SunDirectionEstimate",
+         dict(sensors=4, normal=[[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.6, 0.8, 0]])),
+        ("sun_safe", "guidance", "SunSafePointing", dict(boresight=[0.0, 0.6, 0.8])),
         ("drag", "atmosphere", "AtmosphericDrag", dict(area=1.0, log_density=np.full((181, 19, 25), -20.0))),
         ("third_body", "third_body", "ThirdBodyGravity", dict(mass=10.0)),
         ("user", "user_hook", "UserFunction",

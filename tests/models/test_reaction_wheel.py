@@ -171,3 +171,25 @@ def test_wheel_body_and_momentum_representations_agree(tmp_path):
     assert np.ptp(body["multibody.acs.angular_velocity"][:, 2]) > 1e-3
     assert_allclose(state["multibody.acs.angular_velocity"], body["multibody.acs.angular_velocity"],
                     rtol=0, atol=1e-14)
+
+
+def test_spin_momentum_output_is_the_momentum_state_along_the_axis(tmp_path):
+    """ReactionWheel.spin_momentum = h a (what MrpFeedback.wheel_momentum sums): equal to the logged state
+    times the spin axis, to J_w (a . omega + Omega) a from the logged speed, and the system momentum
+    R (J omega + sum of the outputs) is conserved as with the states (see the test above)."""
+    scene = CLUSTER.replace("wheels.loads.torque]", "wheels.loads.torque, wheels.rw1.spin_momentum, "
+                            "wheels.rw2.spin_momentum, wheels.rw3.spin_momentum, wheels.rw4.spin_momentum, "
+                            "wheels.rw4.wheel_speed]")
+    log = _run(scene, 5.0, tmp_path)
+    inertia = np.array([[400, 5, 0], [5, 300, 0], [0, 0, 250.0]])
+    axes = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], np.ones(3) / np.sqrt(3)])
+    outputs = [log[f"wheels.rw{k}.spin_momentum"] for k in (1, 2, 3, 4)]
+    for k, a in enumerate(axes):
+        assert_allclose(outputs[k], log[f"wheels.rw{k + 1}.momentum"][:, None] * a, rtol=0, atol=1e-15)
+    omega = log["multibody.acs.angular_velocity"]
+    assert_allclose(outputs[3], (0.05 * (omega @ axes[3] + log["wheels.rw4.wheel_speed"]))[:, None] * axes[3],
+                    rtol=1e-12, atol=1e-15)
+    body = np.einsum("ij,nj->ni", inertia, omega) + sum(outputs)
+    world = np.einsum("nij,nj->ni", log["multibody.acs.rotation"], body)
+    assert np.ptp(np.linalg.norm(sum(outputs), axis=1)) > 0.5
+    assert_allclose(world, np.tile(world[0], (len(world), 1)), rtol=0, atol=1e-10)
