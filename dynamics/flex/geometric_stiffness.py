@@ -69,11 +69,17 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from dynamics.flex import geometric_stiffness_continuum as gsc
+from dynamics.flex import solids
+
 # order of the angular-velocity products in the stored (6, n, n) array
 OMEGA_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0))
 """(a, b) of the six angular-velocity product cases: xx, yy, zz, xy, yz, zx."""
 
-SUPPORTED_ELEMENTS = ("CBAR", "CBEAM", "CROD")
+CONTINUUM_ELEMENTS = ("CQUAD4", "CTRIA3", "CHEXA", "CTETRA", "CPENTA")
+SUPPORTED_ELEMENTS = ("CBAR", "CBEAM", "CROD") + CONTINUUM_ELEMENTS
+# elements per block of the modal projection of the shells and solids (bounds the temporary arrays)
+_CHUNK = 2048
 
 
 @dataclass
@@ -189,6 +195,8 @@ def _line_elements(sm):
             beams.append(asm._beam_data(bulk, elem, f"{elem.type} {eid}", bulk.wtmass, idx, sections))
         elif elem.type == "CROD":
             rods.append((eid, elem))
+        elif elem.type in CONTINUUM_ELEMENTS:
+            continue
         else:
             other[elem.type] = other.get(elem.type, 0) + 1
     ia, ib, T, ea_l, axes, KG = [], [], [], [], [], []
@@ -224,6 +232,57 @@ def _line_elements(sm):
     return (np.asarray(ia, dtype=np.int64), np.asarray(ib, dtype=np.int64),
             np.asarray(T).reshape(ne, 12, 12), np.asarray(ea_l, dtype=float), np.asarray(KG).reshape(ne, 12, 12),
             counts, other)
+
+
+def _continuum_elements(sm, counts):
+    """Shells grouped by grid count [(rows (ne, nn), shell property rows (ne, 33))] and solids by kind
+    [(kind, rows (ne, n), (ne, 3) E nu rho)], read through :mod:`dynamics.flex.assembly`'s own functions;
+    ``counts`` gets their numbers by card name."""
+    from dynamics.flex import assembly as asm
+
+    bulk = sm.bulk
+    row_of = {int(g): i for i, g in enumerate(bulk.grid_ids)}
+
+    def idx(gid, ctx):
+        i = row_of.get(gid)
+        return bulk.grid_index(int(gid), ctx) if i is None else i
+
+    shells, solid_elems, sections = [], [], {}
+    for eid, elem in sorted(bulk.model.elements.items()):
+        if elem.type in bulk.report.unsupported:
+            continue
+        ctx = f"{elem.type} {eid}"
+        if elem.type in ("CQUAD4", "CTRIA3"):
+            shells.append(asm._shell_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
+        elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
+            solid_elems.append(asm._solid_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
+        else:
+            continue
+        counts[elem.type] = counts.get(elem.type, 0) + 1
+    shell_groups = []
+    for nn in (3, 4):
+        group = [sh for sh in shells if len(sh[0]) == nn]
+        if group:
+            shell_groups.append((np.array([sh[0] for sh in group], dtype=np.int64),
+                                 np.array([sh[1] for sh in group], dtype=float)))
+    solid_groups = []
+    for kind in sorted({se[0] for se in solid_elems}):
+        group = [se for se in solid_elems if se[0] == kind]
+        solid_groups.append((kind, np.array([se[1] for se in group], dtype=np.int64),
+                             np.array([se[2] for se in group], dtype=float)))
+    return shell_groups, solid_groups
+
+
+def _contract(H, phi):
+    """sum_e sum_ij H[e, c, i, j] phi[e, i, :, k] . phi[e, j, :, l] -> (c, n, n): the initial-stress matrix
+    ``H (x) I_3`` of each element on its grids' translations ``phi`` (ne, nn, 3, n), in blocks of elements."""
+    c, n = H.shape[1], phi.shape[3]
+    out = np.zeros((c, n, n))
+    for start in range(0, H.shape[0], _CHUNK):
+        h, p = H[start:start + _CHUNK], phi[start:start + _CHUNK]
+        Y = np.einsum("ecij,ejdl->ecidl", h, p)
+        out += np.einsum("eidk,ecidl->ckl", p, Y)
+    return out
 
 
 def rigid_motion_loads(blocks: np.ndarray, l0: np.ndarray) -> np.ndarray:
@@ -288,13 +347,14 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
     N = len(bulk.grid_ids)
     Rcd = bulk.displacement_rotation
     ia, ib, T, ea_l, KG1, counts, other = _line_elements(sm)
+    shell_groups, solid_groups = _continuum_elements(sm, counts)
     if other:
         warnings.warn(f"{context}: geometric stiffness from {', '.join(SUPPORTED_ELEMENTS)} only; the "
                       f"stress in {', '.join(f'{k} ({v})' for k, v in sorted(other.items()))} does not "
                       "stiffen the modes (their geometric stiffness is not implemented)", stacklevel=3)
-    if len(ia) == 0:
-        raise ValueError(f"{context}: --geometric-stiffness needs line elements ({', '.join(SUPPORTED_ELEMENTS)}); "
-                         "the deck has none")
+    if not counts:
+        raise ValueError(f"{context}: --geometric-stiffness needs elements that carry stress "
+                         f"({', '.join(SUPPORTED_ELEMENTS)}); the deck has none")
     names = []
     for name, _, _, _ in preloads:
         if name not in names:
@@ -313,23 +373,45 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
     ub = np.empty_like(ug)
     ub[:, :3] = np.einsum("nab,nbc->nac", Rcd, ug[:, :3])
     ub[:, 3:] = np.einsum("nab,nbc->nac", Rcd, ug[:, 3:])
-    ue = np.concatenate([ub[ia], ub[ib]], axis=1)  # (ne, 12, cases)
-    local = np.einsum("eij,ejc->eic", T, ue)
-    axial = ea_l[:, None] * (local[:, 6] - local[:, 0])  # (ne, cases), tension positive
-    phi = np.concatenate([trans[ia], rot[ia], trans[ib], rot[ib]], axis=1)  # (ne, 12, n)
-    local_phi = np.einsum("eij,ejk->eik", T, phi)
-    Y = np.einsum("eij,ejk->eik", KG1, local_phi)
-    cases = np.einsum("ec,eik,eil->ckl", axial, local_phi, Y)
+    axial = None
+    if len(ia):
+        ue = np.concatenate([ub[ia], ub[ib]], axis=1)  # (ne, 12, cases)
+        local = np.einsum("eij,ejc->eic", T, ue)
+        axial = ea_l[:, None] * (local[:, 6] - local[:, 0])  # (ne, cases), tension positive
+    shell_H = [(rows, *gsc.shell_stress_batch(bulk.positions[rows], props,
+                                              np.ascontiguousarray(ub[rows].reshape(len(rows), -1, ub.shape[2]))))
+               for rows, props in shell_groups]
+    solid_H = [(rows, gsc.solid_stress_batch(kind, bulk.positions[rows], props, *solids.RULES[kind],
+                                             np.ascontiguousarray(ub[rows][:, :, :3].reshape(len(rows), -1,
+                                                                                             ub.shape[2]))))
+               for kind, rows, props in solid_groups]
+
+    def project(trans_, rot_, cases_):
+        """sum over the elements of Phi' K_G,e Phi for the load cases ``cases_`` (slice)."""
+        n = trans_.shape[2]
+        out = np.zeros((len(range(*cases_.indices(loads_basic.shape[2]))), n, n))
+        if axial is not None:
+            phi = np.concatenate([trans_[ia], rot_[ia], trans_[ib], rot_[ib]], axis=1)  # (ne, 12, n)
+            local_phi = np.einsum("eij,ejk->eik", T, phi)
+            Y = np.einsum("eij,ejk->eik", KG1, local_phi)
+            out += np.einsum("ec,eik,eil->ckl", axial[:, cases_], local_phi, Y)
+        for rows, H, Ts in shell_H:
+            nn = rows.shape[1]
+            phi = np.concatenate([trans_[rows], rot_[rows]], axis=2).reshape(len(rows), 6 * nn, n)
+            local_phi = np.einsum("eij,ejk->eik", Ts, phi).reshape(len(rows), nn, 6, n)[:, :, :3]
+            out += _contract(H[:, cases_], local_phi)
+        for rows, H in solid_H:
+            out += _contract(H[:, cases_], trans_[rows])
+        return out
+
+    cases = project(trans, rot, slice(None))
     if names and interface_row is not None:
         r = int(interface_row)
         arm = l0 - l0[r]
         rel_rot = rot - rot[r][None]
         rel_trans = trans - trans[r][None] - np.cross(rot[r][None].transpose(0, 2, 1),
                                                       arm[:, None, :]).transpose(0, 2, 1)
-        phi = np.concatenate([rel_trans[ia], rel_rot[ia], rel_trans[ib], rel_rot[ib]], axis=1)
-        local_phi = np.einsum("eij,ejk->eik", T, phi)
-        Y = np.einsum("eij,ejk->eik", KG1, local_phi)
-        cases[12:] = np.einsum("ec,eik,eil->ckl", axial[:, 12:], local_phi, Y)
+        cases[12:] = project(rel_trans, rel_rot, slice(12, None))
     cases = 0.5 * (cases + cases.transpose(0, 2, 1))
     return GeometricStiffness(
         reaction="aset" if held is not None and len(held) else "inertia_relief" if rigid_vectors is not None
