@@ -265,3 +265,51 @@ def test_spun_plate_strip_and_solid_cantilever_against_the_rotating_beam(tmp_pat
         increment = (w ** 2 - got[0] ** 2) / (ref ** 2 - ref0 ** 2) - 1
         assert np.abs(increment).max() < 3e-3, (lam, increment)
         assert np.all(np.abs(w / ref - 1) < err0 + 1e-3), (lam, w / ref - 1)
+
+
+def test_spun_plate_strip_through_the_user_workflow(tmp_path, capsys):
+    """CQUAD4 deck -> ``flexshell fem2modal --geometric-stiffness`` (no warning about the shells) -> YAML scene
+    (hub prescribed to spin at 5 rad/s, the deck-clamped strip mounted by its reference frame) -> ``flexshell
+    linearize``: first three flapwise frequencies against the rotating-beam power series (lambda 5) and the
+    first chordwise (in-plane) one against the chordwise series at the strip's in-plane stiffness
+    (EI 25 N m^2: lambda 1, frequency scale 5 rad/s). Tolerances: the zero-spin discretization error of each
+    (measured 2026-11-23: flapwise 1.2e-4, 6.9e-4, 7e-4 at lambda 5; chordwise 2.0e-3, 1.9e-3 at zero spin)
+    plus 5e-4."""
+    from shell.analysis.linear_model_file import read_linear_model
+    from shell.cli import main
+    from tests.flex.continuum_stiffening import strip_grid
+    from tests.flex.rotating_beam import spinning_scene
+
+    (tmp_path / "strip.dat").write_text(plate_strip_deck(40, 2, root_grid=False))
+    assert main(["fem2modal", str(tmp_path / "strip.dat"), "--modes", "16", "--modal-integrals",
+                 "--geometric-stiffness", "-o", str(tmp_path / "strip.h5")]) == 0
+    out = capsys.readouterr()
+    assert "geometric stiffness: CQUAD4 80, reaction spc" in out.out + out.err
+    assert "does not stiffen" not in out.out + out.err
+    got = {}
+    for om in (0.0, 5.0):
+        scene = spinning_scene("strip.h5", om, tip_grid=strip_grid(40, 1, 40)).replace("      child_grid: 1\n", "")
+        (tmp_path / "scene.yaml").write_text(scene)
+        assert main(["linearize", str(tmp_path / "scene.yaml"), "--inputs", "multibody.beam.modal_force",
+                     "--outputs", "multibody.tip.position", "--points", "2", "--no-richardson", "--tolerance",
+                     "1e-12", "-o", str(tmp_path / "lin.h5")]) == 0
+        A = read_linear_model(tmp_path / "lin.h5").A
+        n = A.shape[0] // 2
+        keep = [i for i in range(2 * n) if i % n >= 1]  # the prescribed hub's states decouple
+        ev = np.linalg.eigvals(A[np.ix_(keep, keep)])
+        f = np.sort(np.abs(ev.imag[ev.imag > 1e-6]))
+        flap, chord = rotating_beam_frequencies(om), 5.0 * rotating_beam_frequencies(om / 5.0, chordwise=True, count=1)
+        got[om] = (np.array([f[np.argmin(np.abs(f - x))] for x in flap]) / flap - 1,
+                   f[np.argmin(np.abs(f - chord[0]))] / chord[0] - 1)
+        assert ev.real.max() < 1e-6 * f[0]
+    (flap0, chord0), (flap5, chord5) = got[0.0], got[5.0]
+    assert np.all(np.abs(flap0) < 4e-3) and abs(chord0) < 3e-3
+    assert np.all(np.abs(flap5) < np.abs(flap0) + 5e-4), flap5
+    assert abs(chord5) < abs(chord0) + 5e-4, chord5
+
+
+def test_shells_held_at_an_aset_warn_that_they_are_not_verified(tmp_path):
+    path = tmp_path / "strip.dat"
+    path.write_text(plate_strip_deck(8, 1, root_grid=True))
+    with pytest.warns(UserWarning, match="held at an a-set .* not verified"):
+        fem2modal(str(path), Fem2ModalOptions(n_modes=4, aset=[(9001, [1, 2, 3, 4, 5, 6])], geometric_stiffness=True))
