@@ -53,8 +53,12 @@ the scene.
 Elements: CBAR and CBEAM (cubic Hermite transverse field, Przemieniecki, Theory of Matrix Structural
 Analysis, 1968, sec. 15.2, eq. 15.53 without the torsion term; element offsets through the same rigid
 links as the stiffness) and CROD (a string: N / L on the transverse translations). The geometry,
-properties and offsets are read through :mod:`dynamics.flex.assembly`'s own beam functions. Shells,
-solids, springs (CBUSH, CELAS) contribute no geometric stiffness here: the pipeline warns naming them.
+properties and offsets are read through :mod:`dynamics.flex.assembly`'s own beam functions. Shells
+(CQUAD4, CTRIA3: membrane resultants on u, v, w) and solids (CHEXA8/20, CTETRA4/10, CPENTA6: the full
+stress) through :mod:`dynamics.flex.geometric_stiffness_continuum` (initial-stress matrix int G' S G dV from
+the elements' own Gauss-point stresses). Shells and solids held at an a-set are warned as not verified
+(a plate strip held through an RBE2 interface came out 2.5 % stiff; docs/geometric_stiffening.md). Springs
+(CBUSH, CELAS) contribute no geometric stiffness: the pipeline warns naming them.
 Limits: the shear-flexible beam (PBEAM K) uses the Euler-Bernoulli geometric stiffness; the torsional
 term (N I_p / (A L)) and the geometric stiffness of node rotary inertia loads are left out (both are
 second order for slender beams).
