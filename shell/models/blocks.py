@@ -119,7 +119,7 @@ def _profile(t, x, z, u, p, y):
             y[Y_PROFILE.y + j] = p[base_after + j]
         return
     i = 0
-    while t >= times[i + 1]:
+    while i < m - 1 and t >= times[i + 1]:
         i += 1
     s = (t - times[i]) / (times[i + 1] - times[i])
     cycles = p[m + 1 + 6 * m * k + i]
