@@ -412,9 +412,10 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
         warnings.warn(f"{context}: geometric stiffness of shells and solids held at an a-set (Craig-Bampton "
                       "interface) is not verified and is known to be wrong in one case: a plate strip held "
                       "through an RBE2 grid and mounted with child_grid came out 2.5 % stiff in its first "
-                      "flapwise frequency at lambda 5 (the same strip clamped by SPCs in the deck and mounted "
-                      "by its reference frame is right to 1e-3); prefer that mounting "
-                      "(docs/geometric_stiffening.md)", stacklevel=3)
+                      "flapwise frequency at lambda 5, 10 % soft in its second (the same strip clamped by SPCs "
+                      "in the deck and mounted by its reference frame is right to 1e-3); clamp the body in the "
+                      "deck and mount it by its reference frame (docs/geometric_stiffening.md, 'Known wrong')",
+                      stacklevel=3)
     cases = project(trans, rot, slice(None))
     if names and interface_row is not None:
         r = int(interface_row)
