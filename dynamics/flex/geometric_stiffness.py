@@ -50,18 +50,18 @@ Dickens through d/dt of the modal momentum. A named preload (``f`` given by the 
 the structure) is a potential ``1/2 s eta' K_G[f] eta`` added to the modal stiffness, ``s`` its scale in
 the scene.
 
-Elements: CBAR and CBEAM (cubic Hermite transverse field, Przemieniecki, Theory of Matrix Structural
-Analysis, 1968, sec. 15.2, eq. 15.53 without the torsion term; element offsets through the same rigid
-links as the stiffness) and CROD (a string: N / L on the transverse translations). The geometry,
+Elements: CBAR and CBEAM (cubic Hermite transverse field and the torsion term N I_p / (A L), Przemieniecki,
+Theory of Matrix Structural Analysis, 1968, sec. 15.2, eq. 15.53, I_p = I1 + I2 about the section's
+centroid (a tapered PBEAM: its end-A section); element offsets through the same rigid links as the
+stiffness) and CROD (a string: N / L on the transverse translations). The geometry,
 properties and offsets are read through :mod:`dynamics.flex.assembly`'s own beam functions. Shells
 (CQUAD4, CTRIA3: membrane resultants on u, v, w) and solids (CHEXA8/20, CTETRA4/10, CPENTA6: the full
 stress) through :mod:`dynamics.flex.geometric_stiffness_continuum` (initial-stress matrix int G' S G dV from
 the elements' own Gauss-point stresses). Shells and solids held at an a-set are warned as not verified
 (a plate strip held through an RBE2 interface came out 2.5 % stiff; docs/geometric_stiffening.md). Springs
 (CBUSH, CELAS) contribute no geometric stiffness: the pipeline warns naming them.
-Limits: the shear-flexible beam (PBEAM K) uses the Euler-Bernoulli geometric stiffness; the torsional
-term (N I_p / (A L)) and the geometric stiffness of node rotary inertia loads are left out (both are
-second order for slender beams).
+Limits: the shear-flexible beam (PBEAM K) uses the Euler-Bernoulli geometric stiffness; the geometric
+stiffness of node rotary inertia loads is left out (second order for slender beams).
 """
 
 from __future__ import annotations
@@ -158,10 +158,15 @@ def hermite_geometric_stiffness(L: float) -> np.ndarray:
                      [3.0 * L, -L * L, -3.0 * L, 4.0 * L * L]]) / (30.0 * L)
 
 
-def beam_local_geometric_stiffness(L: float) -> np.ndarray:
+def beam_local_geometric_stiffness(L: float, polar_radius_sq: float = 0.0) -> np.ndarray:
     """12 x 12 local geometric stiffness per unit axial force (tension positive) of a CBAR/CBEAM, local
-    DOFs [u v w tx ty tz] per end: plane 1 (v, theta_z), plane 2 (w, -theta_y)."""
+    DOFs [u v w tx ty tz] per end: plane 1 (v, theta_z), plane 2 (w, -theta_y), and the torsion term
+    ``(I_p / A) / L [[1, -1], [-1, 1]]`` on (tx1, tx2) with ``polar_radius_sq = I_p / A = (I1 + I2) / A``
+    (Przemieniecki eq. 15.53: the axial stress acting on the helical tilt r theta' of the fibres; linear twist
+    as the element's torsion)."""
     K = np.zeros((12, 12))
+    if polar_radius_sq:
+        K[np.ix_([3, 9], [3, 9])] = polar_radius_sq / L * np.array([[1.0, -1.0], [-1.0, 1.0]])
     h = hermite_geometric_stiffness(L)
     for idx, flip in (([1, 5, 7, 11], [1.0, 1.0, 1.0, 1.0]), ([2, 4, 8, 10], [1.0, -1.0, 1.0, -1.0])):
         f = np.asarray(flip)
@@ -209,11 +214,12 @@ def _line_elements(sm):
         dofs, props, frames, wa, wb, is_cbeam = asm._beam_batch(bulk, beams)
         for e in range(len(beams)):
             L, E, A = props[e, 0], props[e, 1], props[e, 3]  # props: L, E, G, A, I1, I2, J, mu, k1, k2
+            I1, I2 = props[e, 4], props[e, 5]
             ia.append(int(dofs[e, 0]) // 6)
             ib.append(int(dofs[e, 6]) // 6)
             T.append(el.local_to_grids(frames[e], wa[e], wb[e]))
             ea_l.append(E * A / L)
-            KG.append(beam_local_geometric_stiffness(L))
+            KG.append(beam_local_geometric_stiffness(L, (I1 + I2) / A))
         counts["CBEAM"] = int(np.sum(is_cbeam))
         counts["CBAR"] = len(beams) - counts["CBEAM"]
     for eid, elem in rods:
