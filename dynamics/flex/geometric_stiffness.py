@@ -82,8 +82,8 @@ OMEGA_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0))
 
 CONTINUUM_ELEMENTS = ("CQUAD4", "CTRIA3", "CHEXA", "CTETRA", "CPENTA")
 SUPPORTED_ELEMENTS = ("CBAR", "CBEAM", "CROD") + CONTINUUM_ELEMENTS
-# elements per block of the modal projection of the shells and solids (bounds the temporary arrays)
-_CHUNK = 2048
+# numbers per temporary array of the modal projection of the shells and solids (blocks of elements)
+_BLOCK_ENTRIES = 4_000_000
 
 
 @dataclass
@@ -285,13 +285,19 @@ def _continuum_elements(sm, counts):
 
 def _contract(H, phi):
     """sum_e sum_ij H[e, c, i, j] phi[e, i, :, k] . phi[e, j, :, l] -> (c, n, n): the initial-stress matrix
-    ``H (x) I_3`` of each element on its grids' translations ``phi`` (ne, nn, 3, n), in blocks of elements."""
-    c, n = H.shape[1], phi.shape[3]
+    ``H (x) I_3`` of each element on its grids' translations ``phi`` (ne, nn, 3, n), by batched matrix
+    products in blocks of elements (temporaries of about _BLOCK_ENTRIES numbers)."""
+    ne, c, nn = H.shape[0], H.shape[1], H.shape[2]
+    n = phi.shape[3]
     out = np.zeros((c, n, n))
-    for start in range(0, H.shape[0], _CHUNK):
-        h, p = H[start:start + _CHUNK], phi[start:start + _CHUNK]
-        Y = np.einsum("ecij,ejdl->ecidl", h, p)
-        out += np.einsum("eidk,ecidl->ckl", p, Y)
+    chunk = max(1, min(ne, _BLOCK_ENTRIES // max(1, c * max(n * n, 3 * nn * n))))
+    for start in range(0, ne, chunk):
+        h = H[start:start + chunk]                                   # (e, c, i, j)
+        p = phi[start:start + chunk].reshape(-1, nn, 3 * n)           # (e, j, d l)
+        Y = np.matmul(h, p[:, None])                                  # (e, c, i, d l)
+        Y = Y.reshape(Y.shape[0], c, 3 * nn, n)                       # (e, c, (i d), l)
+        P = p.reshape(-1, 3 * nn, n).transpose(0, 2, 1)[:, None]      # (e, 1, k, (i d))
+        out += np.matmul(P, Y).sum(axis=0)
     return out
 
 
@@ -319,16 +325,18 @@ def rigid_motion_loads(blocks: np.ndarray, l0: np.ndarray) -> np.ndarray:
 def _static_displacements(sm, K, M, loads_f, held, rigid_vectors):
     """f-set displacements for the f-set loads (n_f, c): ``held`` DOFs fixed (a-set) or, without them,
     inertia relief with the rigid-body vectors."""
+    from dynamics.flex.modes import factorize  # CHOLMOD when available (SPD: held or SPC'd), else SuperLU
+
     nf = K.shape[0]
     if held is not None and len(held):
         free = np.setdiff1d(np.arange(nf), held)
         Kii = sp.csc_matrix(K[free][:, free])
         u = np.zeros_like(loads_f)
-        u[free] = spla.splu(Kii).solve(np.ascontiguousarray(loads_f[free]))
+        u[free] = np.asarray(factorize(Kii).solve(np.ascontiguousarray(loads_f[free]))).reshape(len(free), -1)
         return u
     R = np.asarray(rigid_vectors)
     if R.size == 0:
-        return spla.splu(sp.csc_matrix(K)).solve(np.ascontiguousarray(loads_f))
+        return np.asarray(factorize(sp.csc_matrix(K)).solve(np.ascontiguousarray(loads_f))).reshape(nf, -1)
     MR = np.asarray(M @ R)
     relieved = loads_f - MR @ np.linalg.solve(R.T @ MR, R.T @ loads_f)
     scale = max(abs(K).max(), 1e-300) / max(np.abs(MR).max(), 1e-300)
@@ -408,7 +416,7 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
         for rows, H, Ts in shell_H:
             nn = rows.shape[1]
             phi = np.concatenate([trans_[rows], rot_[rows]], axis=2).reshape(len(rows), 6 * nn, n)
-            local_phi = np.einsum("eij,ejk->eik", Ts, phi).reshape(len(rows), nn, 6, n)[:, :, :3]
+            local_phi = np.matmul(Ts, phi).reshape(len(rows), nn, 6, n)[:, :, :3]
             out += _contract(H[:, cases_], local_phi)
         for rows, H in solid_H:
             out += _contract(H[:, cases_], trans_[rows])
