@@ -57,8 +57,7 @@ stiffness) and CROD (a string: N / L on the transverse translations). The geomet
 properties and offsets are read through :mod:`dynamics.flex.assembly`'s own beam functions. Shells
 (CQUAD4, CTRIA3: membrane resultants on u, v, w) and solids (CHEXA8/20, CTETRA4/10, CPENTA6: the full
 stress) through :mod:`dynamics.flex.geometric_stiffness_continuum` (initial-stress matrix int G' S G dV from
-the elements' own Gauss-point stresses). Shells and solids held at an a-set are warned as not verified
-(a plate strip held through an RBE2 interface came out 2.5 % stiff; docs/geometric_stiffening.md). Springs
+the elements' own Gauss-point stresses). Springs
 (CBUSH, CELAS) contribute no geometric stiffness: the pipeline warns naming them.
 Limits: the shear-flexible beam (PBEAM K) uses the Euler-Bernoulli geometric stiffness; the geometric
 stiffness of node rotary inertia loads is left out (second order for slender beams).
@@ -422,14 +421,6 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
             out += _contract(H[:, cases_], trans_[rows])
         return out
 
-    if (shell_groups or solid_groups) and held is not None and len(held):
-        warnings.warn(f"{context}: geometric stiffness of shells and solids held at an a-set (Craig-Bampton "
-                      "interface) is not verified and is known to be wrong in one case: a plate strip held "
-                      "through an RBE2 grid and mounted with child_grid came out 2.5 % stiff in its first "
-                      "flapwise frequency at lambda 5, 10 % soft in its second (the same strip clamped by SPCs "
-                      "in the deck and mounted by its reference frame is right to 1e-3); clamp the body in the "
-                      "deck and mount it by its reference frame (docs/geometric_stiffening.md, 'Known wrong')",
-                      stacklevel=3)
     cases = project(trans, rot, slice(None))
     if names and interface_row is not None:
         r = int(interface_row)
