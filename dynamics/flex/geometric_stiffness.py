@@ -50,14 +50,17 @@ Dickens through d/dt of the modal momentum. A named preload (``f`` given by the 
 the structure) is a potential ``1/2 s eta' K_G[f] eta`` added to the modal stiffness, ``s`` its scale in
 the scene.
 
-Elements: CBAR and CBEAM (cubic Hermite transverse field, Przemieniecki, Theory of Matrix Structural
-Analysis, 1968, sec. 15.2, eq. 15.53 without the torsion term; element offsets through the same rigid
-links as the stiffness) and CROD (a string: N / L on the transverse translations). The geometry,
-properties and offsets are read through :mod:`dynamics.flex.assembly`'s own beam functions. Shells,
-solids, springs (CBUSH, CELAS) contribute no geometric stiffness here: the pipeline warns naming them.
-Limits: the shear-flexible beam (PBEAM K) uses the Euler-Bernoulli geometric stiffness; the torsional
-term (N I_p / (A L)) and the geometric stiffness of node rotary inertia loads are left out (both are
-second order for slender beams).
+Elements: CBAR and CBEAM (cubic Hermite transverse field and the torsion term N I_p / (A L), Przemieniecki,
+Theory of Matrix Structural Analysis, 1968, sec. 15.2, eq. 15.53, I_p = I1 + I2 about the section's
+centroid (a tapered PBEAM: its end-A section); element offsets through the same rigid links as the
+stiffness) and CROD (a string: N / L on the transverse translations). The geometry,
+properties and offsets are read through :mod:`dynamics.flex.assembly`'s own beam functions. Shells
+(CQUAD4, CTRIA3: membrane resultants on u, v, w) and solids (CHEXA8/20, CTETRA4/10, CPENTA6: the full
+stress) through :mod:`dynamics.flex.geometric_stiffness_continuum` (initial-stress matrix int G' S G dV from
+the elements' own Gauss-point stresses). Springs
+(CBUSH, CELAS) contribute no geometric stiffness: the pipeline warns naming them.
+Limits: the shear-flexible beam (PBEAM K) uses the Euler-Bernoulli geometric stiffness; the geometric
+stiffness of node rotary inertia loads is left out (second order for slender beams).
 """
 
 from __future__ import annotations
@@ -69,11 +72,17 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from dynamics.flex import geometric_stiffness_continuum as gsc
+from dynamics.flex import solids
+
 # order of the angular-velocity products in the stored (6, n, n) array
 OMEGA_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0))
 """(a, b) of the six angular-velocity product cases: xx, yy, zz, xy, yz, zx."""
 
-SUPPORTED_ELEMENTS = ("CBAR", "CBEAM", "CROD")
+CONTINUUM_ELEMENTS = ("CQUAD4", "CTRIA3", "CHEXA", "CTETRA", "CPENTA")
+SUPPORTED_ELEMENTS = ("CBAR", "CBEAM", "CROD") + CONTINUUM_ELEMENTS
+# numbers per temporary array of the modal projection of the shells and solids (blocks of elements)
+_BLOCK_ENTRIES = 4_000_000
 
 
 @dataclass
@@ -148,10 +157,15 @@ def hermite_geometric_stiffness(L: float) -> np.ndarray:
                      [3.0 * L, -L * L, -3.0 * L, 4.0 * L * L]]) / (30.0 * L)
 
 
-def beam_local_geometric_stiffness(L: float) -> np.ndarray:
+def beam_local_geometric_stiffness(L: float, polar_radius_sq: float = 0.0) -> np.ndarray:
     """12 x 12 local geometric stiffness per unit axial force (tension positive) of a CBAR/CBEAM, local
-    DOFs [u v w tx ty tz] per end: plane 1 (v, theta_z), plane 2 (w, -theta_y)."""
+    DOFs [u v w tx ty tz] per end: plane 1 (v, theta_z), plane 2 (w, -theta_y), and the torsion term
+    ``(I_p / A) / L [[1, -1], [-1, 1]]`` on (tx1, tx2) with ``polar_radius_sq = I_p / A = (I1 + I2) / A``
+    (Przemieniecki eq. 15.53: the axial stress acting on the helical tilt r theta' of the fibres; linear twist
+    as the element's torsion)."""
     K = np.zeros((12, 12))
+    if polar_radius_sq:
+        K[np.ix_([3, 9], [3, 9])] = polar_radius_sq / L * np.array([[1.0, -1.0], [-1.0, 1.0]])
     h = hermite_geometric_stiffness(L)
     for idx, flip in (([1, 5, 7, 11], [1.0, 1.0, 1.0, 1.0]), ([2, 4, 8, 10], [1.0, -1.0, 1.0, -1.0])):
         f = np.asarray(flip)
@@ -189,6 +203,8 @@ def _line_elements(sm):
             beams.append(asm._beam_data(bulk, elem, f"{elem.type} {eid}", bulk.wtmass, idx, sections))
         elif elem.type == "CROD":
             rods.append((eid, elem))
+        elif elem.type in CONTINUUM_ELEMENTS:
+            continue
         else:
             other[elem.type] = other.get(elem.type, 0) + 1
     ia, ib, T, ea_l, axes, KG = [], [], [], [], [], []
@@ -197,11 +213,12 @@ def _line_elements(sm):
         dofs, props, frames, wa, wb, is_cbeam = asm._beam_batch(bulk, beams)
         for e in range(len(beams)):
             L, E, A = props[e, 0], props[e, 1], props[e, 3]  # props: L, E, G, A, I1, I2, J, mu, k1, k2
+            I1, I2 = props[e, 4], props[e, 5]
             ia.append(int(dofs[e, 0]) // 6)
             ib.append(int(dofs[e, 6]) // 6)
             T.append(el.local_to_grids(frames[e], wa[e], wb[e]))
             ea_l.append(E * A / L)
-            KG.append(beam_local_geometric_stiffness(L))
+            KG.append(beam_local_geometric_stiffness(L, (I1 + I2) / A))
         counts["CBEAM"] = int(np.sum(is_cbeam))
         counts["CBAR"] = len(beams) - counts["CBEAM"]
     for eid, elem in rods:
@@ -224,6 +241,63 @@ def _line_elements(sm):
     return (np.asarray(ia, dtype=np.int64), np.asarray(ib, dtype=np.int64),
             np.asarray(T).reshape(ne, 12, 12), np.asarray(ea_l, dtype=float), np.asarray(KG).reshape(ne, 12, 12),
             counts, other)
+
+
+def _continuum_elements(sm, counts):
+    """Shells grouped by grid count [(rows (ne, nn), shell property rows (ne, 33))] and solids by kind
+    [(kind, rows (ne, n), (ne, 3) E nu rho)], read through :mod:`dynamics.flex.assembly`'s own functions;
+    ``counts`` gets their numbers by card name."""
+    from dynamics.flex import assembly as asm
+
+    bulk = sm.bulk
+    row_of = {int(g): i for i, g in enumerate(bulk.grid_ids)}
+
+    def idx(gid, ctx):
+        i = row_of.get(gid)
+        return bulk.grid_index(int(gid), ctx) if i is None else i
+
+    shells, solid_elems, sections = [], [], {}
+    for eid, elem in sorted(bulk.model.elements.items()):
+        if elem.type in bulk.report.unsupported:
+            continue
+        ctx = f"{elem.type} {eid}"
+        if elem.type in ("CQUAD4", "CTRIA3"):
+            shells.append(asm._shell_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
+        elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
+            solid_elems.append(asm._solid_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
+        else:
+            continue
+        counts[elem.type] = counts.get(elem.type, 0) + 1
+    shell_groups = []
+    for nn in (3, 4):
+        group = [sh for sh in shells if len(sh[0]) == nn]
+        if group:
+            shell_groups.append((np.array([sh[0] for sh in group], dtype=np.int64),
+                                 np.array([sh[1] for sh in group], dtype=float)))
+    solid_groups = []
+    for kind in sorted({se[0] for se in solid_elems}):
+        group = [se for se in solid_elems if se[0] == kind]
+        solid_groups.append((kind, np.array([se[1] for se in group], dtype=np.int64),
+                             np.array([se[2] for se in group], dtype=float)))
+    return shell_groups, solid_groups
+
+
+def _contract(H, phi):
+    """sum_e sum_ij H[e, c, i, j] phi[e, i, :, k] . phi[e, j, :, l] -> (c, n, n): the initial-stress matrix
+    ``H (x) I_3`` of each element on its grids' translations ``phi`` (ne, nn, 3, n), by batched matrix
+    products in blocks of elements (temporaries of about _BLOCK_ENTRIES numbers)."""
+    ne, c, nn = H.shape[0], H.shape[1], H.shape[2]
+    n = phi.shape[3]
+    out = np.zeros((c, n, n))
+    chunk = max(1, min(ne, _BLOCK_ENTRIES // max(1, c * max(n * n, 3 * nn * n))))
+    for start in range(0, ne, chunk):
+        h = H[start:start + chunk]                                   # (e, c, i, j)
+        p = phi[start:start + chunk].reshape(-1, nn, 3 * n)           # (e, j, d l)
+        Y = np.matmul(h, p[:, None])                                  # (e, c, i, d l)
+        Y = Y.reshape(Y.shape[0], c, 3 * nn, n)                       # (e, c, (i d), l)
+        P = p.reshape(-1, 3 * nn, n).transpose(0, 2, 1)[:, None]      # (e, 1, k, (i d))
+        out += np.matmul(P, Y).sum(axis=0)
+    return out
 
 
 def rigid_motion_loads(blocks: np.ndarray, l0: np.ndarray) -> np.ndarray:
@@ -250,16 +324,18 @@ def rigid_motion_loads(blocks: np.ndarray, l0: np.ndarray) -> np.ndarray:
 def _static_displacements(sm, K, M, loads_f, held, rigid_vectors):
     """f-set displacements for the f-set loads (n_f, c): ``held`` DOFs fixed (a-set) or, without them,
     inertia relief with the rigid-body vectors."""
+    from dynamics.flex.modes import factorize  # CHOLMOD when available (SPD: held or SPC'd), else SuperLU
+
     nf = K.shape[0]
     if held is not None and len(held):
         free = np.setdiff1d(np.arange(nf), held)
         Kii = sp.csc_matrix(K[free][:, free])
         u = np.zeros_like(loads_f)
-        u[free] = spla.splu(Kii).solve(np.ascontiguousarray(loads_f[free]))
+        u[free] = np.asarray(factorize(Kii).solve(np.ascontiguousarray(loads_f[free]))).reshape(len(free), -1)
         return u
     R = np.asarray(rigid_vectors)
     if R.size == 0:
-        return spla.splu(sp.csc_matrix(K)).solve(np.ascontiguousarray(loads_f))
+        return np.asarray(factorize(sp.csc_matrix(K)).solve(np.ascontiguousarray(loads_f))).reshape(nf, -1)
     MR = np.asarray(M @ R)
     relieved = loads_f - MR @ np.linalg.solve(R.T @ MR, R.T @ loads_f)
     scale = max(abs(K).max(), 1e-300) / max(np.abs(MR).max(), 1e-300)
@@ -288,13 +364,14 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
     N = len(bulk.grid_ids)
     Rcd = bulk.displacement_rotation
     ia, ib, T, ea_l, KG1, counts, other = _line_elements(sm)
+    shell_groups, solid_groups = _continuum_elements(sm, counts)
     if other:
         warnings.warn(f"{context}: geometric stiffness from {', '.join(SUPPORTED_ELEMENTS)} only; the "
                       f"stress in {', '.join(f'{k} ({v})' for k, v in sorted(other.items()))} does not "
                       "stiffen the modes (their geometric stiffness is not implemented)", stacklevel=3)
-    if len(ia) == 0:
-        raise ValueError(f"{context}: --geometric-stiffness needs line elements ({', '.join(SUPPORTED_ELEMENTS)}); "
-                         "the deck has none")
+    if not counts:
+        raise ValueError(f"{context}: --geometric-stiffness needs elements that carry stress "
+                         f"({', '.join(SUPPORTED_ELEMENTS)}); the deck has none")
     names = []
     for name, _, _, _ in preloads:
         if name not in names:
@@ -313,23 +390,45 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
     ub = np.empty_like(ug)
     ub[:, :3] = np.einsum("nab,nbc->nac", Rcd, ug[:, :3])
     ub[:, 3:] = np.einsum("nab,nbc->nac", Rcd, ug[:, 3:])
-    ue = np.concatenate([ub[ia], ub[ib]], axis=1)  # (ne, 12, cases)
-    local = np.einsum("eij,ejc->eic", T, ue)
-    axial = ea_l[:, None] * (local[:, 6] - local[:, 0])  # (ne, cases), tension positive
-    phi = np.concatenate([trans[ia], rot[ia], trans[ib], rot[ib]], axis=1)  # (ne, 12, n)
-    local_phi = np.einsum("eij,ejk->eik", T, phi)
-    Y = np.einsum("eij,ejk->eik", KG1, local_phi)
-    cases = np.einsum("ec,eik,eil->ckl", axial, local_phi, Y)
+    axial = None
+    if len(ia):
+        ue = np.concatenate([ub[ia], ub[ib]], axis=1)  # (ne, 12, cases)
+        local = np.einsum("eij,ejc->eic", T, ue)
+        axial = ea_l[:, None] * (local[:, 6] - local[:, 0])  # (ne, cases), tension positive
+    shell_H = [(rows, *gsc.shell_stress_batch(bulk.positions[rows], props,
+                                              np.ascontiguousarray(ub[rows].reshape(len(rows), -1, ub.shape[2]))))
+               for rows, props in shell_groups]
+    solid_H = [(rows, gsc.solid_stress_batch(kind, bulk.positions[rows], props, *solids.RULES[kind],
+                                             np.ascontiguousarray(ub[rows][:, :, :3].reshape(len(rows), -1,
+                                                                                             ub.shape[2]))))
+               for kind, rows, props in solid_groups]
+
+    def project(trans_, rot_, cases_):
+        """sum over the elements of Phi' K_G,e Phi for the load cases ``cases_`` (slice)."""
+        n = trans_.shape[2]
+        out = np.zeros((len(range(*cases_.indices(loads_basic.shape[2]))), n, n))
+        if axial is not None:
+            phi = np.concatenate([trans_[ia], rot_[ia], trans_[ib], rot_[ib]], axis=1)  # (ne, 12, n)
+            local_phi = np.einsum("eij,ejk->eik", T, phi)
+            Y = np.einsum("eij,ejk->eik", KG1, local_phi)
+            out += np.einsum("ec,eik,eil->ckl", axial[:, cases_], local_phi, Y)
+        for rows, H, Ts in shell_H:
+            nn = rows.shape[1]
+            phi = np.concatenate([trans_[rows], rot_[rows]], axis=2).reshape(len(rows), 6 * nn, n)
+            local_phi = np.matmul(Ts, phi).reshape(len(rows), nn, 6, n)[:, :, :3]
+            out += _contract(H[:, cases_], local_phi)
+        for rows, H in solid_H:
+            out += _contract(H[:, cases_], trans_[rows])
+        return out
+
+    cases = project(trans, rot, slice(None))
     if names and interface_row is not None:
         r = int(interface_row)
         arm = l0 - l0[r]
         rel_rot = rot - rot[r][None]
         rel_trans = trans - trans[r][None] - np.cross(rot[r][None].transpose(0, 2, 1),
                                                       arm[:, None, :]).transpose(0, 2, 1)
-        phi = np.concatenate([rel_trans[ia], rel_rot[ia], rel_trans[ib], rel_rot[ib]], axis=1)
-        local_phi = np.einsum("eij,ejk->eik", T, phi)
-        Y = np.einsum("eij,ejk->eik", KG1, local_phi)
-        cases[12:] = np.einsum("ec,eik,eil->ckl", axial[:, 12:], local_phi, Y)
+        cases[12:] = project(rel_trans, rel_rot, slice(12, None))
     cases = 0.5 * (cases + cases.transpose(0, 2, 1))
     return GeometricStiffness(
         reaction="aset" if held is not None and len(held) else "inertia_relief" if rigid_vectors is not None

@@ -19,7 +19,12 @@ its truncation error and for an extrapolated one bounds the error of the less ac
 improves on) plus a round-off term ``16 eps max|F| / h``. The step of variable j is
 ``h_j = scale_j * tol^(1/p)``, with ``p`` the order of the final result and ``scale_j`` the larger of
 ``|x0_j|`` and the variable's typical size (1 in SI units unless the user gives one), so that the
-truncation error relative to the derivative is about ``tol``.
+truncation error relative to the derivative is about ``tol``. The typical size of a flexible body's modal
+coordinate (mass-normalized: its size depends on the body's mass, not on SI units) is the amplitude at which
+the mode's largest grid rotation reaches 1 rad or its largest grid translation the body's extent (largest
+grid distance from the body frame), and at most 1: the physical step rule, applied to the deformation
+(issue 15: a step of 0.09 in the modes of a 1 kg beam bent it by radians and made its geometrically
+stiffened mass matrix indefinite). Modal rates keep the typical size 1 (they enter the equations at most quadratically).
 
 States are minimal coordinates: each unit quaternion of a model that declares
 ``quaternion_w_indices`` (hinge quaternions of the engine) is replaced by a rotation vector ``phi``
@@ -166,8 +171,11 @@ class _StateMap:
                     k += 1
             self.index[label] = np.asarray(members, dtype=np.int64)
         self.n = len(self.names)
+        self.modal_sizes = []   # (tangent rows, typical size) of flexible bodies' modal coordinates
         self._add_body_indices(sim)
         typical = np.ones(self.n)
+        for rows, size in self.modal_sizes:
+            typical[rows] = size
         for name, given in scales.items():  # a model state or a per-body entry (later entries win)
             if name in self.index:
                 typical[self.index[name]] = np.broadcast_to(np.asarray(given, dtype=float), self.index[name].shape)
@@ -176,6 +184,25 @@ class _StateMap:
         self.value = np.zeros(self.n)           # tangent coordinates of x0 (rotation vectors are 0)
         self.value[self._plain_t] = self.x0[self._plain_x]
         self.scale = np.maximum(np.abs(self.value), typical)
+
+    def _modal_sizes(self, system, model_path) -> None:
+        """Typical size of each flexible body's modal coordinates (the step rule's scale; module docstring):
+        the amplitude at which the mode's largest grid rotation reaches 1 rad or its largest grid translation
+        the body's extent (largest grid distance from the body frame; 1 m when it has no extent), at most 1."""
+        for b, body in enumerate(system.body_names):
+            flexible = system.definitions[0][b].flexible
+            rows = self.index.get(f"{model_path}.{body}.modal_q")
+            if flexible is None or rows is None or len(rows) != flexible.n_modes:
+                continue
+            shapes = np.asarray(flexible.grid_shapes, dtype=float)  # (G, 6, n): rotation rows, translation rows
+            extent = float(np.max(np.linalg.norm(flexible.grid_positions, axis=1), initial=0.0)) or 1.0
+            rot = np.max(np.linalg.norm(shapes[:, :3], axis=1), axis=0, initial=0.0)
+            trans = np.max(np.linalg.norm(shapes[:, 3:], axis=1), axis=0, initial=0.0)
+            with np.errstate(divide="ignore"):
+                size = np.minimum(np.where(rot > 0.0, 1.0 / rot, np.inf), np.where(trans > 0.0, extent / trans, np.inf))
+            # never above the SI default of 1: a heavy body's coordinates were well served by it (larger steps
+            # there lost accuracy against the analytic launch-vehicle model of tests/linearize)
+            self.modal_sizes.append((rows, np.minimum(np.where(np.isfinite(size), size, 1.0), 1.0)))
 
     def _add_body_indices(self, sim) -> None:
         """Index entries per body of an engine model, as in the TM G.4 delivery file's state_index
@@ -205,6 +232,7 @@ class _StateMap:
                         rows = [t for k in range(lo, hi) for t in tangent_of.get(k, [])]
                         if rows:
                             self.index[f"{m.path}.{body}.{part}_{kind}"] = np.asarray(rows, dtype=np.int64)
+            self._modal_sizes(system, m.path)
 
     def retract(self, xi):
         """Full state for tangent coordinates ``xi`` (deviations from x0)."""

@@ -1,4 +1,4 @@
-"""Signal blocks: constant, gain, sum, integrator, sample-and-hold and noisy sampler.
+"""Signal blocks: constant, gain, sum, integrator, sample-and-hold, noisy sampler and time profile.
 
 Small framework-level models used to wire scenes, to test the framework, and as the "trivial models"
 of the orchestration-overhead benchmark. Each block's port unit and shape are chosen at construction
@@ -7,7 +7,16 @@ of the orchestration-overhead benchmark. Each block's port unit and shape are ch
 Equations: Constant y = c; Gain y = k u (direct feedthrough); Sum y = u_1 + ... + u_n (direct
 feedthrough, e.g. the wheels' spin momenta into one controller input); Integrator x' = u, y = x;
 SampleHold z(t_k) = u(t_k), y = z (zero-order hold, TM-2020-5008164 App. D.1 multi-rate models), with a
-sample counter; NoisySampler z(t_k) = u(t_k) + sigma n_k, n_k ~ N(0, 1) from the model's own stream.
+sample counter; NoisySampler z(t_k) = u(t_k) + sigma n_k, n_k ~ N(0, 1) from the model's own stream;
+Profile: a piecewise waveform of time, on segment i (``times[i] <= t < times[i+1]``, local time
+``s = (t - times[i]) / (times[i+1] - times[i])`` in [0, 1))::
+
+    y = c0 + c1 s + c2 s^2 + c3 s^3 + cosine cos(2 pi cycles s) + sine sin(2 pi cycles s)
+
+(every coefficient in the port unit, one row per segment), 0 before ``times[0]`` and ``after`` from the last
+breakpoint on. Ramps, steps, cubic blends and the one-minus-cosine spin-up law of Kane, Ryan and Banerjee
+(JGCD 10(2), 1987: ``theta_ddot = (Omega / T) (1 - cos(2 pi t / T))`` for ``t < T``: one segment ``[0, T]``,
+``c0 = Omega / T``, ``cosine = -Omega / T``, ``cycles = 1``) are written without expressions.
 
 Array layouts: a block's port shape is a construction option, so its offsets are not compile-time
 constants beyond the first declaration of each array: the named tuples below hold those (always 0)
@@ -41,6 +50,11 @@ Z_HOLD = _offsets("SampleHoldDiscrete", held=0, samples=None)
 P_NOISY, U_NOISY, Y_NOISY = (_offsets("NoisySamplerParameters", sigma=0), _offsets("NoisySamplerInputs", u=0),
                              _offsets("NoisySamplerOutputs", y=0))
 Z_NOISY = _offsets("NoisySamplerDiscrete", held=0)
+# Profile: the segment count is a construction option, so only the first offset is a constant; the kernel
+# derives m from the sizes: len(p) = (m + 1) + 6 m k + m + k with k the output size (docstring order)
+P_PROFILE = _offsets("ProfileParameters", times=0, c0=None, c1=None, c2=None, c3=None, cosine=None, sine=None,
+                     cycles=None, after=None)
+Y_PROFILE = _offsets("ProfileOutputs", y=0)
 
 
 @njit(cache=True)
@@ -101,6 +115,34 @@ def _held_noisy_sample(t, x, z, u, p, y):
 def _noisy_sample(t, x, z, u, p, noise):
     for i in range(u.shape[0]):
         z[Z_NOISY.held + i] = u[U_NOISY.u + i] + p[P_NOISY.sigma] * noise[i]
+
+
+@njit(cache=True)
+def _profile(t, x, z, u, p, y):
+    k = y.shape[0]
+    m = (p.shape[0] - 1 - k) // (2 + 6 * k)
+    times = p[P_PROFILE.times:P_PROFILE.times + m + 1]
+    if t < times[0]:
+        for j in range(k):
+            y[Y_PROFILE.y + j] = 0.0
+        return
+    base_after = m + 1 + 6 * m * k + m
+    if t >= times[m]:
+        for j in range(k):
+            y[Y_PROFILE.y + j] = p[base_after + j]
+        return
+    i = 0
+    while i < m - 1 and t >= times[i + 1]:
+        i += 1
+    s = (t - times[i]) / (times[i + 1] - times[i])
+    cycles = p[m + 1 + 6 * m * k + i]
+    c = np.cos(2.0 * np.pi * cycles * s)
+    sn = np.sin(2.0 * np.pi * cycles * s)
+    for j in range(k):
+        row = m + 1 + i * k + j          # c0 block; the next blocks follow at strides of m k
+        mk = m * k
+        y[Y_PROFILE.y + j] = (p[row] + s * (p[row + mk] + s * (p[row + 2 * mk] + s * p[row + 3 * mk]))
+                              + p[row + 4 * mk] * c + p[row + 5 * mk] * sn)
 
 
 class _Block(Model):
@@ -213,3 +255,68 @@ class NoisySampler(_Block):
         self.outputs = (OutputPort("y", self.unit, self.shape, "noisy held sample"),)
         self.discrete_states = (State("held", self.unit, self.shape, None, "last noisy sample"),)
         self.noise_size = self.size
+
+
+@register_model
+class Profile(_Block):
+    """A piecewise waveform of time (module docstring): ``segments`` under config (default 1); parameters
+    ``times`` (segments + 1 ascending breakpoints, s), per segment ``c0`` .. ``c3``, ``cosine``, ``sine`` (port
+    unit, shape (segments,) + port shape), ``cycles`` (per segment, default 1) and ``after`` (the value from
+    the last breakpoint on, default 0). E.g. the Kane-Ryan-Banerjee spin-up of a hub to 6 rad/s in 15 s::
+
+        spin_up:
+          type: Profile
+          config: {unit: rad/s^2, shape: [1]}
+          parameters: {times: "[0, 15] s", c0: "[[0.4]] rad/s^2", cosine: "[[-0.4]] rad/s^2"}
+        connections: [spin_up.y -> multibody.hub.prescribed_accel]
+    """
+
+    summary = "time profile: piecewise cubic plus harmonic segments (ramps, steps, 1 - cos spin-up)"
+    state_outputs = staticmethod(_profile)
+    offsets = {"p": P_PROFILE, "y": Y_PROFILE}
+
+    def __init__(self, name: str, *, unit: str = "", shape=(), segments: int = 1, **kwargs):
+        if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)) or segments < 1:
+            raise ModelError(f"model {name}: Profile config segments must be a whole number >= 1, got {segments!r}")
+        self.segments = int(segments)
+        super().__init__(name, unit=unit, shape=shape, **kwargs)
+
+    def declare(self):
+        m = self.segments
+        rows = (m,) + self.shape
+        breakpoints = np.arange(m + 1, dtype=float)
+        self.parameters = (
+            Parameter("times", "s", breakpoints, (m + 1,), description="segment breakpoints, ascending"),
+            *(Parameter(f"c{j}", self.unit, np.zeros(rows), rows, description=f"coefficient of s^{j} per segment "
+                        "(s: local time 0..1 in the segment)") for j in range(4)),
+            Parameter("cosine", self.unit, np.zeros(rows), rows, description="amplitude of cos(2 pi cycles s) per segment"),
+            Parameter("sine", self.unit, np.zeros(rows), rows, description="amplitude of sin(2 pi cycles s) per segment"),
+            Parameter("cycles", "", np.ones(m), (m,), description="harmonic cycles per segment"),
+            Parameter("after", self.unit, np.zeros(self.shape), self.shape, description="output from the last breakpoint on"),
+        )
+        self.outputs = (OutputPort("y", self.unit, self.shape, "the profile value"),)
+
+    def configure(self):
+        times = self.parameter("times")
+        if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0.0):
+            raise ModelError(f"model {self.path}: Profile parameter times must be finite and strictly ascending "
+                             f"(one breakpoint more than the {self.segments} segment(s)), got {times.tolist()} s")
+        for name in ("c0", "c1", "c2", "c3", "cosine", "sine", "cycles", "after"):
+            if not np.all(np.isfinite(self.parameter(name))):
+                raise ModelError(f"model {self.path}: Profile parameter {name} must be finite")
+        end = self._value_at_end()
+        after = np.broadcast_to(self.parameter("after"), end.shape)
+        jump = np.abs(end - after)
+        if np.any(jump > 1e-9 * max(1.0, float(np.max(np.abs(end))))):
+            import warnings
+
+            warnings.warn(f"model {self.path}: Profile jumps at its last breakpoint t = {times[-1]:g} s from "
+                          f"{end.tolist()} to after = {after.tolist()} {self.unit} (allowed; a discontinuity the "
+                          "integrator steps across)", stacklevel=2)
+
+    def _value_at_end(self):
+        """The last segment's value at its end (s = 1)."""
+        c = [np.asarray(self.parameter(f"c{j}"))[-1] for j in range(4)]
+        n = float(self.parameter("cycles")[-1])
+        return (c[0] + c[1] + c[2] + c[3] + np.asarray(self.parameter("cosine"))[-1] * np.cos(2 * np.pi * n)
+                + np.asarray(self.parameter("sine"))[-1] * np.sin(2 * np.pi * n))

@@ -44,7 +44,10 @@ def test_hermite_matrix_is_the_integral_of_the_squared_slope():
         assert d @ G @ d == pytest.approx(0.5 * L * np.sum(wg * dv * dv), rel=1e-13)
     K = beam_local_geometric_stiffness(L)
     np.testing.assert_allclose(K, K.T)
-    assert np.all(K[[0, 3, 6, 9]] == 0.0)  # no axial or torsion terms
+    assert np.all(K[[0, 3, 6, 9]] == 0.0)  # no axial terms; no torsion term without a section
+    Kt = beam_local_geometric_stiffness(L, 2.5e-3)
+    np.testing.assert_array_equal(np.delete(np.delete(Kt - K, [3, 9], 0), [3, 9], 1), 0.0)
+    np.testing.assert_allclose(Kt[np.ix_([3, 9], [3, 9])], 2.5e-3 / L * np.array([[1, -1], [-1, 1]]), rtol=1e-15)
 
 
 def pinned_beam(tmp_path, load):
@@ -128,3 +131,30 @@ def test_unknown_preload_grid_is_refused(tmp_path):
     with pytest.raises(Exception, match="999"):
         fem2modal(str(path), Fem2ModalOptions(n_modes=2, aset=[(1, [1, 2, 3, 4, 5, 6])],
                                               preloads=[("p", 999, 1, 1.0)]))
+
+
+def test_axial_tension_stiffens_torsion_by_n_ip_over_a(tmp_path):
+    """Torsion term N I_p / (A L) (Przemieniecki eq. 15.53): a bar with both ends held in twist under an axial
+    load N has torsional frequencies omega_k^2 = (k pi / L)^2 (GJ + N I_p / A) / (rho I_p) (the axial stress
+    on the helical tilt r theta' of the fibres, e.g. Timoshenko & Gere 1961, sec. 5.3), so every torsion mode's
+    omega^2 changes by the factor 1 + N I_p / (A G J). Linear-twist elements have discrete-sine torsion modes
+    and a geometric matrix proportional to their torsional stiffness: the modal model reproduces the factor to
+    round-off (1e-9), and the preload does not couple torsion and bending modes."""
+    n = 20
+    lines = ["PARAM,COUPMASS,1"] + [f"GRID,{i + 1},,{i / n!r},0.0,0.0" for i in range(n + 1)]
+    lines += ["MAT1,1,2.6e6,1.0e6,,1.0", "PBAR,10,1,1.0e-2,2.0e-5,3.0e-5,1.5e-5"]
+    lines += [f"CBAR,{101 + i},10,{i + 1},{i + 2},0.0,1.0,0.0" for i in range(n)]
+    lines += ["SPC1,1,123456,1", f"SPC1,1,2346,{n + 1}", "ENDDATA"]
+    path = tmp_path / "torsion.dat"
+    path.write_text("\n".join(lines) + "\n")
+    N = 40.0  # tension at the free-axial end
+    body = fem2modal(str(path), Fem2ModalOptions(n_modes=12, preloads=[("pull", n + 1, 1, N)]))
+    rot = body.rotation_shapes
+    torsion = [k for k in range(rot.shape[2]) if np.abs(rot[:, 0, k]).max() > 10 * np.abs(rot[:, 1:, k]).max()]
+    assert len(torsion) >= 2
+    lam = np.diag(body.modal_stiffness)
+    Kp = body.geometric_stiffness.preload[0]
+    factor = N * (2.0e-5 + 3.0e-5) / (1.0e-2 * 1.0e6 * 1.5e-5)
+    np.testing.assert_allclose(np.diag(Kp)[torsion] / lam[torsion], factor, rtol=1e-9)
+    others = [k for k in range(len(lam)) if k not in torsion]
+    assert np.abs(Kp[np.ix_(torsion, others)]).max() < 1e-9 * np.abs(Kp[np.ix_(torsion, torsion)]).max()

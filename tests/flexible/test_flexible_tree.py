@@ -16,6 +16,7 @@ import pytest
 
 from dynamics import Multibody
 
+from .conftest import rk4_march
 from .random_flexible import flexible_body_data, random_node_model
 
 
@@ -131,18 +132,7 @@ def test_node_kinematics_equal_differences_along_the_motion():
 
 
 def rk4(system, q, u, h, steps):
-    zero = np.zeros(system.nu)
-
-    def f(q, u):
-        return system.q_dot(q, u), system.forward_dynamics(q, u, zero)
-
-    for _ in range(steps):
-        k1 = f(q, u)
-        k2 = f(q + h / 2 * k1[0], u + h / 2 * k1[1])
-        k3 = f(q + h / 2 * k2[0], u + h / 2 * k2[1])
-        k4 = f(q + h * k3[0], u + h * k3[1])
-        q = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        u = u + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+    q, u, _ = rk4_march(system, q, u, h, steps, normalize=False)
     return q, u
 
 

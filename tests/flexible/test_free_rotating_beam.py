@@ -19,6 +19,7 @@ import pytest
 
 from dynamics import Multibody
 from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
+from tests.flexible.conftest import rk4_march
 
 
 @pytest.fixture(scope="module")
@@ -38,22 +39,14 @@ def spin(beam_body, order, t_final=10.0, h=2e-3):
     u[3:6] = -np.cross(u[:3], com)  # centre of mass at rest
     e0 = system.kinetic_energy(q, u) + system.potential_energy(q)
     L0 = system.angular_momentum(q, u)
-    zero = np.zeros(system.nu)
     gamma_tip = beam_body.mode_shape(101)[3:]
-    max_deflection = 0.0
+    max_deflection = [0.0]
 
-    def f(q, u):
-        return system.q_dot(q, u), system.forward_dynamics(q, u, zero)
+    def track(t, q, u):
+        max_deflection[0] = max(max_deflection[0], np.linalg.norm(gamma_tip @ q[7:]))
 
-    for _ in range(int(round(t_final / h))):
-        k1 = f(q, u)
-        k2 = f(q + h / 2 * k1[0], u + h / 2 * k1[1])
-        k3 = f(q + h / 2 * k2[0], u + h / 2 * k2[1])
-        k4 = f(q + h * k3[0], u + h * k3[1])
-        q = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        u = u + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-        system.normalize_quaternions(q)
-        max_deflection = max(max_deflection, np.linalg.norm(gamma_tip @ q[7:]))
+    q, u, _ = rk4_march(system, q, u, h, int(round(t_final / h)), after_step=track)
+    max_deflection = max_deflection[0]
     energy_drift = abs(system.kinetic_energy(q, u) + system.potential_energy(q) - e0) / e0
     momentum_drift = np.linalg.norm(system.angular_momentum(q, u) - L0) / np.linalg.norm(L0)
     return q, max_deflection, energy_drift, momentum_drift

@@ -19,6 +19,7 @@ import pytest
 from dynamics import Multibody
 from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
 from tests.flex.rotating_beam import rotating_beam_deck
+from tests.flexible.conftest import rk4_march
 
 
 @pytest.fixture(scope="module")
@@ -40,19 +41,7 @@ def tumble(body, stiffening, t_final=1.0, h=1e-3):
     q[7:] = [0.02, -0.01, 0.005, 0.003]
     e0 = system.kinetic_energy(q, u) + system.potential_energy(q)
     L0 = system.angular_momentum(q, u)
-    zero = np.zeros(system.nu)
-
-    def f(q, u):
-        return system.q_dot(q, u), system.forward_dynamics(q, u, zero)
-
-    for _ in range(int(round(t_final / h))):
-        k1 = f(q, u)
-        k2 = f(q + h / 2 * k1[0], u + h / 2 * k1[1])
-        k3 = f(q + h / 2 * k2[0], u + h / 2 * k2[1])
-        k4 = f(q + h * k3[0], u + h * k3[1])
-        q = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        u = u + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-        system.normalize_quaternions(q)
+    q, u, _ = rk4_march(system, q, u, h, int(round(t_final / h)))
     energy_drift = abs(system.kinetic_energy(q, u) + system.potential_energy(q) - e0) / e0
     momentum_drift = np.linalg.norm(system.angular_momentum(q, u) - L0) / np.linalg.norm(L0)
     return system, q, energy_drift, momentum_drift

@@ -14,9 +14,9 @@ room (measured largest 4.0e-4 over lambda 0..12 and both hub radii). Without the
 5.907 rad/s at lambda 5 against 4.074 (chordwise) and 6.450 (flapwise).
 
 The linearization uses 2-point central differences (``--points 2 --no-richardson --tolerance 1e-12``: steps
-of 1e-6 in the modal coordinates). The default 4-point scheme with Richardson steps up to 0.09 in each modal
-coordinate: for this 1 kg beam such a step bends a high mode by radians, where the second-order stiffening
-terms of M(eta) are far outside their range (the run stops with a non-finite derivative).
+of 1e-6 in the modal coordinates). The default 4-point Richardson scheme works too since its modal steps are
+scaled to the modes (tests/linearize/test_modal_steps.py); before, it stepped every modal coordinate by up
+to 0.09, which bent a high mode of this 1 kg beam by radians and stopped on a non-finite derivative.
 """
 
 from __future__ import annotations

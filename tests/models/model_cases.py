@@ -49,6 +49,7 @@ def cases(tmp_path):
         ("integrator", "blocks", "Integrator", dict(shape=(3,))),
         ("hold", "blocks", "SampleHold", dict(shape=(3,), period=0.1)),
         ("noisy", "blocks", "NoisySampler", dict(shape=(3,), period=0.1, sigma=0.3)),
+        ("profile", "blocks", "Profile", dict(shape=(2,), segments=2, times=[0.0, 0.4, 1.5])),
         ("lqr", "controllers", "LqrStateFeedback", dict(gain_file=str(gain))),
         ("pid", "controllers", "PidAttitudeController", dict(period=0.1)),
         ("gimbal_prescribed", "gimbaled_engine", "GimbalActuator", dict(mode="prescribed")),
