@@ -9,6 +9,7 @@ factor here; nothing in this module is called inside the integration loop.
 
 from __future__ import annotations
 
+import functools
 import re
 import reprlib
 
@@ -58,12 +59,27 @@ def parse_unit(unit: str | pint.Unit, where: str = "") -> pint.Unit:
     if text in ("", "1", "-", "dimensionless"):
         return ureg.dimensionless
     try:
-        return ureg.Unit(text)
+        return _unit(text)
     except Exception as exc:  # pint's parser raises lookup, syntax, tokenize and assertion errors
         raise UnitError(f"{where}: unknown unit {short_repr(text)} ({type(exc).__name__}: "
                         f"{short_repr(str(exc))})") from None
 
 
+@functools.lru_cache(maxsize=4096)
+def _unit(text: str) -> pint.Unit:
+    """``ureg.Unit(text)``, memoized (pint units are immutable; parsing one costs ~0.1 ms, and a scene
+    build or a Monte Carlo run parses the same few unit names hundreds of times). Failures are not
+    cached: they raise each time."""
+    return ureg.Unit(text)
+
+
+@functools.lru_cache(maxsize=4096)
+def _scale(src: pint.Unit, dst: pint.Unit) -> float:
+    """``1 src`` in ``dst`` for units of equal dimensions, memoized."""
+    return float(ureg.Quantity(1.0, src).to(dst).magnitude)
+
+
+@functools.lru_cache(maxsize=4096)
 def is_offset_unit(unit: pint.Unit) -> bool:
     """True for units whose conversion is not a pure scale (degC, degF): refused on ports."""
     return not ureg.Quantity(1.0, unit)._is_multiplicative
@@ -84,7 +100,7 @@ def conversion_factor(from_unit: str | pint.Unit, to_unit: str | pint.Unit, wher
     if is_offset_unit(src) or is_offset_unit(dst):
         raise UnitError(f"{where}: offset units ({format_unit(src)} -> {format_unit(dst)}) are not allowed "
                         "on ports or parameters; use kelvin")
-    return float(ureg.Quantity(1.0, src).to(dst).magnitude)
+    return _scale(src, dst)
 
 
 def format_unit(unit: str | pint.Unit) -> str:
