@@ -473,6 +473,12 @@ class ExponentialRK4(Integrator):
         if not force and self.steps_since_check < self.check_interval:
             return False
         self.steps_since_check = 0
+        return self.check_linear_part(t, y)
+
+    def check_linear_part(self, t, y):
+        """The check itself (what :meth:`_check_drift` does when one is due; the compiled loop, which keeps the
+        step counters, calls it directly): evaluate the callable linear part at (t, y), lengthen the check
+        interval while it does not move, rebuild when it moved. Returns True if it was rebuilt."""
         indices, L = self.linear_part_option(t, y.copy())
         self.njev += 1
         L = np.asarray(L, dtype=np.float64)
