@@ -599,11 +599,11 @@ def advance(k, engine, rngs, b, st, ev, sc, ints, reals, budget, write_logs, int
 # (ints[I_SINCE_CHECK], ints[I_CHECK_INTERVAL]) and returns LINEAR_CHECK when a check of the linear part is due
 # (after 1, 2, 4, ... 64 steps: one return per 64 steps once the part stands still) and STIFF_REMAINDER when a
 # step finds the remainder stiff (h rho(N) > 1); Python checks (and perhaps rebuilds the stepper) and calls
-# advance again, which continues the step where it stopped (ints[I_STEP_FLAGS]). Events: the ends of each
-# step are compared (sign_change detection); a candidate, and every step right after an event, go to Python,
-# which locates the crossing on the method's own dense output (ExponentialDenseOutput from ``N`` and the
-# step's start, kept in ``Events.y_old``). Subdivided detection (a search on the dense output inside every
-# step) is not compiled for this method: such scenes run the Python loop.
+# advance again, which continues the step where it stopped (ints[I_STEP_FLAGS]). Events: as for the Runge-Kutta
+# methods, the loop decides whether locate_events would find a crossing in the step (the ends with sign_change
+# detection; samples of the dense output with subdivided detection and on the step right after an event),
+# and Python locates it on the method's own dense output (ExponentialDenseOutput from ``N`` and the step's
+# start, kept in ``Events.y_old``; both evaluate the compiled exponential.dense_state).
 # ----------------------------------------------------------------------------------------------------------
 
 LINEAR_CHECK = 8         # a check of the callable linear part is due before the step from reals[R_T]
@@ -654,6 +654,8 @@ class ExponentialStepper(NamedTuple):
     z_acc: np.ndarray
     z_in: np.ndarray
     z_out: np.ndarray
+    dense_n: np.ndarray      # (3, n) the last step's dense output: its quadratic in N
+    dense_z: np.ndarray      # (4, m) complex: its eigenbasis coordinates
     check_drift: bool        # the linear part is a callable to re-check (the shell's always is)
 
 
@@ -681,8 +683,8 @@ def exponential_stepper(integ, Y=None, F=None):
         base, terms, functions, coefficients, EX.PHI_AT_ZERO.copy(), np.array([c for c, _ in EX.FUNCTIONS]),
         np.array([k for _, k in EX.FUNCTIONS], dtype=np.int64), np.array(EX.C_NODES), np.zeros(m), np.zeros(m),
         np.zeros(3 * m), V, Vinv, lam, np.zeros((len(EX.FUNCTIONS), m), dtype=np.complex128),
-        np.zeros((4, m), dtype=np.complex128), complex_m(), complex_m(), complex_m(), complex_m(),
-        bool(callable(integ.linear_part_option)))
+        np.zeros((4, m), dtype=np.complex128), complex_m(), complex_m(), complex_m(), complex_m(), np.zeros((3, n)),
+        np.zeros((4, m), dtype=np.complex128), bool(callable(integ.linear_part_option)))
 
 
 def exponential_placeholder(n):
@@ -695,7 +697,7 @@ def exponential_placeholder(n):
         np.zeros((4, 3, 5)), np.zeros(7), np.zeros(7), np.zeros(7, dtype=np.int64), np.zeros(3), np.zeros(0),
         np.zeros(0), np.zeros(0), np.zeros((0, 0), dtype=np.complex128), np.zeros((0, 0), dtype=np.complex128),
         empty_c, np.zeros((7, 0), dtype=np.complex128), np.zeros((4, 0), dtype=np.complex128), empty_c, empty_c,
-        empty_c, empty_c, False)
+        empty_c, empty_c, np.zeros((3, n)), np.zeros((4, 0), dtype=np.complex128), False)
 
 
 @njit(cache=True)
@@ -737,6 +739,34 @@ def _exponential_failed(st, reals, ints, t, t_failed, state, stage):
     ints[I_FAILED_STAGE] = stage
     ints[I_STEP_FLAGS] = 0
     return STEP_FAILED
+
+
+@njit(cache=True)
+def _exponential_event_candidate(k, engine, b, st, ev, t_old, t_new):
+    """_event_candidate's subdivided search on the exponential dense output (the same compiled
+    exponential.dense_state that ExponentialDenseOutput evaluates in Python, at the same sample times), so
+    that the loop returns to Python exactly when locate_events would find a crossing."""
+    m = ev.g_old.shape[0]
+    n = SUBDIVISIONS
+    h = t_new - t_old
+    step = (t_new - t_old) / n  # numpy.linspace(t_old, t_new, n + 1)
+    EX.dense_coefficients(ev.y_old, st.N, st.Vinv, st.indices, st.dense_n, st.dense_z, st.z_in)
+    ev.samples[0, :] = ev.g_old
+    ev.samples[n, :] = ev.g_new
+    for j in range(1, n):
+        t_j = j * step + t_old
+        EX.dense_state((t_j - t_old) / h, h, ev.y_old, st.dense_n, st.dense_z, st.lam, st.V, st.indices, st.z_work,
+                       st.phi_work, st.z_acc, st.z_out, ev.y_mid)
+        _zero_crossings_at(k, engine, t_j, ev.y_mid, b, ev.samples[j])
+    for f in range(m):
+        for j in range(n):
+            if _candidate_pair(ev.samples[j, f], ev.samples[j + 1, f], ev.direction[f]):
+                return True
+        for j in range(n - 1):
+            if _parabola_flags(ev.samples[j, f], ev.samples[j + 1, f], ev.samples[j + 2, f], j * step + t_old,
+                               (j + 1) * step + t_old, (t_new if j + 2 == n else (j + 2) * step + t_old)):
+                return True
+    return False
 
 
 @njit(cache=True)
@@ -821,8 +851,12 @@ def _integrate_exponential(k, engine, b, st, ev, target, ints, reals):
             t = target
         if ev.mode != NO_EVENTS:
             _zero_crossings_at(k, engine, t, Y, b, ev.g_new)
-            # the step right after an event is searched on the dense output, in Python (as Simulation._advance)
-            if t_old == reals[R_LAST_EVENT] or _event_candidate(k, engine, b, ev, t_old, t, Y, F, False):
+            # subdivided detection, and the step right after an event, search the dense output (Simulation._advance)
+            if ev.mode == SUBDIVIDED or t_old == reals[R_LAST_EVENT]:
+                candidate = _exponential_event_candidate(k, engine, b, st, ev, t_old, t)
+            else:
+                candidate = _event_candidate(k, engine, b, ev, t_old, t, Y, F, False)
+            if candidate:
                 reals[R_T] = t
                 b.X[:] = Y
                 return EVENT_CANDIDATE

@@ -417,19 +417,15 @@ class Simulation:
     # ------------------------------------------------------------------------------------------------
     # the compiled loop (shell.compiled_loop): the same instants, updates, steps and log rows as below
     def _compiled_loop_applies(self) -> bool:
-        """Fixed-step explicit Runge-Kutta and the exponential RK4 run in the compiled loop (the exponential one
-        with sign-change event detection or no zero crossings); adaptive and implicit methods run the Python
-        loop on the compiled derivative."""
+        """Fixed-step explicit Runge-Kutta and the exponential RK4 run in the compiled loop; adaptive and
+        implicit methods run the Python loop on the compiled derivative."""
         from shell.integrators import INTEGRATORS
         from shell.integrators.exponential import ExponentialRK4
         from shell.integrators.fixed import FixedStepRungeKutta
 
         cls = INTEGRATORS.get(str(self.integrator_name).lower())
         if self._plan is not None and cls is ExponentialRK4:
-            # events are located in Python on the method's dense output; a search inside every step
-            # (subdivided detection) would return to Python at every step, so it stays in the Python loop
-            return self.integrator_options.get("step") is not None and (
-                self.diagram.n_zero_crossings == 0 or self.event_detection == "sign_change")
+            return self.integrator_options.get("step") is not None
         if self._plan is None or cls is None or not issubclass(cls, FixedStepRungeKutta):
             return False
         # events are located on the dense output: the compiled loop evaluates the cubic Hermite one
@@ -680,13 +676,17 @@ class Simulation:
         t = float(reals[CL.R_T])
         self.t = t
         now = int(ints[CL.I_NOW])
+        plan = self._plan
         for i in self.diagram.update_order:
             if next_tick[i] != now:
                 continue
-            try:
-                self.diagram.update(self.context, i, t)
-            except EvaluationError as exc:
-                raise SimulationError(str(exc)) from exc.__cause__
+            if plan.update_is_compiled(i):
+                plan.update(t, i)  # the same numbers as Diagram.update, without a Python dispatch per stage
+            else:
+                try:
+                    self.diagram.update(self.context, i, t)
+                except EvaluationError as exc:
+                    raise SimulationError(str(exc)) from exc.__cause__
             next_tick[i] += period[i]
             ints[CL.I_UPDATES] += 1
         self._check_finite_state(f"the discrete updates at t = {t:.9g} s")

@@ -190,7 +190,7 @@ def test_exponential_rk4_on_the_observatory_is_bit_identical(tmp_path, monkeypat
     assert a.mode == "interpreted" and not a._compiled_loop_applies()
     assert b.mode == "compiled" and b._compiled_loop_applies()
     assert type(b._stepper).__name__ == "ExponentialStepper"
-    assert len(a.events) > 10 and a.events == b.events
+    assert len(a.events) >= 4 and a.events == b.events
     assert a.counters["updates"] >= 120 and a.counters["steps"] >= 60
     _assert_same_run(a, b, log_a, log_b)
     # the check counters of the linear part moved the same way (1, 2, 4, ... steps between checks)
