@@ -742,11 +742,10 @@ def _exponential_failed(st, reals, ints, t, t_failed, state, stage):
 
 
 @njit(cache=True)
-def _exponential_event_candidate(k, engine, b, st, ev, t_old, t_new):
-    """_event_candidate's subdivided search on the exponential dense output (the same compiled
-    exponential.dense_state that ExponentialDenseOutput evaluates in Python, at the same sample times), so
-    that the loop returns to Python exactly when locate_events would find a crossing."""
-    m = ev.g_old.shape[0]
+def _exponential_event_samples(k, engine, b, st, ev, t_old, t_new):
+    """The zero-crossing functions at the uniform samples of the step's dense output into ev.samples (the same
+    compiled exponential.dense_state that ExponentialDenseOutput evaluates in Python, at the same sample times):
+    what locate_events' first pass computes, handed to it with the candidate (Simulation._compiled_event)."""
     n = SUBDIVISIONS
     h = t_new - t_old
     step = (t_new - t_old) / n  # numpy.linspace(t_old, t_new, n + 1)
@@ -758,6 +757,16 @@ def _exponential_event_candidate(k, engine, b, st, ev, t_old, t_new):
         EX.dense_state((t_j - t_old) / h, h, ev.y_old, st.dense_n, st.dense_z, st.lam, st.V, st.indices, st.z_work,
                        st.phi_work, st.z_acc, st.z_out, ev.y_mid)
         _zero_crossings_at(k, engine, t_j, ev.y_mid, b, ev.samples[j])
+
+
+@njit(cache=True)
+def _exponential_event_candidate(k, engine, b, st, ev, t_old, t_new):
+    """_event_candidate's subdivided search on the exponential dense output's samples, so that the loop returns
+    to Python exactly when locate_events would find a crossing."""
+    m = ev.g_old.shape[0]
+    n = SUBDIVISIONS
+    step = (t_new - t_old) / n
+    _exponential_event_samples(k, engine, b, st, ev, t_old, t_new)
     for f in range(m):
         for j in range(n):
             if _candidate_pair(ev.samples[j, f], ev.samples[j + 1, f], ev.direction[f]):
@@ -856,6 +865,8 @@ def _integrate_exponential(k, engine, b, st, ev, target, ints, reals):
                 candidate = _exponential_event_candidate(k, engine, b, st, ev, t_old, t)
             else:
                 candidate = _event_candidate(k, engine, b, ev, t_old, t, Y, F, False)
+                if candidate:  # Python's search starts from these samples
+                    _exponential_event_samples(k, engine, b, st, ev, t_old, t)
             if candidate:
                 reals[R_T] = t
                 b.X[:] = Y

@@ -626,14 +626,16 @@ class Simulation:
         from shell.integrators.base import HermiteDenseOutput
 
         t_old, t_new = float(reals[CL.R_T_OLD]), float(reals[CL.R_T])
+        samples = None
         if isinstance(stepper, CL.ExponentialStepper):
             from shell.integrators.exponential import ExponentialDenseOutput
 
             sol = ExponentialDenseOutput(t_old, t_new, events.y_old, stepper.N, self._stepper_part)
+            samples = events.samples[1:-1].copy()  # the loop sampled the dense output already (same numbers)
         else:
             sol = HermiteDenseOutput(t_old, t_new, events.y_old, events.f_old, stepper.Y, stepper.F)
         handled, stop = self._locate_and_handle(sol, t_old, t_new, events.g_old.copy(), events.g_new.copy(),
-                                                self._plan.normalize)
+                                                self._plan.normalize, samples)
         if handled:
             reals[CL.R_T] = self.t
             reals[CL.R_LAST_EVENT] = self.t
@@ -781,11 +783,12 @@ class Simulation:
         self._restart_integrator(target)
         return None
 
-    def _locate_and_handle(self, sol, t_old, t_new, g_old, g_new, normalize) -> tuple[bool, str | None]:
-        """Locate the crossings of one step on its dense output ``sol`` and run the handlers of the first;
-        returns (an event was handled, the stop reason of a terminal one or None)."""
+    def _locate_and_handle(self, sol, t_old, t_new, g_old, g_new, normalize, samples=None) -> tuple[bool, str | None]:
+        """Locate the crossings of one step on its dense output ``sol`` (``samples``: the functions at its inner
+        uniform samples when already computed) and run the handlers of the first; returns (an event was
+        handled, the stop reason of a terminal one or None)."""
         hits = locate_events(self._event_functions, sol, t_old, t_new, g_old, g_new, xtol=self.event_tol,
-                             all_values=self._zero_crossing_vector)
+                             all_values=self._zero_crossing_vector, samples=samples)
         # a crossing just handled leaves its function at zero up to round-off, which may read as a new
         # sign change right after the restart: the same function within the tolerance is not a new event
         t_last, handled = self._last_events

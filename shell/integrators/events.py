@@ -107,7 +107,8 @@ def _may_report(gs, ts, direction):
     return False
 
 
-def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, subdivisions=8, all_values=None):
+def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, subdivisions=8, all_values=None,
+                  samples=None):
     """All zero crossings of the event functions inside (t_old, t_new].
 
     Parameters
@@ -121,6 +122,9 @@ def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, 
         for the uniform sampling pass when one evaluation of all functions costs about as much as one of
         them (a simulation that evaluates the whole scene per call). The individual functions are still
         used for the extremum check and the root refinement.
+    samples : optional (subdivisions - 1, m) array: every function's values at the inner uniform samples, already
+        computed by the caller on the same dense output (the compiled loop's event search); replaces the
+        uniform sampling pass.
 
     Returns
     -------
@@ -141,9 +145,16 @@ def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, 
         raise ValueError(f"g_old and g_new must each hold {m} values (one per event function), "
                          f"got shapes {g_old.shape} and {g_new.shape}")
     t_samples = np.linspace(t_old, t_new, subdivisions + 1)
-    y_inner = sol(t_samples[1:-1]) if subdivisions > 1 else None
+    y_inner = None
     inner_values = None
-    if all_values is not None and subdivisions > 1:
+    if samples is not None and subdivisions > 1:
+        inner_values = np.asarray(samples, dtype=np.float64).T
+        if inner_values.shape != (m, subdivisions - 1):
+            raise ValueError(f"samples must hold ({subdivisions - 1}, {m}) values (inner samples x event functions), "
+                             f"got shape {inner_values.T.shape}")
+    elif subdivisions > 1:
+        y_inner = sol(t_samples[1:-1])
+    if inner_values is None and all_values is not None and subdivisions > 1:
         inner_values = np.empty((m, subdivisions - 1))
         for j in range(subdivisions - 1):
             values = np.asarray(all_values(t_samples[j + 1], y_inner[:, j]), dtype=np.float64).reshape(-1)
