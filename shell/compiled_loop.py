@@ -9,8 +9,8 @@ about a microsecond of dispatch per kernel, many per derivative. Here the same s
   gives a compiled function, in an int64 table) and called through it: an indirect call of ~10 ns,
   no Python; the engine model's kernels, which also take the engine's arrays (:mod:`dynamics.engine`,
   one data tuple of a fixed type), are called the same way;
-* :func:`advance` integrates with a fixed-step explicit Runge-Kutta method from one sample instant to the
-  next, runs the sampled models' updates at integer ticks of a common time base (their noise drawn from
+* :func:`advance` integrates with a fixed-step explicit Runge-Kutta method (or the exponential RK4,
+  ``etdrk4``: see "Exponential RK4 in the loop" below) from one sample instant to the next, runs the sampled models' updates at integer ticks of a common time base (their noise drawn from
   each model's own ``numpy.random.Generator``, bit-identical to the interpreted draws), writes log rows
   into preallocated buffers, and returns to Python only to run Python-only models, flush full log
   buffers, report progress, or report a failure.

@@ -294,8 +294,8 @@ def loop_is_cached() -> bool:
 
 
 def prepare() -> float:
-    """Compile (first run) or load the compiled loop and the engine kernels by running a one-step scene;
-    returns the seconds it took."""
+    """Compile (first run) or load the compiled loop and the engine kernels by running a one-step scene with
+    each of the loop's steppers (Runge-Kutta and exponential); returns the seconds it took."""
     import time
     import warnings
 
