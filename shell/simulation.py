@@ -460,8 +460,10 @@ class Simulation:
         if not isinstance(integ, ExponentialRK4):
             self._stepper, self._stepper_part = CL.exponential_placeholder(self.x.size), None
         elif not isinstance(self._stepper, CL.ExponentialStepper) or self._stepper_part is not integ.part:
-            self._stepper, self._stepper_part = CL.exponential_stepper(integ), integ.part
-            self._integrator_stale = True  # the state and slope are those of the Python loop's integrator
+            # the Python loop's integrator moved on: the loop restarts from the context (no slope needed here)
+            self._stepper = CL.exponential_stepper(integ, integ.y, np.zeros_like(integ.y))
+            self._stepper_part = integ.part
+            self._integrator_stale = True
         return self._stepper
 
     def _new_exponential_integrator(self, ints, reals, end):
