@@ -34,10 +34,46 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 
 from dynamics import kernels as K
 from dynamics import single_body as SB
+
+
+def _strip_references(context, builder, typ, value):
+    """``value`` of numba type ``typ`` with every array's meminfo (and parent) set to null: see
+    :func:`borrowed`."""
+    if isinstance(typ, types.Array):
+        model = context.data_model_manager[typ]
+        for field in ("meminfo", "parent"):
+            index = model.get_field_position(field)
+            value = builder.insert_value(value, ir.Constant(value.type.elements[index], None), index)
+        return value
+    if isinstance(typ, types.BaseTuple):
+        for index, member in enumerate(typ.types):
+            if isinstance(member, (types.Array, types.BaseTuple)):
+                stripped = _strip_references(context, builder, member, builder.extract_value(value, index))
+                value = builder.insert_value(value, stripped, index)
+    return value
+
+
+@intrinsic
+def borrowed(typingctx, value):
+    """``value`` (an array, or a tuple / named tuple of arrays, nested) as *borrowed* references: the
+    same arrays with their meminfo set to null, so numba's reference counting of them (an atomic
+    increment and decrement each time one is passed to or taken from a function, ~32 arrays per engine
+    call) becomes a null test. Valid only while the owner keeps the arrays alive: the engine's arrays
+    belong to the simulation's context, which outlives every compiled call on them. Measured on the
+    reaction-wheel scene: see ``shell.models.multibody.engine_kernel``."""
+    if not isinstance(value, (types.Array, types.BaseTuple)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        return _strip_references(context, builder, sig.args[0], args[0])
+
+    return value(value), codegen
 
 
 class EngineData(NamedTuple):
@@ -67,7 +103,7 @@ def engine_data(system) -> EngineData:
         system.ws_mat, system.pool, np.zeros((system.nbodies, 6)))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def forward_dynamics(d, q, u, tau, node_forces, udot, tau_out):
     """Accelerations of all DOFs into ``udot`` (which holds the prescribed accelerations on entry) and the
     generalized forces into ``tau_out`` (``tau`` at free DOFs, the force realizing the prescribed motion
@@ -84,7 +120,7 @@ def forward_dynamics(d, q, u, tau, node_forces, udot, tau_out):
                               d.zero_body_forces, udot, tau_out, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def node_kinematics(d, q, u, udot, rotation, position, velocity, acceleration):
     """Per node: ``rotation`` (nnodes, 3, 3) node -> world, ``position`` (nnodes, 3) world,
     ``velocity`` (nnodes, 6) ``[omega; v]`` and ``acceleration`` (nnodes, 6) ``[omega_dot; a]`` (classical
@@ -97,7 +133,7 @@ def node_kinematics(d, q, u, udot, rotation, position, velocity, acceleration):
                       velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def node_kinematics_after_dynamics(d, q, u, udot, rotation, position, velocity, acceleration):
     """:func:`node_kinematics` (same outputs) for the ``udot`` that :func:`forward_dynamics` just returned
     at the same ``q``, ``u`` with the same ``d``: it reuses the poses, velocities and accelerations left in
@@ -111,13 +147,13 @@ def node_kinematics_after_dynamics(d, q, u, udot, rotation, position, velocity, 
                                      position, velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def coordinate_rates(d, q, u, qdot):
     """``qdot = f(q, u)`` (quaternion kinematics for spherical and free hinges, identity elsewhere)."""
     K.coordinate_rates(d.topology, q, u, qdot)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def normalize_quaternions(d, q):
     """Divide every hinge quaternion of ``q`` by its norm, in place (a sequential sum of squares, the
     same arithmetic in the interpreted and the compiled loop)."""

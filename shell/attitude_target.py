@@ -23,7 +23,6 @@ line of the key in front.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from shell.model import ModelError
 from shell.units import UnitError, to_magnitude
@@ -96,6 +95,8 @@ def parse_attitude_target(value, where: str) -> np.ndarray:
             if not isinstance(angles, (list, tuple)) or len(angles) != 3:
                 raise ModelError(f"{where}: euler: expected three angles [a1, a2, a3], given {angles!r}")
             radians = [_angle(a, f"{where}: euler[{i}]") for i, a in enumerate(angles)]
+            from scipy.spatial.transform import Rotation  # here: scipy.spatial costs ~0.3 s at every start
+
             x, y, z, w = Rotation.from_euler(sequence, radians).as_quat()
             q = np.array([w, x, y, z])
         elif "point" in value:

@@ -42,6 +42,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic, overload
 from numba.np.arrayobj import make_array, populate_array
 
+from dynamics.engine import borrowed
 from shell.integrators import exponential as EX
 from shell.integrators.kernels import all_finite, hermite_cubic, propagate, stage_state
 from shell.models.multibody import DERIVATIVES as E_DERIVATIVES
@@ -541,7 +542,12 @@ def advance(k, engine, rngs, b, st, ev, sc, ints, reals, budget, write_logs, int
     """Run instants until the end tick, a return to Python, or ``budget`` instants (see the module docstring).
 
     ``ints[I_PHASE]`` 1: the updates at the current instant were done by the caller; continue with its
-    logging. ``integrate``: the scene has continuous states."""
+    logging. ``integrate``: the scene has continuous states.
+
+    The context's arrays are used as borrowed references inside (``dynamics.engine.borrowed``): the
+    caller's context owns them for the whole call, and passing the tuples between the loop's functions
+    otherwise costs an atomic increment and decrement per array and call."""
+    k, engine, b, st, ev, sc = borrowed((k, engine, b, st, ev, sc))
     instants = 0
     while True:
         if ints[I_PHASE] == 0:

@@ -284,13 +284,13 @@ def compile_plan(diagram, context):
 def loop_is_cached() -> bool:
     """True when numba's disk cache holds the compiled loop (a run starts in about a second); False on the
     first run after installing or changing flexshell, which compiles it (about a minute, once)."""
-    cache = getattr(L.advance, "_cache", None)
-    try:
-        from pathlib import Path
+    import os
 
-        return (Path(cache._cache_path) / cache._index_name).exists()
+    try:
+        index = L.advance._cache._cache_file._index_path
     except AttributeError:  # numba internals moved: say nothing rather than something wrong
         return True
+    return os.path.exists(index)
 
 
 def prepare() -> float:

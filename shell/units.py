@@ -15,8 +15,26 @@ import reprlib
 import numpy as np
 import pint
 
+
+
+def _registry() -> pint.UnitRegistry:
+    """pint's default registry, its parsed definitions cached on disk (pint's own ``cache_folder``,
+    under ``$XDG_CACHE_HOME/flexshell/pint``): parsing the definitions file costs ~0.4-0.8 s at every
+    start, loading the cache ~0.04 s. Any failure of the cache (unwritable home, a cache pint cannot
+    read) falls back to parsing, the same registry."""
+    import os
+    from pathlib import Path
+
+    folder = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "flexshell" / "pint"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        return pint.UnitRegistry(cache_folder=folder)
+    except Exception:  # noqa: BLE001 - any cache problem: the uncached registry is the same registry
+        return pint.UnitRegistry()
+
+
 #: The package's single unit registry (pint recommends one per application).
-ureg = pint.UnitRegistry()
+ureg = _registry()
 Quantity = ureg.Quantity
 
 _VECTOR_WITH_UNIT = re.compile(r"^\s*(\[.*\])\s*(.*?)\s*$", re.DOTALL)

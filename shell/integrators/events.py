@@ -17,7 +17,6 @@ Algorithm for a step [t_old, t_new] with continuous solution ``sol``:
 """
 import numpy as np
 from numba import njit
-from scipy.optimize import brentq
 
 
 def event(terminal=False, direction=0):
@@ -190,6 +189,8 @@ def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, 
                 root = ts[j + 1]
                 crossing = -np.sign(a)
             elif (a < 0.0) != (b < 0.0):
+                from scipy.optimize import brentq  # imported here: scipy.optimize adds ~0.5 s to every start
+
                 root = brentq(g_on_step, ts[j], ts[j + 1], xtol=xtol)
                 crossing = np.sign(b)
             else:

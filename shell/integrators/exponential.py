@@ -82,7 +82,6 @@ import math
 import warnings
 
 import numpy as np
-import scipy.linalg
 from numba import njit
 
 from . import kernels
@@ -187,6 +186,8 @@ class LinearPart:
         self.is_linear = np.zeros(n, dtype=np.bool_)
         self.is_linear[indices] = True
         if m:
+            import scipy.linalg  # here, not at module level: scipy.linalg costs ~0.3 s at every start
+
             balanced, (scale, _) = scipy.linalg.matrix_balance(L, permute=False, separate=True)
             lam, V = np.linalg.eig(balanced)
             self.lam = lam
@@ -205,6 +206,8 @@ class LinearPart:
         if not self.m:
             return
         E_eig = (self.V_balanced * np.exp(h * self.lam)) @ self.Vinv_balanced
+        import scipy.linalg
+
         E_ref = scipy.linalg.expm(h * self.balanced)
         diff = float(np.abs(E_eig - E_ref).max())
         if not diff <= EXPM_AGREEMENT * max(1.0, float(np.abs(E_ref).max())):

@@ -32,7 +32,6 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
-from scipy.optimize import linprog
 
 from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets
 from shell.registry import register_model
@@ -183,6 +182,8 @@ class NonnegativeAllocator(PseudoInverseAllocator):
         a = self.parameter("effectiveness")
         n, m = a.shape[1], a.shape[0]
         # every demand is producible by push-only actuators iff a strictly positive null vector exists
+        from scipy.optimize import linprog  # imported here: ~0.5 s at start-up for scenes without it
+
         result = linprog(np.r_[np.zeros(n), -1.0], A_ub=np.c_[-np.eye(n), np.ones(n)], b_ub=np.zeros(n),
                          A_eq=np.c_[a, np.zeros(m)], b_eq=np.zeros(m), bounds=[(0.0, 1.0)] * (n + 1), method="highs")
         if np.linalg.matrix_rank(a) < m or result.status != 0 or result.x[-1] <= 1e-9:
@@ -200,6 +201,8 @@ class NonnegativeAllocator(PseudoInverseAllocator):
         if not np.any(demand):
             z[held] = 0.0
             return
+        from scipy.optimize import linprog
+
         result = linprog(self._cost, A_eq=a, b_eq=demand, bounds=self._bounds, method="highs")
         if result.status != 0:
             raise ModelError(f"model {self.path}: allocation failed at t = {t:.12g} s for demand {demand}: "

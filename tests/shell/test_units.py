@@ -1,5 +1,8 @@
 """Units at the boundary: parsing user values, conversion factors, refusals."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -43,3 +46,37 @@ def test_refusals_name_the_place_and_the_mismatch(value, unit, shape, fragment):
 def test_offset_units_are_refused_on_ports():
     with pytest.raises(UnitError, match="offset units"):
         conversion_factor("degC", "kelvin", "port")
+
+
+_CONVERT = ("import shell.units as U; print(U.ureg.Quantity('5 deg/s').to('rad/s').magnitude, "
+            "U.ureg.Quantity('1 lbf').to('N').magnitude)")
+
+
+def _convert_in_a_fresh_process(cache_home):
+    import shell  # noqa: F401 - sets numba's cache directory for this process
+
+    env = {"XDG_CACHE_HOME": str(cache_home), "PATH": "/usr/bin:/bin", "HOME": str(cache_home)}
+    import os
+
+    import numba
+
+    env.update({k: v for k, v in os.environ.items() if k in ("PYTHONPATH", "VIRTUAL_ENV")})
+    env["NUMBA_CACHE_DIR"] = numba.config.CACHE_DIR  # the suite's warm kernels, whatever HOME says
+    done = subprocess.run([sys.executable, "-c", _CONVERT], capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return [float(v) for v in done.stdout.split()]
+
+
+def test_registry_definitions_cache_gives_the_same_units(tmp_path):
+    """The parsed pint definitions are cached under $XDG_CACHE_HOME/flexshell/pint (start-up time); a
+    first process writes the cache, a second reads it, and an unusable cache location falls back to
+    parsing: the same conversions every time."""
+    expected = [np.radians(5.0), 4.4482216152605]
+    first = _convert_in_a_fresh_process(tmp_path)
+    assert list((tmp_path / "flexshell" / "pint").iterdir()), "no cache written"
+    second = _convert_in_a_fresh_process(tmp_path)
+    blocked = tmp_path / "not_a_directory"
+    blocked.write_text("")
+    fallback = _convert_in_a_fresh_process(blocked)
+    for got in (first, second, fallback):
+        np.testing.assert_allclose(got, expected, rtol=1e-12)
