@@ -9,8 +9,8 @@ about a microsecond of dispatch per kernel, many per derivative. Here the same s
   gives a compiled function, in an int64 table) and called through it: an indirect call of ~10 ns,
   no Python; the engine model's kernels, which also take the engine's arrays (:mod:`dynamics.engine`,
   one data tuple of a fixed type), are called the same way;
-* :func:`advance` integrates with a fixed-step explicit Runge-Kutta method from one sample instant to the
-  next, runs the sampled models' updates at integer ticks of a common time base (their noise drawn from
+* :func:`advance` integrates with a fixed-step explicit Runge-Kutta method (or the exponential RK4,
+  ``etdrk4``: see "Exponential RK4 in the loop" below) from one sample instant to the next, runs the sampled models' updates at integer ticks of a common time base (their noise drawn from
   each model's own ``numpy.random.Generator``, bit-identical to the interpreted draws), writes log rows
   into preallocated buffers, and returns to Python only to run Python-only models, flush full log
   buffers, report progress, or report a failure.
@@ -39,10 +39,11 @@ from numba import njit
 
 from numba import typeof, types
 from numba.core import cgutils
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 from numba.np.arrayobj import make_array, populate_array
 
 from dynamics.engine import borrowed
+from shell.integrators import exponential as EX
 from shell.integrators.kernels import all_finite, hermite_cubic, propagate, stage_state
 from shell.models.multibody import DERIVATIVES as E_DERIVATIVES
 from shell.models.multibody import DERIVATIVES_AFTER_FEEDTHROUGH as E_DERIVATIVES_REUSE
@@ -142,10 +143,13 @@ SUBDIVISIONS = 8         # the subdivisions of shell.integrators.locate_events
 
 # integer registers of advance (ints array)
 I_NOW, I_F_VALID, I_STEPS, I_NFEV, I_UPDATES, I_PHASE, I_FAILED_STAGE = range(7)
-N_INTS = 7
+# the exponential stepper's (see "Exponential RK4 in the loop" below)
+I_SINCE_CHECK, I_CHECK_INTERVAL, I_STEP_FLAGS = range(7, 10)
+N_INTS = 10
 # float registers (reals array)
 R_T, R_FAILED_T, R_T_OLD, R_LAST_EVENT = range(4)
-N_REALS = 4
+R_PHI_H, R_RHO = range(4, 6)  # the exponential stepper's: h of its eigenbasis phi functions, last h rho(N)
+N_REALS = 6
 
 
 class Buffers(NamedTuple):
@@ -560,7 +564,7 @@ def advance(k, engine, rngs, b, st, ev, sc, ints, reals, budget, write_logs, int
                 for i in sc.order:
                     if sc.next_tick[i] == nxt:
                         update_due = True
-                status = _integrate(k, engine, b, st, ev, target, ints, reals, update_due and ev.mode == NO_EVENTS)
+                status = _step_to(k, engine, b, st, ev, target, ints, reals, update_due and ev.mode == NO_EVENTS)
                 if status != 0:
                     return status
             reals[R_T] = target
@@ -590,3 +594,307 @@ def advance(k, engine, rngs, b, st, ev, sc, ints, reals, budget, write_logs, int
                 return LOG_FULL
         if instants >= budget:
             return BUDGET
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Exponential RK4 in the loop: Krogstad's scheme (shell.integrators.exponential.ExponentialRK4) stepped here,
+# with the same njit stage products (stage_real / stage_eigen), the same remainder N = f - L y, the same order of
+# operations and the same lazy slope, so that the compiled and the interpreted runs agree bit for bit. Python
+# keeps what must be Python: the callable linear part (a mass matrix and a Cholesky solve in the models'
+# ``stiff_linear_part``) and the rebuild of the matrix functions. The loop keeps the integrator's check counters
+# (ints[I_SINCE_CHECK], ints[I_CHECK_INTERVAL]) and returns LINEAR_CHECK when a check of the linear part is due
+# (after 1, 2, 4, ... 64 steps: one return per 64 steps once the part stands still) and STIFF_REMAINDER when a
+# step finds the remainder stiff (h rho(N) > 1); Python checks (and perhaps rebuilds the stepper) and calls
+# advance again, which continues the step where it stopped (ints[I_STEP_FLAGS]). Events: as for the Runge-Kutta
+# methods, the loop decides whether locate_events would find a crossing in the step (the ends with sign_change
+# detection; samples of the dense output with subdivided detection and on the step right after an event),
+# and Python locates it on the method's own dense output (ExponentialDenseOutput from ``N`` and the step's
+# start, kept in ``Events.y_old``; both evaluate the compiled exponential.dense_state).
+# ----------------------------------------------------------------------------------------------------------
+
+LINEAR_CHECK = 8         # a check of the callable linear part is due before the step from reals[R_T]
+STIFF_REMAINDER = 9      # the step from reals[R_T] found h rho(N) > STIFF_REMAINDER_BOUND (rho in R_RHO)
+NEW_INTEGRATOR = 10      # the stepper is a placeholder: Python makes the integrator at (reals[R_T], b.X)
+
+# ints[I_STEP_FLAGS] bits: this step's scheduled check was done, its stiffness was handled (no more checks in
+# this step), continue it at stage 4 (the stages before are kept in S and N)
+CHECK_DONE, STIFF_DONE, RESUME = 1, 2, 4
+# ints[I_F_VALID] of the exponential stepper: 0 restart from the context's x, 1 F = f(t, Y), 2 Y current, F due
+F_DUE = 2
+
+
+class ExponentialStepper(NamedTuple):
+    """Krogstad's exponential RK4 (shell.integrators.exponential) as arrays: the state, the stage and remainder
+    work arrays, the linear part and its matrix functions (built in Python by ExponentialRK4)."""
+
+    h: float
+    Y: np.ndarray            # (n,) the state at reals[R_T]
+    F: np.ndarray            # (n,) f(t, Y) when ints[I_F_VALID] == 1
+    YN: np.ndarray           # (n,) the new state; after a failure the offending state
+    S: np.ndarray            # (4, n) stage states Y2, Y3, Y4 and the propagated state
+    N: np.ndarray            # (4, n) remainders N1..N4 (the last step's: its dense output)
+    W: np.ndarray            # (3, n) term vectors
+    no_base: np.ndarray      # (0,)
+    indices: np.ndarray      # (m,) int64 the linear part's components
+    L: np.ndarray            # (m, m)
+    L_norm: float
+    is_linear: np.ndarray    # (n,) bool
+    Phi: tuple               # 4 stage matrices phi_k(c h L) side by side (ExponentialRK4.Phi_stages)
+    stage_base: np.ndarray   # (4,) int64: -1 or the stage state added (exponential.STAGES)
+    stage_terms: np.ndarray  # (4,) int64
+    stage_functions: np.ndarray     # (4, 3) int64
+    stage_coefficients: np.ndarray  # (4, 3, 5)
+    phi_at_zero: np.ndarray  # (7,)
+    phi_c: np.ndarray        # (7,) c of exponential.FUNCTIONS
+    phi_k: np.ndarray        # (7,) int64 k of exponential.FUNCTIONS
+    c_nodes: np.ndarray      # (3,)
+    y_lin: np.ndarray        # (m,) scratch
+    product: np.ndarray      # (m,)
+    w_stack: np.ndarray      # (3 m,)
+    V: np.ndarray            # (m, m) complex: eigenvectors (shortened steps)
+    Vinv: np.ndarray
+    lam: np.ndarray          # (m,) complex eigenvalues
+    phi_diag: np.ndarray     # (7, m) complex phi_k(c h lambda) at h = reals[R_PHI_H]
+    phi_work: np.ndarray     # (4, m) complex
+    z_work: np.ndarray       # (m,) complex
+    z_acc: np.ndarray
+    z_in: np.ndarray
+    z_out: np.ndarray
+    dense_n: np.ndarray      # (3, n) the last step's dense output: its quadratic in N
+    dense_z: np.ndarray      # (4, m) complex: its eigenbasis coordinates
+    check_drift: bool        # the linear part is a callable to re-check (the shell's always is)
+
+
+def exponential_stepper(integ, Y=None, F=None):
+    """The :class:`ExponentialStepper` of an :class:`shell.integrators.ExponentialRK4` (its current linear part
+    and nominal step); ``Y``, ``F`` carried over from a previous stepper (a rebuild), else the integrator's."""
+    part, n = integ.part, integ.n
+    m = part.m
+    base = np.array([stage[0] for stage in EX.STAGES], dtype=np.int64)
+    terms = np.array([stage[1].shape[0] for stage in EX.STAGES], dtype=np.int64)
+    functions = np.zeros((4, 3), dtype=np.int64)
+    coefficients = np.zeros((4, 3, 5))
+    for j, (_, fn, co) in enumerate(EX.STAGES):
+        functions[j, :fn.shape[0]] = fn
+        coefficients[j, :fn.shape[0]] = co
+    complex_m = (lambda: np.zeros(m, dtype=np.complex128))
+    V = np.ascontiguousarray(part.V, dtype=np.complex128)
+    Vinv = np.ascontiguousarray(part.Vinv, dtype=np.complex128)
+    lam = np.ascontiguousarray(part.lam, dtype=np.complex128)
+    return ExponentialStepper(
+        float(integ.h), (integ.y if Y is None else Y).copy(), (integ.f if F is None else F).copy(), np.zeros(n),
+        np.zeros((4, n)), np.zeros((4, n)), np.zeros((3, n)), np.zeros(0), part.indices.astype(np.int64),
+        np.ascontiguousarray(part.L), float(part.L_norm), part.is_linear.copy(),
+        tuple(np.ascontiguousarray(P, dtype=np.float64).reshape(P.shape if m else (0, 0)) for P in integ.Phi_stages),
+        base, terms, functions, coefficients, EX.PHI_AT_ZERO.copy(), np.array([c for c, _ in EX.FUNCTIONS]),
+        np.array([k for _, k in EX.FUNCTIONS], dtype=np.int64), np.array(EX.C_NODES), np.zeros(m), np.zeros(m),
+        np.zeros(3 * m), V, Vinv, lam, np.zeros((len(EX.FUNCTIONS), m), dtype=np.complex128),
+        np.zeros((4, m), dtype=np.complex128), complex_m(), complex_m(), complex_m(), complex_m(), np.zeros((3, n)),
+        np.zeros((4, m), dtype=np.complex128), bool(callable(integ.linear_part_option)))
+
+
+def exponential_placeholder(n):
+    """A stepper of the right type with step 0: the loop asks Python for the integrator before using it."""
+    empty_c = np.zeros(0, dtype=np.complex128)
+    return ExponentialStepper(
+        0.0, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((4, n)), np.zeros((4, n)), np.zeros((3, n)), np.zeros(0),
+        np.zeros(0, dtype=np.int64), np.zeros((0, 0)), 0.0, np.zeros(n, dtype=np.bool_), (np.zeros((0, 0)),) * 4,
+        np.zeros(4, dtype=np.int64), np.zeros(4, dtype=np.int64), np.zeros((4, 3), dtype=np.int64),
+        np.zeros((4, 3, 5)), np.zeros(7), np.zeros(7), np.zeros(7, dtype=np.int64), np.zeros(3), np.zeros(0),
+        np.zeros(0), np.zeros(0), np.zeros((0, 0), dtype=np.complex128), np.zeros((0, 0), dtype=np.complex128),
+        empty_c, np.zeros((7, 0), dtype=np.complex128), np.zeros((4, 0), dtype=np.complex128), empty_c, empty_c,
+        empty_c, empty_c, np.zeros((3, n)), np.zeros((4, 0), dtype=np.complex128), False)
+
+
+@njit(cache=True)
+def _exponential_phi_diagonal(st, h):
+    """phi_k(c h lambda) of exponential.FUNCTIONS into st.phi_diag (LinearPart.diagonal_functions)."""
+    m = st.lam.shape[0]
+    for f in range(st.phi_c.shape[0]):
+        c = st.phi_c[f]
+        kf = st.phi_k[f]
+        for i in range(m):
+            st.z_work[i] = c * h * st.lam[i]
+        EX._phi_into(st.z_work, kf, st.phi_work)
+        for i in range(m):
+            st.phi_diag[f, i] = st.phi_work[kf, i]
+
+
+@njit(cache=True)
+def _exponential_stage(st, j, h, nominal, out):
+    """Stage ``j`` of exponential.STAGES into ``out`` (ExponentialRK4._stage); True if out is finite."""
+    base_index = st.stage_base[j]
+    base = st.no_base if base_index < 0 else st.S[base_index]
+    n_terms = st.stage_terms[j]
+    functions = st.stage_functions[j, :n_terms]
+    coefficients = st.stage_coefficients[j, :n_terms]
+    W = st.W[:n_terms]
+    if nominal:
+        return EX.stage_real(st.Phi[j], st.phi_at_zero, functions, coefficients, st.Y, st.N, h, base, st.indices,
+                             st.is_linear, out, W, st.w_stack, st.product)
+    return EX.stage_eigen(st.V, st.Vinv, st.phi_diag, st.phi_at_zero, functions, coefficients, st.Y, st.N, h, base,
+                          st.indices, st.is_linear, out, W, st.z_acc, st.z_in, st.z_out)
+
+
+@njit(cache=True)
+def _exponential_failed(st, reals, ints, t, t_failed, state, stage):
+    st.YN[:] = state
+    reals[R_FAILED_T] = t_failed
+    reals[R_T_OLD] = t
+    reals[R_T] = t
+    ints[I_FAILED_STAGE] = stage
+    ints[I_STEP_FLAGS] = 0
+    return STEP_FAILED
+
+
+@njit(cache=True)
+def _exponential_event_samples(k, engine, b, st, ev, t_old, t_new):
+    """The zero-crossing functions at the uniform samples of the step's dense output into ev.samples (the same
+    compiled exponential.dense_state that ExponentialDenseOutput evaluates in Python, at the same sample times):
+    what locate_events' first pass computes, handed to it with the candidate (Simulation._compiled_event)."""
+    n = SUBDIVISIONS
+    h = t_new - t_old
+    step = (t_new - t_old) / n  # numpy.linspace(t_old, t_new, n + 1)
+    EX.dense_coefficients(ev.y_old, st.N, st.Vinv, st.indices, st.dense_n, st.dense_z, st.z_in)
+    ev.samples[0, :] = ev.g_old
+    ev.samples[n, :] = ev.g_new
+    for j in range(1, n):
+        t_j = j * step + t_old
+        EX.dense_state((t_j - t_old) / h, h, ev.y_old, st.dense_n, st.dense_z, st.lam, st.V, st.indices, st.z_work,
+                       st.phi_work, st.z_acc, st.z_out, ev.y_mid)
+        _zero_crossings_at(k, engine, t_j, ev.y_mid, b, ev.samples[j])
+
+
+@njit(cache=True)
+def _exponential_event_candidate(k, engine, b, st, ev, t_old, t_new):
+    """_event_candidate's subdivided search on the exponential dense output's samples, so that the loop returns
+    to Python exactly when locate_events would find a crossing."""
+    m = ev.g_old.shape[0]
+    n = SUBDIVISIONS
+    step = (t_new - t_old) / n
+    _exponential_event_samples(k, engine, b, st, ev, t_old, t_new)
+    for f in range(m):
+        for j in range(n):
+            if _candidate_pair(ev.samples[j, f], ev.samples[j + 1, f], ev.direction[f]):
+                return True
+        for j in range(n - 1):
+            if _parabola_flags(ev.samples[j, f], ev.samples[j + 1, f], ev.samples[j + 2, f], j * step + t_old,
+                               (j + 1) * step + t_old, (t_new if j + 2 == n else (j + 2) * step + t_old)):
+                return True
+    return False
+
+
+@njit(cache=True)
+def _integrate_exponential(k, engine, b, st, ev, target, ints, reals):
+    """Exponential RK4 steps from reals[R_T] to ``target`` (ExponentialRK4._step_impl and Simulation._advance,
+    the same arithmetic; see the section comment); returns 0 or a status."""
+    Y, F, S, N = st.Y, st.F, st.S, st.N
+    t = reals[R_T]
+    if st.h == 0.0:
+        return NEW_INTEGRATOR
+    if ints[I_F_VALID] == 0:  # a restart from the context's state: Integrator.reset (normalize, derivative)
+        Y[:] = b.X
+        normalize(k, engine, b, Y)
+        ints[I_F_VALID] = F_DUE
+    if ev.mode != NO_EVENTS:
+        _zero_crossings_at(k, engine, t, Y, b, ev.g_old)
+    h0 = st.h
+    while t < target:
+        if ints[I_F_VALID] != 1:  # the slope at the step's start (lazy: a restart follows most steps)
+            derivative_at(k, engine, t, Y, b, b.src, b.fac)
+            ints[I_NFEV] += 1
+            if not all_finite(b.XD):
+                reals[R_T] = t
+                b.X[:] = Y
+                return START_FAILED
+            F[:] = b.XD
+            ints[I_F_VALID] = 1
+        remaining = target - t
+        last = remaining <= h0 * (1.0 + 1e-9)
+        h = remaining if last else h0
+        nominal = abs(h - h0) <= 1e-12 * h0
+        t_new = target if last else t + h
+        flags = ints[I_STEP_FLAGS]
+        if st.check_drift and not (flags & CHECK_DONE):
+            ints[I_SINCE_CHECK] += 1
+            ints[I_STEP_FLAGS] = flags | CHECK_DONE
+            if ints[I_SINCE_CHECK] >= ints[I_CHECK_INTERVAL]:
+                reals[R_T] = t
+                b.X[:] = Y
+                return LINEAR_CHECK
+            flags = ints[I_STEP_FLAGS]
+        if not nominal and reals[R_PHI_H] != h:
+            _exponential_phi_diagonal(st, h)
+            reals[R_PHI_H] = h
+        first = 0
+        if flags & RESUME:
+            first = 2
+        else:
+            EX.remainder(F, Y, st.indices, st.L, st.y_lin, st.product, N[0])
+        for j in range(first, 3):
+            t_stage = t + st.c_nodes[j] * h
+            if not _exponential_stage(st, j, h, nominal, S[j]):
+                return _exponential_failed(st, reals, ints, t, t_stage, S[j], 0)
+            derivative_at(k, engine, t_stage, S[j], b, b.src, b.fac)
+            ints[I_NFEV] += 1
+            if not all_finite(b.XD):
+                return _exponential_failed(st, reals, ints, t, t_stage, S[j], 1)
+            EX.remainder(b.XD, S[j], st.indices, st.L, st.y_lin, st.product, N[j + 1])
+            if j == 1 and not (flags & STIFF_DONE):
+                rho, noise = EX.remainder_stiffness(N[1], N[2], S[0], S[1], st.indices, st.L_norm)
+                if not (h * noise > 0.1 * EX.STIFF_REMAINDER_BOUND):  # ExponentialRK4._remainder_is_stiff
+                    reals[R_RHO] = h * rho
+                    if h * rho > EX.STIFF_REMAINDER_BOUND:
+                        ints[I_STEP_FLAGS] = flags | STIFF_DONE | RESUME
+                        reals[R_T] = t
+                        b.X[:] = Y
+                        return STIFF_REMAINDER
+        if not _exponential_stage(st, 3, h, nominal, S[3]):
+            return _exponential_failed(st, reals, ints, t, t_new, S[3], 0)
+        st.YN[:] = S[3]
+        normalize(k, engine, b, st.YN)
+        ints[I_STEP_FLAGS] = 0
+        if ev.mode != NO_EVENTS:
+            ev.y_old[:] = Y
+        Y[:] = st.YN
+        ints[I_F_VALID] = F_DUE
+        reals[R_T_OLD] = t
+        t_old = t
+        t = t_new
+        ints[I_STEPS] += 1
+        if t >= target:
+            t = target
+        if ev.mode != NO_EVENTS:
+            _zero_crossings_at(k, engine, t, Y, b, ev.g_new)
+            # subdivided detection, and the step right after an event, search the dense output (Simulation._advance)
+            if ev.mode == SUBDIVIDED or t_old == reals[R_LAST_EVENT]:
+                candidate = _exponential_event_candidate(k, engine, b, st, ev, t_old, t)
+            else:
+                candidate = _event_candidate(k, engine, b, ev, t_old, t, Y, F, False)
+                if candidate:  # Python's search starts from these samples
+                    _exponential_event_samples(k, engine, b, st, ev, t_old, t)
+            if candidate:
+                reals[R_T] = t
+                b.X[:] = Y
+                return EVENT_CANDIDATE
+            ev.g_old[:] = ev.g_new
+    reals[R_T] = t
+    b.X[:] = Y
+    return 0
+
+
+def _step_to(k, engine, b, st, ev, target, ints, reals, skip_final):
+    """Integrate from reals[R_T] to ``target`` with the stepper ``st``: the explicit Runge-Kutta loop or the
+    exponential one, chosen by the stepper's type at compile time."""
+
+
+@overload(_step_to)
+def _step_to_overload(k, engine, b, st, ev, target, ints, reals, skip_final):
+    if isinstance(st, types.BaseNamedTuple) and st.instance_class is ExponentialStepper:
+        def exponential(k, engine, b, st, ev, target, ints, reals, skip_final):
+            return _integrate_exponential(k, engine, b, st, ev, target, ints, reals)
+        return exponential
+
+    def runge_kutta(k, engine, b, st, ev, target, ints, reals, skip_final):
+        return _integrate(k, engine, b, st, ev, target, ints, reals, skip_final)
+    return runge_kutta

@@ -162,6 +162,8 @@ class Simulation:
         self._integrator = None
         self._integrator_stale = True
         self._stepper = None
+        # the exponential stepper's linear part, the time its state is current at, its slope's state (CL.F_DUE)
+        self._stepper_part, self._stepper_t, self._stepper_f_state = None, None, 0
         self._event_functions = [_EventFunction(self, j, zc.direction, d.zero_crossing_terminal[j])
                                  for j, (_, _, zc) in enumerate(d.zero_crossing_owner)]
         self._last_events: tuple[float, set] = (-np.inf, set())
@@ -415,12 +417,15 @@ class Simulation:
     # ------------------------------------------------------------------------------------------------
     # the compiled loop (shell.compiled_loop): the same instants, updates, steps and log rows as below
     def _compiled_loop_applies(self) -> bool:
-        """Fixed-step explicit integration without zero crossings runs in the compiled loop; adaptive and
-        implicit methods and scenes with zero crossings run the Python loop on the compiled derivative."""
+        """Fixed-step explicit Runge-Kutta and the exponential RK4 run in the compiled loop; adaptive and
+        implicit methods run the Python loop on the compiled derivative."""
         from shell.integrators import INTEGRATORS
+        from shell.integrators.exponential import ExponentialRK4
         from shell.integrators.fixed import FixedStepRungeKutta
 
         cls = INTEGRATORS.get(str(self.integrator_name).lower())
+        if self._plan is not None and cls is ExponentialRK4:
+            return self.integrator_options.get("step") is not None
         if self._plan is None or cls is None or not issubclass(cls, FixedStepRungeKutta):
             return False
         # events are located on the dense output: the compiled loop evaluates the cubic Hermite one
@@ -442,6 +447,38 @@ class Simulation:
             return None
         return den
 
+    def _compiled_exponential_stepper(self):
+        """The exponential RK4's stepper (:class:`shell.compiled_loop.ExponentialStepper`), or a placeholder
+        (step 0) until the integrator exists: the loop then returns NEW_INTEGRATOR where the Python loop would
+        make it (at the start of the first integration, after the updates at that instant), so that its linear
+        part and driven rows are built at the same state. The :class:`ExponentialRK4` object stays the home
+        of the linear part, its matrix functions and check counters (the compiled loop reads and writes them
+        back), and of the events' dense output."""
+        from shell.integrators.exponential import ExponentialRK4
+
+        integ = self._integrator
+        if not isinstance(integ, ExponentialRK4):
+            self._stepper, self._stepper_part = CL.exponential_placeholder(self.x.size), None
+        elif not isinstance(self._stepper, CL.ExponentialStepper) or self._stepper_part is not integ.part:
+            # the Python loop's integrator moved on: the loop restarts from the context (no slope needed here)
+            self._stepper = CL.exponential_stepper(integ, integ.y, np.zeros_like(integ.y))
+            self._stepper_part = integ.part
+            self._integrator_stale = True
+        return self._stepper
+
+    def _new_exponential_integrator(self, ints, reals, end):
+        """NEW_INTEGRATOR: make the integrator at the loop's time and state (Simulation._restart_integrator,
+        as the Python loop does at its first integration) and return its stepper, with its slope."""
+        self.t = float(reals[CL.R_T])
+        self._integrator = None
+        integ = self._restart_integrator(float(end))
+        self._stepper, self._stepper_part = CL.exponential_stepper(integ), integ.part
+        ints[CL.I_F_VALID] = 1
+        ints[CL.I_SINCE_CHECK] = integ.steps_since_check
+        ints[CL.I_CHECK_INTERVAL] = integ.check_interval
+        reals[CL.R_PHI_H] = np.nan
+        return self._stepper
+
     def _compiled_stepper(self):
         from shell.integrators import INTEGRATORS
 
@@ -451,7 +488,7 @@ class Simulation:
         if not (step > 0.0 and math.isfinite(step)):
             raise ModelError(f"integrator step must be a positive number of seconds, got {options['step']!r}")
         h = min(step, float(options.get("max_step", np.inf)))
-        if self._stepper is None or self._stepper.h != h or self._stepper.A is not cls.tableau.A:
+        if not isinstance(self._stepper, CL.Stepper) or self._stepper.h != h or self._stepper.A is not cls.tableau.A:
             tb, n = cls.tableau, self.x.size
             self._stepper = CL.Stepper(tb.A, tb.b, tb.c, tb.n_stages, h, self.x.copy(), np.zeros(n),
                                        np.zeros((tb.n_stages, n)), np.zeros(n), np.zeros(n))
@@ -465,7 +502,11 @@ class Simulation:
         if den is None:
             return None
         d, context, plan = self.diagram, self.context, self._plan
-        stepper = self._compiled_stepper()
+        exponential = getattr(INTEGRATORS.get(str(self.integrator_name).lower()), "uses_linear_part", False)
+        if exponential:
+            stepper = self._compiled_exponential_stepper()
+        else:
+            stepper = self._compiled_stepper()
         n_models = len(self.models)
         next_tick = np.full(n_models, -1, dtype=np.int64)
         period = np.zeros(n_models, dtype=np.int64)
@@ -494,6 +535,14 @@ class Simulation:
         reals[CL.R_T] = self.t
         ints[CL.I_F_VALID] = 0 if self._integrator_stale else 1
         ints[CL.I_NOW] = int(Fraction(self.t).limit_denominator(10**9) * den)
+        if exponential and self._stepper_part is not None:
+            ints[CL.I_SINCE_CHECK] = self._integrator.steps_since_check
+            ints[CL.I_CHECK_INTERVAL] = self._integrator.check_interval
+            reals[CL.R_PHI_H] = np.nan
+            if self._integrator_stale or self._stepper_t != self.t:
+                ints[CL.I_F_VALID] = 0
+            else:
+                ints[CL.I_F_VALID] = self._stepper_f_state
         names = list(self._log_groups)
 
         def flush():
@@ -516,6 +565,11 @@ class Simulation:
             self.counters["updates"] += int(done[2])
             ints[[CL.I_STEPS, CL.I_NFEV, CL.I_UPDATES]] = 0
             self._integrator_stale = ints[CL.I_F_VALID] == 0
+            if exponential and self._stepper_part is not None:
+                self._integrator.steps_since_check = int(ints[CL.I_SINCE_CHECK])
+                self._integrator.check_interval = int(ints[CL.I_CHECK_INTERVAL])
+                self._stepper_t = self.t
+                self._stepper_f_state = int(ints[CL.I_F_VALID])
 
         budget = 64
         integrate = self.x.size > 0
@@ -546,6 +600,11 @@ class Simulation:
                     stop_reason = self._compiled_event(events, stepper, ints, reals)
                     if stop_reason is not None:
                         break
+                elif status in (CL.LINEAR_CHECK, CL.STIFF_REMAINDER):
+                    stepper = self._check_linear_part(self._integrator, stepper, ints, reals,
+                                                      status == CL.STIFF_REMAINDER)
+                elif status == CL.NEW_INTEGRATOR:
+                    stepper = self._new_exponential_integrator(ints, reals, end)
                 else:
                     sync()
                     self._raise_compiled_failure(status, stepper, reals)
@@ -569,9 +628,16 @@ class Simulation:
         from shell.integrators.base import HermiteDenseOutput
 
         t_old, t_new = float(reals[CL.R_T_OLD]), float(reals[CL.R_T])
-        sol = HermiteDenseOutput(t_old, t_new, events.y_old, events.f_old, stepper.Y, stepper.F)
+        samples = None
+        if isinstance(stepper, CL.ExponentialStepper):
+            from shell.integrators.exponential import ExponentialDenseOutput
+
+            sol = ExponentialDenseOutput(t_old, t_new, events.y_old, stepper.N, self._stepper_part)
+            samples = events.samples[1:-1].copy()  # the loop sampled the dense output already (same numbers)
+        else:
+            sol = HermiteDenseOutput(t_old, t_new, events.y_old, events.f_old, stepper.Y, stepper.F)
         handled, stop = self._locate_and_handle(sol, t_old, t_new, events.g_old.copy(), events.g_new.copy(),
-                                                self._plan.normalize)
+                                                self._plan.normalize, samples)
         if handled:
             reals[CL.R_T] = self.t
             reals[CL.R_LAST_EVENT] = self.t
@@ -580,18 +646,51 @@ class Simulation:
             self.x[:] = stepper.Y
         return stop
 
+    def _check_linear_part(self, integ, stepper, ints, reals, stiff: bool):
+        """The compiled exponential RK4 asks for a check of its linear part (due by the check counters, or
+        forced by a stiff remainder): ExponentialRK4._check_drift's work, in Python; a rebuilt linear part gives
+        a new stepper (the state and slope carried over). Returns the stepper to continue with."""
+        t, h = float(reals[CL.R_T]), stepper.h
+        if stiff:
+            integ.last_rho = float(reals[CL.R_RHO]) / h
+            if not stepper.check_drift:  # a fixed (indices, L): the interpreted integrator warns and goes on
+                saved, integ.t = integ.t, t
+                integ._warn_stiff(h)
+                integ.t = saved
+                return stepper
+        before = integ.nfev
+        integ.steps_since_check = 0
+        integ.check_interval = int(ints[CL.I_CHECK_INTERVAL])
+        rebuilt = integ.check_linear_part(t, stepper.Y.copy())
+        ints[CL.I_SINCE_CHECK] = 0
+        ints[CL.I_CHECK_INTERVAL] = integ.check_interval
+        ints[CL.I_NFEV] += integ.nfev - before
+        if not rebuilt:
+            return stepper
+        if stiff:  # the step is taken again from its start with the new linear part
+            ints[CL.I_STEP_FLAGS] &= ~CL.RESUME
+            integ.nrejected += 1
+        self._stepper = CL.exponential_stepper(integ, stepper.Y, stepper.F)
+        self._stepper_part = integ.part
+        reals[CL.R_PHI_H] = np.nan
+        return self._stepper
+
     def _python_updates(self, ints, reals, next_tick, period) -> None:
         """The updates at the current instant when a Python-only model is due (all due models, in order)."""
         t = float(reals[CL.R_T])
         self.t = t
         now = int(ints[CL.I_NOW])
+        plan = self._plan
         for i in self.diagram.update_order:
             if next_tick[i] != now:
                 continue
-            try:
-                self.diagram.update(self.context, i, t)
-            except EvaluationError as exc:
-                raise SimulationError(str(exc)) from exc.__cause__
+            if plan.update_is_compiled(i):
+                plan.update(t, i)  # the same numbers as Diagram.update, without a Python dispatch per stage
+            else:
+                try:
+                    self.diagram.update(self.context, i, t)
+                except EvaluationError as exc:
+                    raise SimulationError(str(exc)) from exc.__cause__
             next_tick[i] += period[i]
             ints[CL.I_UPDATES] += 1
         self._check_finite_state(f"the discrete updates at t = {t:.9g} s")
@@ -613,10 +712,14 @@ class Simulation:
             self.derivative(failed_t, bad_y)
             culprit = self._name_nonfinite(self.xdot, self.x_states(), what="derivative of")
             self.x[:] = stepper.Y
+        advice = ("if the state grew without bound the step may exceed the explicit stability limit: reduce "
+                  "the step, remove fast modes, or use an implicit method")
+        if isinstance(stepper, CL.ExponentialStepper):
+            self._integrator.last_rho = float(reals[CL.R_RHO]) / stepper.h
+            advice = self._integrator._suggestion(stepper.h)
         message = (f"{culprit or 'a non-finite value'} at t = {failed_t:.9g} s; the run stopped there (last good "
                    f"state at t = {t:.9g} s). Integrator: {self.integrator_name} with step {stepper.h:.6g} s; "
-                   "if the state grew without bound the step may exceed the explicit stability limit: reduce "
-                   "the step, remove fast modes, or use an implicit method")
+                   + advice)
         raise SimulationError(message)
 
     def _next_instant(self, end: Fraction) -> Fraction:
@@ -682,11 +785,12 @@ class Simulation:
         self._restart_integrator(target)
         return None
 
-    def _locate_and_handle(self, sol, t_old, t_new, g_old, g_new, normalize) -> tuple[bool, str | None]:
-        """Locate the crossings of one step on its dense output ``sol`` and run the handlers of the first;
-        returns (an event was handled, the stop reason of a terminal one or None)."""
+    def _locate_and_handle(self, sol, t_old, t_new, g_old, g_new, normalize, samples=None) -> tuple[bool, str | None]:
+        """Locate the crossings of one step on its dense output ``sol`` (``samples``: the functions at its inner
+        uniform samples when already computed) and run the handlers of the first; returns (an event was
+        handled, the stop reason of a terminal one or None)."""
         hits = locate_events(self._event_functions, sol, t_old, t_new, g_old, g_new, xtol=self.event_tol,
-                             all_values=self._zero_crossing_vector)
+                             all_values=self._zero_crossing_vector, samples=samples)
         # a crossing just handled leaves its function at zero up to round-off, which may read as a new
         # sign change right after the restart: the same function within the tolerance is not a new event
         t_last, handled = self._last_events

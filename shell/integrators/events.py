@@ -16,6 +16,7 @@ Algorithm for a step [t_old, t_new] with continuous solution ``sol``:
    event handled at the end of the previous step and is not reported again.
 """
 import numpy as np
+from numba import njit
 
 
 def event(terminal=False, direction=0):
@@ -66,7 +67,47 @@ def _insert_extremum_samples(g, sol, ts, gs):
         k += 1
 
 
-def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, subdivisions=8, all_values=None):
+@njit(cache=True)
+def _may_report(gs, ts, direction):
+    """False when the samples ``gs`` of one function at ``ts`` can give neither a root (no sign change or zero
+    between consecutive samples in a counted direction) nor an extremum sample (no run of three equal-sign
+    samples whose parabola has an extremum inside, of the other sign or near zero): the tests of steps 2 and
+    3, so that locate_events skips such a function (most of them, most of the time) without changing its
+    answer."""
+    n = gs.shape[0]
+    for j in range(n - 1):
+        a, b = gs[j], gs[j + 1]
+        if a == 0.0 or np.isnan(a) or np.isnan(b):
+            continue
+        if b == 0.0:
+            crossing = -1.0 if a > 0.0 else 1.0
+        elif (a < 0.0) != (b < 0.0):
+            crossing = 1.0 if b > 0.0 else -1.0
+        else:
+            continue
+        if direction == 0 or direction == crossing:
+            return True
+    for k in range(n - 2):
+        g0, g1, g2 = gs[k], gs[k + 1], gs[k + 2]
+        if not ((g0 > 0 and g1 > 0 and g2 > 0) or (g0 < 0 and g1 < 0 and g2 < 0)):
+            continue
+        t0, t1, t2 = ts[k], ts[k + 1], ts[k + 2]
+        d01 = (g1 - g0) / (t1 - t0)
+        d12 = (g2 - g1) / (t2 - t1)
+        curv = (d12 - d01) / (t2 - t0)
+        if curv == 0.0:
+            continue
+        t_ext = 0.5 * (t0 + t1) - d01 / (2.0 * curv)
+        if not (t0 < t_ext < t2 and t_ext != t1):
+            continue
+        model = g0 + d01 * (t_ext - t0) + curv * (t_ext - t0) * (t_ext - t1)
+        if np.sign(model) != np.sign(g1) or abs(model) < 0.1 * min(abs(g0), abs(g1), abs(g2)):
+            return True
+    return False
+
+
+def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, subdivisions=8, all_values=None,
+                  samples=None):
     """All zero crossings of the event functions inside (t_old, t_new].
 
     Parameters
@@ -80,6 +121,9 @@ def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, 
         for the uniform sampling pass when one evaluation of all functions costs about as much as one of
         them (a simulation that evaluates the whole scene per call). The individual functions are still
         used for the extremum check and the root refinement.
+    samples : optional (subdivisions - 1, m) array: every function's values at the inner uniform samples, already
+        computed by the caller on the same dense output (the compiled loop's event search); replaces the
+        uniform sampling pass.
 
     Returns
     -------
@@ -100,9 +144,16 @@ def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, 
         raise ValueError(f"g_old and g_new must each hold {m} values (one per event function), "
                          f"got shapes {g_old.shape} and {g_new.shape}")
     t_samples = np.linspace(t_old, t_new, subdivisions + 1)
-    y_inner = sol(t_samples[1:-1]) if subdivisions > 1 else None
+    y_inner = None
     inner_values = None
-    if all_values is not None and subdivisions > 1:
+    if samples is not None and subdivisions > 1:
+        inner_values = np.asarray(samples, dtype=np.float64).T
+        if inner_values.shape != (m, subdivisions - 1):
+            raise ValueError(f"samples must hold ({subdivisions - 1}, {m}) values (inner samples x event functions), "
+                             f"got shape {inner_values.T.shape}")
+    elif subdivisions > 1:
+        y_inner = sol(t_samples[1:-1])
+    if inner_values is None and all_values is not None and subdivisions > 1:
         inner_values = np.empty((m, subdivisions - 1))
         for j in range(subdivisions - 1):
             values = np.asarray(all_values(t_samples[j + 1], y_inner[:, j]), dtype=np.float64).reshape(-1)
@@ -122,6 +173,8 @@ def locate_events(event_functions, sol, t_old, t_new, g_old, g_new, xtol=1e-12, 
             else:
                 gs.append(float(g(ts[j], y_inner[:, j - 1])))
         gs.append(float(g_new[i]))
+        if not _may_report(np.array(gs), t_samples, float(direction)):
+            continue
         if subdivisions > 1:
             _insert_extremum_samples(g, sol, ts, gs)
 

@@ -352,30 +352,68 @@ def stage_eigen(V, Vinv, phi_diag, phi_at_zero, functions, coefficients, y, N, h
     return kernels.all_finite(out)
 
 
+@njit(cache=True)
+def dense_coefficients(y_old, N, Vinv, indices, n, z, z_in):
+    """The dense output's quadratic ``n0 + n1 s + n2 s^2`` through N1, (N2 + N3)/2, N4 into ``n`` (3, n) and the
+    eigenbasis coordinates ``Vinv [y_old, n0, n1, n2]`` of its linear components into ``z`` (4, m) complex."""
+    for i in range(y_old.shape[0]):
+        mid = 0.5 * (N[1, i] + N[2, i])
+        n[0, i] = N[0, i]
+        n[1, i] = -3.0 * N[0, i] + 4.0 * mid - N[3, i]
+        n[2, i] = 2.0 * N[0, i] - 4.0 * mid + 2.0 * N[3, i]
+    m = indices.shape[0]
+    for r in range(4):
+        for a in range(m):
+            z_in[a] = y_old[indices[a]] if r == 0 else n[r - 1, indices[a]]
+        np.dot(Vinv, z_in[:m], z[r])
+
+
+@njit(cache=True)
+def dense_state(theta, h, y_old, n, z, lam, V, indices, z_work, phi, modal, z_out, out):
+    """The state at ``t_old + theta h`` (module docstring, "Dense output") into ``out``; z_work, modal, z_out
+    (m,) and phi (4, m) complex scratch."""
+    th = theta * h
+    for i in range(y_old.shape[0]):
+        out[i] = y_old[i] + th * (n[0, i] + theta * n[1, i] / 2.0 + theta * theta * n[2, i] / 3.0)
+    m = indices.shape[0]
+    if m == 0:
+        return
+    for a in range(m):
+        z_work[a] = th * lam[a]
+    _phi_into(z_work[:m], 3, phi)
+    for a in range(m):
+        modal[a] = phi[0, a] * z[0, a] + th * (phi[1, a] * z[1, a] + theta * phi[2, a] * z[2, a]
+                                               + 2.0 * theta * theta * phi[3, a] * z[3, a])
+    np.dot(V, modal, z_out)
+    for a in range(m):
+        out[indices[a]] = z_out[a].real
+
+
 class ExponentialDenseOutput(DenseOutput):
-    """Continuous extension of one ETDRK4 step (module docstring), exact for the linear part."""
+    """Continuous extension of one ETDRK4 step (module docstring), exact for the linear part; evaluated by the
+    compiled :func:`dense_state`, the function the compiled loop samples for its event search."""
 
     def __init__(self, t_old, t, y_old, N, part):
         super().__init__(t_old, t)
         self.h = t - t_old
-        self.y_old = y_old.copy()
-        mid = 0.5 * (N[1] + N[2])
-        self.n0 = N[0].copy()
-        self.n1 = -3.0 * N[0] + 4.0 * mid - N[3]
-        self.n2 = 2.0 * N[0] - 4.0 * mid + 2.0 * N[3]
+        self.y_old = np.array(y_old, dtype=np.float64)
         self.part = part
-        idx = part.indices
-        self.z = np.stack([part.Vinv @ v[idx] for v in (self.y_old, self.n0, self.n1, self.n2)])
+        m = part.m
+        self.n = np.empty((3, self.y_old.size))
+        self.z = np.empty((4, m), dtype=np.complex128)
+        self.V = np.ascontiguousarray(part.V, dtype=np.complex128)
+        self.lam = np.ascontiguousarray(part.lam, dtype=np.complex128)
+        self._scratch = [np.empty(m, dtype=np.complex128) for _ in range(3)]
+        self._phi = np.empty((4, m), dtype=np.complex128)
+        dense_coefficients(self.y_old, np.ascontiguousarray(N, dtype=np.float64),
+                           np.ascontiguousarray(part.Vinv, dtype=np.complex128), part.indices, self.n, self.z,
+                           self._scratch[0])
 
     def _one(self, theta):
-        h = self.h
-        out = self.y_old + theta * h * (self.n0 + theta * self.n1 / 2.0 + theta * theta * self.n2 / 3.0)
-        part = self.part
-        if part.m:
-            phi = phi_functions(theta * h * part.lam, 3)
-            modal = (phi[0] * self.z[0] + theta * h * (phi[1] * self.z[1] + theta * phi[2] * self.z[2]
-                                                       + 2.0 * theta * theta * phi[3] * self.z[3]))
-            out[part.indices] = (part.V @ modal).real
+        out = np.empty_like(self.y_old)
+        z_work, modal, z_out = self._scratch
+        dense_state(theta, self.h, self.y_old, self.n, self.z, self.lam, self.V, self.part.indices, z_work,
+                    self._phi, modal, z_out, out)
         return out
 
     def _evaluate(self, t):
@@ -476,6 +514,12 @@ class ExponentialRK4(Integrator):
         if not force and self.steps_since_check < self.check_interval:
             return False
         self.steps_since_check = 0
+        return self.check_linear_part(t, y)
+
+    def check_linear_part(self, t, y):
+        """The check itself (what :meth:`_check_drift` does when one is due; the compiled loop, which keeps the
+        step counters, calls it directly): evaluate the callable linear part at (t, y), lengthen the check
+        interval while it does not move, rebuild when it moved. Returns True if it was rebuilt."""
         indices, L = self.linear_part_option(t, y.copy())
         self.njev += 1
         L = np.asarray(L, dtype=np.float64)

@@ -135,3 +135,20 @@ def test_integrate_output_times_on_dense_output_up_to_terminal_event():
     assert_allclose(r.y, exact(kept), atol=1e-10)
     with pytest.raises(ValueError, match="increasing 1-D array within"):
         integrate("rk4", fun, 0.0, [1.0, 0.0], 1.0, step=0.1, t_eval=[0.5, 0.2])
+
+
+def test_precomputed_samples_give_the_same_roots_and_are_checked():
+    """locate_events(samples=...): the caller's values at the inner uniform samples (the compiled loop's) replace
+    the first pass; the roots are those found by sampling itself (a close pair found by the extremum check
+    included; a function that cannot cross is skipped). A wrongly shaped array is refused."""
+    sol = ExactSolution(0.0, 1.0, lambda t: t)
+    fns = [_g(lambda t, y: np.sin(40.0 * y[0]) - 0.3), _g(lambda t, y: y[0] - 0.55),
+           _g(lambda t, y: (y[0] - 0.51) * (y[0] - 0.53)), _g(lambda t, y: 1.0 + 0.0 * y[0])]
+    g0 = [f(0.0, [0.0]) for f in fns]
+    g1 = [f(1.0, [1.0]) for f in fns]
+    inner = np.array([[f(t, [t]) for f in fns] for t in np.linspace(0.0, 1.0, 9)[1:-1]])
+    expected = locate_events(fns, sol, 0.0, 1.0, g0, g1, xtol=1e-14)
+    assert {i for _, i in expected} == {0, 1, 2} and len(expected) == 6
+    assert locate_events(fns, sol, 0.0, 1.0, g0, g1, xtol=1e-14, samples=inner) == expected
+    with pytest.raises(ValueError, match=r"samples must hold \(7, 4\) values"):
+        locate_events(fns, sol, 0.0, 1.0, g0, g1, samples=inner[:, :2])
