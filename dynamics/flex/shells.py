@@ -156,7 +156,7 @@ def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled):
     """Local 24 x 24 K and M of a MITC4 / QM6 shell quadrilateral (module docstring)."""
     K = np.zeros((24, 24))
     M = np.zeros((24, 24))
-    x, y = loc[:, 0], loc[:, 1]
+    x, y = np.ascontiguousarray(loc[:, 0]), np.ascontiguousarray(loc[:, 1])  # contiguous for '@'
     # tying points: gamma_r at (0, -1) [B] and (0, 1) [D]; gamma_s at (-1, 0) [A] and (1, 0) [C]
     tie_r = np.zeros((2, 24))
     tie_s = np.zeros((2, 24))
@@ -228,7 +228,7 @@ def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled):
 @njit(cache=True)
 def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled):
     """Local 18 x 18 K and M of a MITC3 / CST shell triangle (module docstring)."""
-    x, y = loc[:, 0], loc[:, 1]
+    x, y = np.ascontiguousarray(loc[:, 0]), np.ascontiguousarray(loc[:, 1])  # contiguous for '@'
     # N = [1 - r - s, r, s]; constant derivatives
     dN = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])
     J = np.array([[dN[0] @ x, dN[0] @ y], [dN[1] @ x, dN[1] @ y]])
