@@ -397,6 +397,22 @@ def _parabola_flags(g0, g1, g2, t0, t1, t2):
 
 
 @njit(cache=True)
+def _samples_flag_candidate(ev, m, n, step, t_old, t_new):
+    """True when the zero-crossing samples ``ev.samples[0..n]`` (instants ``t_old + j step``, the last one
+    ``t_new``) show a sign change in the wanted direction, or a parabola through three of them that may
+    cross in between: the tests of ``shell.integrators.locate_events`` (steps 2 and 3)."""
+    for f in range(m):
+        for j in range(n):
+            if _candidate_pair(ev.samples[j, f], ev.samples[j + 1, f], ev.direction[f]):
+                return True
+        for j in range(n - 1):
+            if _parabola_flags(ev.samples[j, f], ev.samples[j + 1, f], ev.samples[j + 2, f], j * step + t_old,
+                               (j + 1) * step + t_old, (t_new if j + 2 == n else (j + 2) * step + t_old)):
+                return True
+    return False
+
+
+@njit(cache=True)
 def _event_candidate(k, engine, b, ev, t_old, t_new, y_new, f_new, subdivided):
     """Would shell.integrators.locate_events report a crossing in this step (before the simulation's
     filter of just-handled events)? The same samples, the same tests; the parabola test answers yes
@@ -421,15 +437,7 @@ def _event_candidate(k, engine, b, ev, t_old, t_new, y_new, f_new, subdivided):
         t_j = j * step + t_old
         hermite_cubic((t_j - t_old) / h, h, ev.y_old, ev.f_old, y_new, f_new, ev.y_mid)
         _zero_crossings_at(k, engine, t_j, ev.y_mid, b, ev.samples[j])
-    for f in range(m):
-        for j in range(n):
-            if _candidate_pair(ev.samples[j, f], ev.samples[j + 1, f], ev.direction[f]):
-                return True
-        for j in range(n - 1):
-            if _parabola_flags(ev.samples[j, f], ev.samples[j + 1, f], ev.samples[j + 2, f], j * step + t_old,
-                               (j + 1) * step + t_old, (t_new if j + 2 == n else (j + 2) * step + t_old)):
-                return True
-    return False
+    return _samples_flag_candidate(ev, m, n, step, t_old, t_new)
 
 
 @njit(cache=True)
@@ -773,15 +781,7 @@ def _exponential_event_candidate(k, engine, b, st, ev, t_old, t_new):
     n = SUBDIVISIONS
     step = (t_new - t_old) / n
     _exponential_event_samples(k, engine, b, st, ev, t_old, t_new)
-    for f in range(m):
-        for j in range(n):
-            if _candidate_pair(ev.samples[j, f], ev.samples[j + 1, f], ev.direction[f]):
-                return True
-        for j in range(n - 1):
-            if _parabola_flags(ev.samples[j, f], ev.samples[j + 1, f], ev.samples[j + 2, f], j * step + t_old,
-                               (j + 1) * step + t_old, (t_new if j + 2 == n else (j + 2) * step + t_old)):
-                return True
-    return False
+    return _samples_flag_candidate(ev, m, n, step, t_old, t_new)
 
 
 @njit(cache=True)
