@@ -30,7 +30,6 @@ import hashlib
 import os
 import re
 import socket
-import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -352,25 +351,39 @@ class RunRecord:
     kept: dict = field(default_factory=dict)  # signal -> (time, values, unit)
 
 
-_DISPATCHERS: dict = {}
+class _CompileCounter:
+    """Counts numba compilations of flexshell's kernels in this process (numba's ``numba:compile`` event,
+    raised only when a kernel is compiled, not when it is loaded from the on-disk cache); installed on first
+    use, so a run pays nothing to ask."""
+
+    def __init__(self) -> None:
+        from numba.core import event
+
+        self.count = 0
+        listener = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev) -> None:
+                dispatcher = (ev.data or {}).get("dispatcher")
+                module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+                if module.startswith(("shell", "dynamics")):
+                    listener.count += 1
+
+            def on_end(self, ev) -> None:
+                pass
+
+        event.register("numba:compile", _Listener())
+
+
+_COUNTER: list = []
 
 
 def _numba_compilations() -> int:
-    """Kernels of flexshell compiled (not loaded from numba's on-disk cache) in this process so far."""
-    from numba.core.dispatcher import Dispatcher
-
-    if _DISPATCHERS.get(None) != len(sys.modules):  # modules seen once; their dispatchers remembered
-        _DISPATCHERS[None] = len(sys.modules)
-        for name, module in list(sys.modules.items()):
-            if module is None or name in _DISPATCHERS or not name.startswith(("shell", "dynamics")):
-                continue
-            _DISPATCHERS[name] = [v for v in list(vars(module).values()) if isinstance(v, Dispatcher)]
-    total = 0
-    for name, dispatchers in _DISPATCHERS.items():
-        for value in dispatchers if name is not None else ():
-            total += len(value.stats.cache_misses) if value._cache.__class__.__name__ != "NullCache" \
-                else len(value.overloads)
-    return total
+    """Kernels of flexshell compiled (not loaded from numba's on-disk cache) in this process since the first
+    call (the first call installs the counter)."""
+    if not _COUNTER:
+        _COUNTER.append(_CompileCounter())
+    return _COUNTER[0].count
 
 
 @dataclass

@@ -55,23 +55,42 @@ def run_campaign_chunk(campaign: Campaign, runs: list) -> list:
 
 def start_worker(campaign: Campaign) -> str:
     """Make a worker process ready before its first run: one BLAS/OpenMP thread (the runs are the
-    parallelism; more threads per worker oversubscribe the cores), the compiled loop loaded, the
-    campaign's scene built (:mod:`shell.montecarlo.reuse`). Returns the worker's name."""
+    parallelism; more threads per worker oversubscribe the cores), the campaign's scene built
+    (:mod:`shell.montecarlo.reuse`) and its kernels loaded. Once per process and campaign: a worker forked
+    from a warm coordinator inherits all of it and returns at once. Returns the worker's name."""
     import socket
 
-    from threadpoolctl import threadpool_limits
-
-    from shell.compiled_plan import prepare
-    from shell.montecarlo.reuse import scene_for
-
     global _THREAD_LIMIT
-    _THREAD_LIMIT = threadpool_limits(1)
-    prepare()
-    if campaign.reuse_scene:
-        scene_for(campaign)
+    if _THREAD_LIMIT is None:
+        from threadpoolctl import threadpool_limits
+
+        _THREAD_LIMIT = threadpool_limits(1)
+    if campaign.fingerprint not in _WARM:
+        warm_up(campaign)
+        _WARM.add(campaign.fingerprint)
     return f"{socket.gethostname()}:{os.getpid()}"
 
 
+def warm_up(campaign: Campaign) -> None:
+    """Load the kernels the campaign's runs use: the reused scene advanced by one step from a context of
+    run 0 (exactly its models' kernels and its integrator's loop, nothing else; the context is dropped,
+    nothing is stored), or, where the scene is rebuilt per run or has no fixed step, every stepper of the
+    compiled loop (:func:`shell.compiled_plan.prepare`)."""
+    from shell.compiled_plan import prepare
+    from shell.montecarlo.reuse import SceneReuse, scene_for
+
+    scene = scene_for(campaign) if campaign.reuse_scene else None
+    if isinstance(scene, SceneReuse) and scene.scenario.step:
+        try:
+            scenario, simulation = scene.simulation(0, campaign.draws(0))
+            simulation.run(min(float(scenario.step), float(scenario.t_final or scenario.step)))
+            return
+        except Exception:  # noqa: BLE001 - a run that fails says so in its own record; warm up the generic way
+            pass
+    prepare()
+
+
+_WARM: set = set()  # campaigns this process is warm for (a forked worker inherits its coordinator's)
 _THREAD_LIMIT = None
 PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
