@@ -235,6 +235,8 @@ def parse_period(value, where: str) -> Fraction:
     """
     if isinstance(value, Fraction):
         period = value
+    elif isinstance(value, str) and value in _PERIODS:  # the text's period, found before (a pure function of it)
+        period = _PERIODS[value]
     else:
         try:
             if _is_frequency(value):
@@ -244,9 +246,14 @@ def parse_period(value, where: str) -> Fraction:
                 period = Fraction(float(to_magnitude(value, "s", (), where))).limit_denominator(10**9)
         except UnitError as exc:
             raise ModelError(f"{exc} (a period in s or a rate in Hz)") from None
+        if isinstance(value, str) and len(_PERIODS) < 4096:
+            _PERIODS[value] = period
     if period <= 0:
         raise ModelError(f"{where}: a sample period must be positive, given {value!r}")
     return period
+
+
+_PERIODS: dict = {}  # period text -> its Fraction (parsing "10 Hz" with pint costs ~1 ms; Monte Carlo runs repeat it)
 
 
 def _is_frequency(value) -> bool:

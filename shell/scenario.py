@@ -679,10 +679,19 @@ def apply_override(document: dict, assignment: str, filename: str) -> None:
     if "=" not in assignment:
         raise where.error("expected key.path=value")
     key, raw = assignment.split("=", 1)
+    _apply_value(document, key, _override_value(raw, where), where)
+
+
+def apply_value(document: dict, key: str, value, filename: str) -> None:
+    """Apply ``key.path`` = ``value``, a value already in the form YAML gives (what :func:`apply_override`
+    does after parsing the text; Monte Carlo runs pass their drawn numbers this way, not as text)."""
+    _apply_value(document, key, value, _Where(filename, 0, f"--set {key}=..."))
+
+
+def _apply_value(document: dict, key: str, value, where: "_Where") -> None:
     parts = [p for p in key.strip().split(".") if p]
     if not parts:
         raise where.error("expected key.path=value")
-    value = _override_value(raw, where)
     models = document.get("models") or {}
     if not isinstance(models, dict):
         raise where.error("the scenario's models: section is not a mapping")

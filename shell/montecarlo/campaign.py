@@ -25,6 +25,7 @@ bit for bit. Every refusal names the campaign file, the line and the key path, l
 
 from __future__ import annotations
 
+import copy
 import difflib
 import hashlib
 import os
@@ -95,6 +96,55 @@ def yaml_text(value, top: bool = True) -> str:
     if value is None:
         return "null"
     raise TypeError(f"cannot write {value!r} as YAML")
+
+
+class _NotExact(Exception):
+    pass
+
+
+def _read_back(value, top: bool = True):
+    """What YAML reads from ``yaml_text(value, top)``, built directly where that is plain (numbers, quoted
+    strings, lists, mappings with plain keys); raises _NotExact where the text's reading depends on YAML's
+    resolver (a bare top-level string, a non-finite float, an unusual key)."""
+    if isinstance(value, bool) or value is None:
+        return value
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        if not np.isfinite(value):
+            raise _NotExact
+        return float(value)
+    if isinstance(value, str):
+        if top:
+            raise _NotExact
+        return value
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_read_back(v, False) for v in value]
+    if isinstance(value, dict):
+        if not all(isinstance(k, str) and k.isidentifier() and k.lower() not in _YAML_WORDS for k in value):
+            raise _NotExact
+        return {k: _read_back(v, False) for k, v in value.items()}
+    raise _NotExact
+
+
+_YAML_WORDS = {"y", "n", "yes", "no", "on", "off", "true", "false", "null"}
+_PARSED: dict = {}
+
+
+def _as_read(value):
+    """The value a run's ``--set path=TEXT`` override gives, TEXT being ``yaml_text(value)``: built directly, or
+    parsed from the text as the override would be (remembered per text: choices repeat)."""
+    try:
+        return _read_back(value)
+    except _NotExact:
+        from shell.scenario import _override_value, _Where
+
+        text = yaml_text(value)
+        if text not in _PARSED:
+            if len(_PARSED) > 4096:
+                _PARSED.clear()
+            _PARSED[text] = _override_value(text, _Where("campaign", 0, "dispersed value"))
+        return copy.deepcopy(_PARSED[text])
 
 
 #: most runs of one campaign (its results table is allocated when the campaign starts)
@@ -445,6 +495,20 @@ class Campaign:
                 items.append(f"{d.path}={yaml_text({'value': magnitude, 'unit': d.unit or ''})}")
         items.append(f"seed=[{self.seed}, {int(run)}]")
         return items
+
+    def dispersed_values(self, run: int, draws: dict | None = None) -> list[tuple[str, object]]:
+        """(path, value) of each dispersion of run ``run``: the objects the YAML text of :meth:`overrides`
+        reads back as, made without writing and parsing that text (a run of a reused scene applies them
+        with :func:`shell.scenario.apply_value`)."""
+        draws = self.draws(run) if draws is None else draws
+        values = []
+        for d in self.dispersions:
+            value = d.value(draws[d.path])
+            if d.distribution != "choice":
+                magnitude = value.tolist() if isinstance(value, np.ndarray) else value
+                value = {"value": magnitude, "unit": d.unit or ""}
+            values.append((d.path, _as_read(value)))
+        return values
 
     def build(self, run: int, draws: dict | None = None):
         """(scenario, simulation) of run ``run``, logging the campaign's signals."""

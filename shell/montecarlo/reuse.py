@@ -30,7 +30,7 @@ import numpy as np
 
 from shell.diagram import Diagram
 from shell.model import Model
-from shell.scenario import ScenarioError, _Where, apply_override, build_member, build_root, parse_scenario
+from shell.scenario import ScenarioError, _Where, apply_value, build_member, build_root, parse_scenario
 
 
 class Structural(Exception):
@@ -94,11 +94,10 @@ class SceneReuse:
         campaign, diagram, scenario = self.campaign, self.diagram, self.scenario
         context = diagram.create_context(seed=[campaign.seed, int(run)], own_data=True)
         assignments = {}
-        for item in campaign.overrides(run, draws):
-            key = item.split("=", 1)[0]
+        for key, value in campaign.dispersed_values(run, draws):
             if key in self.targets:
                 assignments.setdefault(self.targets[key][:2] if self.targets[key][0] == "engine"
-                                       else self.targets[key], []).append(item)
+                                       else self.targets[key], []).append((key, value))
         engine_items = [item for key, items in assignments.items() if key[0] == "engine" for item in items]
         if engine_items:
             self._apply_engine(context, engine_items)
@@ -118,12 +117,12 @@ class SceneReuse:
                 simulation.log([signal], rate)
         return scenario, simulation
 
-    def _apply_model(self, context, name: str, items: list[str]) -> None:
+    def _apply_model(self, context, name: str, items: list[tuple[str, object]]) -> None:
         document = self.scenario.document
         entry = copy.deepcopy(document["models"][name])
         mini = {"models": {name: entry}}
-        for item in items:
-            apply_override(mini, item, self.scenario.file)
+        for key, value in items:
+            apply_value(mini, key, value, self.scenario.file)
         where = _Where(self.scenario.file, 1, "").child(document, "models").child(document["models"], name)
         fresh = build_member(self.diagram.root, name, mini["models"][name], where, self.scenario.template_classes)
         i = self.diagram.model_index.get(name)
@@ -139,15 +138,15 @@ class SceneReuse:
         context.periods[i], context.offsets[i] = fresh.period, fresh.offset
         context.next_sample[i] = d.first_sample(fresh.period, fresh.offset, context.t)
 
-    def _apply_engine(self, context, items: list[str]) -> None:
+    def _apply_engine(self, context, items: list[tuple[str, object]]) -> None:
         from shell.models.multibody import body_entries, initial_state, rigid_mass_properties
 
         if self.engine_index is None:
             raise Structural("no engine model to disperse")
         document = self.scenario.document
         mini = {"multibody": copy.deepcopy(document["multibody"])}
-        for item in items:
-            apply_override(mini, item, self.scenario.file)
+        for key, value in items:
+            apply_value(mini, key, value, self.scenario.file)
         description = mini["multibody"]
         where = _Where(self.scenario.file, 1, "").child(document, "multibody")
         system = context.hosts[self.engine_index]
