@@ -109,6 +109,38 @@ def test_nonnegative_allocation_is_exact_and_push_only():
         assert_allclose(a @ y, demand, rtol=0, atol=1e-9 * np.abs(y).max())    # LP feasibility tolerance
 
 
+def test_a_repeated_program_is_not_solved_again_and_gives_the_same_commands(monkeypatch):
+    """A held demand asks the same linear program at every sample: the allocator answers it from the last
+    solution (bit-identical: HiGHS is deterministic); a new demand or a new effectiveness is solved again."""
+    import scipy.optimize
+
+    from shell.assemblies.thruster_cluster import TM_G32_DIRECTIONS
+    from shell.models.allocation import NonnegativeAllocator
+
+    directions = TM_G32_DIRECTIONS / np.linalg.norm(TM_G32_DIRECTIONS, axis=1)[:, None]
+    a = np.cross(np.array(_octagon_positions()), directions).T
+    allocator = NonnegativeAllocator("alloc", demand=3, actuators=16, demand_unit="N*m", command_unit="N",
+                                     effectiveness=a)
+    fresh = NonnegativeAllocator("fresh", demand=3, actuators=16, demand_unit="N*m", command_unit="N",
+                                 effectiveness=a)
+    calls = []
+    real = scipy.optimize.linprog
+    monkeypatch.setattr(scipy.optimize, "linprog", lambda *args, **kw: calls.append(1) or real(*args, **kw))
+    first, again, expected = np.empty(16), np.full(16, np.nan), np.empty(16)
+    demand = np.array([0.05, -0.03, 0.04])
+    allocator.update(0.0, None, first, demand, allocator.p)
+    allocator.update(0.05, None, again, demand.copy(), allocator.p)
+    assert len(calls) == 1 and again.tobytes() == first.tobytes()
+    other = np.array([0.05, -0.03, 0.0400000001])
+    allocator.update(0.1, None, again, other, allocator.p)
+    fresh.update(0.1, None, expected, other, fresh.p)
+    assert len(calls) == 3 and again.tobytes() == expected.tobytes()
+    allocator.p[:] = 2.0 * allocator.p                   # effectiveness doubled (e.g. another context's values)
+    allocator.update(0.15, None, again, other, allocator.p)
+    assert len(calls) == 4
+    assert_allclose(again, expected / 2.0, rtol=1e-9)
+
+
 def test_sixteen_thruster_cluster_delivers_the_demanded_angular_impulse(tmp_path):
     positions = _octagon_positions()
     text = textwrap.dedent(f"""
