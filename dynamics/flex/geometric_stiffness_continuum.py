@@ -141,27 +141,6 @@ def shell_stress_batch(xyz, props, u):
 
 
 @njit(cache=True)
-def _incompatible_rows(pts_q, J0i, det0, det):
-    """Strain rows (6 x 9) of CHEXA8's incompatible modes at a point (as solids.solid_matrices)."""
-    g = np.zeros((3, 3))
-    for k in range(3):
-        dp = np.zeros(3)
-        dp[k] = -2.0 * pts_q[k]
-        g[:, k] = J0i @ dp * (det0 / det)
-    Ba = np.zeros((6, 9))
-    for k in range(3):
-        x, y, z = g[0, k], g[1, k], g[2, k]
-        c = 3 * k
-        Ba[0, c] = x
-        Ba[1, c + 1] = y
-        Ba[2, c + 2] = z
-        Ba[3, c], Ba[3, c + 1] = y, x
-        Ba[4, c + 1], Ba[4, c + 2] = z, y
-        Ba[5, c], Ba[5, c + 2] = z, x
-    return Ba
-
-
-@njit(cache=True)
 def solid_stresses(kind, xyz, E, nu, pts, wts, u):
     """Stresses (nq, 6, c) in Voigt order [xx, yy, zz, xy, yz, zx] at the Gauss points of one solid for the
     grid displacements u (3 n, c) (basic), with the shape gradients (nq, 3, n) and weights w det J (nq,)."""
@@ -194,7 +173,7 @@ def solid_stresses(kind, xyz, E, nu, pts, wts, u):
         B = solids._strain_matrix(grads[q], n)
         strain[q] = B @ u
         if incompatible:
-            Bas[q] = _incompatible_rows(pts[q], J0i, det0, det)
+            Bas[q] = solids.incompatible_rows(pts[q], J0i, det0, det)
             Kua += B.T @ C @ Bas[q] * w[q]
             Kaa += Bas[q].T @ C @ Bas[q] * w[q]
     if incompatible:

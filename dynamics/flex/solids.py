@@ -179,6 +179,29 @@ def _strain_matrix(dNx, n):
 
 
 @njit(cache=True)
+def incompatible_rows(pts_q, J0i, det0, det):
+    """Strain rows (6 x 9) of CHEXA8's incompatible modes (1 - xi_k^2) at a point, their gradients taken with the
+    centre Jacobian J0 and scaled by det J0 / det J (the patch-test-passing form); shared by the stiffness here
+    and the stresses of the geometric stiffness (geometric_stiffness_continuum)."""
+    g = np.zeros((3, 3))
+    for k in range(3):
+        dp = np.zeros(3)
+        dp[k] = -2.0 * pts_q[k]
+        g[:, k] = J0i @ dp * (det0 / det)
+    Ba = np.zeros((6, 9))
+    for k in range(3):
+        x, y, z = g[0, k], g[1, k], g[2, k]
+        c = 3 * k
+        Ba[0, c] = x
+        Ba[1, c + 1] = y
+        Ba[2, c + 2] = z
+        Ba[3, c], Ba[3, c + 1] = y, x
+        Ba[4, c + 1], Ba[4, c + 2] = z, y
+        Ba[5, c], Ba[5, c + 2] = z, x
+    return Ba
+
+
+@njit(cache=True)
 def solid_matrices(kind, xyz, E, nu, rho, pts, wts, coupled):
     """(K, M) of one solid, 3 n x 3 n in basic, DOFs [u, v, w] per grid."""
     n = xyz.shape[0]
@@ -207,21 +230,7 @@ def solid_matrices(kind, xyz, E, nu, rho, pts, wts, coupled):
         K += B.T @ C @ B * w
         volume += w
         if incompatible:
-            g = np.zeros((3, 3))
-            for k in range(3):
-                dp = np.zeros(3)
-                dp[k] = -2.0 * pts[q][k]
-                g[:, k] = J0i @ dp * (det0 / det)
-            Ba = np.zeros((6, 9))
-            for k in range(3):
-                x, y, z = g[0, k], g[1, k], g[2, k]
-                c = 3 * k
-                Ba[0, c] = x
-                Ba[1, c + 1] = y
-                Ba[2, c + 2] = z
-                Ba[3, c], Ba[3, c + 1] = y, x
-                Ba[4, c + 1], Ba[4, c + 2] = z, y
-                Ba[5, c], Ba[5, c + 2] = z, x
+            Ba = incompatible_rows(pts[q], J0i, det0, det)
             Kua += B.T @ C @ Ba * w
             Kaa += Ba.T @ C @ Ba * w
         for i in range(n):
