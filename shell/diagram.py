@@ -7,7 +7,7 @@ Drake's ``Diagram`` / ``Context`` split (STYLE.md) applied to flexshell's flat b
   continuous state a slice of ``x``, every discrete state a slice of ``z``, every parameter a slice of one
   packed parameter vector; each connection becomes element index pairs with the unit conversion factor of
   its two ports (``deg/s -> rad/s`` = pi/180), after dimensions and shapes are checked. Outputs are
-  ordered by a topological sort (networkx) of the direct-feedthrough graph, whose nodes are each model's
+  ordered by a topological sort (shell.graphs) of the direct-feedthrough graph, whose nodes are each model's
   *state-output* and *feedthrough-output* stages; a cycle is an algebraic loop and is refused with the
   models and ports on it. Sampled models are ordered upstream first. Nothing in a diagram changes after
   it is built.
@@ -33,11 +33,11 @@ import math
 from dataclasses import dataclass
 from fractions import Fraction
 
-import networkx as nx
 import numpy as np
 from numba import njit
 
 from shell.assembly import Assembly, Connection, flatten
+from shell.graphs import CycleError, Digraph, condensation_order, find_cycle, topological_order
 from shell.model import ModelError
 from shell.units import UnitError, conversion_factor, format_unit, to_magnitude
 
@@ -190,7 +190,7 @@ class Diagram:
         self.n_gather = int(self.gather_source.size)
 
     def _order_outputs(self) -> None:
-        graph = nx.DiGraph()
+        graph = Digraph()
         stage_rank = {}
         for i, m in enumerate(self.models):
             if m.state_outputs is not None:
@@ -211,9 +211,9 @@ class Diagram:
             port_labels[edge] = f"{c.source_model.path}.{c.source_port} -> {c.destination_model.path}." \
                                 f"{c.destination_port}"
         try:
-            order = list(nx.lexicographical_topological_sort(graph, key=lambda n: stage_rank[n]))
-        except nx.NetworkXUnfeasible:
-            cycle = nx.find_cycle(graph)
+            order = topological_order(graph.successors, key=lambda n: stage_rank[n])
+        except CycleError:
+            cycle = find_cycle(graph.successors)
             models = []
             for a, _ in cycle:
                 if a[0] not in models:
@@ -246,15 +246,14 @@ class Diagram:
         return Stage(i, kind, self.feedthrough_gather[i] if kind == "feedthrough" else (0, 0))
 
     def _order_updates(self) -> None:
-        graph = nx.DiGraph()
-        graph.add_nodes_from(range(len(self.models)))
+        graph = Digraph()
+        for i in range(len(self.models)):
+            graph.add_node(i)
         for c in self.connections:
             graph.add_edge(self.model_index[c.source_model.path], self.model_index[c.destination_model.path])
-        condensed = nx.condensation(graph)
         rank = {}
-        for position, component in enumerate(nx.lexicographical_topological_sort(
-                condensed, key=lambda n: min(condensed.nodes[n]["members"]))):
-            for member in condensed.nodes[component]["members"]:
+        for position, members in enumerate(condensation_order(graph.successors, min)):
+            for member in members:
                 rank[member] = (position, member)
         #: sampled models in the order they update at a shared instant (upstream first, ties by declaration)
         self.update_order = tuple(sorted((i for i, m in enumerate(self.models) if m.period is not None),

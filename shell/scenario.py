@@ -24,11 +24,11 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import networkx as nx
 import numpy as np
 import yaml
 
 from shell.assembly import Assembly
+from shell.graphs import Digraph, find_cycle
 from shell.model import Model, ModelError, parse_period
 from shell.registry import RegistryError, lookup
 from shell.units import UnitError, short_repr, to_magnitude, written_numbers
@@ -445,7 +445,7 @@ def _validate_assemblies(document, root: _Where) -> dict:
             raise here.error(f"{name!r} is already a registered model type; choose another name")
         _expect_mapping(spec, here, ASSEMBLY_KEYS, required=("models",))
         templates[name] = (spec, here)
-    graph = nx.DiGraph()
+    graph = Digraph()
     for name, (spec, here) in templates.items():
         _validate_models(spec, here, templates, inside=name)
         if "connections" in spec:
@@ -463,9 +463,8 @@ def _validate_assemblies(document, root: _Where) -> dict:
         for member in (spec.get("models") or {}).values():
             if member["type"] in templates:
                 graph.add_edge(name, member["type"])
-    try:
-        cycle = nx.find_cycle(graph)
-    except nx.NetworkXNoCycle:
+    cycle = find_cycle(graph.successors)
+    if cycle is None:
         return templates
     raise where.error(f"assemblies contain themselves: {' -> '.join(a for a, _ in cycle)} -> {cycle[0][0]}")
 
