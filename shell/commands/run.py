@@ -102,8 +102,25 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM received: handled as an interruption, so the log is closed with status "interrupted"."""
 
 
+#: SIGTERMs received during the current run. The handler raises Terminated where Python happens to be, and an
+#: exception raised inside a weakref callback or a __del__ (the garbage collector runs them at any time) is
+#: printed and dropped by Python: the run then checks this at every progress call, so a SIGTERM is never lost.
+_SIGTERMS: list = []
+
+
 def _raise_terminated(signum, frame) -> None:
+    _SIGTERMS.append(signum)
     raise Terminated("terminated (SIGTERM)")
+
+
+def _watching_sigterm(progress):
+    """``progress`` that first raises Terminated if a SIGTERM arrived (its handler's exception may have been
+    dropped, see _SIGTERMS)."""
+    def call(t: float) -> None:
+        if _SIGTERMS:
+            raise Terminated("terminated (SIGTERM)")
+        progress(t)
+    return call
 
 
 def stop_time(value: str, scenario_file: str) -> float:
@@ -159,9 +176,10 @@ def run(args) -> int:
         return 1
     progress = ProgressBar(simulation.t, t_final, enabled=not args.quiet and sys.stderr.isatty())
     in_main_thread = threading.current_thread() is threading.main_thread()  # signal handlers live there
+    _SIGTERMS.clear()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
     try:
-        summary = simulation.run(t_final, log_path=output, progress=progress,
+        summary = simulation.run(t_final, log_path=output, progress=_watching_sigterm(progress),
                                  log_attributes={"scenario": scenario.text, "scenario_file": str(args.scenario)})
     except (SimulationError, LogError) as exc:
         progress.close()
@@ -179,6 +197,10 @@ def run(args) -> int:
         if in_main_thread:
             signal.signal(signal.SIGTERM, previous_handler)
     progress.close()
+    if _SIGTERMS:  # after the last progress call, its exception dropped: the run had reached its end
+        print(f"flexshell run: terminated (SIGTERM) as the run reached t = {simulation.t:.6g} s"
+              + (f"; the log {output} is complete" if output else ""), file=sys.stderr)
+        return 143
     if args.save_state:
         simulation.save_state(args.save_state)
     print(f"{scenario.name}: {summary}")
