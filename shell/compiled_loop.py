@@ -44,7 +44,7 @@ from numba.np.arrayobj import make_array, populate_array
 
 from dynamics.engine import borrowed
 from shell.integrators import exponential as EX
-from shell.integrators.kernels import all_finite, hermite_cubic, propagate, stage_state
+from shell.integrators.kernels import all_finite, copy_into, hermite_cubic, propagate, stage_state
 from shell.models.multibody import DERIVATIVES as E_DERIVATIVES
 from shell.models.multibody import DERIVATIVES_AFTER_FEEDTHROUGH as E_DERIVATIVES_REUSE
 from shell.models.multibody import FEEDTHROUGH_OUTPUTS as E_FEEDTHROUGH
@@ -294,7 +294,7 @@ def derivatives(k, engine, t, b, src, fac):
 @njit(cache=True)
 def derivative_at(k, engine, t, y, b, src, fac):
     """``f(t, y)`` into ``b.XD`` (``b.X`` is overwritten with ``y``)."""
-    b.X[:] = y
+    copy_into(b.X, y)
     derivatives(k, engine, t, b, src, fac)
 
 
@@ -358,9 +358,9 @@ def _instant_time(tick, den):
 
 @njit(cache=True)
 def _zero_crossings_at(k, engine, t, y, b, out):
-    b.X[:] = y
+    copy_into(b.X, y)
     zero_crossings(k, engine, t, b, b.src, b.fac)
-    out[:] = b.G
+    copy_into(out, b.G)
 
 
 @njit(cache=True)
@@ -431,8 +431,8 @@ def _event_candidate(k, engine, b, ev, t_old, t_new, y_new, f_new, subdivided):
     n = SUBDIVISIONS
     h = t_new - t_old
     step = (t_new - t_old) / n  # numpy.linspace(t_old, t_new, n + 1)
-    ev.samples[0, :] = ev.g_old
-    ev.samples[n, :] = ev.g_new
+    copy_into(ev.samples[0], ev.g_old)
+    copy_into(ev.samples[n], ev.g_new)
     for j in range(1, n):
         t_j = j * step + t_old
         hermite_cubic((t_j - t_old) / h, h, ev.y_old, ev.f_old, y_new, f_new, ev.y_mid)
@@ -447,13 +447,13 @@ def _integrate(k, engine, b, st, ev, target, ints, reals, skip_final):
     Y, F, K, YS, YN = st.Y, st.F, st.K, st.YS, st.YN
     t = reals[R_T]
     if ints[I_F_VALID] == 0:  # a restart from the context's state: Integrator.reset (normalize, derivative)
-        Y[:] = b.X
+        copy_into(Y, b.X)
         normalize(k, engine, b, Y)
         derivative_at(k, engine, t, Y, b, b.src, b.fac)
         ints[I_NFEV] += 1
         if not all_finite(b.XD):
             return START_FAILED
-        F[:] = b.XD
+        copy_into(F, b.XD)
         ints[I_F_VALID] = 1
     if ev.mode != NO_EVENTS:
         _zero_crossings_at(k, engine, t, Y, b, ev.g_old)
@@ -465,11 +465,11 @@ def _integrate(k, engine, b, st, ev, target, ints, reals, skip_final):
         last = remaining <= h * (1.0 + 1e-9)
         if last:
             hh = remaining
-        K[0, :] = F
+        copy_into(K[0], F)
         for i in range(1, s):
             stage_state(Y, K, st.A[i], i, hh, YS)
             derivative_at(k, engine, t + st.c[i] * hh, YS, b, b.src, b.fac)
-            K[i, :] = b.XD
+            copy_into(K[i], b.XD)
         ints[I_NFEV] += s - 1
         t_new = target if last else t + hh
         if not propagate(Y, K, st.b, s, hh, YN):
@@ -480,7 +480,7 @@ def _integrate(k, engine, b, st, ev, target, ints, reals, skip_final):
             return STEP_FAILED
         normalize(k, engine, b, YN)
         if last and skip_final:  # an update follows at target, then a restart: no slope at the end
-            Y[:] = YN
+            copy_into(Y, YN)
             reals[R_T_OLD] = t
             t = target
             ints[I_STEPS] += 1
@@ -495,10 +495,10 @@ def _integrate(k, engine, b, st, ev, target, ints, reals, skip_final):
             ints[I_FAILED_STAGE] = 1
             return STEP_FAILED
         if ev.mode != NO_EVENTS:
-            ev.y_old[:] = Y
-            ev.f_old[:] = F
-        Y[:] = YN
-        F[:] = b.XD
+            copy_into(ev.y_old, Y)
+            copy_into(ev.f_old, F)
+        copy_into(Y, YN)
+        copy_into(F, b.XD)
         reals[R_T_OLD] = t
         t_old = t
         t = t_new
@@ -510,11 +510,11 @@ def _integrate(k, engine, b, st, ev, target, ints, reals, skip_final):
             search = ev.mode == SUBDIVIDED or t_old == reals[R_LAST_EVENT]
             if _event_candidate(k, engine, b, ev, t_old, t, Y, F, search):
                 reals[R_T] = t
-                b.X[:] = Y
+                copy_into(b.X, Y)
                 return EVENT_CANDIDATE
-            ev.g_old[:] = ev.g_new
+            copy_into(ev.g_old, ev.g_new)
     reals[R_T] = t
-    b.X[:] = Y
+    copy_into(b.X, Y)
     return 0
 
 
@@ -746,7 +746,7 @@ def _exponential_stage(st, j, h, nominal, out):
 
 @njit(cache=True)
 def _exponential_failed(st, reals, ints, t, t_failed, state, stage):
-    st.YN[:] = state
+    copy_into(st.YN, state)
     reals[R_FAILED_T] = t_failed
     reals[R_T_OLD] = t
     reals[R_T] = t
@@ -764,8 +764,8 @@ def _exponential_event_samples(k, engine, b, st, ev, t_old, t_new):
     h = t_new - t_old
     step = (t_new - t_old) / n  # numpy.linspace(t_old, t_new, n + 1)
     EX.dense_coefficients(ev.y_old, st.N, st.Vinv, st.indices, st.dense_n, st.dense_z, st.z_in)
-    ev.samples[0, :] = ev.g_old
-    ev.samples[n, :] = ev.g_new
+    copy_into(ev.samples[0], ev.g_old)
+    copy_into(ev.samples[n], ev.g_new)
     for j in range(1, n):
         t_j = j * step + t_old
         EX.dense_state((t_j - t_old) / h, h, ev.y_old, st.dense_n, st.dense_z, st.lam, st.V, st.indices, st.z_work,
@@ -793,7 +793,7 @@ def _integrate_exponential(k, engine, b, st, ev, target, ints, reals):
     if st.h == 0.0:
         return NEW_INTEGRATOR
     if ints[I_F_VALID] == 0:  # a restart from the context's state: Integrator.reset (normalize, derivative)
-        Y[:] = b.X
+        copy_into(Y, b.X)
         normalize(k, engine, b, Y)
         ints[I_F_VALID] = F_DUE
     if ev.mode != NO_EVENTS:
@@ -805,9 +805,9 @@ def _integrate_exponential(k, engine, b, st, ev, target, ints, reals):
             ints[I_NFEV] += 1
             if not all_finite(b.XD):
                 reals[R_T] = t
-                b.X[:] = Y
+                copy_into(b.X, Y)
                 return START_FAILED
-            F[:] = b.XD
+            copy_into(F, b.XD)
             ints[I_F_VALID] = 1
         remaining = target - t
         last = remaining <= h0 * (1.0 + 1e-9)
@@ -820,7 +820,7 @@ def _integrate_exponential(k, engine, b, st, ev, target, ints, reals):
             ints[I_STEP_FLAGS] = flags | CHECK_DONE
             if ints[I_SINCE_CHECK] >= ints[I_CHECK_INTERVAL]:
                 reals[R_T] = t
-                b.X[:] = Y
+                copy_into(b.X, Y)
                 return LINEAR_CHECK
             flags = ints[I_STEP_FLAGS]
         if not nominal and reals[R_PHI_H] != h:
@@ -847,16 +847,16 @@ def _integrate_exponential(k, engine, b, st, ev, target, ints, reals):
                     if h * rho > EX.STIFF_REMAINDER_BOUND:
                         ints[I_STEP_FLAGS] = flags | STIFF_DONE | RESUME
                         reals[R_T] = t
-                        b.X[:] = Y
+                        copy_into(b.X, Y)
                         return STIFF_REMAINDER
         if not _exponential_stage(st, 3, h, nominal, S[3]):
             return _exponential_failed(st, reals, ints, t, t_new, S[3], 0)
-        st.YN[:] = S[3]
+        copy_into(st.YN, S[3])
         normalize(k, engine, b, st.YN)
         ints[I_STEP_FLAGS] = 0
         if ev.mode != NO_EVENTS:
-            ev.y_old[:] = Y
-        Y[:] = st.YN
+            copy_into(ev.y_old, Y)
+        copy_into(Y, st.YN)
         ints[I_F_VALID] = F_DUE
         reals[R_T_OLD] = t
         t_old = t
@@ -875,11 +875,11 @@ def _integrate_exponential(k, engine, b, st, ev, target, ints, reals):
                     _exponential_event_samples(k, engine, b, st, ev, t_old, t)
             if candidate:
                 reals[R_T] = t
-                b.X[:] = Y
+                copy_into(b.X, Y)
                 return EVENT_CANDIDATE
-            ev.g_old[:] = ev.g_new
+            copy_into(ev.g_old, ev.g_new)
     reals[R_T] = t
-    b.X[:] = Y
+    copy_into(b.X, Y)
     return 0
 
 

@@ -23,7 +23,7 @@ from numba.core.registry import CPUDispatcher
 from numba.experimental.function_type import _get_jit_address, _get_wrapper_address
 
 from shell import compiled_loop as L
-from shell.models.multibody import MultibodyModel, engine_kernel
+from shell.models.multibody import MultibodyModel, engine_kernel, no_engine_kernel
 
 
 class NotCompilable(Exception):
@@ -44,14 +44,17 @@ def _pointer(fn, signature, model=None, what=""):
                             f"{type(exc).__name__}: {str(exc).splitlines()[0][:200]}") from None
 
 
-_ENGINE_POINTERS: list = []
+_ENGINE_POINTERS: dict = {}
 _PROBE: list = []
 
 
-def _engine_pointers():
-    if not _ENGINE_POINTERS:
-        _ENGINE_POINTERS.extend(_pointer(engine_kernel, L.ENGINE_SIGNATURE))
-    return np.asarray(_ENGINE_POINTERS, dtype=np.int64)
+def _engine_pointers(has_engine: bool):
+    """The engine slot of the kernel table: :func:`engine_kernel`, or for a scene without the engine model a
+    stand-in that is never called (so that such a scene does not compile the engine)."""
+    if has_engine not in _ENGINE_POINTERS:
+        _ENGINE_POINTERS[has_engine] = _pointer(engine_kernel if has_engine else no_engine_kernel,
+                                                L.ENGINE_SIGNATURE)
+    return np.asarray(_ENGINE_POINTERS[has_engine], dtype=np.int64)
 
 
 def _probe():
@@ -174,7 +177,8 @@ class _Tables:
         self.engine_type_checked = False
         self.noise_size = max(noise_offset, 1)
         self.kernels = L.Kernels(np.asarray(fns, dtype=np.int64).reshape(-1, 2),
-                                 np.asarray(update_fns, dtype=np.int64).reshape(-1, 2), _engine_pointers())
+                                 np.asarray(update_fns, dtype=np.int64).reshape(-1, 2),
+                                 _engine_pointers(bool(engine_models)))
         self.tables = (_table(full), _table(derivative), len(diagram.derivative_stages), _table(zc), _table(updates),
                        np.asarray(normalizers, dtype=np.int64).reshape(-1, 3), _table(input_stage_rows),
                        _table([stage_op(s) for s in diagram.zero_crossing_stages]))
@@ -279,18 +283,6 @@ def compile_plan(diagram, context):
         return CompiledPlan(diagram, context), None
     except NotCompilable as exc:
         return None, str(exc)
-
-
-def loop_is_cached() -> bool:
-    """True when numba's disk cache holds the compiled loop (a run starts in about a second); False on the
-    first run after installing or changing flexshell, which compiles it (about a minute, once)."""
-    import os
-
-    try:
-        index = L.advance._cache._cache_file._index_path
-    except AttributeError:  # numba internals moved: say nothing rather than something wrong
-        return True
-    return os.path.exists(index)
 
 
 def prepare() -> float:

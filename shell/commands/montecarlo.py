@@ -66,7 +66,7 @@ def run(args) -> int:
     from shell.scenario import ScenarioError
     from shell.units import UnitError
 
-    from shell.commands.run import announce_compilation
+    from shell.commands.run import CompileNotice
 
     try:  # what can be refused without building the scene is refused first
         if args.workers is not None and args.workers < 1:
@@ -85,9 +85,9 @@ def run(args) -> int:
     except (ValueError, SchedulerUnreachable) as exc:
         print(f"flexshell montecarlo: {exc}", file=sys.stderr)
         return 1
-    announce_compilation(getattr(args, "quiet", False))
     try:
-        campaign = load_campaign(args.campaign)
+        with CompileNotice(getattr(args, "quiet", False)):  # loading runs the median scene: it compiles what runs use
+            campaign = load_campaign(args.campaign)
     except (ScenarioError, UnitError, ValueError, OSError) as exc:
         print(f"flexshell montecarlo: {exc}", file=sys.stderr)
         return 1

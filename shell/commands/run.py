@@ -35,67 +35,116 @@ class ProgressBar:
     simulated seconds per wall second; redrawn at most every 0.2 s."""
 
     def __init__(self, t_start: float, t_final: float, enabled: bool):
-        from tqdm import tqdm
-
         self.t_start, self.t_final = t_start, t_final
         self.enabled = enabled
         self.done = 0.0
-        self.bar = tqdm(total=max(t_final - t_start, 0.0), unit="s", unit_scale=False, disable=not enabled,
-                        file=sys.stderr, mininterval=0.2, leave=True, dynamic_ncols=True,
-                        bar_format="{l_bar}{bar}| t = {n:.4g} / {total:.4g} s [{elapsed} < {remaining}, "
-                                   "{rate_fmt}]") if enabled else None
+        self.bar = None  # drawn at the first report, after any compilation line (CompileNotice)
 
     def __call__(self, t: float) -> None:
-        if self.bar is None:
+        if not self.enabled:
             return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=max(self.t_final - self.t_start, 0.0), unit="s", unit_scale=False, file=sys.stderr,
+                            mininterval=0.2, leave=True, dynamic_ncols=True,
+                            bar_format="{l_bar}{bar}| t = {n:.4g} / {total:.4g} s [{elapsed} < {remaining}, "
+                                       "{rate_fmt}]")
         done = min(max(t - self.t_start, 0.0), self.bar.total)
         if done > self.done:
             self.bar.update(done - self.done)
             self.done = done
 
     def close(self) -> None:
+        self.enabled = False
         if self.bar is not None:
             self.bar.close()
             self.bar = None
 
 
-def compiling_line(label: str, work, enabled: bool):
-    """Run ``work()`` while a tqdm line shows ``label`` and the seconds spent (refreshed by a thread:
-    numba compiles without reporting progress, so an ETA would be invented); returns work's result."""
-    if not enabled:
-        return work()
-    from tqdm import tqdm
+class CompileNotice:
+    """Says when numba compiles (the first run after installing or updating flexshell, or the first scene that
+    needs a kernel not compiled before) and for how long, instead of a silent wait.
 
-    line = tqdm(total=None, desc=label, file=sys.stderr, bar_format="{desc}: {elapsed} elapsed", leave=True)
-    finished = threading.Event()
+    Listens to numba's ``numba:compile`` event, raised when a kernel is compiled and not when it is loaded from
+    the on-disk cache: the first compilation prints a line, a TTY shows the seconds ticking, and :meth:`stop`
+    (at the run's first progress report, or at the end) prints the compile time. Only what the scene needs is
+    compiled: a scene without the multibody engine does not compile it. Use as a context manager."""
 
-    def tick():
-        while not finished.wait(0.5):
-            line.refresh()
+    def __init__(self, quiet: bool):
+        self.quiet, self.seconds, self.announced = quiet, 0.0, False
+        self._depth, self._started, self._line, self._listener = 0, 0.0, None, None
 
-    ticker = threading.Thread(target=tick, daemon=True)
-    ticker.start()
-    try:
-        return work()
-    finally:
-        finished.set()
-        ticker.join()
-        line.close()
+    def __enter__(self) -> "CompileNotice":
+        from numba.core import event
+
+        notice = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev) -> None:
+                if notice._depth == 0:
+                    notice._started = time.perf_counter()
+                    notice._announce()
+                notice._depth += 1
+
+            def on_end(self, ev) -> None:
+                notice._depth -= 1
+                if notice._depth == 0:
+                    notice.seconds += time.perf_counter() - notice._started
+
+        self._listener = _Listener()
+        event.register("numba:compile", self._listener)
+        return self
+
+    def _announce(self) -> None:
+        if self.announced or self._listener is None:
+            return
+        self.announced = True
+        if self.quiet:
+            return
+        print("flexshell: compiling the scene's kernels (numba; first run after installing or updating flexshell, "
+              "or a kernel no earlier scene needed; cached for every later run)...", file=sys.stderr, flush=True)
+        if sys.stderr.isatty():
+            self._line = TickingLine("flexshell: compiling (numba)")
+
+    def stop(self) -> None:
+        """Stop listening; print the compile time if anything was compiled. Idempotent."""
+        if self._listener is None:
+            return
+        from numba.core import event
+
+        event.unregister("numba:compile", self._listener)
+        self._listener = None
+        if self._line is not None:
+            self._line.close()
+            self._line = None
+        if self.announced and not self.quiet:
+            print(f"flexshell: compiled in {self.seconds:.0f} s", file=sys.stderr, flush=True)
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
 
 
-def announce_compilation(quiet: bool) -> None:
-    """The first run after installing flexshell compiles its loop (numba); say so, with the time spent
-    ticking, instead of a silent minute."""
-    from shell.compiled_plan import loop_is_cached, prepare
+class TickingLine:
+    """A tqdm line showing ``label`` and the seconds spent, refreshed by a thread (numba compiles without
+    reporting progress, so an ETA would be invented) until :meth:`close`."""
 
-    if loop_is_cached():
-        return
-    if not quiet:
-        print("flexshell: compiling the simulation loop (first run after installing or updating flexshell; "
-              "cached for every later run and scene)...", file=sys.stderr, flush=True)
-    seconds = compiling_line("flexshell: compiling (numba)", prepare, not quiet and sys.stderr.isatty())
-    if not quiet:
-        print(f"flexshell: compiled in {seconds:.0f} s", file=sys.stderr, flush=True)
+    def __init__(self, label: str):
+        from tqdm import tqdm
+
+        self._line = tqdm(total=None, desc=label, file=sys.stderr, bar_format="{desc}: {elapsed} elapsed", leave=True)
+        self._finished = threading.Event()
+        self._ticker = threading.Thread(target=self._tick, daemon=True)
+        self._ticker.start()
+
+    def _tick(self) -> None:
+        while not self._finished.wait(0.5):
+            self._line.refresh()
+
+    def close(self) -> None:
+        self._finished.set()
+        self._ticker.join()
+        self._line.close()
 
 
 class Terminated(KeyboardInterrupt):
@@ -137,8 +186,7 @@ def stop_time(value: str, scenario_file: str) -> float:
 
 def run(args) -> int:
     from shell.log_file import LogError, check_log_target
-    from shell.scenario import ScenarioError, build_simulation, check_sample_counts, load_scenario
-    from shell.simulation import SimulationError
+    from shell.scenario import ScenarioError, check_sample_counts, load_scenario
     from shell.units import UnitError
 
     try:
@@ -166,15 +214,35 @@ def run(args) -> int:
     except (ScenarioError, UnitError, ValueError, OSError) as exc:
         print(f"flexshell run: {exc}", file=sys.stderr)
         return 1
-    announce_compilation(args.quiet)
+    with CompileNotice(args.quiet) as notice:
+        return _build_and_run(args, scenario, t_final, output, notice)
+
+
+def _build_and_run(args, scenario, t_final, output, notice: CompileNotice) -> int:
+    from shell.log_file import LogError
+    from shell.scenario import ScenarioError, build_simulation
+    from shell.simulation import SimulationError
+    from shell.units import UnitError
+
     try:
         simulation = build_simulation(scenario)
         if args.restore:
             simulation.load_state(args.restore)
     except (ScenarioError, UnitError, ValueError, OSError) as exc:
+        notice.stop()
         print(f"flexshell run: {exc}", file=sys.stderr)
         return 1
-    progress = ProgressBar(simulation.t, t_final, enabled=not args.quiet and sys.stderr.isatty())
+    bar = ProgressBar(simulation.t, t_final, enabled=not args.quiet and sys.stderr.isatty())
+
+    def progress(t: float) -> None:  # the first report comes after the loop is compiled (or loaded)
+        notice.stop()
+        bar(t)
+
+    def close() -> None:
+        notice.stop()
+        bar.close()
+
+    progress.close = close
     in_main_thread = threading.current_thread() is threading.main_thread()  # signal handlers live there
     _SIGTERMS.clear()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None

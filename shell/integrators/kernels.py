@@ -10,6 +10,15 @@ from numba import njit
 
 
 @njit(cache=True)
+def copy_into(dst, src):
+    """``dst[:] = src`` for 1-D arrays of equal length (the loop's own buffers): numba's slice assignment
+    compiles a shape check whose error message (string formatting) cost ~4 s of every cold compile of the
+    compiled loop."""
+    for i in range(dst.shape[0]):
+        dst[i] = src[i]
+
+
+@njit(cache=True)
 def stage_state(y, K, a_row, n_used, h, out):
     """out = y + h * sum_{j < n_used} a_row[j] * K[j]."""
     n = y.shape[0]
