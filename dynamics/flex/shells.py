@@ -279,8 +279,9 @@ def _mitc3p_rotation_shapes(r, s):
 
 @njit(cache=True)
 def _mitc3p_covariant_shear(r, s, J):
-    """Rows (2, 20) of the covariant transverse shear strains e_rt, e_st of MITC3+ at (r, s) on the 18 grid DOFs
-    and the bubble rotations (theta_x, theta_y at 18, 19): w linear, rotations by :func:`_mitc3p_rotation_shapes`."""
+    """Rows (2, 20) of the covariant transverse shear strains e_rt, e_st of MITC3+ at (r, s) on the
+    18 grid DOFs and the bubble rotations (theta_x, theta_y at 18, 19): w linear, rotations by
+    :func:`_mitc3p_rotation_shapes`."""
     f, _ = _mitc3p_rotation_shapes(r, s)
     rows = np.zeros((2, 20))
     for a in range(2):

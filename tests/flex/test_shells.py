@@ -34,7 +34,8 @@ PATCH_QUADS = [(0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7), (4, 5, 6,
 
 
 PATCH_MESHES = {"CQUAD4": PATCH_QUADS,
-                 "CTRIA3": [(q[0], q[1], q[2]) for q in PATCH_QUADS] + [(q[0], q[2], q[3]) for q in PATCH_QUADS],
+                 "CTRIA3": [(q[0], q[1], q[2]) for q in PATCH_QUADS]
+                 + [(q[0], q[2], q[3]) for q in PATCH_QUADS],
                  "CTRIA3, other diagonal": [(q[0], q[1], q[3]) for q in PATCH_QUADS]
                  + [(q[1], q[2], q[3]) for q in PATCH_QUADS]}
 
