@@ -674,8 +674,10 @@ def _add_bush(bulk, elem, ctx, K_b, M_b, ML_b, idx):
     and the orientation vector (X in GA's CD frame, or G0).
     Spring point (CBUSH remark 9): OCID = -1 (blank) puts it at the fraction S of GA -> GB; OCID >= 0
     ignores S and puts it at GA + (S1, S2, S3), the offset's components along the axes of the
-    rectangular system OCID (measured from GA as the QRG's figure 9-21 draws it; MYSTRAN's CBUSH
-    reads it the same way). A cylindrical or spherical OCID is refused.
+    rectangular system OCID. The QRG's text does not say where the offset starts (its figure
+    9-21 is an image); we measure it from GA as MYSTRAN's CBUSH reader states (BD_CBUSH.f90: the
+    offset "is relative to grid A") and as PBUSH remark 13's "vector from grid GA to
+    (S1, S2, S3)" reads. A cylindrical or spherical OCID is refused.
     Mass (PBUSH remark 13): M lumped on the translations of the two grids, (1 - S) M on GA and S M
     on GB, no rotary inertia ("if inertia properties are desired CONM2 should be used"). For
     OCID >= 0 the QRG splits M by distances from the grids in formulas it gives only as images, and
