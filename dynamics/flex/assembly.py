@@ -349,7 +349,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
         elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
             solid_elems.append(_solid_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type == "CBUSH":
-            _add_bush(bulk, elem, ctx, K_b, idx)
+            _add_bush(bulk, elem, ctx, K_b, M_b, ML_b, idx)
         elif elem.type == "CROD":
             _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
         elif elem.type in ("CELAS1", "CELAS2"):
@@ -665,25 +665,35 @@ def _beam_batch(bulk, beams):
     return dofs, props, frames, wa, wb, np.array([b[8] for b in beams])
 
 
-def _add_bush(bulk, elem, ctx, K_b, idx):
-    """CBUSH with PBUSH K1-K6 (MSC QRG CBUSH): springs in the element frame at the point
-    S along GA-GB, joined to the grids by rigid links; GB blank is a spring to ground.
+def _add_bush(bulk, elem, ctx, K_b, M_b, ML_b, idx):
+    """CBUSH with PBUSH K1-K6 and M (MSC Nastran 2022.4 QRG, CBUSH and PBUSH): six springs in the
+    element frame at the spring point, joined to the grids by rigid links; GB blank is a spring
+    to ground.
 
-    Element frame: CID >= 0 its axes (CID 0: basic), else x from GA to GB and y in the plane
-    of x and the orientation vector (X in GA's CD frame, or G0). OCID/S1-S3 offsets, damping
-    (B, GE) and PBUSH mass are not modelled: offsets are refused, damping is reported.
+    Element frame: CID >= 0 its axes (CID 0: basic), else x from GA to GB and y in the plane of x
+    and the orientation vector (X in GA's CD frame, or G0).
+    Spring point (CBUSH remark 9): OCID = -1 (blank) puts it at the fraction S of GA -> GB; OCID >= 0
+    ignores S and puts it at GA + (S1, S2, S3), the offset's components along the axes of the
+    rectangular system OCID. The QRG's text does not say where the offset starts (its figure
+    9-21 is an image); we measure it from GA as MYSTRAN's CBUSH reader states (BD_CBUSH.f90: the
+    offset "is relative to grid A") and as PBUSH remark 13's "vector from grid GA to
+    (S1, S2, S3)" reads. A cylindrical or spherical OCID is refused.
+    Mass (PBUSH remark 13): M lumped on the translations of the two grids, (1 - S) M on GA and S M
+    on GB, no rotary inertia ("if inertia properties are desired CONM2 should be used"). For
+    OCID >= 0 the QRG splits M by distances from the grids in formulas it gives only as images, and
+    a grounded CBUSH has no GB share: PBUSH M is refused there. Damping (B, GE) is reported and not
+    used (the body's damping is modal).
     """
     model = bulk.model
     prop = _property(model, int(elem.pid), ("PBUSH",), ctx)
+    pctx = f"{bulk.path}: {ctx} -> PBUSH {prop.pid}"
     k = np.array([float(v or 0.0) for v in (list(prop.Ki) + [0.0] * 6)[:6]])
-    if getattr(prop, "mass", None):
-        raise BulkDataError(f"{ctx} -> PBUSH {prop.pid}: mass M is not supported (use CONM2)")
+    mass = float(getattr(prop, "mass", None) or 0.0)
+    if mass < 0.0:
+        raise BulkDataError(f"{pctx}: mass M = {mass} must be >= 0")
     if any(v for v in list(prop.Bi) + list(prop.GEi)):
         warnings.warn(f"{ctx} -> PBUSH {prop.pid}: damping B/GE is not used (the body's "
                       "damping is modal: --damping)", stacklevel=4)
-    ocid = elem.ocid if elem.ocid is not None else -1
-    if int(ocid) != -1:
-        raise BulkDataError(f"{ctx}: OCID = {ocid} (spring location offsets) is not supported")
     ga, gb = elem.nodes[0], elem.nodes[1] if len(elem.nodes) > 1 else None
     ia = idx(int(ga), ctx)
     ib = idx(int(gb), ctx) if gb else None
@@ -707,8 +717,7 @@ def _add_bush(bulk, elem, ctx, K_b, idx):
         else:
             raise BulkDataError(f"{ctx}: no orientation (CID, X1-X3 or G0)")
         Lam = el.beam_frame(axis, v, ctx)
-    s_loc = float(elem.s if elem.s is not None else 0.5)
-    point = xa + s_loc * axis
+    point, s_loc = _bush_point(bulk, elem, ctx, xa, axis)
     # relative motion at the spring point: local (B - A), rigid links from each grid
     ends = [(ia, -1.0)] + ([(ib, 1.0)] if ib is not None else [])
     T = np.zeros((6, 6 * len(ends)))
@@ -718,6 +727,39 @@ def _add_bush(bulk, elem, ctx, K_b, idx):
         T[:, 6 * n:6 * n + 6] = sign * np.kron(np.eye(2), Lam) @ link
     dofs = np.concatenate([6 * i + np.arange(6) for i, _ in ends])
     K_b.add(dofs, T.T @ np.diag(k) @ T)
+    if mass == 0.0:
+        return
+    if ib is None:
+        raise BulkDataError(f"{pctx}: mass M = {mass!r} on a CBUSH to ground (GB blank): the QRG "
+                            "(PBUSH remark 13) splits M between GA and GB; give the mass as a CONM2")
+    if s_loc is None:
+        raise BulkDataError(f"{pctx}: mass M = {mass!r} with OCID = {elem.ocid} is not supported: "
+                            "the QRG's split of M between GA and GB for an offset spring (PBUSH "
+                            "remark 13) is given only as formula images; give the mass as CONM2s")
+    for i, share in ((ia, 1.0 - s_loc), (ib, s_loc)):
+        block = np.diag(np.r_[np.full(3, share * mass * bulk.wtmass), np.zeros(3)])
+        M_b.add(6 * i + np.arange(6), block)
+        ML_b.add(6 * i + np.arange(6), block)
+
+
+def _bush_point(bulk, elem, ctx, xa, axis):
+    """(spring point in basic, S or None) of a CBUSH: S along GA -> GB for OCID = -1 (blank), else
+    GA plus the offset (S1, S2, S3) along the axes of the rectangular system OCID."""
+    ocid = -1 if elem.ocid is None else int(elem.ocid)
+    if ocid == -1:
+        s_loc = float(elem.s if elem.s is not None else 0.5)
+        return xa + s_loc * axis, s_loc
+    if ocid < -1:
+        raise BulkDataError(f"{bulk.path}: {ctx}: OCID = {ocid}; expected -1 (spring at S along "
+                            "GA-GB) or a coordinate system id >= 0 (offset S1-S3)")
+    from dynamics.flex.bulk_data import coordinate_axes
+    _, axes, kind = coordinate_axes(bulk.model, ocid, f"{bulk.path}: {ctx} OCID")
+    if kind != "R":
+        name = "cylindrical" if kind == "C" else "spherical"
+        raise BulkDataError(f"{bulk.path}: {ctx}: OCID = {ocid} is a {name} system; offsets S1-S3 "
+                            "are modelled in rectangular systems (0 = basic)")
+    offset = np.array([float(v or 0.0) for v in (list(elem.si) + [None] * 3)[:3]])
+    return xa + axes @ offset, None
 
 
 def _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
@@ -970,7 +1012,7 @@ def massless_mechanism_dofs(K, M, avoid: np.ndarray | None = None) -> np.ndarray
 
 
 def rbe3_rows(bulk: BulkData, rig, ctx: str):
-    """Dependent rows of an RBE3: [(g-set DOF of REFGRID, independent g-set DOFs, coefficients)].
+    """Dependent rows of an RBE3: [(dependent g-set DOF, independent g-set DOFs, coefficients)].
 
     The reference grid moves with the rigid-body motion (u, theta) that fits the independent
     grids' motions in the weighted least-squares sense (MSC Nastran QRG, RBE3 remarks;
@@ -978,10 +1020,17 @@ def rbe3_rows(bulk: BulkData, rig, ctx: str):
     S_i = R_i' [I, -skew(x_i - x_ref)] for translations and R_i' [0, I] for rotations (R_i the
     grid's CD frame), rotation rows weighted by w_i L^2 with L the mean distance of the
     independent grids from the reference (so both kinds of rows have the same units). Then
-    (u, theta) = (S' W S)^-1 S' W u_ind, rotated to the reference grid's CD frame.
+    (u, theta) = (S' W S)^-1 S' W u_ind, rotated to the reference grid's CD frame: one equation
+    ``u_ref,c - G_c u_ind = 0`` per REFC component c.
+
+    UM (alternate dependent DOFs; MSC Nastran 2022.4 QRG, RBE3 field UM and remark 7) changes
+    which DOFs these equations are solved for, not the equations: with C their coefficients on
+    all their DOFs, the UM DOFs m follow ``u_m = -C_m^-1 C_n u_n`` from the others n (REFC DOFs
+    of REFGRID not in UM become independent). As remark 7 requires, the UM set must have as many
+    DOFs as REFC, be a subset of the REFC and (Gi,j, Ci) DOFs, and give a nonsingular C_m (tested
+    with rotations scaled by L, so the test does not depend on units); anything else is refused
+    with a message, as is a DOF listed twice.
     """
-    if rig.Gmi:
-        raise BulkDataError(f"{ctx}: UM (alternate dependent DOFs) is not supported")
     pos, Rcd = bulk.positions, bulk.displacement_rotation
     ref = bulk.grid_index(int(rig.refgrid), ctx)
     refc = _components(rig.refc)
@@ -1014,7 +1063,51 @@ def rbe3_rows(bulk: BulkData, rig, ctx: str):
     G = np.linalg.solve(A, S.T * w)                       # (6, n_ind), basic
     G = np.kron(np.eye(2), Rcd[ref]).T @ G                # reference grid's CD frame
     dofs = np.array([e[0] for e in entries], dtype=np.int64)
-    return [(6 * ref + c - 1, dofs, G[c - 1]) for c in refc]
+    if not rig.Gmi:
+        return [(6 * ref + c - 1, dofs, G[c - 1]) for c in refc]
+    return _rbe3_alternate_rows(bulk, rig, ctx, [6 * ref + c - 1 for c in refc], dofs,
+                                G[np.array(refc) - 1], length)
+
+
+def _rbe3_alternate_rows(bulk, rig, ctx, ref_dofs, ind_dofs, G, length):
+    """The RBE3 equations ``u_ref - G u_ind = 0`` solved for the UM DOFs (:func:`rbe3_rows`)."""
+    where = f"{bulk.path}: {ctx}"
+    um = []
+    for gid, comps in zip(rig.Gmi, rig.Cmi):
+        i = bulk.grid_index(int(gid), ctx + " UM")
+        for c in _components(comps):
+            if 6 * i + c - 1 in um:
+                raise BulkDataError(f"{where}: UM lists DOF {c} of grid {gid} twice")
+            um.append(6 * i + c - 1)
+    if len(um) != len(ref_dofs):
+        raise BulkDataError(f"{where}: UM lists {len(um)} dependent DOFs, REFC {len(ref_dofs)}; "
+                            "the UM set must have one DOF per REFC component")
+    involved = np.unique(np.concatenate([ref_dofs, ind_dofs]))
+    col = {int(g): k for k, g in enumerate(involved)}
+    for g in um:
+        if g not in col:
+            raise BulkDataError(f"{where}: UM DOF {g % 6 + 1} of grid {bulk.grid_ids[g // 6]} is "
+                                "neither a REFC component of REFGRID nor a listed (Gi,j, Ci) "
+                                "component; the UM DOFs must be a subset of those (QRG RBE3 "
+                                "remark 7)")
+    C = np.zeros((len(ref_dofs), len(involved)))
+    for r, g in enumerate(ref_dofs):
+        C[r, col[g]] += 1.0
+        np.add.at(C[r], [col[int(d)] for d in ind_dofs], -G[r])
+    # rotations in units of length (theta L) so that the singularity test does not depend on units
+    scale = np.where(involved % 6 >= 3, length, 1.0)
+    row_scale = np.where(np.array(ref_dofs) % 6 >= 3, length, 1.0)
+    m = np.array([col[g] for g in um])
+    n = np.setdiff1d(np.arange(len(involved)), m)
+    sv = np.linalg.svd(row_scale[:, None] * C[:, m] / scale[m], compute_uv=False)
+    if sv[-1] <= 1e-10 * sv[0]:
+        names = ", ".join(f"grid {bulk.grid_ids[g // 6]} DOF {g % 6 + 1}" for g in um)
+        raise BulkDataError(f"{where}: the RBE3 equations cannot be solved for the UM DOFs "
+                            f"({names}): their coefficient matrix is singular (smallest/largest "
+                            f"singular value {sv[-1] / sv[0]:.1e}); choose UM DOFs that the "
+                            "equations determine (QRG RBE3 remark 7)")
+    X = -np.linalg.solve(C[:, m], C[:, n])
+    return [(int(involved[m[k]]), involved[n], X[k]) for k in range(len(m))]
 
 
 def deck_aset(bulk: BulkData) -> list:

@@ -225,9 +225,12 @@ def test_simply_supported_plate_under_compression_follows_the_buckling_relation(
     coarse = plate_ratios(tmp_path, 16, triangles)
     fine = plate_ratios(tmp_path, 32, triangles)
     err_c, err_f = np.abs(coarse / exact - 1), np.abs(fine / exact - 1)
-    assert np.all(err_f < err_c)  # converging
-    assert err_f[0] < (3e-3 if not triangles else 2e-3)
-    assert err_f.max() < (5e-3 if not triangles else 1.2e-2)
+    # converging, or already within 3e-3 on both meshes: the reference is Kirchhoff's, and the ratios converge
+    # to those of the Mindlin plate, which the (1,1) mode of the MITC3+ triangles reaches at 16 x 16 (signed
+    # (1,1) errors at 16 / 32 / 64 squares: CQUAD4 -3.3e-3 / +2.1e-3 / +5.3e-3, CTRIA3 -2.5e-3 / +2.5e-3 / +5.0e-3)
+    assert np.all((err_f < err_c) | (np.maximum(err_c, err_f) < 3e-3))
+    assert err_f[0] < 3e-3
+    assert err_f.max() < 5e-3
     # and the buckling load itself: k = 4 for the square plate, within the fine mesh's error
     assert -1 / fine[0] == pytest.approx(4 * np.pi ** 2 * 1e7 * 0.01 ** 3 / (12 * (1 - 0.09)), rel=3e-3)
 

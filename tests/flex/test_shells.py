@@ -1,5 +1,6 @@
-"""CQUAD4 (MITC4 + QM6 membrane) and CTRIA3 (MITC3 + CST) shells: patch tests, plate frequencies
-against closed forms and published tables, convergence rates, locking.
+"""CQUAD4 (MITC4 + QM6 membrane) and CTRIA3 (MITC3+ + CST) shells: patch tests, plate frequencies
+against closed forms and published tables, convergence rates, locking (the CTRIA3 on other mesh
+patterns: test_tria_meshes.py).
 
 References:
 * Patch test geometry: MacNeal & Harder, "A proposed standard set of problems to test finite
@@ -32,9 +33,15 @@ PATCH = np.array([[0.0, 0.0], [0.24, 0.0], [0.24, 0.12], [0.0, 0.12],
 PATCH_QUADS = [(0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7), (4, 5, 6, 7)]
 
 
-def _patch_matrices(triangles: bool, t: float):
-    elems = [(q[0], q[1], q[2]) for q in PATCH_QUADS] + [(q[0], q[2], q[3]) for q in PATCH_QUADS] \
-        if triangles else PATCH_QUADS
+PATCH_MESHES = {"CQUAD4": PATCH_QUADS,
+                 "CTRIA3": [(q[0], q[1], q[2]) for q in PATCH_QUADS]
+                 + [(q[0], q[2], q[3]) for q in PATCH_QUADS],
+                 "CTRIA3, other diagonal": [(q[0], q[1], q[3]) for q in PATCH_QUADS]
+                 + [(q[1], q[2], q[3]) for q in PATCH_QUADS]}
+
+
+def _patch_matrices(mesh: str, t: float):
+    elems = PATCH_MESHES[mesh]
     xyz = np.zeros((len(elems), len(elems[0]), 3))
     for e, conn in enumerate(elems):
         xyz[e, :, :2] = PATCH[list(conn)]
@@ -61,15 +68,15 @@ def _exact_patch_field(kind):
     return u.ravel()
 
 
-@pytest.mark.parametrize("triangles", [False, True], ids=["CQUAD4", "CTRIA3"])
+@pytest.mark.parametrize("mesh", list(PATCH_MESHES))
 @pytest.mark.parametrize("kind", ["membrane", "bending"])
 @pytest.mark.parametrize("t", [1e-3, 1e-1])
-def test_patch_test(triangles, kind, t):
+def test_patch_test(mesh, kind, t):
     """Boundary grids given the exact constant-strain (or constant-curvature) field, the four
     interior grids are solved for: they must take the exact values (MacNeal & Harder patch).
     Round-off only: 1e-8 relative to the field (theta_z, held only by the 1e-4 G t drilling
     penalty, carries round-off ~1e4 x eps x the condition of the membrane stiffness: 3e-13)."""
-    K = _patch_matrices(triangles, t)
+    K = _patch_matrices(mesh, t)
     exact = _exact_patch_field(kind)
     b = np.arange(24)
     i = np.arange(24, 48)
@@ -107,10 +114,12 @@ SS_MODES = [(1, 1), (1, 2), (2, 1), (2, 2)]
 # measured errors (4, 8, 16, 32 elements per side), modes (1,1) (1,2) (2,1) (2,2):
 #   CQUAD4 (MITC4): 7.2e-2 3.2e-1 3.2e-1 3.4e-1 / 1.7e-2 6.6e-2 ... / 4.3e-3 1.6e-2 1.6e-2 1.7e-2 /
 #                   1.07e-3 3.9e-3 3.9e-3 4.3e-3; rates 2.00-2.02 over the last halving
-#   CTRIA3 (MITC3): 1.28 ... / 1.9e-1 ... / 2.0e-2 2.8e-2 5.4e-2 7.6e-2 /
-#                   3.0e-3 5.7e-3 8.4e-3 1.2e-2; rates 2.3-2.7 (still pre-asymptotic)
+#   CTRIA3 (MITC3+): 1.7e-1 3.6e-1 5.5e-1 6.8e-1 / 3.8e-2 8.1e-2 1.1e-1 1.5e-1 /
+#                   9.0e-3 1.9e-2 2.6e-2 3.6e-2 / 2.20e-3 4.7e-3 6.2e-3 8.8e-3; rates 2.02-2.04
+#                   (the MITC3 it replaced: 3.0e-3 5.7e-3 8.4e-3 1.2e-2 at 32, rates 2.3-2.7)
+# bounds: the measured values with a margin of 10 % (1.1 x 8.8e-3 = 9.7e-3 keeps the issue's 1 %)
 @pytest.mark.parametrize("triangles,first16,all32,rate", [(False, 5e-3, 5e-3, 1.95),
-                                                          (True, 2.5e-2, 1.5e-2, 2.0)],
+                                                          (True, 1.0e-2, 9.7e-3, 1.95)],
                          ids=["CQUAD4", "CTRIA3"])
 def test_simply_supported_plate_converges_at_second_order(write_deck, triangles, first16, all32,
                                                           rate):
@@ -133,15 +142,19 @@ def test_simply_supported_plate_converges_at_second_order(write_deck, triangles,
     assert np.all(rates[-1] > rate)                   # at least O(h^2): error / 4 per halving
 
 
+@pytest.mark.parametrize("triangles", [False, True], ids=["CQUAD4", "CTRIA3"])
 @pytest.mark.parametrize("t", [1e-2, 1e-3, 1e-4])
-def test_cantilever_plate_bending_and_twist_without_locking(write_deck, t):
+def test_cantilever_plate_bending_and_twist_without_locking(write_deck, t, triangles):
     """Leissa's CFFF square plate; the same mesh for t/a = 1e-2 .. 1e-4 (shear locking would
-    stiffen the thin ones by orders of magnitude)."""
+    stiffen the thin ones by orders of magnitude). CTRIA3 (MITC3+) measured within -5.2e-3 ..
+    +4.7e-3 at every thickness; the MITC3 it replaced was 2 % off at 1e-2 and locked below
+    (modes 2, 4, 5: +26 .. +74 % at 1e-3, +103 .. +130 % at 1e-4)."""
     a = 1.0
     D = E * t**3 / (12 * (1 - NU**2))
     lam = np.array([3.4917, 8.5246, 21.429, 27.331, 31.111])
     leissa = lam / a**2 * np.sqrt(D / (RHO * t)) / (2 * np.pi)
-    f = _plate_frequencies(write_deck, 16, 5, t=t, edges="CFFF")
+    f = _plate_frequencies(write_deck, 16, 5, t=t, edges="CFFF", triangles=triangles)
+    print("cantilever", "tria" if triangles else "quad", t, f / leissa - 1)
     assert_allclose(f, leissa, rtol=1e-2)
 
 
@@ -233,9 +246,9 @@ def _quiet_modes(write_deck, text, count, name):
         return fem2modal(write_deck(text, name), Fem2ModalOptions(n_modes=count)).frequencies_hz
 
 
-def _ring_deck(n, radius=1.0, length=0.05, t=0.01):
-    """Cylinder slice, n CQUAD4 around, one along z, nu = 0, axial translation held: the
-    in-plane modes of a thin ring."""
+def _ring_deck(n, radius=1.0, length=0.05, t=0.01, triangles=False):
+    """Cylinder slice, n CQUAD4 (or 2 n CTRIA3) around, one along z, nu = 0, axial translation
+    held: the in-plane modes of a thin ring."""
     lines = ["PARAM,COUPMASS,1"]
     for k in range(n):
         phi = 2 * np.pi * k / n
@@ -246,15 +259,22 @@ def _ring_deck(n, radius=1.0, length=0.05, t=0.01):
     lines.append(f"PSHELL,1,1,{t!r},1,,1")
     for k in range(n):
         k2 = (k + 1) % n
-        lines.append(f"CQUAD4,{k + 1},1,{k + 1},{k2 + 1},{n + k2 + 1},{n + k + 1}")
+        g = (k + 1, k2 + 1, n + k2 + 1, n + k + 1)
+        if triangles:
+            lines.append(f"CTRIA3,{2 * k + 1},1,{g[0]},{g[1]},{g[2]}")
+            lines.append(f"CTRIA3,{2 * k + 2},1,{g[0]},{g[2]},{g[3]}")
+        else:
+            lines.append(f"CQUAD4,{k + 1},1,{g[0]},{g[1]},{g[2]},{g[3]}")
     return "\n".join(lines + ["ENDDATA"]) + "\n"
 
 
-def test_cylindrical_shell_ring_modes_converge(write_deck):
+@pytest.mark.parametrize("triangles", [False, True], ids=["CQUAD4", "CTRIA3"])
+def test_cylindrical_shell_ring_modes_converge(write_deck, triangles):
     """Flat facets on a curved surface (drilling DOFs at every fold): the inextensional modes of
     a thin ring, omega_n^2 = E I n^2 (n^2 - 1)^2 / (rho A R^4 (n^2 + 1)) (Soedel, Vibrations of
     Shells and Plates, 3rd ed., 2004, eq. 5.3.12; Love), n = 2, 3, 4. Each n is a pair; the
-    three rigid motions in the plane come out as rigid-body modes."""
+    three rigid motions in the plane come out as rigid-body modes. Measured at 128 around:
+    CQUAD4 1.1e-3 - 4.5e-3, rates 2.06-2.07; CTRIA3 9.8e-4 - 3.9e-3, rates 2.18-2.19."""
     R, Lz, t = 1.0, 0.05, 0.01
     I, A = Lz * t**3 / 12, Lz * t
     n = np.array([2.0, 3.0, 4.0])
@@ -264,7 +284,7 @@ def test_cylindrical_shell_ring_modes_converge(write_deck):
         import warnings
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            body = fem2modal(write_deck(_ring_deck(count, R, Lz, t), f"ring{count}.dat"),
+            body = fem2modal(write_deck(_ring_deck(count, R, Lz, t, triangles), f"ring{count}.dat"),
                              Fem2ModalOptions(n_modes=6))
         assert body.n_rigid_modes_removed == 3
         f = body.frequencies_hz
