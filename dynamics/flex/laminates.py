@@ -1,9 +1,9 @@
 """Orthotropic and laminated shell sections: MAT8 plies, PCOMP laminates, PSHELL MID4 coupling.
 
 NASTRAN turns a PCOMP into an equivalent PSHELL with four MAT2 entries (MSC Nastran Quick
-Reference Guide, PCOMP remarks: "the PCOMP entry is converted to equivalent PSHELL and MAT2
-entries"; the MAT2 ids 1e8 + PID ... 4e8 + PID it writes to the OP2). This module forms the same
-section, in the terms of the PSHELL equations (QRG PSHELL remarks)::
+Reference Guide, PCOMP remarks; MSC writes them to the OP2 as MAT2 1e8 + PID ... 4e8 + PID).
+This module forms the same section, in the terms of the PSHELL (QRG PSHELL remarks: membrane
+T G1, bending I G2, transverse shear T_s G3, membrane-bending coupling T^2 G4)::
 
     [N]   [ T G1      -T^2 G4 ] [eps  ]      Q_s = T_s G3 [gamma_xz, gamma_yz]
     [M] = [ -T^2 G4   I G2    ] [kappa]
@@ -20,7 +20,9 @@ from ``z_0 = Z0`` upwards (ply 1 at the bottom):
   :func:`dynamics.flex.shells.rotate_plane`);
 * ``A = sum Qbar_k (z_k - z_k-1)``, ``B = 1/2 sum Qbar_k (z_k^2 - z_k-1^2)``,
   ``D = 1/3 sum Qbar_k (z_k^3 - z_k-1^3)`` (Jones eqs. 4.22-4.24), so that
-  ``G1 = A / T``, ``G2 = 12 D / T^3`` (12I/T^3 = 1) and ``G4 = -B / T^2``;
+  ``G1 = A / T``, ``G2 = 12 D / T^3`` (12I/T^3 = 1) and ``G4 = -B / T^2`` (the minus: NASTRAN's
+  plate curvature is -kappa; it is the sign MSC's own equivalents carry, and with it a PCOMP and
+  MSC's equivalent PSHELL give the same modes, tests);
 * transverse shear, each direction on its own (cylindrical bending; Whitney, "Shear correction
   factors for orthotropic laminates under static load", J. Appl. Mech. 40, 1973): under a shear
   force Q_x the bending stress ``Qbar11 (z - z_n) M_x / D_n`` of a plate bent about y (``z_n`` the
@@ -33,7 +35,8 @@ from ``z_0 = Z0`` upwards (ply 1 at the bottom):
   the consistent mass's rotary inertia is then the equivalent PSHELL's ``rho T^3 / 12``.
 
 Checked against MSC Nastran's own equivalent MAT2s (tests/flex/test_nastran_laminates.py): A, B, D
-to the OP2's single precision for MAT1, MAT8 and MAT2 plies, SYM-free and offset (Z0) laminates;
+to the OP2's single precision for MAT1, MAT8 and MAT2 plies and offset (Z0) laminates (LAM =
+SYM is checked against the same laminate listed in full);
 the transverse shear to single precision for laminates of 0 and 90 degree plies and for balanced
 ones, while for some laminates with +-45 degree plies MSC's MID3 differs from this rule by up to
 10 % (MSC's rule for those is not documented; docs/fem2modal.md, "NASTRAN agreement").
