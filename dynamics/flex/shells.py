@@ -167,7 +167,6 @@ def _membrane_bending_B(dNx, n):
 def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
     """Local 24 x 24 K and M of a MITC4 / QM6 shell quadrilateral (module docstring); Bc the
     membrane-bending coupling (3 x 3, element axes, zero for a homogeneous section)."""
-    K = np.zeros((24, 24))
     M = np.zeros((24, 24))
     x, y = np.ascontiguousarray(loc[:, 0]), np.ascontiguousarray(loc[:, 1])  # contiguous for '@'
     # tying points: gamma_r at (0, -1) [B] and (0, 1) [D]; gamma_s at (-1, 0) [A] and (1, 0) [C]
