@@ -143,9 +143,9 @@ def test_goland_membrane_box_matches_msc_nastran(write_deck):
     """The first eigenvalue, 1.549873E+02, to the f06's 7 digits (5e-7); measured 1.6e-7. The
     membranes (PSHELL without MID2) carry no bending, transverse shear or drilling stiffness, as
     in NASTRAN; with the spurious transverse-shear penalty and the 1e-4 G t drilling penalty the
-    pipeline had before on them, it was 7.7e-6 too stiff (1.5e-6 from the shear penalty, 6.2e-6
-    from the drilling penalty, measured one at a time). The membrane of these rectangles (QM6)
-    therefore agrees with MSC's QUAD4 membrane to the print precision."""
+    pipeline had before on them, it was 7.7e-6 too stiff (measured without the drilling
+    penalty: 1.5e-6, without both: 1.6e-7). The membrane of these rectangles (QM6) therefore
+    agrees with MSC's QUAD4 membrane to the print precision."""
     ev, body = _eigenvalues(write_deck, _goland_deck(), 1, "goland.dat")
     assert body.n_rigid_modes_removed == 0
     assert abs(ev[0] / 1.549873E+02 - 1) < 5e-7
