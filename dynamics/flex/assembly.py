@@ -35,6 +35,7 @@ import scipy.sparse as sp
 
 from dynamics.flex import elements as el
 from dynamics.flex import solids
+from dynamics.flex.laminates import mat8_moduli, pcomp_section
 from dynamics.flex.shells import property_row as shell_props
 from dynamics.flex.shells import shell_batch
 from dynamics.flex.bulk_data import (BulkData, BulkDataError, displacement_frame_rotation,
@@ -482,18 +483,24 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
 
 
 def _shell_data(bulk, elem, ctx, wt, idx, sections):
-    """(grid rows, property row of :func:`shells.shell_batch`) of one CQUAD4/CTRIA3."""
+    """(grid rows, property row of :func:`shells.shell_batch`) of one CQUAD4/CTRIA3 with a
+    PSHELL or a PCOMP (its equivalent PSHELL, :mod:`dynamics.flex.laminates`)."""
     model = bulk.model
     rows = [idx(int(g), ctx) for g in elem.nodes]
     if len(set(rows)) != len(rows):
         raise BulkDataError(f"{ctx}: repeated grid (degenerate element)")
-    key = ("PSHELL", int(elem.pid))
+    key = ("SHELL", int(elem.pid))
     if key not in sections:
-        sections[key] = _pshell_moduli(model, int(elem.pid), ctx)
-    Gm, Gb, Gs, rho, t, nsm, bend, ts, rigid = sections[key]
+        prop = _property(model, int(elem.pid), ("PSHELL", "PCOMP"), ctx)
+        sections[key] = (pcomp_section(model, int(elem.pid), ctx) if prop.type == "PCOMP"
+                         else _pshell_moduli(model, int(elem.pid), ctx))
+    Gm, Gb, Gs, rho, t, nsm, bend, ts, rigid, Gc = sections[key]
     thick = [float(v) for v in (getattr(elem, "T1", None), getattr(elem, "T2", None),
                                 getattr(elem, "T3", None), getattr(elem, "T4", None))
              if v is not None and float(v) > 0.0]
+    if thick and model.properties[int(elem.pid)].type == "PCOMP":
+        raise BulkDataError(f"{ctx}: corner thicknesses T1-T4 = {thick} with PCOMP "
+                            f"{elem.pid}, whose plies define the thickness; leave them blank")
     if thick and getattr(elem, "tflag", 0) == 0:
         t = float(np.mean(thick))
     elif thick:
@@ -509,11 +516,14 @@ def _shell_data(bulk, elem, ctx, wt, idx, sections):
     elif orient is not None:
         theta = np.radians(float(orient))
     return rows, shell_props(Gm, Gb, Gs, rho * wt, t, nsm * wt, bend, ts, rigid, theta,
-                             direction, float(elem.zoffset or 0.0))
+                             direction, float(elem.zoffset or 0.0), Gc)
 
 
 def _plane_modulus(model, mid: int, context: str):
-    """(3x3 plane-stress modulus, 2x2 transverse shear modulus, rho) of a MAT1 or MAT2."""
+    """(3x3 plane-stress modulus, 2x2 transverse shear modulus, rho) of a MAT1, MAT2 or MAT8.
+
+    The transverse shear modulus is the material's as a MID3: MAT1 G, MAT2 [[G11, G12], [G12,
+    G22]] (QRG PSHELL), MAT8 diag(G1Z, G2Z) with inf for a blank (no shear flexibility)."""
     mat = model.materials.get(mid)
     if mat is None:
         raise BulkDataError(f"{context}: material {mid} is not defined")
@@ -527,15 +537,18 @@ def _plane_modulus(model, mid: int, context: str):
         g = [float(v or 0.0) for v in (mat.G11, mat.G12, mat.G13, mat.G22, mat.G23, mat.G33)]
         Q = np.array([[g[0], g[1], g[2]], [g[1], g[3], g[4]], [g[2], g[4], g[5]]])
         return Q, np.array([[g[0], g[1]], [g[1], g[3]]]), float(mat.rho or 0.0)
-    raise BulkDataError(f"{context}: material {mid} is a {mat.type}; shells take MAT1 or MAT2")
+    if mat.type == "MAT8":
+        Q, shear, rho = mat8_moduli(mat, context)
+        return Q, np.diag(shear), rho
+    raise BulkDataError(f"{context}: material {mid} is a {mat.type}; shells take MAT1, MAT2 or "
+                        "MAT8")
 
 
 def _pshell_moduli(model, pid: int, ctx: str):
-    """Membrane, bending and shear moduli and the scalars of a PSHELL (NASTRAN QRG PSHELL)."""
+    """Membrane, bending and shear moduli, the scalars and the membrane-bending coupling modulus
+    (-G4 of MID4, :mod:`dynamics.flex.laminates`) of a PSHELL (NASTRAN QRG PSHELL)."""
     prop = _property(model, pid, ("PSHELL",), ctx)
     pctx = f"{ctx} -> PSHELL {prop.pid}"
-    if getattr(prop, "mid4", None):
-        raise BulkDataError(f"{pctx}: MID4 (membrane-bending coupling) is not supported")
     if not prop.mid1:
         raise BulkDataError(f"{pctx}: MID1 blank (no membrane stiffness) is not supported")
     if prop.mid2 and int(prop.mid2) == -1:
@@ -545,14 +558,40 @@ def _pshell_moduli(model, pid: int, ctx: str):
         Gb, Gs_b, _ = _plane_modulus(model, int(prop.mid2), pctx)
         bend = float(prop.twelveIt3 if prop.twelveIt3 is not None else 1.0)
     else:
-        Gb, Gs_b, bend = Gm, np.eye(2), 0.0
-    if prop.mid3:
+        # no MID2: no bending and no transverse shear (QRG PSHELL), a membrane
+        Gb, Gs_b, bend = Gm, np.zeros((2, 2)), 0.0
+    if not np.all(np.isfinite(Gs_b)):
+        # a MAT8 MID2 with blank G1Z/G2Z: the rigid-shear scale below is its in-plane shear
+        Gs_b = Gb[2, 2] * np.eye(2)
+    if not prop.mid2:
+        Gs, rigid = Gs_b, False
+    elif prop.mid3:
         _, Gs, _ = _plane_modulus(model, int(prop.mid3), pctx)
-        rigid = False
+        finite = np.isfinite(np.diag(Gs))
+        if not finite.any():
+            Gs, rigid = Gs_b, True         # MAT8 G1Z and G2Z blank: as a blank MID3
+        elif not finite.all():
+            raise BulkDataError(f"{pctx}: MID3 = MAT8 {prop.mid3} with one of G1Z, G2Z blank: "
+                                "shear flexibility in one direction only is not supported")
+        else:
+            rigid = False
     else:
         Gs, rigid = Gs_b, True
+    Gc = np.zeros((3, 3))
+    if getattr(prop, "mid4", None):
+        if not prop.mid2:
+            raise BulkDataError(f"{pctx}: MID4 = {prop.mid4} (membrane-bending coupling) needs "
+                                "MID2 (bending); MID2 is blank")
+        if model.materials.get(int(prop.mid4)) is not None and \
+                model.materials[int(prop.mid4)].type not in ("MAT1", "MAT2"):
+            raise BulkDataError(f"{pctx}: MID4 = {prop.mid4} is a "
+                                f"{model.materials[int(prop.mid4)].type}; MID4 takes MAT1 or MAT2")
+        G4, _, _ = _plane_modulus(model, int(prop.mid4), pctx)
+        # NASTRAN's forces: N = T G1 eps + T^2 G4 (1/rho): its curvature is -kappa here, so
+        # B = -T^2 G4 (the sign MSC's own PCOMP equivalents carry: laminates module)
+        Gc = -G4
     ts = float(prop.tst if prop.tst is not None else 0.833333)
-    return Gm, Gb, Gs, rho, float(prop.t), float(prop.nsm or 0.0), bend, ts, rigid
+    return Gm, Gb, Gs, rho, float(prop.t), float(prop.nsm or 0.0), bend, ts, rigid, Gc
 
 
 _SOLID_KINDS = {("CHEXA", 8): solids.HEXA8, ("CHEXA", 20): solids.HEXA20,

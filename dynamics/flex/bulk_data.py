@@ -6,8 +6,8 @@ reported by name and count, so nothing is silently dropped:
 
 * supported: modelled by :mod:`dynamics.flex.elements` / :mod:`dynamics.flex.assembly`
   (GRID, GRDSET, CORD2R, CORD2C, CORD2S, CORD1R, CORD1C, CORD1S, RBE3, CBUSH/PBUSH, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
-  CQUAD4/CTRIA3/PSHELL, CHEXA/CTETRA/CPENTA/PSOLID,
-  CONM1, CONM2, MAT1, RBE2, SPC, SPC1, ASET, ASET1, PARAM WTMASS/COUPMASS/GRDPNT);
+  CQUAD4/CTRIA3/PSHELL/PCOMP, CHEXA/CTETRA/CPENTA/PSOLID,
+  CONM1, CONM2, MAT1, MAT2, MAT8, RBE2, SPC, SPC1, ASET, ASET1, PARAM WTMASS/COUPMASS/GRDPNT);
 * ignored: cards that carry no mass, stiffness or constraint (solution controls, output and
   load cards, SPOINTs without elements, other PARAMs): reported as a warning;
 * unsupported structural cards (other elements, properties, materials, rigid elements, MPCs,
@@ -38,8 +38,8 @@ import numpy as np
 SUPPORTED_CARDS = frozenset({
     "GRID", "GRDSET", "CORD2R", "CORD2C", "CORD1R",
     "CBAR", "PBAR", "PBARL", "CBEAM", "PBEAM", "PBEAML", "CROD", "PROD",
-    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1", "MAT2",
-    "CQUAD4", "CTRIA3", "PSHELL", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
+    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1", "MAT2", "MAT8",
+    "CQUAD4", "CTRIA3", "PSHELL", "PCOMP", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
     "RBE2", "RBE3", "CBUSH", "PBUSH", "CORD2S", "CORD1C", "CORD1S",
     "SPC", "SPC1", "SPCADD", "ASET", "ASET1", "PARAM", "ENDDATA",
 })

@@ -74,6 +74,7 @@ import scipy.sparse.linalg as spla
 
 from dynamics.flex import geometric_stiffness_continuum as gsc
 from dynamics.flex import solids
+from dynamics.flex.bulk_data import BulkDataError
 
 # order of the angular-velocity products in the stored (6, n, n) array
 OMEGA_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0))
@@ -244,7 +245,7 @@ def _line_elements(sm):
 
 
 def _continuum_elements(sm, counts):
-    """Shells grouped by grid count [(rows (ne, nn), shell property rows (ne, 33))] and solids by kind
+    """Shells grouped by grid count [(rows (ne, nn), shell property rows (ne, 42))] and solids by kind
     [(kind, rows (ne, n), (ne, 3) E nu rho)], read through :mod:`dynamics.flex.assembly`'s own functions;
     ``counts`` gets their numbers by card name."""
     from dynamics.flex import assembly as asm
@@ -263,6 +264,11 @@ def _continuum_elements(sm, counts):
         ctx = f"{elem.type} {eid}"
         if elem.type in ("CQUAD4", "CTRIA3"):
             shells.append(asm._shell_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
+            if np.any(shells[-1][1][33:42]):
+                # the membrane resultants of gsc leave out B kappa
+                raise BulkDataError(f"{ctx}: the geometric stiffness of a shell with membrane-"
+                                    f"bending coupling (property {elem.pid}: PSHELL MID4 or an "
+                                    "unsymmetric PCOMP) is not modelled")
         elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
             solid_elems.append(asm._solid_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
         else:

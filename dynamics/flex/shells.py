@@ -17,6 +17,12 @@ point at height z by ``theta x (0, 0, z)``, i.e. ``u = z theta_y``, ``v = -z the
   CTRIA3 constant strain.
 * Bending: curvatures ``k_xx = theta_y,x``, ``k_yy = -theta_x,y``, ``k_xy = theta_y,y -
   theta_x,x``; ``D = (12 I / T^3) t^3 / 12 Q`` (Q of MID2).
+* Membrane-bending coupling (PSHELL MID4, unsymmetric PCOMP): ``N = A e + B k``,
+  ``M = B e + D k`` with ``B = C t^2`` (C the coupling modulus of the property row, -G4 of
+  NASTRAN's MID4: :mod:`dynamics.flex.laminates`), the strain energy
+  ``int e' B k dA`` added to both elements with their own membrane and bending strains (for
+  CQUAD4 also on the incompatible modes before their condensation, so the patch test still
+  holds: the modes' strains integrate to zero over the element).
 * Transverse shear ``gamma_xz = w,x + theta_y``, ``gamma_yz = w,y - theta_x`` with
   ``S = (TS/T) t G_s``, by mixed interpolation of tensorial components, which removes shear
   locking: CQUAD4 is MITC4 (Dvorkin & Bathe, Eng. Comput. 1, 1984; Bathe, Finite Element
@@ -46,7 +52,9 @@ point at height z by ``theta x (0, 0, z)``, i.e. ``u = z theta_y``, ``v = -z the
 * Drilling: Hughes-Brezzi penalty ``gamma_d int (theta_z - omega)^2 dA``, ``omega = (v,x - u,y)/2``
   (Hughes & Brezzi, CMAME 72, 1989) with ``gamma_d = DRILL * Q_33 t``, ``DRILL = 1e-4``, at the
   2 x 2 (quadrilateral) or 3 edge-midpoint (triangle) points, so no theta_z pattern is free;
-  small enough to change membrane frequencies by O(1e-4) at most.
+  small enough to change membrane frequencies by O(1e-4) at most. A membrane (PSHELL without
+  MID2, PCOMP LAM = MEM) has no bending, transverse shear or drilling stiffness, as in NASTRAN,
+  whose membrane shells leave the grid rotations unconnected.
 * ZOFFS: the element's reference plane lies ZOFFS along its normal from the grids, joined to
   them by rigid links (``u = u_grid + theta x (0, 0, ZOFFS)``, as NASTRAN's shell offset).
 * Mass: consistent ``int (rho t + nsm) N' N dA`` on the translations and the Mindlin rotary
@@ -138,7 +146,8 @@ def rotate_plane(C, c, s):
 
 @njit(cache=True)
 def _materials(p, Lam):
-    """A (membrane), D (bending), S (2x2 transverse shear), drilling modulus, in element axes.
+    """A (membrane), D (bending), S (2x2 transverse shear), drilling modulus, B (membrane-bending
+    coupling), in element axes.
 
     p: the property row of :func:`shell_batch`. The material axes are at angle THETA from the
     element x axis, or along the projection of the MCID x axis when one is given.
@@ -157,7 +166,10 @@ def _materials(p, Lam):
     S = R.T @ Gs @ R * (ts_t * t)
     if shear_rigid > 0.5:
         S = R.T @ Gs @ R * (NO_SHEAR_FLEXIBILITY * (5.0 / 6.0) * t)
-    return A, D, S, Gm[2, 2] * t
+    Bc = rotate_plane(p[33:42].copy().reshape(3, 3), c, s) * t ** 2
+    # a membrane (no MID2) has no rotational stiffness in NASTRAN: no drilling penalty either
+    gt = Gm[2, 2] * t if bend_ratio > 0.0 else 0.0
+    return A, D, S, gt, Bc
 
 
 @njit(cache=True)
@@ -191,9 +203,9 @@ def _membrane_bending_B(dNx, n):
 
 
 @njit(cache=True)
-def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled):
-    """Local 24 x 24 K and M of a MITC4 / QM6 shell quadrilateral (module docstring)."""
-    K = np.zeros((24, 24))
+def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
+    """Local 24 x 24 K and M of a MITC4 / QM6 shell quadrilateral (module docstring); Bc the
+    membrane-bending coupling (3 x 3, element axes, zero for a homogeneous section)."""
     M = np.zeros((24, 24))
     x, y = np.ascontiguousarray(loc[:, 0]), np.ascontiguousarray(loc[:, 1])  # contiguous for '@'
     # tying points: gamma_r at (0, -1) [B] and (0, 1) [D]; gamma_s at (-1, 0) [A] and (1, 0) [C]
@@ -238,8 +250,9 @@ def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled):
             Bs = np.zeros((2, 24))
             Bs[0] = Ji[0, 0] * gr + Ji[0, 1] * gs
             Bs[1] = Ji[1, 0] * gr + Ji[1, 1] * gs
-            Kuu += (Bm.T @ A @ Bm + Bb.T @ D @ Bb + Bs.T @ S @ Bs) * det
-            Kua += Bm.T @ A @ Ba * det
+            Kuu += (Bm.T @ A @ Bm + Bb.T @ D @ Bb + Bs.T @ S @ Bs
+                    + Bm.T @ Bc @ Bb + Bb.T @ Bc @ Bm) * det
+            Kua += (Bm.T @ A @ Ba + Bb.T @ Bc @ Ba) * det
             Kaa += Ba.T @ A @ Ba * det
             # drilling: the grids' theta_z against the in-plane rotation, at every point
             bd = np.zeros(24)
@@ -365,6 +378,22 @@ def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled):
     return 0.5 * (K + K.T), M
 
 
+@njit(cache=True)
+def tria3_coupling(loc, Bc):
+    """Local 18 x 18 membrane-bending coupling stiffness of a CTRIA3, ``area (Bm' Bc Bb +
+    Bb' Bc Bm)`` with its constant membrane strain and curvature (module docstring), added to
+    :func:`tria3_local`'s K. Exact for MITC3+ too: against the constant membrane strain only the
+    element's mean curvature counts, and the cubic rotation bubble, zero on the edges, adds nothing
+    to it (divergence theorem), so the coupling neither involves the bubble nor changes its
+    condensation."""
+    x, y = np.ascontiguousarray(loc[:, 0]), np.ascontiguousarray(loc[:, 1])
+    dN = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])
+    J = np.array([[dN[0] @ x, dN[0] @ y], [dN[1] @ x, dN[1] @ y]])
+    det = np.linalg.det(J)
+    Bm, Bb = _membrane_bending_B(np.linalg.inv(J) @ dN, 3)
+    return (Bm.T @ Bc @ Bb + Bb.T @ Bc @ Bm) * (0.5 * det)
+
+
 def isotropic_props(E, nu, rho, t, nsm=0.0, bend_ratio=1.0, ts_t=5.0 / 6.0, shear_rigid=False,
                     theta=0.0, direction=(0.0, 0.0, 0.0), zoffset=0.0) -> np.ndarray:
     """A :func:`shell_batch` property row for one isotropic material (MAT1)."""
@@ -376,20 +405,26 @@ def isotropic_props(E, nu, rho, t, nsm=0.0, bend_ratio=1.0, ts_t=5.0 / 6.0, shea
 
 
 def property_row(Gm, Gb, Gs, rho, t, nsm, bend_ratio, ts_t, shear_rigid, theta, direction,
-                 zoffset=0.0):
+                 zoffset=0.0, coupling=None):
+    """A :func:`shell_batch` property row (its docstring lists the entries); ``coupling`` the
+    3 x 3 membrane-bending coupling modulus C (B = C t^2; None: no coupling)."""
+    C = np.zeros((3, 3)) if coupling is None else np.asarray(coupling, dtype=float)
     return np.concatenate([np.ravel(Gm), np.ravel(Gb), np.ravel(Gs),
                            [rho, t, nsm, bend_ratio, ts_t, 1.0 if shear_rigid else 0.0, theta],
-                           np.asarray(direction, dtype=float), [zoffset]])
+                           np.asarray(direction, dtype=float), [zoffset], np.ravel(C)])
 
 
 @njit(cache=True)
 def shell_batch(xyz, props, coupled):
     """Basic-frame K, M, lumped M of many shells with the same grid count.
 
-    xyz (ne, nn, 3) grid positions; props (ne, 32): membrane modulus (3x3, plane stress, per
-    unit thickness), bending modulus (3x3), transverse shear modulus (2x2), rho, t, nsm,
-    12I/T^3, TS/T, shear_rigid (0/1), THETA [rad], MCID x axis in basic (3; zero: use THETA),
-    ZOFFS (the reference plane's offset from the grids along the element normal).
+    xyz (ne, nn, 3) grid positions; props (ne, 42): [0:9] membrane modulus (3x3, plane
+    stress, per unit thickness), [9:18] bending modulus (3x3), [18:22] transverse shear modulus
+    (2x2), [22] rho, [23] t, [24] nsm, [25] 12I/T^3, [26] TS/T, [27] shear_rigid (0/1), [28]
+    THETA [rad], [29:32] MCID x axis in basic (zero: use THETA), [32] ZOFFS (the reference
+    plane's offset from the grids along the element normal), [33:42] membrane-bending
+    coupling modulus C (3x3, material axes; B = C t^2 with B = int Q z dz, i.e. -G4 of a
+    PSHELL MID4).
     Returns three (ne, 6 nn, 6 nn) arrays in [T; R] order per grid.
     """
     ne, nn = xyz.shape[0], xyz.shape[1]
@@ -401,11 +436,12 @@ def shell_batch(xyz, props, coupled):
         p = props[e]
         rho, t, nsm = p[22], p[23], p[24]
         Lam, loc, _ = element_frame(xyz[e])
-        A, D, S, gt = _materials(p, Lam)
+        A, D, S, gt, Bc = _materials(p, Lam)
         if nn == 4:
-            K, M = quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled)
+            K, M = quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc)
         else:
             K, M = tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled)
+            K += tria3_coupling(loc, Bc)
         area = 0.0
         for i in range(nn):
             j = (i + 1) % nn
