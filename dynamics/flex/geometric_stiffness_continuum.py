@@ -25,8 +25,10 @@ the element's translations.
   eq. 18.4-5), on w (bending under membrane stress: buckling, the flapwise stiffening of a spinning strip) and
   on u and v (the in-plane terms: the chordwise stiffening of a strip, "in-plane bending"). Left out: the
   rotation terms ``t^2 / 12 (N theta,x^2 ...)`` of the Mindlin plate (order (t / L)^2) and the bending moments'
-  own geometric stiffness (order curvature x thickness), as in Cook et al.'s plate matrix. The reference plane
-  lies ZOFFS from the grids through the same rigid links as the stiffness.
+  own geometric stiffness (order curvature x thickness), as in Cook et al.'s plate matrix. The strains, the
+  stresses and the translations the matrix acts on are those of the flat element on the reference plane,
+  joined to the grids by the stiffness's own rigid links (ZOFFS, and a warped CQUAD4's heights above its mean
+  plane: :func:`dynamics.flex.shells.shell_frame_transform`), so a rigid motion carries no stress.
 """
 
 from __future__ import annotations
@@ -35,23 +37,7 @@ import numpy as np
 from numba import njit
 
 from dynamics.flex import solids
-from dynamics.flex.shells import _G2, _materials, _membrane_bending_B, _quad_shape, element_frame
-
-
-@njit(cache=True)
-def shell_frame_transform(xyz, zoff):
-    """(6 nn x 6 nn) grid basic [T; R] -> element local DOFs at the reference plane (as shells.shell_batch),
-    and the local 2-D grid coordinates (nn, 2)."""
-    nn = xyz.shape[0]
-    Lam, loc, _ = element_frame(xyz)
-    T = np.zeros((6 * nn, 6 * nn))
-    for i in range(2 * nn):
-        T[3 * i:3 * i + 3, 3 * i:3 * i + 3] = Lam
-    if zoff != 0.0:
-        for i in range(nn):
-            T[6 * i, :] += zoff * T[6 * i + 4, :]
-            T[6 * i + 1, :] -= zoff * T[6 * i + 3, :]
-    return T, loc, Lam
+from dynamics.flex.shells import _G2, _materials, _membrane_bending_B, _quad_shape, shell_frame_transform
 
 
 @njit(cache=True)

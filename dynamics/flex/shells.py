@@ -1,7 +1,8 @@
 """Flat shell elements for CQUAD4 / CTRIA3 with PSHELL: membrane + Mindlin plate + drilling.
 
-Each element lies in its mean plane (local x along the first edge, z the normal from the
-diagonals' cross product); a warped CQUAD4 is projected on that plane (no warping correction).
+Each element lies in its mean plane (CTRIA3: its plane, local x along G1 -> G2; CQUAD4: through
+the centre of its grids, z normal to both diagonals); a warped CQUAD4 (grids off that plane) is
+the flat element on the mean plane joined to its grids by rigid links (item "Warping" below).
 Local DOFs per grid ``[u, v, w, theta_x, theta_y, theta_z]``; the rotation vector theta moves a
 point at height z by ``theta x (0, 0, z)``, i.e. ``u = z theta_y``, ``v = -z theta_x``.
 
@@ -55,8 +56,23 @@ point at height z by ``theta x (0, 0, z)``, i.e. ``u = z theta_y``, ``v = -z the
   small enough to change membrane frequencies by O(1e-4) at most. A membrane (PSHELL without
   MID2, PCOMP LAM = MEM) has no bending, transverse shear or drilling stiffness, as in NASTRAN,
   whose membrane shells leave the grid rotations unconnected.
-* ZOFFS: the element's reference plane lies ZOFFS along its normal from the grids, joined to
-  them by rigid links (``u = u_grid + theta x (0, 0, ZOFFS)``, as NASTRAN's shell offset).
+* ZOFFS: the element's reference plane lies ZOFFS along its normal from the plane of its grids
+  (for a warped CQUAD4 their mean plane, next item), joined to them by rigid links
+  (``u = u_grid + theta x (0, 0, ZOFFS)``, as NASTRAN's shell offset).
+* Warping: the grids of a warped CQUAD4 lie at heights ``h_i = (h, -h, h, -h)`` above its mean
+  plane. Its stiffness is the flat element's on the mean plane (on the reference plane ZOFFS above
+  it) with every grid joined to its projection by a rigid link along the normal,
+  ``u_i = u_grid,i + theta_i x (0, 0, ZOFFS - h_i)`` (MacNeal, Finite Elements: Their Design and
+  Performance, 1994, on warped elements; the transformation ZOFFS uses, with one length per grid).
+  A rigid motion of the grids, ``u = a + omega x x``, moves every projected point p_i by
+  ``a + omega x p_i``: a rigid motion of the flat element, which its strains ignore exactly; without
+  the links the in-plane components ``omega x (0, 0, h_i)`` of an out-of-plane rotation strain the
+  membrane (energy ~ (h / a)^2 of the element's stiffness). The links also couple the membrane
+  forces to the grid rotations by the lever h_i, the membrane-bending coupling of a twisted facet
+  (MacNeal & Harder's twisted beam, FEAD 1, 1985, tests it). The mass stays with the grids (only
+  ZOFFS moves it): it is the mass of the bilinear surface through them, whose velocity under a
+  rigid motion is the rigid velocity field, so the kinetic energy needs no link; the projection
+  would move rotary inertia by O(m h^2) and make lumped masses non-diagonal.
 * Mass: consistent ``int (rho t + nsm) N' N dA`` on the translations and the Mindlin rotary
   inertia ``rho t^3 / 12`` on theta_x, theta_y (none on theta_z, as NASTRAN); lumped: the
   element's translational mass shared equally by its grids (NASTRAN COUPMASS <= 0).
@@ -96,7 +112,13 @@ _TRI7 = _radon_rule()
 
 @njit(cache=True)
 def element_frame(xyz: np.ndarray):
-    """(Lambda rows = local x, y, z in basic; local 2-D coordinates (n, 2); centre)."""
+    """(Lambda rows = local x, y, z in basic; local 2-D coordinates of the grids' projections on the mean
+    plane (n, 2); heights h (n,) of the grids above that plane).
+
+    The mean plane passes through the centre of the grids with the normal z. For a CQUAD4, z is normal to
+    both diagonals, so the heights alternate, h = (h, -h, h, -h) (all zero for a flat quadrilateral); a
+    CTRIA3 lies in its plane (h = 0).
+    """
     n = xyz.shape[0]
     c = np.zeros(3)
     for i in range(n):
@@ -117,11 +139,41 @@ def element_frame(xyz: np.ndarray):
     Lam = np.empty((3, 3))
     Lam[0], Lam[1], Lam[2] = x, y, z
     loc = np.empty((n, 2))
+    h = np.zeros(n)
     for i in range(n):
         d = xyz[i] - c
         loc[i, 0] = d @ x
         loc[i, 1] = d @ y
-    return Lam, loc, c
+        if n == 4:
+            h[i] = d @ z
+    return Lam, loc, h
+
+
+@njit(cache=True)
+def rigid_links(Lam, offsets):
+    """(6 nn x 6 nn) T from the grid DOFs (basic, [T; R] per grid) to the local DOFs ``[u, v, w, theta_x,
+    theta_y, theta_z]`` of the points at ``offsets`` (nn,) along the element normal from the grids, joined
+    to them by rigid links: ``u_point = u_grid + theta x (0, 0, offset)`` in the element axes."""
+    nn = offsets.shape[0]
+    T = np.zeros((6 * nn, 6 * nn))
+    for i in range(2 * nn):
+        T[3 * i:3 * i + 3, 3 * i:3 * i + 3] = Lam
+    for i in range(nn):
+        if offsets[i] != 0.0:
+            T[6 * i, :] += offsets[i] * T[6 * i + 4, :]
+            T[6 * i + 1, :] -= offsets[i] * T[6 * i + 3, :]
+    return T
+
+
+@njit(cache=True)
+def shell_frame_transform(xyz, zoff):
+    """(T, local 2-D coordinates (nn, 2), Lambda) of the element's stiffness: T (6 nn x 6 nn) takes the grid
+    DOFs (basic, [T; R]) to the local DOFs of the flat element on the reference plane, which lies ZOFFS
+    above the mean plane; grid i is joined to its point of that plane by a rigid link of length
+    ``ZOFFS - h_i`` along the normal (h_i its height above the mean plane, :func:`element_frame`), so a
+    rigid motion of the grids is a rigid motion of the flat element (module docstring, "Warping")."""
+    Lam, loc, h = element_frame(xyz)
+    return rigid_links(Lam, zoff - h), loc, Lam
 
 
 @njit(cache=True)
@@ -435,7 +487,7 @@ def shell_batch(xyz, props, coupled):
     for e in range(ne):
         p = props[e]
         rho, t, nsm = p[22], p[23], p[24]
-        Lam, loc, _ = element_frame(xyz[e])
+        T, loc, Lam = shell_frame_transform(xyz[e], p[32])
         A, D, S, gt, Bc = _materials(p, Lam)
         if nn == 4:
             K, M = quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc)
@@ -450,16 +502,10 @@ def shell_batch(xyz, props, coupled):
         for i in range(nd):
             if i % 6 < 3:
                 ML[i, i] = (rho * t + nsm) * area / nn
-        T = np.zeros((nd, nd))
-        for i in range(2 * nn):
-            T[3 * i:3 * i + 3, 3 * i:3 * i + 3] = Lam
-        zoff = p[32]
-        if zoff != 0.0:
-            # rigid offset along the normal: u_plane = u_grid + theta x (0, 0, zoff)
-            for i in range(nn):
-                T[6 * i, :] += zoff * T[6 * i + 4, :]
-                T[6 * i + 1, :] -= zoff * T[6 * i + 3, :]
+        # the mass stays with the grids (only ZOFFS moves it): the bilinear surface through the grids carries
+        # it, whose kinetic energy is exact for rigid motion without links (module docstring, "Warping")
+        Tm = rigid_links(Lam, np.full(nn, p[32]))
         Kg[e] = T.T @ K @ T
-        Mg[e] = T.T @ M @ T
-        MLg[e] = T.T @ ML @ T
+        Mg[e] = Tm.T @ M @ Tm
+        MLg[e] = Tm.T @ ML @ Tm
     return Kg, Mg, MLg
