@@ -29,6 +29,7 @@ import contextlib
 import io
 import logging
 import os
+import re
 import warnings
 from collections import Counter
 from dataclasses import dataclass, field
@@ -162,6 +163,9 @@ def read_bulk_data(path: str | os.PathLike, allow_unsupported: bool = False) -> 
             model.read_bdf(path, xref=False, punch=punch, validate=False)
     except Exception as exc:  # pyNastran raises a variety of types; name the file and pass it on
         raise BulkDataError(f"{path}: pyNastran could not read the deck: {exc}") from exc
+    for filename in dict.fromkeys(getattr(model, "active_filenames", None) or [path]):
+        check_free_field_lines(filename, bulk_only=os.path.abspath(filename) == os.path.abspath(path)
+                               and _has_case_control(path))
 
     report = _classify_cards(model)
     structural_parse_errors = {k: v for k, v in report.parse_errors.items()
@@ -325,3 +329,51 @@ def vector_to_basic(model, cid: int, vector: np.ndarray, at_basic: np.ndarray,
                     context: str) -> np.ndarray:
     """Components ``vector`` given in system ``cid`` (at point ``at_basic``) rotated to basic."""
     return displacement_frame_rotation(model, cid, at_basic, context) @ np.asarray(vector, float)
+
+
+#: a NASTRAN number in a continuation field: integer, real with exponent (E or D) or NASTRAN's short form 1.-3;
+#: a leading '+' is left out, since '+1', '+A' are the usual continuation labels
+_NUMBER = re.compile(r"^-?(\d+\.?\d*|\.\d+)([EeDd]?[+-]?\d+)?$")
+
+
+def check_free_field_lines(path: str, bulk_only: bool = False) -> None:
+    """Refuse a free-field line with more fields than a NASTRAN line holds: ten (the card name or continuation
+    field, eight data fields, the continuation field), six for large-field free format (a ``*`` after the card
+    name or at the start of a continuation). pyNastran keeps the first ten and drops the rest without a word (an
+    SPC1 listing eight grids on one line held six), and NASTRAN versions differ on such lines, so the deck must
+    say it with a continuation line. ``bulk_only``: check only between BEGIN BULK and ENDDATA (the file has
+    executive and case control, whose commas are not fields)."""
+    in_bulk = not bulk_only
+    try:
+        with open(path, errors="replace") as handle:
+            lines = handle.readlines()
+    except OSError:
+        return  # pyNastran read it; an unreadable include was reported there
+    for number, raw in enumerate(lines, start=1):
+        line = raw.split("$", 1)[0].rstrip()
+        word = line.strip().upper()
+        if not in_bulk:
+            in_bulk = word.startswith("BEGIN") and "BULK" in word
+            continue
+        if word.startswith("ENDDATA"):
+            break
+        if "," not in line[:10]:
+            continue
+        fields = line.split(",")
+        while fields and not fields[-1].strip():
+            fields.pop()
+        if not fields:
+            continue
+        large = fields[0].strip().endswith("*") or line.lstrip().startswith("*")
+        limit = 6 if large else 10
+        card = fields[0].strip() or "continuation"
+        if len(fields) > limit:
+            raise BulkDataError(
+                f"{path}:{number}: {card}: {len(fields)} free-field fields on one line; a line holds {limit} "
+                f"(the name, {limit - 2} data fields, the continuation label), and the fields after the "
+                f"{limit}th would be dropped: put them on a continuation line (a line starting with ',')")
+        if len(fields) == limit and _NUMBER.match(fields[-1].strip()):
+            raise BulkDataError(
+                f"{path}:{number}: {card}: field {limit} of a free-field line is the continuation label, and "
+                f"{fields[-1].strip()!r} there would be read as one and dropped; a line holds {limit - 2} data "
+                "fields: put the rest on a continuation line (a line starting with ',')")

@@ -105,3 +105,41 @@ def test_cli_writes_a_body_file_and_reports_errors(write_deck, tmp_path, capsys,
     err = capsys.readouterr().err
     assert rc == 1 and "grid 77 does not exist" in err
     assert not (tmp_path / "x.h5").exists()
+
+
+_CHAIN = ("SOL 103\nCEND\nDISPLACEMENT(PLOT,PRINT) = ALL\nBEGIN BULK\n"
+          + "".join(f"GRID,{g},,{float(g)!r},0.,0.\n" for g in range(1, 9))
+          + "{spc}\nCONM2,10,8,,1.0\nENDDATA\n")
+
+
+@pytest.mark.parametrize("spc, message", [
+    ("SPC1,1,123456,1,2,3,4,5,6,7,8", r"model\.dat:13: SPC1: 11 free-field fields on one line; a line holds 10"),
+    ("SPC1,1,123456,1,2,3,4,5,6,7", r"model\.dat:13: SPC1: field 10 of a free-field line is the continuation label,"
+                                    r" and '7' there would be read as one and dropped"),
+])
+def test_free_field_line_longer_than_nastran_reads_is_refused(write_deck, spc, message):
+    """pyNastran kept the first ten fields of a free-field line and read a number in the tenth as a continuation
+    label, dropping grids 7 and 8 of this SPC1 without a word (found with a twisted-beam deck that lost half its
+    root clamp). Case control's commas (DISPLACEMENT(PLOT,PRINT)) are not fields."""
+    from dynamics.flex.bulk_data import read_bulk_data
+
+    with pytest.raises(BulkDataError, match=message):
+        read_bulk_data(write_deck(_CHAIN.format(spc=spc)), allow_unsupported=True)
+
+
+@pytest.mark.parametrize("spc", ["SPC1,1,123456,1,2,3,4,5,6,+A\n+A,7,8", "SPC1,1,123456,1,2,3,4,5,6\n,7,8",
+                                 "SPC1,1,123456,1,2,3,4,5,6,,\n,7,8"])
+def test_free_field_continuations_keep_every_field(write_deck, spc):
+    from dynamics.flex.bulk_data import read_bulk_data
+
+    bulk = read_bulk_data(write_deck(_CHAIN.format(spc=spc)), allow_unsupported=True)
+    assert bulk.model.spcs[1][0].node_ids == list(range(1, 9))
+
+
+def test_free_field_lines_of_an_included_file_are_checked(write_deck):
+    from dynamics.flex.bulk_data import read_bulk_data
+
+    write_deck("SPC1,1,123456,1,2,3,4,5,6,7,8\n", "constraints.inc")
+    main_deck = _CHAIN.format(spc="INCLUDE 'constraints.inc'")
+    with pytest.raises(BulkDataError, match=r"constraints\.inc:1: SPC1: 11 free-field fields"):
+        read_bulk_data(write_deck(main_deck), allow_unsupported=True)
