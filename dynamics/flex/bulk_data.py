@@ -164,7 +164,7 @@ def read_bulk_data(path: str | os.PathLike, allow_unsupported: bool = False) -> 
     except Exception as exc:  # pyNastran raises a variety of types; name the file and pass it on
         raise BulkDataError(f"{path}: pyNastran could not read the deck: {exc}") from exc
     for filename in dict.fromkeys(getattr(model, "active_filenames", None) or [path]):
-        check_free_field_lines(filename, bulk_only=os.path.abspath(filename) == os.path.abspath(path)
+        check_line_fields(filename, bulk_only=os.path.abspath(filename) == os.path.abspath(path)
                                and _has_case_control(path))
 
     report = _classify_cards(model)
@@ -336,14 +336,16 @@ def vector_to_basic(model, cid: int, vector: np.ndarray, at_basic: np.ndarray,
 _NUMBER = re.compile(r"^-?(\d+\.?\d*|\.\d+)([EeDd]?[+-]?\d+)?$")
 
 
-def check_free_field_lines(path: str, bulk_only: bool = False) -> None:
+def check_line_fields(path: str, bulk_only: bool = False) -> None:
     """Refuse a free-field line with more fields than a NASTRAN line holds: ten (the card name or continuation
     field, eight data fields, the continuation field), six for large-field free format (a ``*`` after the card
     name or at the start of a continuation). pyNastran keeps the first ten and drops the rest without a word (an
     SPC1 listing eight grids on one line held six), and NASTRAN versions differ on such lines, so the deck must
     say it with a continuation line. ``bulk_only``: check only between BEGIN BULK and ENDDATA (the file has
-    executive and case control, whose commas are not fields)."""
+    executive and case control, whose commas are not fields). A fixed-format line with text after column 80,
+    which NASTRAN ignores and pyNastran too, is warned about."""
     in_bulk = not bulk_only
+    beyond: list = []
     try:
         with open(path, errors="replace") as handle:
             lines = handle.readlines()
@@ -358,6 +360,8 @@ def check_free_field_lines(path: str, bulk_only: bool = False) -> None:
         if word.startswith("ENDDATA"):
             break
         if "," not in line[:10]:
+            if len(line) > 80 and line[80:].strip() and not word.startswith("INCLUDE"):
+                beyond.append(number)
             continue
         fields = line.split(",")
         while fields and not fields[-1].strip():
@@ -377,3 +381,7 @@ def check_free_field_lines(path: str, bulk_only: bool = False) -> None:
                 f"{path}:{number}: {card}: field {limit} of a free-field line is the continuation label, and "
                 f"{fields[-1].strip()!r} there would be read as one and dropped; a line holds {limit - 2} data "
                 "fields: put the rest on a continuation line (a line starting with ',')")
+    if beyond:
+        warnings.warn(f"{path}:{beyond[0]}: text after column 80 of a fixed-format line is ignored (NASTRAN reads "
+                      f"80 columns; {len(beyond)} line(s), the first here): use a continuation line or free-field "
+                      "format if it was meant as data", stacklevel=3)

@@ -143,3 +143,14 @@ def test_free_field_lines_of_an_included_file_are_checked(write_deck):
     main_deck = _CHAIN.format(spc="INCLUDE 'constraints.inc'")
     with pytest.raises(BulkDataError, match=r"constraints\.inc:1: SPC1: 11 free-field fields"):
         read_bulk_data(write_deck(main_deck), allow_unsupported=True)
+
+
+def test_text_after_column_80_of_a_fixed_format_line_is_warned(write_deck):
+    """NASTRAN reads 80 columns of a fixed-format line, and so does pyNastran: a grid written in columns 81-88
+    is lost; the deck is accepted (that is NASTRAN's rule) with a warning naming the line."""
+    from dynamics.flex.bulk_data import read_bulk_data
+
+    fixed = "".join(f"{x:<8s}" for x in ["SPC1", "1", "123456", "1", "2", "3", "4", "5", "6", "+A"]) + "7"
+    with pytest.warns(UserWarning, match=r"model\.dat:13: text after column 80 of a fixed-format line is ignored"):
+        bulk = read_bulk_data(write_deck(_CHAIN.format(spc=fixed)), allow_unsupported=True)
+    assert bulk.model.spcs[1][0].node_ids == list(range(1, 7))
