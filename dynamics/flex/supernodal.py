@@ -663,41 +663,57 @@ def _solve(X, first, width, n_rows, row_ptr, rows, value_ptr, values, d, ldl, dt
     """X := A^-1 X in place (factor order, n x p C-ordered): forward and back substitution by
     supernodes. A C-ordered row block of X is a column-major p x w block, so every supernode is
     one dtrsm and one dgemm from the right, the rows below gathered into (or scattered from) a
-    work block. (Compiled loops instead of BLAS for narrow supernodes were slower at every
-    width on the plate of tests/flex/test_speed.py.)"""
+    work block. The BLAS arguments live in buffers filled in place: most supernodes of a shell
+    model are a few columns wide, and allocating them per call cost 15 % of a block solve.
+    (Compiled loops instead of BLAS for the narrow supernodes were slower.)"""
     n, p = X.shape
     ns = len(first)
     flat = X.reshape(n * p)
-    diag = _U if ldl else _N
     work = np.empty(max(np.max(n_rows), 1) * p)
+    # characters: side R, uplo L, trans T, diag, trans N; integers m, n, k, lda, ldb, ldc;
+    # scalars 1, 0, -1
+    ch = np.array([_R, _L, _T, _U if ldl else _N, _N], dtype=np.uint8)
+    it = np.zeros(6, dtype=np.int32)
+    sc = np.array([1.0, 0.0, -1.0])
     for s in range(ns):
         c0, w, r = first[s], width[s], n_rows[s]
         f, v0 = w + r, value_ptr[s]
-        base = row_ptr[s]
-        _trsm(dtrsm, _R, _T, diag, p, w, values, v0, f, flat, c0 * p, p)
+        it[0], it[1], it[3], it[4] = p, w, f, p
+        dtrsm(ch[0:].ctypes, ch[1:].ctypes, ch[2:].ctypes, ch[3:].ctypes, it[0:].ctypes,
+              it[1:].ctypes, sc[0:].ctypes, values[v0:].ctypes, it[3:].ctypes,
+              flat[c0 * p:].ctypes, it[4:].ctypes)
         if r:
-            _gemm(dgemm, _N, _T, p, r, w, 1.0, flat, c0 * p, p, values, v0 + w, f, 0.0,
-                  work, 0, p)
+            it[0], it[1], it[2], it[3], it[4], it[5] = p, r, w, p, f, p
+            dgemm(ch[4:].ctypes, ch[2:].ctypes, it[0:].ctypes, it[1:].ctypes, it[2:].ctypes,
+                  sc[0:].ctypes, flat[c0 * p:].ctypes, it[3:].ctypes, values[v0 + w:].ctypes,
+                  it[4:].ctypes, sc[1:].ctypes, work.ctypes, it[5:].ctypes)
+            base = row_ptr[s]
             for a in range(r):
-                row = rows[base + a]
+                xr = X[rows[base + a]]
                 for j in range(p):
-                    X[row, j] -= work[j + p * a]
+                    xr[j] -= work[j + p * a]
     if ldl:
         for i in range(n):
+            inv = 1.0 / d[i]
             for j in range(p):
-                X[i, j] /= d[i]
+                X[i, j] *= inv
     for s in range(ns - 1, -1, -1):
         c0, w, r = first[s], width[s], n_rows[s]
         f, v0 = w + r, value_ptr[s]
-        base = row_ptr[s]
         if r:
+            base = row_ptr[s]
             for a in range(r):
-                row = rows[base + a]
+                xr = X[rows[base + a]]
                 for j in range(p):
-                    work[j + p * a] = X[row, j]
-            _gemm(dgemm, _N, _N, p, w, r, -1.0, work, 0, p, values, v0 + w, f, 1.0,
-                  flat, c0 * p, p)
-        _trsm(dtrsm, _R, _N, diag, p, w, values, v0, f, flat, c0 * p, p)
+                    work[j + p * a] = xr[j]
+            it[0], it[1], it[2], it[3], it[4], it[5] = p, w, r, p, f, p
+            dgemm(ch[4:].ctypes, ch[4:].ctypes, it[0:].ctypes, it[1:].ctypes, it[2:].ctypes,
+                  sc[2:].ctypes, work.ctypes, it[3:].ctypes, values[v0 + w:].ctypes,
+                  it[4:].ctypes, sc[0:].ctypes, flat[c0 * p:].ctypes, it[5:].ctypes)
+        it[0], it[1], it[3], it[4] = p, w, f, p
+        dtrsm(ch[0:].ctypes, ch[1:].ctypes, ch[4:].ctypes, ch[3:].ctypes, it[0:].ctypes,
+              it[1:].ctypes, sc[0:].ctypes, values[v0:].ctypes, it[3:].ctypes,
+              flat[c0 * p:].ctypes, it[4:].ctypes)
 
 
 class SupernodalFactor:
