@@ -5,9 +5,8 @@ solves for blocks of right-hand sides, for the shift-invert eigen-solver of
 Why not CHOLMOD through cholespy (the earlier factorization): that wheel runs CHOLMOD's
 simplicial method, one column at a time, so neither the factorization nor the solves use level-3
 BLAS; on the 98,826-DOF plate of tests/flex/test_speed.py it factors in 1.7 s and solves at
-9.5 ms per right-hand side in blocks of 8. It also hides the factor, so it can tell neither a
-nearly singular matrix (the massless-mechanism check) nor the inertia of an indefinite one (the
-Sturm check). The method here (all steps from T. A. Davis, Direct Methods for Sparse Linear
+9.5 ms per right-hand side in blocks of 8. It also hides the factor and refuses an indefinite
+matrix, so it cannot count the eigenvalues below a shift (the Sturm check). The method here (all steps from T. A. Davis, Direct Methods for Sparse Linear
 Systems, SIAM 2006, chs. 4 and 9, and J. W. H. Liu, "The multifrontal method for sparse matrix
 solution: theory and practice", SIAM Review 34(1), 1992):
 
