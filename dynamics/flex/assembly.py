@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from dynamics.flex import elements as el
 from dynamics.flex import solids
@@ -192,27 +193,113 @@ def _components(value) -> list[int]:
 
 
 class _Triplets:
+    """Element blocks of one sparse matrix: each ``add`` / ``add_batch`` stores the DOFs and the
+    dense blocks as given; :meth:`matrix` sums them into CSR in one compiled pass
+    (:func:`_csr_from_blocks`) without expanding them into (row, column, value) triplets."""
+
     def __init__(self):
-        self.rows, self.cols, self.vals = [], [], []
+        self.batches = []
 
     def add(self, dofs: np.ndarray, block: np.ndarray):
-        self.rows.append(np.repeat(dofs, len(dofs)))
-        self.cols.append(np.tile(dofs, len(dofs)))
-        self.vals.append(block.ravel())
+        self.add_batch(np.asarray(dofs)[None, :], np.asarray(block)[None])
 
     def add_batch(self, dofs: np.ndarray, blocks: np.ndarray):
         """dofs (ne, k), blocks (ne, k, k)."""
-        k = dofs.shape[1]
-        self.rows.append(np.repeat(dofs, k, axis=1).ravel())
-        self.cols.append(np.tile(dofs, (1, k)).ravel())
-        self.vals.append(blocks.ravel())
+        self.batches.append((np.ascontiguousarray(dofs, dtype=np.int64),
+                             np.ascontiguousarray(blocks, dtype=float)))
 
     def matrix(self, n: int) -> sp.csr_matrix:
-        if not self.rows:
+        if not self.batches:
             return sp.csr_matrix((n, n))
-        return sp.csr_matrix((np.concatenate(self.vals),
-                              (np.concatenate(self.rows), np.concatenate(self.cols))),
-                             shape=(n, n))
+        k = np.concatenate([np.full(d.shape[0], d.shape[1], dtype=np.int64)
+                            for d, _ in self.batches])
+        dof_ptr = np.concatenate([[0], np.cumsum(k)])
+        val_ptr = np.concatenate([[0], np.cumsum(k * k)])
+        if len(self.batches) == 1:
+            dofs, vals = self.batches[0][0].ravel(), self.batches[0][1].ravel()
+        else:
+            dofs = np.concatenate([d.ravel() for d, _ in self.batches])
+            vals = np.concatenate([b.ravel() for _, b in self.batches])
+        indptr, indices, data = _csr_from_blocks(n, dof_ptr, dofs, val_ptr, vals)
+        return sp.csr_matrix((data, indices, indptr), shape=(n, n))
+
+
+@njit(cache=True)
+def _csr_from_blocks(n, dof_ptr, dofs, val_ptr, vals):
+    """CSR (indptr, indices, data) of the sum of element blocks: block e couples the DOFs
+    dofs[dof_ptr[e]:dof_ptr[e + 1]] with the row-major values vals[val_ptr[e]:val_ptr[e + 1]].
+
+    Row by row over the elements that hold the row, a marker per column finds the row's entry
+    (duplicates summed) and columns are sorted within the row. Zero block entries (the rotary
+    inertia of lumped element masses) and entries that sum to exactly zero are left out.
+    """
+    ne = len(dof_ptr) - 1
+    held = np.zeros(n + 1, dtype=np.int64)
+    for t in range(dof_ptr[ne]):
+        held[dofs[t] + 1] += 1
+    for r in range(n):
+        held[r + 1] += held[r]
+    occurrence = np.empty(held[n], dtype=np.int64)
+    fill = held[:n].copy()
+    for e in range(ne):
+        for t in range(dof_ptr[e], dof_ptr[e + 1]):
+            occurrence[fill[dofs[t]]] = t
+            fill[dofs[t]] += 1
+    element = np.empty(dof_ptr[ne], dtype=np.int64)
+    for e in range(ne):
+        element[dof_ptr[e]:dof_ptr[e + 1]] = e
+    marker = np.full(n, -1, dtype=np.int64)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    for r in range(n):
+        count = 0
+        for h in range(held[r], held[r + 1]):
+            e = element[occurrence[h]]
+            for t in range(dof_ptr[e], dof_ptr[e + 1]):
+                if marker[dofs[t]] != r:
+                    marker[dofs[t]] = r
+                    count += 1
+        indptr[r + 1] = indptr[r] + count
+    indices = np.empty(indptr[n], dtype=np.int64)
+    data = np.zeros(indptr[n])
+    where = np.empty(n, dtype=np.int64)
+    marker[:] = -1
+    nnz = 0
+    for r in range(n):
+        start = nnz
+        first = indptr[r]
+        end = first
+        for h in range(held[r], held[r + 1]):
+            t_row = occurrence[h]
+            e = element[t_row]
+            k = dof_ptr[e + 1] - dof_ptr[e]
+            base = val_ptr[e] + (t_row - dof_ptr[e]) * k
+            for lb in range(k):
+                if vals[base + lb] == 0.0:
+                    continue
+                c = dofs[dof_ptr[e] + lb]
+                if marker[c] != r:
+                    marker[c] = r
+                    where[c] = end
+                    indices[end] = c
+                    end += 1
+                data[where[c]] += vals[base + lb]
+        for i in range(first + 1, end):
+            c, v = indices[i], data[i]
+            j = i - 1
+            while j >= first and indices[j] > c:
+                indices[j + 1] = indices[j]
+                data[j + 1] = data[j]
+                j -= 1
+            indices[j + 1] = c
+            data[j + 1] = v
+        for i in range(first, end):
+            if data[i] != 0.0:
+                indices[nnz] = indices[i]
+                data[nnz] = data[i]
+                nnz += 1
+        indptr[r] = start
+    indptr[n] = nnz
+    return indptr, indices[:nnz].copy(), data[:nnz].copy()
 
 
 def _material(model, mid: int, context: str):
@@ -462,14 +549,15 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
         M_b.add(dofs, block)
         ML_b.add(dofs, block)
 
-    R = block_rotation(Rcd)
-    K_basic = K_b.matrix(ng)
-    K_g = (R.T @ K_basic @ R + k_cd.matrix(ng)).tocsr()
-    M_basic = M_b.matrix(ng)
-    M_g = (R.T @ M_basic @ R).tocsr()
+    K_g = K_b.matrix(ng)
+    M_g = M_b.matrix(ng)
+    if not np.array_equal(Rcd, np.broadcast_to(np.eye(3), Rcd.shape)):
+        R = block_rotation(Rcd)
+        K_g = (R.T @ K_g @ R).tocsr()
+        M_g = (R.T @ M_g @ R).tocsr()
+    if k_cd.batches:
+        K_g = (K_g + k_cd.matrix(ng)).tocsr()
     ML_basic = ML_b.matrix(ng)
-    K_g.sum_duplicates()
-    M_g.sum_duplicates()
     if M_g.nnz == 0 or not np.any(M_g.diagonal() > 0.0):
         raise BulkDataError(f"{bulk.path}: zero-mass model (no element density, CONM1/CONM2 "
                             "or non-structural mass); modes and mass properties need mass")

@@ -330,7 +330,7 @@ def rigid_motion_loads(blocks: np.ndarray, l0: np.ndarray) -> np.ndarray:
 def _static_displacements(sm, K, M, loads_f, held, rigid_vectors):
     """f-set displacements for the f-set loads (n_f, c): ``held`` DOFs fixed (a-set) or, without them,
     inertia relief with the rigid-body vectors."""
-    from dynamics.flex.modes import factorize  # CHOLMOD when available (SPD: held or SPC'd), else SuperLU
+    from dynamics.flex.modes import factorize  # supernodal Cholesky (SPD: held or SPC'd), else SuperLU
 
     nf = K.shape[0]
     if held is not None and len(held):

@@ -243,14 +243,36 @@ def _interface_row(bulk, aset_pairs):
     return None
 
 
+class _Progress:
+    """Progress messages stamped with the wall and CPU time since the start, and the CPU time
+    of the pipeline's steps (a step lasts until the next one starts), summed up at the end."""
+
+    def __init__(self, sink):
+        self.sink = sink
+        self.wall0, self.cpu0 = time.perf_counter(), time.process_time()
+        self.steps = []
+
+    def __call__(self, message: str) -> None:
+        if self.sink is not None:
+            self.sink(f"[{time.perf_counter() - self.wall0:7.2f} s, CPU "
+                      f"{time.process_time() - self.cpu0:7.2f} s] {message}")
+
+    def step(self, name: str, message: str) -> None:
+        self.steps.append((name, time.process_time()))
+        self(message)
+
+    def summary(self) -> str:
+        end = time.process_time()
+        marks = self.steps + [("", end)]
+        parts = [f"{name} {b - a:.2f} s" for (name, a), (_, b) in zip(marks, marks[1:])]
+        return (f"CPU time by step: {', '.join(parts)}; total {end - self.cpu0:.2f} s")
+
+
 def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
-    """Run the pipeline on ``deck``; ``progress(message)`` receives step messages."""
-    t0 = time.perf_counter()
-
-    def say(msg):
-        if progress is not None:
-            progress(f"[{time.perf_counter() - t0:7.2f} s] {msg}")
-
+    """Run the pipeline on ``deck``; ``progress(message)`` receives step messages, each
+    stamped with the wall and CPU time since the start, and a last one with the CPU time of
+    every step."""
+    say = _Progress(progress)
     validate_options(options)
     if options.blas_threads is None:
         return _fem2modal(deck, options, say)
@@ -259,8 +281,8 @@ def fem2modal(deck: str, options: Fem2ModalOptions, progress=None) -> ModalBody:
         return _fem2modal(deck, options, say)
 
 
-def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
-    say(f"reading {deck}")
+def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBody:
+    say.step("read", f"reading {deck}")
     bulk = read_bulk_data(deck, allow_unsupported=options.allow_unsupported)
     say(f"{len(bulk.grid_ids)} grids; " + "; ".join(bulk.report.lines()))
     if options.op4:
@@ -275,6 +297,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
         sm = structural_model_from_matrices(bulk, mats["KGG"], mats["MGG"], options.aset)
         say(f"OP4 matrices KGG, MGG from {options.op4}")
     else:
+        say.step("assembly", "assembling the structural matrices")
         sm = assemble(bulk, separate_lumped=options.separate_lumped, progress=say,
                       interface=options.aset)
     say(f"g-set {sm.stiffness_g.shape[0]} DOFs, f-set {len(sm.f_dofs)} DOFs "
@@ -301,7 +324,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
         def describe(f):
             g = sm.f_dofs[f]
             return f"grid {sm.grid_ids[g // 6]} component {g % 6 + 1}"
-        say(f"Craig-Bampton reduction, a-set {len(b_idx)} DOFs")
+        say.step("eigen-solution", f"Craig-Bampton reduction, a-set {len(b_idx)} DOFs")
         cb = craig_bampton(K, M, b_idx, n_modes=options.n_modes, cutoff_hz=options.cutoff_hz,
                            describe=describe, groups=sm.f_dofs // 6)
         cb_data = CraigBamptonData(frequencies_hz=cb.fixed_interface.frequencies_hz,
@@ -325,12 +348,12 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
             f"body with child_grid = one of the interface grids {grids} on a hinge that holds "
             "it (not a free hinge)")
     else:
-        say("free-free normal modes (shift-invert Lanczos)")
+        say.step("eigen-solution", "free-free normal modes (block shift-invert Lanczos)")
         b_uset = np.zeros((0, 2), dtype=np.int64)
         rigid, flex, split = free_free_modes(K, M, n_modes=options.n_modes,
                                              cutoff_hz=options.cutoff_hz,
                                              rigid_vectors=rigid_geometry,
-                                             groups=sm.f_dofs // 6)
+                                             groups=sm.f_dofs // 6, progress=say)
         mode_set = "free-free"
     n_rigid = len(rigid.eigenvalues)
     rigid_vectors = rigid.vectors if n_rigid else None
@@ -342,7 +365,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
     res_uset = np.zeros((0, 2), dtype=np.int64)
     if options.residual:
         r_idx, res_uset = _f_indices(sm, options.residual, "residual-vector grid")
-        say(f"residual vectors for {len(r_idx)} load DOFs")
+        say.step("residual vectors", f"residual vectors for {len(r_idx)} load DOFs")
         res = residual_vectors(K, M, flex.vectors, r_idx, rigid_vectors)
         n_residual = len(res.eigenvalues)
         flex = append_residual_vectors(K, M, flex, res)
@@ -355,7 +378,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
     omega = np.sqrt(np.maximum(flex.eigenvalues, 0.0))
 
     # physical shapes: f -> g (CD frames) -> basic, rows [rotation; translation] per grid
-    say("mode shapes per grid")
+    say.step("mode shapes", "mode shapes per grid")
     phi_g = sm.T_gf @ flex.vectors
     N = sm.n_grids
     Rcd = bulk.displacement_rotation
@@ -368,7 +391,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
         ref_point = bulk.positions[bulk.grid_index(int(grdpnt), "GRDPNT")]
     else:
         grdpnt, ref_point = 0, np.zeros(3)
-    say("rigid-body mass properties")
+    say.step("mass properties", "rigid-body mass properties")
     rbp = rigid_body_mass_properties(sm.mass_g, bulk.positions, Rcd, ref_point, grdpnt)
     _check_central_inertia(deck, rbp.mass, rbp.cm_offset, rbp.inertia)
     nm, npos, nJ = node_masses(sm.mass_lumped_basic, N, bulk.path)
@@ -377,7 +400,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
     gs = None
     if options.geometric_stiffness or options.preloads:
         from dynamics.flex.geometric_stiffness import geometric_stiffness
-        say("geometric stiffness of the rigid-motion load cases"
+        say.step("geometric stiffness", "geometric stiffness of the rigid-motion load cases"
             + (f" and preloads {sorted({p[0] for p in options.preloads})}" if options.preloads else ""))
         gs = geometric_stiffness(sm, K, M, _grid_blocks(sm.mass_lumped_basic, N)[0], l0, rot, trans,
                                  held=b_idx if aset_pairs else None, rigid_vectors=rigid_geometry,
@@ -387,10 +410,11 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
 
     mi = pmi = None
     if options.modal_integrals:
-        say("modal integrals (TM App. E)")
+        say.step("modal integrals", "modal integrals (TM App. E)")
         mi = modal_integrals(nm, npos, nJ, l0, rot, trans)
         pmi = point_mass_integrals(nm, l0, trans)
 
+    say.step("modal matrices", "modal mass and stiffness, body record")
     Mr = flex.vectors.T @ (M @ flex.vectors)
     Kr = flex.vectors.T @ (K @ flex.vectors)
     body = ModalBody(
@@ -413,5 +437,5 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say) -> ModalBody:
                                      lm.inertia_cg) for lm in sm.lumped_masses],
         card_report=bulk.report.lines())
     body.element_types, body.element_grids = elements_of_deck(bulk.model)
-    say("done")
+    say("done; " + say.summary())
     return body
