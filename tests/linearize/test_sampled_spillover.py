@@ -14,8 +14,9 @@ time integration: the linearized plant from the node torque to the node attitude
 * the continuous PD on either plant: no eigenvalue in the right half-plane (1e-9: passivity of a
   collocated rate feedback), so the instability is the sampling's;
 * the mode that does it: the 26.0 Hz local panel mode (16.5 Hz with the shells' former drilling penalty
-  1e-4 G t; the penalty on these panels is now 2.6 times that, and the frequency rose by its square root: the
-  grid's rotation about the panel normal carries it, docs/fem2modal.md "Drilling penalty"), rate/torque
+  1e-4 G t; the penalty on these panels is now 2.7 - 3.3 times that, and the frequency rose by 1.58, about
+  its square root: the grid's rotation about the panel normal carries it, docs/fem2modal.md "Drilling
+  penalty"), rate/torque
   residue at grid 38 above 5 (an
   effective inertia of ~0.1 kg m^2), against below 0.01 for every mode below 10 Hz.
 """
