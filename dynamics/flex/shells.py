@@ -51,9 +51,23 @@ point at height z by ``theta x (0, 0, z)``, i.e. ``u = z theta_y``, ``v = -z the
   numbering) build the shear from edge constraints or shear gaps. MITC3+ keeps Mindlin shear,
   does not depend on the node numbering, passes the patch tests and is the MITC4's triangle.
 * Drilling: Hughes-Brezzi penalty ``gamma_d int (theta_z - omega)^2 dA``, ``omega = (v,x - u,y)/2``
-  (Hughes & Brezzi, CMAME 72, 1989) with ``gamma_d = DRILL * Q_33 t``, ``DRILL = 1e-4``, at the
-  2 x 2 (quadrilateral) or 3 edge-midpoint (triangle) points, so no theta_z pattern is free;
-  small enough to change membrane frequencies by O(1e-4) at most. A membrane (PSHELL without
+  (Hughes & Brezzi, CMAME 72, 1989: stable and convergent for any gamma_d > 0), at the 2 x 2
+  (quadrilateral) or 3 edge-midpoint (triangle) points, so no theta_z pattern is free. Where the
+  surface twists (its normal turns by k per unit length from one element to the next), theta_z of a
+  grid is part of the neighbouring element's bending rotation, so gamma_d is the stiffness of a hinge
+  between elements, with a compliance of about ``beta = D k^2 / gamma_d`` relative to the bending.
+  ``gamma_d = DRILL D_m / A`` with ``D_m = (D_11 + D_22 + 2 D_33) / 4`` (invariant under a rotation of
+  the axes) and A the element's area: the rotation about the normal is as stiff as the element's
+  bending rotations, so ``beta ~ k^2 A`` falls with refinement at any thickness, and the penalty never
+  exceeds the bending scale of thin shells, which it would lock. DRILL = 1, kept between
+  ``DRILL_MIN = 1e-4`` and ``DRILL_MAX = 0.1`` times ``Q_33 t``: the floor is the value the element had,
+  MSC Nastran's PARAM K6ROT = 100 (``1e-6 K6ROT G t``), so thin and flat shells keep it; the cap keeps
+  the penalty a small part of the in-plane rotation stiffness of very thick or very fine elements
+  (Hughes & Brezzi recommend gamma ~ G; 0.1 G t suffices for the thick twisted beam at 48 x 8).
+  Chosen by measurement (tests/flex/test_drilling.py, docs/fem2modal.md "Drilling penalty"): a
+  penalty ``DRILL G t`` fails either way, DRILL = 1e-4 leaving MacNeal & Harder's thick twisted beam
+  3.9 x too flexible at every mesh and DRILL = 1e-2 locking the thin one with CTRIA3 (0.46 x at
+  12 x 2) and the pinched hemisphere at 4 x 4 (0.92 x). A membrane (PSHELL without
   MID2, PCOMP LAM = MEM) has no bending, transverse shear or drilling stiffness, as in NASTRAN,
   whose membrane shells leave the grid rotations unconnected.
 * ZOFFS: the element's reference plane lies ZOFFS along its normal from the plane of its grids
@@ -83,7 +97,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-DRILL = 1e-4
+DRILL = 1.0
+DRILL_MIN = 1e-4
+DRILL_MAX = 0.1
 NO_SHEAR_FLEXIBILITY = 1e3
 _G2 = 1.0 / np.sqrt(3.0)
 _QUAD_NODES = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
@@ -225,6 +241,19 @@ def _materials(p, Lam):
 
 
 @njit(cache=True)
+def drilling_modulus(gt, A, D, B, area):
+    """gamma_d of the drilling penalty (module docstring, "Drilling"): DRILL times the element's mean bending
+    modulus ``(D_11 + D_22 + 2 D_33) / 4`` (invariant under a rotation of the axes) over its area, kept between
+    DRILL_MIN and DRILL_MAX times ``gt = Q_33 t``; zero for a membrane (gt = 0). With membrane-bending coupling
+    B the bending modulus is ``D - B A^-1 B``, the bending stiffness about the section's neutral surface, which
+    does not depend on the reference plane (moved by e: B - e A, D - 2 e B + e^2 A), so neither does gamma_d."""
+    if np.any(B != 0.0):
+        D = D - B @ np.linalg.solve(A, B)
+    bending = DRILL * 0.25 * (D[0, 0] + D[1, 1] + 2.0 * D[2, 2]) / area
+    return min(DRILL_MAX * gt, max(DRILL_MIN * gt, bending))
+
+
+@njit(cache=True)
 def _covariant_shear_row(dN_r, N, xr, yr, nn):
     """Row (6 nn) of gamma_r = w,r + x,r theta_y - y,r theta_x at a point."""
     row = np.zeros(6 * nn)
@@ -273,6 +302,7 @@ def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
     J0 = np.array([[dN0[0] @ x, dN0[0] @ y], [dN0[1] @ x, dN0[1] @ y]])
     J0i = np.linalg.inv(J0)
     det0 = np.linalg.det(J0)
+    gd = drilling_modulus(gt, A, D, Bc, 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
     Kuu = np.zeros((24, 24))
     Kua = np.zeros((24, 4))
     Kaa = np.zeros((4, 4))
@@ -312,7 +342,7 @@ def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
                 bd[6 * i + 5] = N[i]
                 bd[6 * i] += 0.5 * dNx[1, i]
                 bd[6 * i + 1] -= 0.5 * dNx[0, i]
-            Kuu += DRILL * gt * np.outer(bd, bd) * det
+            Kuu += gd * np.outer(bd, bd) * det
             if coupled:
                 for i in range(4):
                     for j in range(4):
@@ -358,8 +388,9 @@ def _mitc3p_covariant_shear(r, s, J):
 
 
 @njit(cache=True)
-def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled):
-    """Local 18 x 18 K and M of a MITC3+ / CST shell triangle (module docstring)."""
+def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
+    """Local 18 x 18 K and M of a MITC3+ / CST shell triangle (module docstring); Bc the membrane-bending
+    coupling, which only sets the drilling modulus here (:func:`tria3_coupling` adds its stiffness)."""
     x, y = np.ascontiguousarray(loc[:, 0]), np.ascontiguousarray(loc[:, 1])  # contiguous for '@'
     J = np.array([[_TRI_DN[0] @ x, _TRI_DN[0] @ y], [_TRI_DN[1] @ x, _TRI_DN[1] @ y]])
     det = np.linalg.det(J)
@@ -368,6 +399,7 @@ def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled):
     Ji = np.linalg.inv(J)
     dNx = Ji @ _TRI_DN
     area = 0.5 * det
+    gd = drilling_modulus(gt, A, D, Bc, area)
     # 18 grid DOFs, then the bubble's theta_x, theta_y (condensed statically below)
     Ke = np.zeros((20, 20))
     Bm = np.zeros((3, 20))
@@ -410,7 +442,7 @@ def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled):
             bd[6 * i + 5] = N[i]
             bd[6 * i] += 0.5 * dNx[1, i]
             bd[6 * i + 1] -= 0.5 * dNx[0, i]
-        Ke += DRILL * gt * np.outer(bd, bd) * (area / 3.0)
+        Ke += gd * np.outer(bd, bd) * (area / 3.0)
         if coupled:
             for i in range(3):
                 for j in range(3):
@@ -492,7 +524,7 @@ def shell_batch(xyz, props, coupled):
         if nn == 4:
             K, M = quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc)
         else:
-            K, M = tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled)
+            K, M = tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc)
             K += tria3_coupling(loc, Bc)
         area = 0.0
         for i in range(nn):

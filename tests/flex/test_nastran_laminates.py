@@ -33,7 +33,8 @@ from numpy.testing import assert_allclose
 from dynamics.flex import laminates
 from dynamics.flex.bulk_data import BulkDataError, read_bulk_data
 from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
-from dynamics.flex.shells import property_row, rotate_plane, shell_batch
+from dynamics.flex.shells import (_materials, drilling_modulus, element_frame, property_row, rotate_plane,
+                                  shell_batch)
 
 
 def _section_deck(cards, pid):
@@ -334,15 +335,20 @@ def test_reference_plane_offset_leaves_a_laminate_unchanged(corners):
     """The same laminate described from another reference plane, ZOFFS = e from the grids
     (rigid links), with its section moved there (B' = B - e A, D' = D - 2 e B + e^2 A): the same
     physical shell, so the same element stiffness. It holds only if the coupling also acts on
-    CQUAD4's incompatible membrane modes (without that term: 1.8e-4 apart). Tolerance 1e-7: the
-    drilling penalty, on the reference plane's in-plane rotation, is the one term that moves
-    with the plane (1.3e-8 here; 1e-18 without it).
+    CQUAD4's incompatible membrane modes (without that term: 1.8e-4 apart). The drilling
+    penalty, on the reference plane's in-plane rotation, is the one term that moves with the
+    plane (1e-18 without it); its modulus gamma_d does not (it uses the bending stiffness about
+    the neutral surface, D - B A^-1 B), so the difference is proportional to gamma_d / G t:
+    tolerance 1e-3 gamma_d / G t (1e-7 when gamma_d was 1e-4 G t; measured 1.3e-8 then, 4.2e-8
+    now at gamma_d = 3.3e-4 G t; re-pinned for the bending-scaled penalty, docs/fem2modal.md
+    "Drilling penalty").
 
     CTRIA3 (MITC3+) differs by exactly a rank-2 term: its bending curvature carries the cubic
     rotation bubble, condensed statically, and the moved section's D' = D - 2 e B + e^2 A acts on
     that enriched curvature while the rigid offset's membrane sees the linear rotations only; both
     descriptions converge to the same shell. Checked: every singular value of K1 - K2 but the two
-    of the bubble is below the drilling bound (measured 3.6e-8)."""
+    of the bubble is below the drilling bound (measured 3.6e-8 with 1e-4 G t, 2.6e-7 now at
+    gamma_d = 7.1e-4 G t)."""
     c, s = np.cos(0.7), np.sin(0.7)
     Q0 = np.array([[1.4e11, 3e9, 0.0], [3e9, 1e10, 0.0], [0.0, 0.0, 5e9]])
     plies = [(Q0, .002), (rotate_plane(Q0, c, s), .001),
@@ -357,11 +363,15 @@ def test_reference_plane_offset_leaves_a_laminate_unchanged(corners):
     xyz[0, :, :2] = corners
     K1 = shell_batch(xyz, base[None], True)[0][0]
     K2 = shell_batch(xyz, moved[None], True)[0][0]
+    Lam, loc, _ = element_frame(xyz[0])
+    Am, Dm, _, gt, Bm = _materials(base, Lam)
+    area = 0.5 * np.sum(loc[:, 0] * np.roll(loc[:, 1], -1) - np.roll(loc[:, 0], -1) * loc[:, 1])
+    bound = 1e-3 * drilling_modulus(gt, Am, Dm, Bm, area) / gt
     if len(corners) == 4:
-        assert np.abs(K1 - K2).max() < 1e-7 * np.abs(K1).max()
+        assert np.abs(K1 - K2).max() < bound * np.abs(K1).max()
     else:
         singular = np.linalg.svd(K1 - K2, compute_uv=False)
-        assert singular[2] < 1e-7 * np.abs(K1).max()
+        assert singular[2] < bound * np.abs(K1).max()
 
 
 def _plate_deck(section_cards, n=6, size=1.0):

@@ -74,8 +74,9 @@ def _exact_patch_field(kind):
 def test_patch_test(mesh, kind, t):
     """Boundary grids given the exact constant-strain (or constant-curvature) field, the four
     interior grids are solved for: they must take the exact values (MacNeal & Harder patch).
-    Round-off only: 1e-8 relative to the field (theta_z, held only by the 1e-4 G t drilling
-    penalty, carries round-off ~1e4 x eps x the condition of the membrane stiffness: 3e-13)."""
+    Round-off only: 1e-8 relative to the field (theta_z, held only by the drilling penalty,
+    1e-4 ... 0.1 G t, carries round-off ~ eps G t / gamma_d x the condition of the membrane
+    stiffness: 3e-13 when it was 1e-4 G t everywhere)."""
     K = _patch_matrices(mesh, t)
     exact = _exact_patch_field(kind)
     b = np.arange(24)

@@ -8,11 +8,16 @@ time integration: the linearized plant from the node torque to the node attitude
 10 Hz (zero-order hold, ``expm`` of the augmented matrix), closed with the controller's law
 ``tau = -kp 2 q_vec - kd omega`` (its linearization about the identity command):
 
-* modes to 100 Hz: spectral radius > 2 (growth by 2.55 per sample: divergence within a second);
+* modes to 100 Hz: spectral radius > 1.5 (growth by 1.77 per sample: divergence within a second; 2.55
+  with the shells' former drilling penalty, see the next item);
 * modes to 10 Hz: no eigenvalue outside the unit circle (1e-7: the rigid translations' unit eigenvalues);
 * the continuous PD on either plant: no eigenvalue in the right half-plane (1e-9: passivity of a
   collocated rate feedback), so the instability is the sampling's;
-* the mode that does it: the 16.5 Hz local panel mode, rate/torque residue at grid 38 above 5 (an
+* the mode that does it: the 26.0 Hz local panel mode (16.5 Hz with the shells' former drilling penalty
+  1e-4 G t; the penalty on these panels is now 2.7 - 3.3 times that, and the frequency rose by 1.58, about
+  its square root: the grid's rotation about the panel normal carries it, docs/fem2modal.md "Drilling
+  penalty"), rate/torque
+  residue at grid 38 above 5 (an
   effective inertia of ~0.1 kg m^2), against below 0.01 for every mode below 10 Hz.
 """
 
@@ -86,10 +91,10 @@ def test_gallery_10_divergence_is_sampled_spillover(tmp_path):
         full = _linearize(tmp_path, _plant_yaml(tmp_path, tmp_path / "spacecraft.h5", "100 Hz"))
     radius_cut, real_cut = _closed_loops(cut)
     radius_full, real_full = _closed_loops(full)
-    assert radius_full > 2.0
+    assert radius_full > 1.5
     assert radius_cut <= 1.0 + 1e-7
     assert real_cut <= 1e-9 and real_full <= 1e-9
     residues = _rate_residues(full)
     culprit = max(residues, key=lambda r: r[1])
-    assert 16.0 < culprit[0] < 17.0 and culprit[1] > 5.0
+    assert 25.0 < culprit[0] < 27.0 and culprit[1] > 5.0
     assert all(r < 0.01 for f, r in residues if f < 10.0)
