@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+import decks
+
 STRIP_WIDTH, STRIP_THICKNESS = 0.05, 0.01
 STRIP_E = 12.0 / (STRIP_THICKNESS ** 3 * STRIP_WIDTH)      # D b = E t^3 b / 12 = 1 N m^2
 STRIP_RHO = 1.0 / (STRIP_THICKNESS * STRIP_WIDTH)          # rho t b = 1 kg/m
@@ -38,12 +40,7 @@ def plate_strip_deck(nx=40, ny=2, root_grid=True, coupled=True) -> str:
             lines.append(f"GRID,{strip_grid(i, j, nx)},,{i / nx!r},{y!r},0.0")
     lines.append(f"MAT1,1,{STRIP_E!r},,0.0,{STRIP_RHO!r}")
     lines.append(f"PSHELL,1,1,{STRIP_THICKNESS!r},1,,1")
-    e = 1
-    for j in range(ny):
-        for i in range(nx):
-            lines.append(f"CQUAD4,{e},1,{strip_grid(i, j, nx)},{strip_grid(i + 1, j, nx)},"
-                         f"{strip_grid(i + 1, j + 1, nx)},{strip_grid(i, j + 1, nx)}")
-            e += 1
+    lines += decks.quad_cards(lambda i, j: strip_grid(i, j, nx), nx, ny)
     root = [strip_grid(0, j, nx) for j in range(ny + 1)]
     if root_grid:
         lines.append("GRID,9001,,0.0,0.0,0.0")

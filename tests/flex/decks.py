@@ -87,6 +87,13 @@ def single_length_beam_deck() -> str:
     return "\n".join(lines) + "\n"
 
 
+def quad_cards(gid, nx: int, ny: int, pid: int = 1) -> list[str]:
+    """CQUAD4 cards 1, 2, ... of an nx x ny grid of quadrilaterals (rows j, then columns i), corners
+    gid(i, j), gid(i + 1, j), gid(i + 1, j + 1), gid(i, j + 1)."""
+    return [f"CQUAD4,{1 + i + nx * j},{pid},{gid(i, j)},{gid(i + 1, j)},{gid(i + 1, j + 1)},{gid(i, j + 1)}"
+            for j in range(ny) for i in range(nx)]
+
+
 def plate_deck(n: int, a: float = 1.0, b: float = 1.0, t: float = 0.01, edges: str = "SSSS",
                coupled: bool = True, triangles: bool = False, in_plane_held: bool = True,
                mid3: bool = True, ny: int | None = None) -> str:

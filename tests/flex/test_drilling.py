@@ -31,6 +31,7 @@ import pytest
 import scipy.sparse.linalg as spla
 from numpy.testing import assert_allclose
 
+import decks
 from dynamics.flex import shells
 from dynamics.flex.assembly import assemble
 from dynamics.flex.bulk_data import read_bulk_data
@@ -118,11 +119,7 @@ def _hemisphere(n, triangles):
             xyz = R * np.array([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
             lines.append("GRID,{},,{!r},{!r},{!r}".format(gid(i, j), *map(float, xyz)))
     lines += ["MAT1,1,6.825e7,,0.3,1.0", f"PSHELL,1,1,{t!r},1,,1"]
-    k = 1
-    for j in range(n):
-        for i in range(n):
-            lines.append(f"CQUAD4,{k},1,{gid(i, j)},{gid(i + 1, j)},{gid(i + 1, j + 1)},{gid(i, j + 1)}")
-            k += 1
+    lines += decks.quad_cards(gid, n, n)
     for j in range(n + 1):
         lines += [f"SPC1,1,246,{gid(0, j)}", f"SPC1,1,156,{gid(n, j)}"]
     lines.append(f"SPC1,1,3,{gid(0, 0)}")
@@ -166,11 +163,7 @@ def _roof(n, triangles):
         for i in range(n + 1):
             lines.append(f"GRID,{gid(i, j)},,{L * i / n!r},{float(R * np.sin(phi))!r},{float(R * np.cos(phi))!r}")
     lines += ["MAT1,1,4.32e8,,0.0,4.0", f"PSHELL,1,1,{t!r},1,,1"]
-    k = 1
-    for j in range(n):
-        for i in range(n):
-            lines.append(f"CQUAD4,{k},1,{gid(i, j)},{gid(i + 1, j)},{gid(i + 1, j + 1)},{gid(i, j + 1)}")
-            k += 1
+    lines += decks.quad_cards(gid, n, n)
     for j in range(n + 1):
         lines += [f"SPC1,1,23,{gid(0, j)}", f"SPC1,1,23,{gid(n, j)}"]
     lines.append(f"SPC1,1,1,{gid(n // 2, n // 2)}")

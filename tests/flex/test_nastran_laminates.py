@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+import decks
 from dynamics.flex import laminates
 from dynamics.flex.bulk_data import BulkDataError, read_bulk_data
 from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
@@ -210,12 +211,7 @@ def _plate_lines(n, a, b, edges_ss1=True):
                     c |= {1, 3, 5}           # u, w, phi_x (= theta_y)
                 comps = "".join(str(k) for k in sorted(c))
             lines.append(f"GRID,{gid(i, j)},,{x!r},{y!r},0.0,,{comps}")
-    e = 1
-    for j in range(n):
-        for i in range(n):
-            lines.append(f"CQUAD4,{e},1,{gid(i, j)},{gid(i + 1, j)},{gid(i + 1, j + 1)},"
-                         f"{gid(i, j + 1)}")
-            e += 1
+    lines += decks.quad_cards(gid, n, n)
     return lines
 
 

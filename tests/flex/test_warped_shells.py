@@ -32,6 +32,7 @@ import pytest
 import scipy.sparse.linalg as spla
 from numpy.testing import assert_allclose
 
+import decks
 from dynamics.flex import geometric_stiffness_continuum as gsc
 from dynamics.flex import shells
 from dynamics.flex.assembly import assemble
@@ -182,11 +183,7 @@ def _twisted_strip(nl, nw, length, width, t, twist, clamp=False, e=E, nu=NU, rho
             a = twist * i / nl
             lines.append(f"GRID,{gid(i, j)},,{x!r},{float(eta * np.cos(a))!r},{float(eta * np.sin(a))!r}")
     lines += [f"MAT1,1,{e!r},,{nu!r},{rho!r}", f"PSHELL,1,1,{t!r},1,,1"]
-    k = 1
-    for j in range(nw):
-        for i in range(nl):
-            lines.append(f"CQUAD4,{k},1,{gid(i, j)},{gid(i + 1, j)},{gid(i + 1, j + 1)},{gid(i, j + 1)}")
-            k += 1
+    lines += decks.quad_cards(gid, nl, nw)
     if clamp:
         lines += [f"SPC1,1,123456,{gid(0, j)}" for j in range(nw + 1)]
     return "\n".join(lines + ["ENDDATA"]) + "\n"
@@ -203,11 +200,7 @@ def _helical_cylinder(n, m, skew, radius=0.5, length=1.0, t=0.005):
             lines.append(f"GRID,{gid(i, k)},,{float(radius * np.cos(phi))!r},{float(radius * np.sin(phi))!r},"
                          f"{length * k / m!r}")
     lines += [f"MAT1,1,{E!r},,{NU!r},{RHO!r}", f"PSHELL,1,1,{t!r},1,,1"]
-    e = 1
-    for k in range(m):
-        for i in range(n):
-            lines.append(f"CQUAD4,{e},1,{gid(i, k)},{gid(i + 1, k)},{gid(i + 1, k + 1)},{gid(i, k + 1)}")
-            e += 1
+    lines += decks.quad_cards(gid, n, m)
     return "\n".join(lines + ["ENDDATA"]) + "\n"
 
 
