@@ -116,12 +116,12 @@ def test_3k_dof_free_plate_against_dense_lapack(write_deck):
 @pytest.mark.slow
 def test_100k_dof_free_plate_100_modes(write_deck):
     """180 x 90 CQUAD4 (16,471 grids, 98,826 DOFs), 100 flexible modes, against one bare
-    eigsh on the same matrices. Frequencies agree with ARPACK's Ritz values to 1e-6 (measured
-    1.5e-7, ARPACK's side) and with its vectors' Rayleigh quotients to 1e-7; the pipeline's
-    relative residuals stay below the 7e-8 the old ARPACK pipeline reached (measured 5.8e-8;
-    eigsh 2e-4); SuperLU's inertia count below the midpoint of the 99th and 100th flexible
-    eigenvalues is 6 + 99; the whole pipeline takes less CPU time than the bare eigsh (measured
-    10 s against 40 s)."""
+    eigsh on the same matrices. Eigenvalues agree with ARPACK's Ritz values to 3e-7 (measured
+    8.8e-8, ARPACK's round-off) and with its vectors' double-double quotients to 3e-8 (measured
+    4.3e-9); the pipeline's relative residuals stay below the 7e-8 the old ARPACK pipeline
+    reached (measured 5.8e-8; eigsh 7.5e-5); SuperLU's inertia count below the midpoint of the
+    99th and 100th flexible eigenvalues is 6 + 99; the whole pipeline takes less CPU time than
+    the bare eigsh (measured 9.0 s against 31.7 s, load 1.0 - 1.4)."""
     run = _against_eigsh(_free_plate(write_deck, 180, 90, "plate100k.dat"),
                          _free_plate(write_deck, 16, 8, "warm.dat"), 100)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -132,8 +132,8 @@ def test_100k_dof_free_plate_100_modes(write_deck):
           f"vectors' quotients {np.abs(run['lam_pipeline'] / run['rq_eigsh'] - 1).max():.1e}")
     assert run["K"].shape[0] == 98_826
     assert run["body"].n_rigid_modes_removed == 6
-    assert_allclose(run["lam_pipeline"], run["lam_eigsh"], rtol=2e-6)
-    assert_allclose(run["lam_pipeline"], run["rq_eigsh"], rtol=2e-7)
+    assert_allclose(run["lam_pipeline"], run["lam_eigsh"], rtol=3e-7)
+    assert_allclose(run["lam_pipeline"], run["rq_eigsh"], rtol=3e-8)
     assert run["r_pipeline"].max() < 7e-8
     assert run["r_pipeline"].max() < run["r_eigsh"].max()
     lam = run["lam_pipeline"]
