@@ -102,8 +102,8 @@ def test_20k_dof_free_plate_against_eigsh_and_an_independent_inertia_count(write
 def test_3k_dof_free_plate_against_dense_lapack(write_deck):
     """30 x 15 CQUAD4 (2,976 DOFs): the 60 lowest flexible eigenvalues against dense LAPACK on
     the same matrices (massless rotations condensed, double-double Rayleigh quotients of its
-    vectors) to 1e-12 (measured 1.4e-14 on the 6,534-DOF plate of docs/fem2modal.md, where the
-    old ARPACK pipeline was 6e-11 off)."""
+    vectors) to 1e-12 (measured 4.4e-16, as for the ARPACK pipeline; on the 6,534-DOF square
+    plate of docs/fem2modal.md 1.4e-14, where the ARPACK pipeline was 6e-11 off)."""
     deck = _free_plate(write_deck, 30, 15, "plate3k.dat")
     body = _quiet(fem2modal, deck, Fem2ModalOptions(n_modes=60))
     sm = _quiet(assemble, read_bulk_data(deck))
@@ -120,8 +120,9 @@ def test_100k_dof_free_plate_100_modes(write_deck):
     8.8e-8, ARPACK's round-off) and with its vectors' double-double quotients to 3e-8 (measured
     4.3e-9); the pipeline's relative residuals stay below the 7e-8 the old ARPACK pipeline
     reached (measured 5.8e-8; eigsh 7.5e-5); SuperLU's inertia count below the midpoint of the
-    99th and 100th flexible eigenvalues is 6 + 99; the whole pipeline takes less CPU time than
-    the bare eigsh (measured 9.0 s against 31.7 s, load 1.0 - 1.4)."""
+    99th and 100th flexible eigenvalues is 6 + 99; the whole pipeline takes less than half the
+    CPU time of the bare eigsh (measured 9.0 s against 31.7 s, load 1.0 - 1.4; the ARPACK
+    pipeline of 75a0713 took 0.74 of it)."""
     run = _against_eigsh(_free_plate(write_deck, 180, 90, "plate100k.dat"),
                          _free_plate(write_deck, 16, 8, "warm.dat"), 100)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -138,4 +139,4 @@ def test_100k_dof_free_plate_100_modes(write_deck):
     assert run["r_pipeline"].max() < run["r_eigsh"].max()
     lam = run["lam_pipeline"]
     assert _superlu_count_below(run["K"], run["M"], 0.5 * (lam[98] + lam[99])) == 6 + 99
-    assert run["cpu_pipeline"] < run["cpu_eigsh"]
+    assert run["cpu_pipeline"] < 0.5 * run["cpu_eigsh"]
