@@ -6,9 +6,10 @@ Why not CHOLMOD through cholespy (the earlier factorization): that wheel runs CH
 simplicial method, one column at a time, so neither the factorization nor the solves use level-3
 BLAS; on the 98,826-DOF plate of tests/flex/test_speed.py it factors in 1.7 s and solves at
 9.5 ms per right-hand side in blocks of 8. It also hides the factor and refuses an indefinite
-matrix, so it cannot count the eigenvalues below a shift (the Sturm check). The method here (all steps from T. A. Davis, Direct Methods for Sparse Linear
-Systems, SIAM 2006, chs. 4 and 9, and J. W. H. Liu, "The multifrontal method for sparse matrix
-solution: theory and practice", SIAM Review 34(1), 1992):
+matrix, so it cannot count the eigenvalues below a shift (the Sturm check). The method here
+(all steps from T. A. Davis, Direct Methods for Sparse Linear Systems, SIAM 2006, chs. 4 and 9,
+and J. W. H. Liu, "The multifrontal method for sparse matrix solution: theory and practice",
+SIAM Review 34(1), 1992):
 
 1. ordering: METIS nested dissection of the graph whose nodes are sets of DOFs that stay
    together (the coupled DOFs of a grid);

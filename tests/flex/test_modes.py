@@ -234,3 +234,27 @@ def test_cutoff_with_the_lanczos_path(free_plate):
     sol = lowest_modes(K, M, cutoff_hz=cut_hz, groups=groups)
     assert len(sol.eigenvalues) == 50
     assert_allclose(sol.eigenvalues[6:], reference[6:50], rtol=1e-12)
+
+
+def test_progress_gives_cpu_time_by_step_and_the_solver_lines(beam101):
+    """Every progress message carries wall and CPU time since the start; the sparse solver
+    reports its factorization, its Lanczos iteration and its Sturm check, and the last message
+    the CPU time of every step, which add up to the total."""
+    import re
+    deck, _ = beam101
+    messages = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fem2modal(deck, Fem2ModalOptions(n_modes=20), progress=messages.append)
+    stamp = re.compile(r"^\[ *\d+\.\d\d s, CPU +\d+\.\d\d s\] ")
+    assert all(stamp.match(m) for m in messages)
+    text = [stamp.sub("", m) for m in messages]
+    assert any(t.startswith("factorization of K - sigma M") and "supernodal Cholesky" in t
+               for t in text)
+    assert any(t.startswith("block Lanczos: ") for t in text)
+    assert any(re.match(r"Sturm check: \d+ eigenvalues below .* Hz .*, as found", t) for t in text)
+    summary = re.match(r"done; CPU time by step: (.*); total (\d+\.\d\d) s$", text[-1])
+    steps = {part.rsplit(" ", 2)[0]: float(part.rsplit(" ", 2)[1])
+             for part in summary.group(1).split(", ")}
+    assert list(steps)[:3] == ["read", "assembly", "eigen-solution"]
+    assert abs(sum(steps.values()) - float(summary.group(2))) <= 0.01 * len(steps)

@@ -26,7 +26,8 @@ def _assembled(path, text):
 
 @pytest.fixture(scope="module")
 def plate(tmp_path_factory):
-    sm = _assembled(tmp_path_factory.mktemp("plate") / "plate.dat", decks.plate_deck(24, edges="SSSS"))
+    sm = _assembled(tmp_path_factory.mktemp("plate") / "plate.dat",
+                    decks.plate_deck(24, edges="SSSS"))
     return sm.stiffness_f(), sm.mass_f(), sm.f_dofs // 6
 
 
@@ -82,7 +83,8 @@ def test_grid_groups_split_a_flat_plate_into_membrane_and_bending(free_plate):
     ptr, _, _, _ = supernodal._node_graph(A, groups)
     assert len(ptr) - 1 == 2 * len(np.unique(groups))
     n = A.shape[0]
-    link = sp.csr_matrix((np.full(n - 2, 1e-30), (np.arange(n - 2), np.arange(2, n))), shape=A.shape)
+    link = sp.csr_matrix((np.full(n - 2, 1e-30), (np.arange(n - 2), np.arange(2, n))),
+                         shape=A.shape)
     coupled = A + link + link.T
     ptr, _, _, _ = supernodal._node_graph(coupled, groups)
     assert len(ptr) - 1 == len(np.unique(groups))
@@ -112,7 +114,8 @@ def test_not_positive_definite_names_the_dof():
     n = 40
     d = np.ones(n)
     d[17] = -1.0
-    with pytest.raises(supernodal.FactorizationError, match="not positive definite at DOF 17") as err:
+    with pytest.raises(supernodal.FactorizationError,
+                       match="not positive definite at DOF 17") as err:
         supernodal.SupernodalFactor(sp.diags(d).tocsr())
     assert err.value.dof == 17
     d[17] = 0.0
@@ -136,8 +139,9 @@ def test_supernodal_superlu_and_cholmod_give_the_same_modes(plate):
     cholespy = pytest.importorskip("cholespy")
     L = sp.tril(sp.csc_matrix(A)).tocsc()
     L.sort_indices()
-    peer = cholespy.CholeskySolverD(K.shape[0], L.indptr.astype(np.int32), L.indices.astype(np.int32),
-                                    L.data.astype(float), cholespy.MatrixType.CSC)
+    peer = cholespy.CholeskySolverD(K.shape[0], L.indptr.astype(np.int32),
+                                    L.indices.astype(np.int32), L.data.astype(float),
+                                    cholespy.MatrixType.CSC)
     x = np.empty_like(b)
     peer.solve(np.ascontiguousarray(b), x)
     assert_allclose(chol.solve(b), x, rtol=1e-9, atol=1e-9 * np.abs(x).max())

@@ -80,8 +80,8 @@ def _against_eigsh(deck, warm_up, n_modes):
 def test_20k_dof_free_plate_against_eigsh_and_an_independent_inertia_count(write_deck):
     """80 x 40 CQUAD4 (19,926 DOFs), 100 flexible modes. ARPACK's Ritz values carry the
     round-off of SuperLU's solves of the nearly singular K + M (measured 4e-8 - 7e-8 from the
-    pipeline's refined eigenvalues), the double-double Rayleigh quotients of its vectors 2e-9 -
-    6e-9: bounds 3e-7 and 3e-8. The pipeline's eigenpairs have relative residuals below the
+    pipeline's refined eigenvalues here, up to 6.1e-7 on the 100k plate), the double-double
+    Rayleigh quotients of its vectors 2e-9 - 6e-9: bounds 2e-6 and 3e-8. The pipeline's eigenpairs have relative residuals below the
     round-off floor the old ARPACK pipeline reached on the 100k plate (7e-8; measured 1.2e-8)
     and below eigsh's at its default tolerance (measured 3.4e-5); SuperLU's inertia count below
     the midpoint of the 99th and 100th flexible eigenvalues is 6 + 99; the pipeline's CPU time is
@@ -90,7 +90,7 @@ def test_20k_dof_free_plate_against_eigsh_and_an_independent_inertia_count(write
                          _free_plate(write_deck, 16, 8, "warm.dat"), 100)
     assert run["K"].shape[0] == 19_926
     assert run["body"].n_rigid_modes_removed == 6
-    assert_allclose(run["lam_pipeline"], run["lam_eigsh"], rtol=3e-7)
+    assert_allclose(run["lam_pipeline"], run["lam_eigsh"], rtol=2e-6)
     assert_allclose(run["lam_pipeline"], run["rq_eigsh"], rtol=3e-8)
     assert run["r_pipeline"].max() < 7e-8
     assert run["r_pipeline"].max() < run["r_eigsh"].max()
@@ -102,8 +102,8 @@ def test_20k_dof_free_plate_against_eigsh_and_an_independent_inertia_count(write
 def test_3k_dof_free_plate_against_dense_lapack(write_deck):
     """30 x 15 CQUAD4 (2,976 DOFs): the 60 lowest flexible eigenvalues against dense LAPACK on
     the same matrices (massless rotations condensed, double-double Rayleigh quotients of its
-    vectors) to 1e-12 (measured 1.4e-14 on the 6,534-DOF plate of docs/fem2modal.md, where the
-    old ARPACK pipeline was 6e-11 off)."""
+    vectors) to 1e-12 (measured 4.4e-16, as for the ARPACK pipeline; on the 6,534-DOF square
+    plate of docs/fem2modal.md 1.4e-14, where the ARPACK pipeline was 6e-11 off)."""
     deck = _free_plate(write_deck, 30, 15, "plate3k.dat")
     body = _quiet(fem2modal, deck, Fem2ModalOptions(n_modes=60))
     sm = _quiet(assemble, read_bulk_data(deck))
@@ -116,12 +116,14 @@ def test_3k_dof_free_plate_against_dense_lapack(write_deck):
 @pytest.mark.slow
 def test_100k_dof_free_plate_100_modes(write_deck):
     """180 x 90 CQUAD4 (16,471 grids, 98,826 DOFs), 100 flexible modes, against one bare
-    eigsh on the same matrices. Frequencies agree with ARPACK's Ritz values to 1e-6 (measured
-    1.5e-7, ARPACK's side) and with its vectors' Rayleigh quotients to 1e-7; the pipeline's
-    relative residuals stay below the 7e-8 the old ARPACK pipeline reached (measured 5.8e-8;
-    eigsh 2e-4); SuperLU's inertia count below the midpoint of the 99th and 100th flexible
-    eigenvalues is 6 + 99; the whole pipeline takes less CPU time than the bare eigsh (measured
-    10 s against 40 s)."""
+    eigsh on the same matrices. Eigenvalues agree with ARPACK's Ritz values to 2e-6 (measured
+    8.8e-8 - 6.1e-7, ARPACK's round-off, which varies with its convergence: its residuals
+    7.5e-5 - 3.8e-4) and with its vectors' double-double quotients to 3e-8 (measured 7e-10 -
+    5e-9); the pipeline's relative residuals stay below the 7e-8 the old ARPACK pipeline
+    reached (measured 5.8e-8; eigsh 7.5e-5); SuperLU's inertia count below the midpoint of the
+    99th and 100th flexible eigenvalues is 6 + 99; the whole pipeline takes less than half the
+    CPU time of the bare eigsh (measured 9.0 s against 31.7 s, load 1.0 - 1.4; the ARPACK
+    pipeline of 75a0713 took 0.74 of it)."""
     run = _against_eigsh(_free_plate(write_deck, 180, 90, "plate100k.dat"),
                          _free_plate(write_deck, 16, 8, "warm.dat"), 100)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -133,9 +135,9 @@ def test_100k_dof_free_plate_100_modes(write_deck):
     assert run["K"].shape[0] == 98_826
     assert run["body"].n_rigid_modes_removed == 6
     assert_allclose(run["lam_pipeline"], run["lam_eigsh"], rtol=2e-6)
-    assert_allclose(run["lam_pipeline"], run["rq_eigsh"], rtol=2e-7)
+    assert_allclose(run["lam_pipeline"], run["rq_eigsh"], rtol=3e-8)
     assert run["r_pipeline"].max() < 7e-8
     assert run["r_pipeline"].max() < run["r_eigsh"].max()
     lam = run["lam_pipeline"]
     assert _superlu_count_below(run["K"], run["M"], 0.5 * (lam[98] + lam[99])) == 6 + 99
-    assert run["cpu_pipeline"] < run["cpu_eigsh"]
+    assert run["cpu_pipeline"] < 0.5 * run["cpu_eigsh"]
