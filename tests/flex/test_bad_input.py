@@ -154,3 +154,12 @@ def test_text_after_column_80_of_a_fixed_format_line_is_warned(write_deck):
     with pytest.warns(UserWarning, match=r"model\.dat:13: text after column 80 of a fixed-format line is ignored"):
         bulk = read_bulk_data(write_deck(_CHAIN.format(spc=fixed)), allow_unsupported=True)
     assert bulk.model.spcs[1][0].node_ids == list(range(1, 7))
+
+
+def test_flexshell_fem2modal_refuses_a_long_free_field_line(write_deck, tmp_path, capsys):
+    """The user's path: `flexshell fem2modal` on such a deck exits 1 naming file and line, and writes no body."""
+    deck = write_deck(_CHAIN.format(spc="SPC1,1,123456,1,2,3,4,5,6,7,8"))
+    out = tmp_path / "chain.h5"
+    assert main(["fem2modal", deck, "--modes", "2", "-o", str(out)]) == 1
+    assert "model.dat:13: SPC1: 11 free-field fields on one line" in capsys.readouterr().err
+    assert not out.exists()
