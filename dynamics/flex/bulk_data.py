@@ -164,8 +164,7 @@ def read_bulk_data(path: str | os.PathLike, allow_unsupported: bool = False) -> 
     except Exception as exc:  # pyNastran raises a variety of types; name the file and pass it on
         raise BulkDataError(f"{path}: pyNastran could not read the deck: {exc}") from exc
     for filename in dict.fromkeys(getattr(model, "active_filenames", None) or [path]):
-        check_line_fields(filename, bulk_only=os.path.abspath(filename) == os.path.abspath(path)
-                               and _has_case_control(path))
+        check_line_fields(filename, bulk_only=not punch and os.path.abspath(filename) == os.path.abspath(path))
 
     report = _classify_cards(model)
     structural_parse_errors = {k: v for k, v in report.parse_errors.items()

@@ -242,7 +242,6 @@ def _build_and_run(args, scenario, t_final, output, notice: CompileNotice) -> in
         notice.stop()
         bar.close()
 
-    progress.close = close
     in_main_thread = threading.current_thread() is threading.main_thread()  # signal handlers live there
     _SIGTERMS.clear()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
@@ -250,13 +249,13 @@ def _build_and_run(args, scenario, t_final, output, notice: CompileNotice) -> in
         summary = simulation.run(t_final, log_path=output, progress=_watching_sigterm(progress),
                                  log_attributes={"scenario": scenario.text, "scenario_file": str(args.scenario)})
     except (SimulationError, LogError) as exc:
-        progress.close()
+        close()
         print(f"flexshell run: {exc}", file=sys.stderr)
         if output and isinstance(exc, SimulationError):
             print(f"flexshell run: the log {output} keeps every sample up to the failure", file=sys.stderr)
         return 1
     except KeyboardInterrupt as exc:
-        progress.close()
+        close()
         cause = str(exc) or "interrupted"
         print(f"flexshell run: {cause} at t = {simulation.t:.6g} s"
               + (f"; the log {output} keeps every sample up to there" if output else ""), file=sys.stderr)
@@ -264,7 +263,7 @@ def _build_and_run(args, scenario, t_final, output, notice: CompileNotice) -> in
     finally:
         if in_main_thread:
             signal.signal(signal.SIGTERM, previous_handler)
-    progress.close()
+    close()
     if _SIGTERMS:  # after the last progress call, its exception dropped: the run had reached its end
         print(f"flexshell run: terminated (SIGTERM) as the run reached t = {simulation.t:.6g} s"
               + (f"; the log {output} is complete" if output else ""), file=sys.stderr)
