@@ -390,7 +390,10 @@ def _mitc3p_covariant_shear(r, s, J):
 @njit(cache=True)
 def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
     """Local 18 x 18 K and M of a MITC3+ / CST shell triangle (module docstring); Bc the membrane-bending
-    coupling, which only sets the drilling modulus here (:func:`tria3_coupling` adds its stiffness)."""
+    coupling. Its stiffness ``area (Bm' Bc Bb + Bb' Bc Bm)`` uses the constant membrane strain and the mean
+    curvature of the linear rotations, which is exact for MITC3+ too: against a constant membrane strain only
+    the mean curvature counts, and the cubic rotation bubble, zero on the edges, adds nothing to it
+    (divergence theorem), so the coupling neither involves the bubble nor changes its condensation."""
     x, y = np.ascontiguousarray(loc[:, 0]), np.ascontiguousarray(loc[:, 1])  # contiguous for '@'
     J = np.array([[_TRI_DN[0] @ x, _TRI_DN[0] @ y], [_TRI_DN[1] @ x, _TRI_DN[1] @ y]])
     det = np.linalg.det(J)
@@ -403,8 +406,10 @@ def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
     # 18 grid DOFs, then the bubble's theta_x, theta_y (condensed statically below)
     Ke = np.zeros((20, 20))
     Bm = np.zeros((3, 20))
-    Bm[:, :18] = _membrane_bending_B(dNx, 3)[0]
+    Bm_grid, Bb_linear = _membrane_bending_B(dNx, 3)
+    Bm[:, :18] = Bm_grid
     Ke += Bm.T @ A @ Bm * area
+    Ke[:18, :18] += (Bm_grid.T @ Bc @ Bb_linear + Bb_linear.T @ Bc @ Bm_grid) * area
     # bending of the enriched rotations: curvatures quadratic, energy quartic; the 7-point rule is exact
     for q in range(_TRI7.shape[0]):
         _, df = _mitc3p_rotation_shapes(_TRI7[q, 0], _TRI7[q, 1])
@@ -462,22 +467,6 @@ def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
     return 0.5 * (K + K.T), M
 
 
-@njit(cache=True)
-def tria3_coupling(loc, Bc):
-    """Local 18 x 18 membrane-bending coupling stiffness of a CTRIA3, ``area (Bm' Bc Bb +
-    Bb' Bc Bm)`` with its constant membrane strain and curvature (module docstring), added to
-    :func:`tria3_local`'s K. Exact for MITC3+ too: against the constant membrane strain only the
-    element's mean curvature counts, and the cubic rotation bubble, zero on the edges, adds nothing
-    to it (divergence theorem), so the coupling neither involves the bubble nor changes its
-    condensation."""
-    x, y = np.ascontiguousarray(loc[:, 0]), np.ascontiguousarray(loc[:, 1])
-    dN = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])
-    J = np.array([[dN[0] @ x, dN[0] @ y], [dN[1] @ x, dN[1] @ y]])
-    det = np.linalg.det(J)
-    Bm, Bb = _membrane_bending_B(np.linalg.inv(J) @ dN, 3)
-    return (Bm.T @ Bc @ Bb + Bb.T @ Bc @ Bm) * (0.5 * det)
-
-
 def isotropic_props(E, nu, rho, t, nsm=0.0, bend_ratio=1.0, ts_t=5.0 / 6.0, shear_rigid=False,
                     theta=0.0, direction=(0.0, 0.0, 0.0), zoffset=0.0) -> np.ndarray:
     """A :func:`shell_batch` property row for one isotropic material (MAT1)."""
@@ -525,7 +514,6 @@ def shell_batch(xyz, props, coupled):
             K, M = quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc)
         else:
             K, M = tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc)
-            K += tria3_coupling(loc, Bc)
         area = 0.0
         for i in range(nn):
             j = (i + 1) % nn
