@@ -287,7 +287,11 @@ def convert_parameters(declarations, given: dict, where: str, type_name: str) ->
             raise ModelError(f"{here}: required ({p.description or 'no default'}; unit "
                              f"{format_unit(p.unit)}, shape {p.shape})")
         try:
-            value = to_magnitude(raw, p.unit, p.shape, here)
+            if p.name in given or not p.shape:
+                value = to_magnitude(raw, p.unit, p.shape, here)
+            else:  # the model's own default: a single number stands for every component of the declared shape
+                value = to_magnitude(raw, p.unit, None, here)
+                value = np.full(p.shape, value) if value.ndim == 0 else to_magnitude(raw, p.unit, p.shape, here)
         except UnitError as exc:
             raise ModelError(str(exc)) from None
         if not np.all(np.isfinite(value)):

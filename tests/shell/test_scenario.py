@@ -152,3 +152,18 @@ def test_demo_with_an_adaptive_integrator_agrees_with_rk4(tmp_path):
     np.testing.assert_allclose(runs["dopri5"]["multibody.acs.attitude"], runs["rk4"]["multibody.acs.attitude"],
                                atol=1e-9)
     np.testing.assert_allclose(runs["dopri5"]["controller.torque"], runs["rk4"]["controller.torque"], atol=1e-7)
+
+
+def test_a_models_scalar_default_fills_a_configured_shape(tmp_path, capsys):
+    """A Constant configured with shape [3] and no value outputs [0, 0, 0] (its declared default 0 stands for
+    every component; it was refused with 'expected shape (3,), given shape () (0.0)', naming a value the
+    user never wrote); a scalar the user writes for the vector is still refused."""
+    scene = tmp_path / "shaped.yaml"
+    scene.write_text("models:\n  c: {type: Constant, config: {unit: m, shape: [3]}}\n"
+                     "integrator: {method: rk4, step: 0.1 s}\nstop: {time: 0.2 s}\nlog: {rate: 10 Hz, signals: [c.y]}\n")
+    assert main(["run", str(scene), "-o", str(tmp_path / "shaped.h5")]) == 0
+    assert read_log(tmp_path / "shaped.h5")["c.y"].tolist() == [[0.0, 0.0, 0.0]] * 3
+    capsys.readouterr()
+    assert main(["check", str(scene), "--set", "c.value=2 m"]) == 1
+    assert ("shaped.yaml:2: models.c.parameters.value: model c: parameter value: expected shape (3,), "
+            "given shape () ('2 m')") in capsys.readouterr().err
