@@ -262,6 +262,7 @@ def run_campaign(campaign: Campaign, output, executor: str = "serial", workers: 
             count += 1
             if progress is not None:
                 progress(record, count, total)
+        results.flush()
         finished = results.done()
         status = "completed" if len(finished) == campaign.runs else "partial"
         counts = {}
