@@ -283,36 +283,3 @@ def compile_plan(diagram, context):
         return CompiledPlan(diagram, context), None
     except NotCompilable as exc:
         return None, str(exc)
-
-
-def prepare() -> float:
-    """Compile (first run) or load the compiled loop and the engine kernels by running a one-step scene with
-    each of the loop's steppers (Runge-Kutta and exponential); returns the seconds it took."""
-    import time
-    import warnings
-
-    from dynamics import Multibody
-    from shell.assembly import Assembly
-    from shell.models.blocks import Constant
-    from shell.simulation import Simulation
-
-    def probe():
-        builder = Multibody()
-        builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
-        builder.add_node("probe_node", "probe")
-        root = Assembly("probe")
-        root.add(MultibodyModel("multibody", builder.compile()))
-        root.add(Constant("zero", unit="N*m", shape=(3,), value=[0.0, 0.0, 0.0]))
-        root.connect("zero.y", "multibody.probe_node.torque")
-        return root
-
-    started = time.perf_counter()
-    # the Runge-Kutta loop, then the exponential RK4's (compiled for its own stepper type; on this rigid probe
-    # its linear part is empty, which it says in a warning that is not the user's business here)
-    for method in ("rk4", "etdrk4"):
-        simulation = Simulation(probe(), integrator=method, step=0.01)
-        simulation.log(["multibody.probe_node.angular_velocity"], "100 Hz")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            simulation.run(0.01)
-    return time.perf_counter() - started

@@ -89,3 +89,35 @@ def test_guided_chunks_cover_every_run_once_and_shrink_to_single_runs():
         if n >= 4 * workers:
             assert sizes[-4 * workers:] == [1] * (4 * workers)  # the tail: single runs
     assert guided_chunks(list(range(100)), 2)[0] == list(range(8))
+
+
+_WARM_UP = """
+import sys
+from shell.models.multibody import engine_kernel
+from shell.compiled_loop import advance
+from shell.montecarlo.campaign import load_campaign
+from shell.montecarlo.executors import start_worker
+
+campaign = load_campaign(sys.argv[1], validate=False)   # as a Dask worker gets it: nothing run in this process
+start_worker(campaign)
+print("rebuilt", campaign.rebuild_reason is not None, "loops", len(advance.overloads), "engine",
+      len(engine_kernel.overloads))
+"""
+
+
+def test_a_worker_warms_up_with_its_campaigns_scene_only(ramp_campaign, tmp_path):
+    """A campaign that rebuilds its scene for every run (its integrator step is dispersed) warms a fresh worker
+    up with run 0's scene: the compiled loop for its stepper only, and no engine in a scene without one (the
+    generic warm-up that preceded this loaded the Runge-Kutta and exponential loops and the multibody engine
+    whatever the campaign: 2 loops and 1 engine here)."""
+    import os
+
+    path = ramp_campaign(runs=3)
+    path.write_text(path.read_text().replace(
+        "dispersions:\n", "dispersions:\n  integrator.step: {distribution: choice, choices: [10 ms, 20 ms]}\n"))
+    load_campaign(path)   # the coordinator's validation: kernels in numba's disk cache
+    env = dict(os.environ, PYTHONPATH=os.getcwd())
+    done = subprocess.run([sys.executable, "-c", _WARM_UP, str(path)], capture_output=True, text=True, env=env,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "rebuilt True loops 1 engine 0" in done.stdout, done.stdout
