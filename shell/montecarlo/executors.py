@@ -184,8 +184,9 @@ def run_pool(campaign: Campaign, runs, workers: int | None = None):
 #: The LocalCluster's housekeeping, slowed to what a campaign of short runs needs: each worker's profiler
 #: (stack samples every 10 ms), the event-loop watchdog of every scheduler, nanny and worker (every 20 ms),
 #: the system monitor (500 ms) and the nannies' memory checks (100 ms) took CPU from the runs on a machine with
-#: as many workers as cores. Measured (300 runs of the attitude-hold campaign, results not stored, CPU of all
-#: processes, 3 campaigns each): 8.3 s with Dask's defaults, 7.5 s with these, 7.3 s for the same runs serially.
+#: as many workers as cores. Measured (CPU of all processes for 300 runs of the attitude-hold campaign, medians
+#: of 1-4 interleaved campaigns, four sittings): 9.96 / 7.92 / 9.16 s with Dask's defaults against 9.16 / 7.92 /
+#: 8.56 s with these (the same runs serially: 7.70 / 6.86 / 7.45 s); 100 runs: 3.41 against 2.89 s.
 #: A cluster started by the user (``--scheduler``) keeps its own configuration.
 QUIET_CLUSTER = {
     "distributed.worker.profile.enabled": False,
