@@ -109,6 +109,61 @@ def test_failing_runs_are_recorded_and_the_campaign_continues(write, tmp_path):
     assert not os.path.exists(tmp_path / "faulty.h5.journal")  # removed once the campaign completed
 
 
+# Flight software whose first call compiles a numba function (a new one in every run: the file is imported
+# again for each build); ~0.5-1.5 s of compilation on this machine, a few ms of work per run
+COMPILING_LAW = """
+import numba
+
+SOURCE = "def heavy(x):\\n" + "".join(f"    x = x * 1.0000001 + {k}.0 / (x * x + 1.0)\\n" for k in range(60)) + \\
+    "    return x\\n"
+namespace = {}
+exec(SOURCE, namespace)
+heavy = numba.njit(namespace["heavy"])
+
+
+def law(t, signals):
+    return {"y": heavy(float(signals["u"][0]))}
+"""
+
+
+def test_the_timeout_does_not_count_numba_compilation(write, tmp_path):
+    """A run that compiles a kernel (the first run to need it after an install: here a user's numba function)
+    spends that time on its wall clock; the campaign timeout bounds the run's own work, so such a run completes.
+    Before, a fresh install marked the first run of a campaign with events 'timeout' (found on a cold cache:
+    test_failing_runs_are_recorded_and_the_campaign_continues failed at run 1, which located the first bounce)."""
+    from shell.montecarlo.campaign import _compile_seconds
+
+    write("law.py", COMPILING_LAW)
+    write("compiling.yaml", f"""
+        models:
+          source: {{type: Constant, config: {{shape: [1]}}, parameters: {{value: [1.0]}}}}
+          law:
+            type: UserFunction
+            rate: 10 Hz
+            config: {{function: {tmp_path / 'law.py'}:law, inputs: {{u: {{shape: [1]}}}}, outputs: {{y: {{}}}}}}
+        connections: [source.y -> law.u]
+        integrator: {{method: rk4, step: 0.1 s}}
+        stop: {{time: 1 s}}
+        log: {{rate: 10 Hz, signals: [law.y]}}
+        """)
+    campaign = load_campaign(write("compiling_campaign.yaml", """
+        scenario: compiling.yaml
+        runs: 3
+        seed: 1
+        timeout: 0.3 s
+        dispersions:
+          source.value: {distribution: uniform, low: [0.5], high: [1.5]}
+        metrics:
+          final_y: {signal: law.y, statistic: final}
+        """))
+    before = _compile_seconds()
+    record = campaign.run(0)
+    assert _compile_seconds() - before > 0.3   # the run did compile for longer than its timeout
+    assert record.status == "completed", record.message
+    run_campaign(campaign, tmp_path / "out.h5")
+    assert set(read_results(tmp_path / "out.h5")["table"]["status"]) == {b"completed"}
+
+
 def test_resume_finishes_without_redoing(ramp_campaign, tmp_path):
     campaign = load_campaign(ramp_campaign(runs=8))
     output = tmp_path / "ramp.h5"
