@@ -160,7 +160,8 @@ def _one_of(value, options) -> bool:
 CAMPAIGN_KEYS = {
     "name": "campaign name", "description": "free text", "scenario": "scenario file, relative to the campaign",
     "set": "overrides applied to every run: {key.path: value}", "runs": "number of runs",
-    "seed": "master seed (non-negative integer)", "timeout": "wall-time limit per run, e.g. 60 s (numba compilation not counted)",
+    "seed": "master seed (non-negative integer)",
+    "timeout": "wall-time limit per run, e.g. 60 s (numba compilation not counted)",
     "dispersions": "dispersed values by --set path", "correlations": "correlated dispersions",
     "metrics": "per-run metrics by name", "keep": "signals kept per run (list)",
     "log_rate": "rate of the signals the campaign adds to the scenario's log (default: its log rate)",
