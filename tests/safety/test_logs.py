@@ -173,9 +173,9 @@ def test_sigterm_closes_the_log_as_interrupted(tmp_path):
     try:
         _wait_for_samples(path, process)
         process.send_signal(signal.SIGTERM)
-        # Python runs the handler only between bytecodes: most likely a numba compilation in progress (a cold cache compiles
-        # some kernels after the first samples are logged) defers it until the compilation ends, which took over
-        # 60 s once on this 2-core machine; the exit itself is what is checked, not its latency
+        # a numba compilation in progress (a cold cache compiles some kernels after the first samples are logged)
+        # defers the exit until the compilation ends (_raise_terminated), which took over 60 s once on this 2-core
+        # machine; the exit itself is what is checked, not its latency
         _, err = process.communicate(timeout=600)
     finally:
         if process.poll() is None:
@@ -247,6 +247,28 @@ def test_a_sigterm_whose_exception_python_dropped_is_not_lost():
     with pytest.raises(run_command.Terminated, match="SIGTERM"):
         watched(1.0)
     run_command._SIGTERMS.clear()
+
+
+def test_a_sigterm_during_a_numba_compilation_waits_for_its_end():
+    """While numba compiles (this thread holds its compiler lock), the handler records the SIGTERM and raises
+    nothing: an exception inside the compiler can cut llvmlite between a call into LLVM and its bookkeeping (a run
+    of test_sigterm_closes_the_log_as_interrupted ended in SIGSEGV in CI with a cold cache). The next progress call,
+    after the compilation, ends the run; outside a compilation the handler raises at once."""
+    from numba.core.compiler_lock import global_compiler_lock
+
+    from shell.commands import run as run_command
+
+    run_command._SIGTERMS.clear()
+    try:
+        with global_compiler_lock:
+            run_command._raise_terminated(signal.SIGTERM, None)   # deferred: nothing raised
+        assert run_command._SIGTERMS == [signal.SIGTERM]
+        with pytest.raises(run_command.Terminated, match="SIGTERM"):
+            run_command._watching_sigterm(lambda t: None)(1.0)
+        with pytest.raises(run_command.Terminated, match="SIGTERM"):
+            run_command._raise_terminated(signal.SIGTERM, None)
+    finally:
+        run_command._SIGTERMS.clear()
 
 
 def test_a_dropped_sigterm_ends_the_run_as_interrupted(tmp_path, monkeypatch, capsys):
