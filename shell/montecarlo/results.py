@@ -193,15 +193,15 @@ class ResultsFile:
             group = self._create_signal(signal, items[0][1])
         time_set, values_set, samples_set = group["time"], group["values"], group["samples"]
         shape, unit = values_set.shape[2:], values_set.attrs["unit"]
-        fits = [(run, item) for run, item in items if item[1].shape[1:] == shape and item[2] == unit]
-        for run, (t, values, unit_run) in items:
-            if values.shape[1:] != shape or unit_run != unit:  # a port of another size in this run
-                apart = group.require_group("other")
-                if f"run_{run:06d}" in apart:  # written before a kill that left the run pending: written again
-                    del apart[f"run_{run:06d}"]
-                other = apart.create_group(f"run_{run:06d}")
-                other.create_dataset("time", data=t, track_times=False).attrs["unit"] = "s"
-                other.create_dataset("values", data=values, track_times=False).attrs["unit"] = unit_run
+        fits = []
+        for run, item in items:
+            if item[1].shape[1:] == shape and item[2] == unit:
+                fits.append((run, item))
+                continue
+            apart = group.require_group("other")  # a port of another size in this run
+            if f"run_{run:06d}" in apart:  # written before a kill that left the run pending: written again
+                del apart[f"run_{run:06d}"]
+            _write_record(apart.create_group(f"run_{run:06d}"), item)
         if not fits:
             return
         longest = max(len(t) for _, (t, _, _) in fits)
@@ -245,6 +245,18 @@ class ResultsFile:
             self._journal.close()
         if status == "completed":
             Path(self.journal_path).unlink(missing_ok=True)
+
+
+def _write_record(group: h5py.Group, item) -> None:
+    """One run's ``(time, values, unit)`` as ``group/time`` and ``group/values`` (attrs unit): a kept signal kept
+    apart, as every run's were in format 1 (:func:`_read_record` reads both)."""
+    t, values, unit = item
+    group.create_dataset("time", data=t, track_times=False).attrs["unit"] = "s"
+    group.create_dataset("values", data=values, track_times=False).attrs["unit"] = unit
+
+
+def _read_record(group: h5py.Group) -> tuple:
+    return group["time"][:], group["values"][:], str(group["values"].attrs["unit"])
 
 
 def _write_rows(dataset: h5py.Dataset, rows: list, data: np.ndarray) -> None:
@@ -376,13 +388,12 @@ def read_kept(path, run: int) -> dict:
             return {}
         if f.attrs.get("format_version", 1) == 1:
             group = signals.get(f"run_{run:06d}")
-            return {} if group is None else \
-                {s: (g["time"][:], g["values"][:], str(g["values"].attrs["unit"])) for s, g in group.items()}
+            return {} if group is None else {s: _read_record(g) for s, g in group.items()}
         kept = {}
         for signal, group in signals.items():
             other = group.get(f"other/run_{run:06d}")
             if other is not None:
-                kept[signal] = (other["time"][:], other["values"][:], str(other["values"].attrs["unit"]))
+                kept[signal] = _read_record(other)
                 continue
             n = int(group["samples"][run])
             if n >= 0:
