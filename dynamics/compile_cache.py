@@ -58,3 +58,48 @@ def _prune(base: Path, current: Path) -> None:
     for stale in older[KEEP - 1:]:
         if now - stale.stat().st_mtime > STALE_AFTER_S:  # never a directory another process may be using
             shutil.rmtree(stale, ignore_errors=True)
+
+
+class CompileClock:
+    """numba's compilations in this process, followed through its ``numba:compile`` event (raised when a kernel is
+    compiled, not when it is loaded from the on-disk cache): ``seconds`` spent compiling (a compilation and the
+    callees it compiles counted once), and ``on_start(dispatcher)`` called as each compilation, outer or nested,
+    starts. Listens from :meth:`start` to :meth:`stop` (`flexshell run`'s compile notice, the Monte Carlo runs'
+    compile counter and timeout)."""
+
+    def __init__(self, on_start=None):
+        self.seconds = 0.0
+        self._on_start, self._depth, self._started, self._listener = on_start, 0, 0.0, None
+
+    @property
+    def running(self) -> bool:
+        return self._listener is not None
+
+    def start(self) -> "CompileClock":
+        from numba.core import event
+
+        clock = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev) -> None:
+                if clock._depth == 0:
+                    clock._started = time.perf_counter()
+                clock._depth += 1
+                if clock._on_start is not None:
+                    clock._on_start((ev.data or {}).get("dispatcher"))
+
+            def on_end(self, ev) -> None:
+                clock._depth -= 1
+                if clock._depth == 0:
+                    clock.seconds += time.perf_counter() - clock._started
+
+        self._listener = _Listener()
+        event.register("numba:compile", self._listener)
+        return self
+
+    def stop(self) -> None:
+        if self._listener is not None:
+            from numba.core import event
+
+            event.unregister("numba:compile", self._listener)
+            self._listener = None

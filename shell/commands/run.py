@@ -10,7 +10,6 @@ from __future__ import annotations
 import signal
 import sys
 import threading
-import time
 from pathlib import Path
 
 
@@ -72,32 +71,22 @@ class CompileNotice:
     compiled: a scene without the multibody engine does not compile it. Use as a context manager."""
 
     def __init__(self, quiet: bool):
-        self.quiet, self.seconds, self.announced = quiet, 0.0, False
-        self._depth, self._started, self._line, self._listener = 0, 0.0, None, None
+        from dynamics.compile_cache import CompileClock
+
+        self.quiet, self.announced, self._line = quiet, False, None
+        self._clock = CompileClock(on_start=lambda dispatcher: self._announce())
+
+    @property
+    def seconds(self) -> float:
+        """Seconds spent compiling while the notice listened."""
+        return self._clock.seconds
 
     def __enter__(self) -> "CompileNotice":
-        from numba.core import event
-
-        notice = self
-
-        class _Listener(event.Listener):
-            def on_start(self, ev) -> None:
-                if notice._depth == 0:
-                    notice._started = time.perf_counter()
-                    notice._announce()
-                notice._depth += 1
-
-            def on_end(self, ev) -> None:
-                notice._depth -= 1
-                if notice._depth == 0:
-                    notice.seconds += time.perf_counter() - notice._started
-
-        self._listener = _Listener()
-        event.register("numba:compile", self._listener)
+        self._clock.start()
         return self
 
     def _announce(self) -> None:
-        if self.announced or self._listener is None:
+        if self.announced or not self._clock.running:
             return
         self.announced = True
         if self.quiet:
@@ -109,12 +98,9 @@ class CompileNotice:
 
     def stop(self) -> None:
         """Stop listening; print the compile time if anything was compiled. Idempotent."""
-        if self._listener is None:
+        if not self._clock.running:
             return
-        from numba.core import event
-
-        event.unregister("numba:compile", self._listener)
-        self._listener = None
+        self._clock.stop()
         if self._line is not None:
             self._line.close()
             self._line = None

@@ -404,34 +404,19 @@ class RunRecord:
 
 class _CompileCounter:
     """Counts numba compilations of flexshell's kernels in this process, and the seconds spent compiling anything
-    (numba's ``numba:compile`` event, raised only when a kernel is compiled, not when it is loaded from the on-disk
-    cache; nested compilations of callees are counted once in the seconds); installed on first use, so a run pays
-    nothing to ask."""
+    (:class:`dynamics.compile_cache.CompileClock`: compiled, not loaded from the on-disk cache; nested compilations
+    of callees counted once in the seconds); installed on first use, so a run pays nothing to ask."""
 
     def __init__(self) -> None:
-        from numba.core import event
+        from dynamics.compile_cache import CompileClock
 
         self.count = 0
-        self.seconds = 0.0
-        self._depth, self._started = 0, 0.0
-        listener = self
+        self.clock = CompileClock(on_start=self._count).start()
 
-        class _Listener(event.Listener):
-            def on_start(self, ev) -> None:
-                dispatcher = (ev.data or {}).get("dispatcher")
-                module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
-                if module.startswith(("shell", "dynamics")):
-                    listener.count += 1
-                if listener._depth == 0:
-                    listener._started = time.perf_counter()
-                listener._depth += 1
-
-            def on_end(self, ev) -> None:
-                listener._depth -= 1
-                if listener._depth == 0:
-                    listener.seconds += time.perf_counter() - listener._started
-
-        event.register("numba:compile", _Listener())
+    def _count(self, dispatcher) -> None:
+        module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+        if module.startswith(("shell", "dynamics")):
+            self.count += 1
 
 
 _COUNTER: list = []
@@ -451,7 +436,7 @@ def _numba_compilations() -> int:
 
 def _compile_seconds() -> float:
     """Seconds this process spent in numba compilations since the first call (which installs the counter)."""
-    return _compile_counter().seconds
+    return _compile_counter().clock.seconds
 
 
 @dataclass
