@@ -1,7 +1,7 @@
 """Where numba caches flexshell's compiled code: a directory keyed on the sources of the whole package.
 
 numba's on-disk cache (``cache=True``) invalidates a function when *its own* file changes, not when a
-function it calls from another file does: after an update of ``dynamics/kernels.py`` a cached caller
+function it calls from another file does: after an update of ``dynamics/kernels/kinematics.py`` a cached caller
 (the engine entry points, the shell's compiled loop) would keep linking the old machine code and run
 outdated physics (seen during development). :func:`configure` therefore points numba at
 ``~/.cache/flexshell/numba/<hash of every .py file of dynamics and shell>`` (``$XDG_CACHE_HOME`` is
