@@ -597,6 +597,24 @@ def project_velocities(d, c, q, u):
 
 
 @njit(cache=True)
+def element_forces(d, c, q, u, out):
+    """The generalized forces of the force elements alone, ``J' F_e + tau_e`` (nu,), into ``out``; their node
+    forces are left in ``c.forces`` and hinge forces in ``c.tau``."""
+    K.node_kinematics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, c.zero_u, c.rotation, c.position,
+                      c.velocity, c.acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
+    for r in range(c.forces.shape[0]):
+        for s in range(6):
+            c.forces[r, s] = 0.0
+    for s in range(c.tau.shape[0]):
+        c.tau[s] = 0.0
+    apply_force_elements(c.f_int, c.f_float, q, u, c.rotation, c.position, c.velocity, c.forces, c.tau, c.frames)
+    node_forces_generalized(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, c.forces, out, d.ws_rot,
+                            d.ws_vec, d.ws_mat, d.pool, True)
+    for s in range(out.shape[0]):
+        out[s] += c.tau[s]
+
+
+@njit(cache=True)
 def potential_energy(d, c, q):
     """The force elements' potential energy at ``q`` (springs, bushings, hinge springs and stops, contacts)."""
     _positions(d, c, q)

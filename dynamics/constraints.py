@@ -27,6 +27,7 @@ module adds what runs outside a step:
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -37,7 +38,8 @@ from dynamics import constraint_kernels as CK
 from dynamics import kernels as K
 from dynamics.engine import engine_data
 from dynamics.errors import ModelDefinitionError
-from dynamics.force_elements import element_tables
+from dynamics import force_elements as FE
+from dynamics.force_elements import Bushing, SpringDamper, element_tables
 from dynamics.hinges import FREE, HINGE_TYPES, SPHERICAL
 from dynamics.layout import HINGE_TYPE, NQ_HINGE, NU_HINGE, N_MODES, Q_START, U_START
 from dynamics.spatial import quaternion_to_rotation
@@ -148,6 +150,9 @@ class ConstrainedSystem:
     """
 
     def __init__(self, system, constraints=(), forces=(), baumgarte=(0.0, 0.0), q_reference=None):
+        self._build(system, constraints, forces, baumgarte, q_reference, allow_locked=False)
+
+    def _build(self, system, constraints, forces, baumgarte, q_reference, allow_locked):
         self.system = system
         self.constraints = list(constraints)
         self.forces = list(forces)
@@ -160,7 +165,7 @@ class ConstrainedSystem:
                 raise ConstraintError(f"constraint '{c.label}': duplicate name")
             names.add(c.label)
         self._c_int, self._c_float = self._constraint_tables(reference)
-        self._f_int, self._f_float = element_tables(self.forces, system, reference)
+        self._f_int, self._f_float = element_tables(self.forces, system, reference, allow_locked)
         self._slices = []
         rows = 0
         for c in self.constraints:
@@ -358,6 +363,12 @@ class ConstrainedSystem:
         return np.concatenate([self.system.q_dot(q, u), self.forward_dynamics(q, u, tau=tau).u_dot])
 
     # ------------------------------------------------------------------ energy
+    def element_forces(self, q, u):
+        """The force elements' ``(node forces (nnodes, 6), generalized forces J' F + tau (nu,))`` at (q, u)."""
+        out = np.empty(self.system.nu)
+        CK.element_forces(self.engine, self.data, self._q(q), np.array(u, dtype=float), out)
+        return self.data.forces.copy(), out
+
     def force_element_energy(self, q):
         """Potential energy of the force elements [J]."""
         return float(CK.potential_energy(self.engine, self.data, self._q(q)))
@@ -434,6 +445,64 @@ class ConstrainedSystem:
         if not self._c_int[i, CK.C_ACTIVE]:
             raise ConstraintError(f"constraint '{name}' is already off")
         self._c_int[i, CK.C_ACTIVE] = 0
+
+    # ------------------------------------------------------------------ changes of the tree
+    def resolved_constraints(self):
+        """The constraint definitions with what the reference configuration supplied written in (world poses,
+        lengths) and their current switches: definitions that hold on any system with the same nodes."""
+        out = []
+        for i, c in enumerate(self.constraints):
+            row = self._c_float[i]
+            world = {} if c.node_b is not None else dict(
+                world_rotation=row[CK.C_WORLD_R:CK.C_WORLD_R + 9].reshape(3, 3).copy(),
+                world_position=row[CK.C_WORLD_P:CK.C_WORLD_P + 3].copy())
+            length = {"length": float(row[CK.C_LENGTH])} if c.kind == "distance" else {}
+            out.append(dataclasses.replace(c, active=bool(self._c_int[i, CK.C_ACTIVE]), **world, **length))
+        return out
+
+    def resolved_forces(self):
+        """The force elements with their free lengths and relaxed world poses written in (see
+        :meth:`resolved_constraints`)."""
+        out = []
+        for e, element in enumerate(self.forces):
+            row = self._f_float[e]
+            if isinstance(element, SpringDamper) and element.free_length is None:
+                element = dataclasses.replace(element, free_length=float(row[FE.F_LENGTH]))
+            elif isinstance(element, Bushing) and element.node_b is None:
+                element = dataclasses.replace(element, world_rotation=row[FE.F_WORLD_R:FE.F_WORLD_R + 9].reshape(3, 3),
+                                              world_position=row[FE.F_WORLD_P:FE.F_WORLD_P + 3].copy())
+            out.append(element)
+        return out
+
+    def reconfigure(self, q, u, *, lock=(), unlock=(), detach=(), attach=None, mass_properties=None,
+                    tolerance=DEFAULT_ASSEMBLY_TOLERANCE):
+        """The tree changed as :func:`dynamics.reconfigure.reconfigure` does, with the constraints and force
+        elements carried over: returns ``(ConstrainedSystem, q, u, report)``. The impacts include the active
+        constraints: an ``attach`` latch is the plastic impact of its weld together with them (``report``: its
+        :class:`AssemblyReport`, or None), a ``lock`` is followed by the projection onto the constraints in the
+        locked system (two nested M-orthogonal projections are the projection onto both). Hinge elements on a
+        hinge that becomes locked are switched off."""
+        q = self._q(q)
+        u = np.array(u, dtype=float)
+        constraints = self.resolved_constraints()
+        report = None
+        if attach:
+            welds = []
+            for body, spec in attach.items():
+                try:
+                    body_node, target = spec
+                except (TypeError, ValueError):
+                    raise ConstraintError(f"attach: body '{body}': give (body_node, target_node), got {spec!r}") from None
+                welds.append(ClosureConstraint(body_node, target, "weld", name=f"attach {body}"))
+            latch = ConstrainedSystem(self.system, constraints + welds)
+            q, u, report = latch.assemble(q, u, tolerance)
+        system, q, u = self.system.reconfigure(q, u, lock=lock, unlock=unlock, detach=detach, attach=attach,
+                                               mass_properties=mass_properties, attach_tolerance=tolerance)
+        new = ConstrainedSystem.__new__(ConstrainedSystem)
+        new._build(system, constraints, self.resolved_forces(), (self.alpha, self.beta), None, allow_locked=True)
+        if lock:
+            u = new.impact(q, u)[0]
+        return new, q, u, report
 
     # ------------------------------------------------------------------ minimal coordinates
     def tangent_map(self, q):

@@ -483,7 +483,7 @@ class SpringDamper(_Element):
     world_point: tuple | None = None
     kind = SPRING_DAMPER
 
-    def compile(self, system, reference):
+    def compile(self, system, reference, allow_locked=False):
         ints, floats = self._rows()
         ints[F_NODE_A] = self._node(system, self.node_a, "node_a")
         if self.node_b is not None:
@@ -541,7 +541,7 @@ class Bushing(_Element):
                                        f"{np.linalg.eigvalsh(sym).round(6).tolist()})")
         return a, scale
 
-    def compile(self, system, reference):
+    def compile(self, system, reference, allow_locked=False):
         ints, floats = self._rows()
         ints[F_NODE_A] = self._node(system, self.node_a, "node_a")
         K, scale = self._matrix(self.stiffness, "stiffness") if self.stiffness is not None else (np.zeros((6, 6)), 1.0)
@@ -568,7 +568,9 @@ class Bushing(_Element):
 
 @dataclass
 class _HingeElement(_Element):
-    def _dof(self, system, ints):
+    def _dof(self, system, ints, allow_locked):
+        """q and u indices of the element's DOF into ``ints``; on a hinge locked by a run-time change
+        (``allow_locked``) the element is switched off."""
         from dynamics.definitions import suggest
         from dynamics.hinges import HINGE_TYPES, PRISMATIC, REVOLUTE, UJOINT
 
@@ -582,6 +584,9 @@ class _HingeElement(_Element):
         else:
             k = names.index(self.body)
         hinge = system.hinge_names[k]
+        if hinge == "locked" and allow_locked:
+            ints[F_ACTIVE] = 0
+            return
         n = {REVOLUTE: 1, PRISMATIC: 1, UJOINT: 2}.get(HINGE_TYPES[hinge], 0)
         dof = int(self.dof)
         if not 0 <= dof < n:
@@ -606,9 +611,9 @@ class HingeSpring(_HingeElement):
     dof: int = 0
     kind = HINGE_SPRING
 
-    def compile(self, system, reference):
+    def compile(self, system, reference, allow_locked=False):
         ints, floats = self._rows()
-        self._dof(system, ints)
+        self._dof(system, ints, allow_locked)
         floats[F_STIFFNESS] = _number(self.stiffness, self.where, "stiffness", low=0.0)
         floats[F_DAMPING] = _number(self.damping, self.where, "damping", low=0.0)
         floats[F_LENGTH] = _number(self.neutral, self.where, "neutral")
@@ -632,9 +637,9 @@ class HingeStop(_HingeElement):
     dof: int = 0
     kind = HINGE_STOP
 
-    def compile(self, system, reference):
+    def compile(self, system, reference, allow_locked=False):
         ints, floats = self._rows()
-        self._dof(system, ints)
+        self._dof(system, ints, allow_locked)
         if self.lower is None and self.upper is None:
             raise ModelDefinitionError(f"{self.where}: give lower and/or upper")
         lower = -np.inf if self.lower is None else _number(self.lower, self.where, "lower")
@@ -658,9 +663,9 @@ class HingeFriction(_HingeElement):
     dof: int = 0
     kind = HINGE_FRICTION
 
-    def compile(self, system, reference):
+    def compile(self, system, reference, allow_locked=False):
         ints, floats = self._rows()
-        self._dof(system, ints)
+        self._dof(system, ints, allow_locked)
         floats[F_FRICTION] = _number(self.level, self.where, "level", low=0.0)
         floats[F_SLIP] = _number(self.slip_speed, self.where, "slip_speed", positive=True)
         return ints, floats
@@ -687,7 +692,7 @@ class PlaneContact(_Element):
     slip_speed: float = 1e-3
     kind = PLANE_CONTACT
 
-    def compile(self, system, reference):
+    def compile(self, system, reference, allow_locked=False):
         ints, floats = self._rows()
         ints[F_NODE_A] = self._node(system, self.node, "node")
         if self.plane_node is not None:
@@ -728,7 +733,7 @@ class SphereContact(_Element):
     slip_speed: float = 1e-3
     kind = SPHERE_CONTACT
 
-    def compile(self, system, reference):
+    def compile(self, system, reference, allow_locked=False):
         ints, floats = self._rows()
         ints[F_NODE_A] = self._node(system, self.node_a, "node_a")
         ints[F_NODE_B] = self._node(system, self.node_b, "node_b")
@@ -751,9 +756,10 @@ ELEMENT_TYPES = {"spring_damper": SpringDamper, "bushing": Bushing, "hinge_sprin
 """Force element classes by the ``kind`` a scene gives."""
 
 
-def element_tables(elements, system, reference):
+def element_tables(elements, system, reference, allow_locked=False):
     """``(f_int, f_float)`` of the elements (names unique), validated against ``system``; ``reference`` is
-    the node kinematics at the reference configuration (or None)."""
+    the node kinematics at the reference configuration (or None). ``allow_locked``: hinge elements on locked
+    hinges are switched off instead of refused (a run-time lock; see :mod:`dynamics.reconfigure`)."""
     ints = np.zeros((len(elements), F_INT_COLUMNS), dtype=np.int64)
     floats = np.zeros((len(elements), F_FLOAT_COLUMNS))
     seen = set()
@@ -761,5 +767,5 @@ def element_tables(elements, system, reference):
         if element.name in seen:
             raise ModelDefinitionError(f"force element '{element.name}': duplicate name")
         seen.add(element.name)
-        ints[k], floats[k] = element.compile(system, reference)
+        ints[k], floats[k] = element.compile(system, reference, allow_locked)
     return ints, floats
