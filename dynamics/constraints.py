@@ -16,9 +16,12 @@ module adds what runs outside a step:
 * **assembly**: :meth:`ConstrainedSystem.assemble` moves an initial state that violates a constraint onto
   the manifold and says how far it moved, or refuses beyond a tolerance;
 * **switching a constraint on or off** during a run (a latch, a release): :meth:`ConstrainedSystem.switch_on`
-  closes the gap (position projection, the distance reported) and applies the perfectly plastic impact
-  ``u+ = u - M^-1 G' (G M^-1 G')^+ G u``, which conserves momentum (the impulse is internal) and loses
-  ``dE = 1/2 (G u)' (G M^-1 G')^+ (G u)``;
+  applies the perfectly plastic impact ``u+ = u - M^-1 G' (G M^-1 G')^+ G u``, which conserves momentum (the
+  impulse is internal) and loses ``dE = 1/2 (G u)' (G M^-1 G')^+ (G u)``, then closes the gap (position
+  projection, the distance reported, refused beyond a tolerance). Closing a gap moves the bodies; their
+  velocities in body axes are kept, so a gap in rotation turns their momentum by the angle closed (a latch
+  that catches two bodies where they are, without moving them, is :meth:`ConstrainedSystem.reconfigure`'s
+  ``attach``);
 * **minimal coordinates for linearization**: :meth:`ConstrainedSystem.tangent_basis` spans the tangent
   space of the state manifold ``{phi(q) = 0, G(q) u = 0}`` in the tangent coordinates of
   :mod:`shell.analysis.linearize`; a linear model restricted to it (:func:`restrict`) has neither the zero
@@ -136,7 +139,7 @@ class AssemblyReport(NamedTuple):
     worst: str  # the constraint it belonged to
     moved: float  # largest change of a coordinate of q
     velocity_change: float  # largest change of a coordinate of u
-    energy_lost: float  # kinetic energy removed by the velocity projection [J]
+    energy_lost: float  # kinetic energy removed by the plastic impact (and the small move that closes the gap) [J]
 
 
 class ConstrainedSystem:
@@ -412,8 +415,11 @@ class ConstrainedSystem:
                                   f"more than the assembly tolerance {tolerance:.3g}; give an initial state that "
                                   f"satisfies it (or a larger tolerance to let it be projected)")
         q0, u0 = self._q(q), np.array(u, dtype=float)
-        q1, u1 = self.project(q0, u0)
-        lost = self.system.kinetic_energy(q1, u0) - self.system.kinetic_energy(q1, u1)
+        # the plastic impact where the state is, then the gap closed and the small velocity defect the move
+        # leaves removed: moving bodies that already share a rigid motion changes no momentum
+        u1 = self.impact(q0, u0)[0]
+        q1, u1 = self.project(q0, u1)
+        lost = self.system.kinetic_energy(q0, u0) - self.system.kinetic_energy(q1, u1)
         return q1, u1, AssemblyReport(worst, name, float(np.abs(q1 - q0).max(initial=0.0)),
                                       float(np.abs(u1 - u0).max(initial=0.0)), float(lost))
 
@@ -479,7 +485,7 @@ class ConstrainedSystem:
         """The tree changed as :func:`dynamics.reconfigure.reconfigure` does, with the constraints and force
         elements carried over: returns ``(ConstrainedSystem, q, u, report)``. The impacts include the active
         constraints: an ``attach`` latch is the plastic impact of its weld together with them (``report``: its
-        :class:`AssemblyReport`, or None), a ``lock`` is followed by the projection onto the constraints in the
+        :class:`AssemblyReport`, the frames' misalignment at the latch as the residual, or None), a ``lock`` is followed by the projection onto the constraints in the
         locked system (two nested M-orthogonal projections are the projection onto both). Hinge elements on a
         hinge that becomes locked are switched off."""
         q = self._q(q)
@@ -494,8 +500,12 @@ class ConstrainedSystem:
                 except (TypeError, ValueError):
                     raise ConstraintError(f"attach: body '{body}': give (body_node, target_node), got {spec!r}") from None
                 welds.append(ClosureConstraint(body_node, target, "weld", name=f"attach {body}"))
+            latch = ConstrainedSystem(self.system, welds)
+            gap, worst = latch.worst_residual(q)
             latch = ConstrainedSystem(self.system, constraints + welds)
-            q, u, report = latch.assemble(q, u, tolerance)
+            u_latched, lost = latch.impact(q, u)
+            report = AssemblyReport(gap, worst, 0.0, float(np.abs(u_latched - u).max(initial=0.0)), float(lost))
+            u = u_latched
         system, q, u = self.system.reconfigure(q, u, lock=lock, unlock=unlock, detach=detach, attach=attach,
                                                mass_properties=mass_properties, attach_tolerance=tolerance)
         new = ConstrainedSystem.__new__(ConstrainedSystem)

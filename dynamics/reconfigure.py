@@ -15,12 +15,13 @@ previous one's definitions and maps the state across (Dshell's run-time reconfig
 * **detach** a body: the subtree it roots separates from its parent (a separation event). The body is
   re-attached to the ground by a free hinge placed at its current world pose and moving with its
   current spatial velocity; every node keeps its pose and velocity, so nothing jumps.
-* **attach** (a latch, a docking) a body floating free (a root on a free hinge) to a node of another body:
-  the two mating node frames are brought together (the gap closed by the position projection of
-  :mod:`dynamics.constraints`, refused beyond a tolerance) with a perfectly plastic impact (the velocity
-  projection of a weld between them: momentum conserved, the energy ``1/2 (G u)' (G M^-1 G')^-1 (G u)``
-  lost), then the body becomes the node's child through a locked hinge whose outboard frame is its mating
-  node; bodies are renumbered so that parents come first.
+* **attach** (a latch, a docking) a body floating free (a root on a free hinge) to a node of another body: a
+  perfectly plastic impact (the velocity projection of a weld between the two mating node frames: momentum
+  conserved exactly, the energy ``1/2 (G u)' (G M^-1 G')^+ (G u)`` lost), then the body becomes the node's
+  child through a locked hinge whose outboard frame is its mating node, at the relative pose where the latch
+  caught it: nothing moves, so nothing jumps. The frames' misalignment at the latch (m or rad) is refused
+  beyond a tolerance (and reported by :meth:`dynamics.constraints.ConstrainedSystem.reconfigure`). Bodies are
+  renumbered so that parents come first.
 * **mass properties** of rigid bodies, via a new system or in place with
   :meth:`dynamics.MultibodySystem.set_mass_properties` (cheap enough for per-step mass depletion).
 
@@ -56,8 +57,8 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), attach=None, mas
     mass properties, detach, unlock, attach, lock).
 
     ``attach``: ``{body: (body_node, target_node)}``: body (a root on a free hinge) latched with its node
-    ``body_node`` onto ``target_node`` of another body; ``attach_tolerance`` [m, rad] bounds the gap the latch
-    may close (default :data:`dynamics.constraints.DEFAULT_ASSEMBLY_TOLERANCE`)."""
+    ``body_node`` onto ``target_node`` of another body; ``attach_tolerance`` [m, rad] bounds the misalignment of
+    the two frames the latch may capture (default :data:`dynamics.constraints.DEFAULT_ASSEMBLY_TOLERANCE`)."""
     bodies, nodes, gravity = system.definitions
     bodies = [dataclasses.replace(b) for b in bodies]
     by_name = {b.name: b for b in bodies}
@@ -186,8 +187,9 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), attach=None, mas
 
 
 def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find, tolerance):
-    """The latch of each ``attach`` entry (module docstring): gap closed and plastic impact on the current
-    system, then the body's hinge made a locked hinge on the target node. Returns the new coordinates."""
+    """The latch of each ``attach`` entry (module docstring): the plastic impact on the current system, then
+    the body's hinge made a locked hinge on the target node at the relative pose of the latch. Returns the new
+    coordinates."""
     from dynamics.constraints import DEFAULT_ASSEMBLY_TOLERANCE, ClosureConstraint, ConstrainedSystem
 
     node_by_name = {nd.name: nd for nd in nodes}
@@ -229,9 +231,14 @@ def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find
     q_mid = np.concatenate([q_parts[b.name] for b in bodies])
     u_mid = np.concatenate([u_parts[b.name] for b in bodies])
     latch = ConstrainedSystem(mid, welds)
-    q_mid, u_mid, _ = latch.assemble(q_mid, u_mid, DEFAULT_ASSEMBLY_TOLERANCE if tolerance is None else tolerance)
+    gap, worst = latch.worst_residual(q_mid)
+    tolerance = DEFAULT_ASSEMBLY_TOLERANCE if tolerance is None else tolerance
+    if gap > tolerance:
+        raise ModelDefinitionError(f"attach: the frames of '{worst}' are {gap:.6g} (m or rad) apart, more than the "
+                                   f"latch tolerance {tolerance:.3g}")
+    u_mid = latch.impact(q_mid, u_mid)[0]
+    kin = mid.node_kinematics(q_mid, np.zeros(mid.nu))
     for k, b in enumerate(bodies):
-        q_parts[b.name] = q_mid[mid.q_slices[k]]
         u_parts[b.name] = u_mid[mid.u_slices[k]]
     for body, body_node, target in moves:
         node = node_by_name[body_node]
@@ -241,10 +248,13 @@ def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find
         else:
             body.outboard_node = body_node
             body.outboard_rotation, body.outboard_position = np.eye(3), np.zeros(3)
+        # the locked hinge holds the body's node where the latch found it relative to the (deformed) target node
+        R_N, p_N = kin.rotation[mid.node_index(target)], kin.position[mid.node_index(target)]
+        R_C, p_C = kin.rotation[mid.node_index(body_node)], kin.position[mid.node_index(body_node)]
         body.parent, body.parent_node, body.hinge = node_by_name[target].body, target, "locked"
         body.axes = np.zeros((2, 3))
         body.prescribed = np.zeros(0, dtype=bool)
-        body.inboard_rotation, body.inboard_position = np.eye(3), np.zeros(3)
+        body.inboard_rotation, body.inboard_position = R_N.T @ R_C, R_N.T @ (p_C - p_N)
         body.locked_from = None
         q_parts[body.name] = q_parts[body.name][len(q_parts[body.name]) - n:]
         u_parts[body.name] = u_parts[body.name][len(u_parts[body.name]) - n:]
