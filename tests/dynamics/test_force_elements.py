@@ -245,3 +245,36 @@ def test_bad_force_elements_are_refused_with_the_element_named(element, fragment
     with pytest.raises(ModelDefinitionError) as info:
         ConstrainedSystem(scene(), forces=[element])
     assert fragment in str(info.value), str(info.value)
+
+
+def test_elements_on_deforming_nodes_of_a_flexible_body_load_its_modes_by_the_gradient_of_their_energy():
+    """A flexible body (order-2 modal integrals, free) with a spring from one deforming node to the world, a
+    bushing from another to a rigid arm on a third node, and that arm against a floor: the generalized forces,
+    modal rows included, are minus the gradient of the elements' energy (1e-7, finite differences)."""
+    from tests.flexible.random_flexible import flexible_body_data, random_node_model
+
+    mb = Multibody(gravity=(0.0, 0.0, -9.81))
+    mb.add_flexible_body("panel", None, modal=flexible_body_data(random_node_model(6, 3, seed=4), 2), hinge="free")
+    mb.add_node("p2", "panel", grid=2)
+    mb.add_node("p4", "panel", grid=4)
+    mb.add_node("p6", "panel", grid=6)
+    mb.add_body("arm", "panel", parent_node="p6", mass=1.0, com=(0.2, 0, 0), inertia=[0.01, 0.02, 0.02],
+                hinge="revolute", axis=(0, 1, 0))
+    mb.add_node("arm_tip", "arm", position=(0.4, 0.0, 0.0))
+    system = mb.compile()
+    q = system.neutral_configuration()
+    q[:4] = unit([0.9, 0.1, -0.3, 0.2])
+    q[7:10] = [0.3, -0.2, 0.25]
+    q[10] = 0.4
+    tip = system.node_kinematics(q, np.zeros(system.nu)).position[system.node_index("arm_tip")]
+    forces = [SpringDamper("tether", "p2", world_point=(1.0, 2.0, -1.0), stiffness=40.0, free_length=0.5),
+              Bushing("mount", "p4", "arm_tip", stiffness=np.diag([5.0, 6.0, 7.0, 300.0, 200.0, 100.0])),
+              PlaneContact("floor", "arm_tip", radius=0.1, world_point=(0.0, 0.0, tip[2] - 0.05), stiffness=1e3)]
+    cs = ConstrainedSystem(system, forces=forces)
+    _, generalized = cs.element_forces(q, np.zeros(system.nu))
+    h = 1e-6
+    gradient = np.array([(cs.force_element_energy(cs.retract(q, h * e)) - cs.force_element_energy(cs.retract(q, -h * e)))
+                         / (2 * h) for e in np.eye(system.nu)])
+    np.testing.assert_allclose(generalized, -cs.tangent_map(q).T @ gradient, rtol=0,
+                               atol=1e-7 * np.abs(generalized).max())
+    assert np.abs(generalized[6:9]).min() > 1e-3  # the modes are loaded
