@@ -225,3 +225,23 @@ def test_minimal_linearization_at_a_moving_state_is_that_of_the_graph_chart():
         A[:, k] = (cs.rates(0.0, x0 + dx) - cs.rates(0.0, x0 - dx)) / 2e-6
     Ar = restrict(A, np.zeros((6, 1)), np.eye(6), V)[0]
     np.testing.assert_allclose(Ar, Az, rtol=0, atol=1e-6 * np.abs(Az).max())
+
+
+def test_multipliers_of_redundant_rows_are_the_minimum_norm_solution():
+    """The compiled solve of (G M^-1 G') lambda = rhs for a positive semidefinite matrix of rank 6 in 15 rows
+    (as Andrews' three spatial revolutes closing a planar mechanism give) equals numpy's pseudo-inverse
+    solution to 1e-11 of the largest multiplier, for random matrices of full rank, rank 6 and rank 1."""
+    from dynamics import constraint_kernels as CK
+
+    cs = andrews()
+    c = cs.data
+    rng = np.random.default_rng(2)
+    for rank in (15, 6, 1):
+        B = rng.standard_normal((15, rank)) * np.logspace(0, 1, rank)
+        A = B @ B.T
+        rhs = A @ rng.standard_normal(15)
+        c.A[:] = A
+        c.rhs[:] = rhs
+        CK._minimum_norm_solve(c, 15)
+        expected = np.linalg.pinv(A, rcond=1e-12) @ rhs
+        np.testing.assert_allclose(c.lam, expected, rtol=0, atol=1e-12 * np.abs(expected).max() * 10)
