@@ -20,15 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.dynamics.mechanisms import four_bar, four_bar_state, rocker_angle  # noqa: E402
-
-
-def rk4(f, y, h):
-    k1 = f(0.0, y)
-    k2 = f(0.0, y + h / 2 * k1)
-    k3 = f(0.0, y + h / 2 * k2)
-    k4 = f(0.0, y + h * k3)
-    return y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+from tests.dynamics.mechanisms import four_bar, four_bar_state, rk4_step, rocker_angle  # noqa: E402
 
 
 def simulate(gains, project, h, t_final):
@@ -41,7 +33,7 @@ def simulate(gains, project, h, t_final):
     steps = int(round(t_final / h))
     for k in range(steps):
         start = time.perf_counter()
-        y = rk4(cs.rates, y, h)
+        y = rk4_step(cs.rates, y, h)
         if project:
             y = np.concatenate(cs.project(y[:3], y[3:], tol=1e-10))
         elapsed += time.perf_counter() - start

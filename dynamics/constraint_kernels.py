@@ -67,7 +67,7 @@ from numba import njit
 from dynamics import engine as E
 from dynamics import flexible_kernels as FK
 from dynamics import kernels as K
-from dynamics.force_elements import apply_force_elements, force_element_energy
+from dynamics.force_elements import add_wrench_pair, apply_force_elements, force_element_energy, frame_b
 from dynamics.kernels.body_terms import apply_node_forces
 from dynamics.kernels.kinematics import body_kinematics
 from dynamics.kernels.newton_euler import transmit_forces
@@ -139,21 +139,6 @@ class ConstraintData(NamedTuple):
 
 
 @njit(cache=True)
-def frame_b(c_int, c_float, i, rotation, position, R):
-    """Pose of constraint i's frame B (node B, or the world pose): its rotation into ``R``, its origin returned."""
-    b = c_int[i, C_NODE_B]
-    if b >= 0:
-        for r in range(3):
-            for s in range(3):
-                R[r, s] = rotation[b, r, s]
-        return position[b, 0], position[b, 1], position[b, 2]
-    for r in range(3):
-        for s in range(3):
-            R[r, s] = c_float[i, C_WORLD_R + 3 * r + s]
-    return c_float[i, C_WORLD_P], c_float[i, C_WORLD_P + 1], c_float[i, C_WORLD_P + 2]
-
-
-@njit(cache=True)
 def relative_motion(c_int, c_float, i, rotation, position, velocity, acceleration, RB, Rrel, out):
     """Frame B relative to frame A (module docstring), A axes: ``Rrel = R_A' R_B`` (``RB`` scratch) and into
     ``out`` (24): ``[0:3] rho``, ``[3:6] w_rel``, ``[6:9] rho_dot``, ``[9:12] dw_rel``, ``[12:15] rho_ddot`` (the
@@ -161,7 +146,7 @@ def relative_motion(c_int, c_float, i, rotation, position, velocity, acceleratio
     a = c_int[i, C_NODE_A]
     b = c_int[i, C_NODE_B]
     RA = rotation[a]
-    pb0, pb1, pb2 = frame_b(c_int, c_float, i, rotation, position, RB)
+    pb0, pb1, pb2 = frame_b(rotation, position, b, c_float[i], C_WORLD_R, C_WORLD_P, RB)
     for r in range(3):
         for s in range(3):
             Rrel[r, s] = RA[0, r] * RB[0, s] + RA[1, r] * RB[1, s] + RA[2, r] * RB[2, s]
@@ -256,25 +241,9 @@ def _rho(c_int, c_float, i, rotation, position):
 def add_constraint_wrench(c_int, c_float, i, rotation, position, wrench, F):
     """Node forces (node axes, about the node origins) into ``F`` equivalent to the wrench ``[torque; force]``
     that A exerts on B (A axes, at B's origin): B receives it, A the opposite moved to A's origin."""
-    a = c_int[i, C_NODE_A]
-    b = c_int[i, C_NODE_B]
     rho0, rho1, rho2 = _rho(c_int, c_float, i, rotation, position)
-    m0, m1, m2 = cross(rho0, rho1, rho2, wrench[3], wrench[4], wrench[5])
-    F[a, 0] -= wrench[0] + m0
-    F[a, 1] -= wrench[1] + m1
-    F[a, 2] -= wrench[2] + m2
-    F[a, 3] -= wrench[3]
-    F[a, 4] -= wrench[4]
-    F[a, 5] -= wrench[5]
-    if b >= 0:
-        RA = rotation[a]
-        RB = rotation[b]
-        for o in (0, 3):
-            x0, x1, x2 = rotate(RA, wrench[o], wrench[o + 1], wrench[o + 2])
-            y0, y1, y2 = rotate_back(RB, x0, x1, x2)
-            F[b, o] += y0
-            F[b, o + 1] += y1
-            F[b, o + 2] += y2
+    add_wrench_pair(F, c_int[i, C_NODE_A], c_int[i, C_NODE_B], rotation, rho0, rho1, rho2, wrench[0], wrench[1],
+                    wrench[2], wrench[3], wrench[4], wrench[5])
 
 
 @njit(cache=True, inline="always")
@@ -338,6 +307,21 @@ def constraint_jacobian(d, c, q, m):
             row += 1
 
 
+@njit(cache=True, inline="always")
+def cholesky_solve(L, n, y):
+    """``y <- (L L')^-1 y`` in place for the lower Cholesky factor in ``L[:n, :n]``."""
+    for s in range(n):
+        t = y[s]
+        for j in range(s):
+            t -= L[s, j] * y[j]
+        y[s] = t / L[s, s]
+    for s in range(n - 1, -1, -1):
+        t = y[s]
+        for j in range(s + 1, n):
+            t -= L[j, s] * y[j]
+        y[s] = t / L[s, s]
+
+
 @njit(cache=True)
 def _factor_and_solve_rows(d, c, q, m):
     """Mass matrix (prescribed rows and columns replaced by the identity; the original kept in ``M_full``
@@ -371,16 +355,7 @@ def _factor_and_solve_rows(d, c, q, m):
         for i in range(topology.shape[0]):
             for kk in range(topology[i, N_PRESCRIBED]):
                 y[topology[i, U_START] + topology[i, PRESCRIBED_DOFS + kk]] = 0.0
-        for s in range(nu):
-            t = y[s]
-            for j in range(s):
-                t -= M[s, j] * y[j]
-            y[s] = t / M[s, s]
-        for s in range(nu - 1, -1, -1):
-            t = y[s]
-            for j in range(s + 1, nu):
-                t -= M[j, s] * y[j]
-            y[s] = t / M[s, s]
+        cholesky_solve(M, nu, y)
     for r in range(m):
         for s in range(r + 1):
             t = 0.0
@@ -441,16 +416,7 @@ def _minimum_norm_solve(c, m):
     y = c.gu
     for j in range(m):
         y[j] = c.rhs[int(order[j])] if j < rank else 0.0
-    for j in range(rank):
-        t = y[j]
-        for s in range(j):
-            t -= A[j, s] * y[s]
-        y[j] = t / A[j, j]
-    for j in range(rank - 1, -1, -1):
-        t = y[j]
-        for s in range(j + 1, rank):
-            t -= A[s, j] * y[s]
-        y[j] = t / A[j, j]
+    cholesky_solve(A, rank, y)
     nullity = m - rank
     if nullity > 0:
         # null-space basis in permuted order: N = [X; I] with L11' X = -L21' (rank x nullity), into c.V
@@ -478,26 +444,8 @@ def _minimum_norm_solve(c, m):
                 for j in range(m):
                     t += N[j, a] * N[j, b]
                 G[a, b] = t
-        for a in range(nullity):  # Cholesky of N'N (identity plus X'X: well conditioned)
-            t = G[a, a]
-            for s in range(a):
-                t -= G[a, s] * G[a, s]
-            G[a, a] = np.sqrt(t)
-            for b in range(a + 1, nullity):
-                t = G[b, a]
-                for s in range(a):
-                    t -= G[b, s] * G[a, s]
-                G[b, a] = t / G[a, a]
-        for a in range(nullity):
-            t = z[a]
-            for s in range(a):
-                t -= G[a, s] * z[s]
-            z[a] = t / G[a, a]
-        for a in range(nullity - 1, -1, -1):
-            t = z[a]
-            for s in range(a + 1, nullity):
-                t -= G[s, a] * z[s]
-            z[a] = t / G[a, a]
+        FK.cholesky_in_place(G, nullity)  # N'N = I + X'X: well conditioned
+        cholesky_solve(G, nullity, z)
         for j in range(m):
             t = 0.0
             for a in range(nullity):
@@ -505,6 +453,16 @@ def _minimum_norm_solve(c, m):
             y[j] -= t
     for j in range(m):
         c.lam[int(order[j])] = y[j]
+
+
+@njit(cache=True, inline="always")
+def _correction(c, m):
+    """``c.work = M^-1 G' lambda`` (from the rows ``Yt`` and the multipliers)."""
+    for s in range(c.work.shape[0]):
+        t = 0.0
+        for r in range(m):
+            t += c.lam[r] * c.Yt[r, s]
+        c.work[s] = t
 
 
 @njit(cache=True)
@@ -574,12 +532,9 @@ def forward_dynamics(d, c, q, u, tau, node_forces, udot, tau_out, loads):
     if npres < 0:
         return -1
     _minimum_norm_solve(c, m)
+    _correction(c, m)
     for s in range(nu):
-        t = 0.0
-        for r in range(m):
-            t += c.lam[r] * c.Yt[r, s]
-        c.work[s] = t
-        udot[s] += t
+        udot[s] += c.work[s]
     if npres > 0:
         topology = d.topology
         for i in range(topology.shape[0]):
@@ -652,7 +607,6 @@ def project_positions(d, c, q, tolerance, max_iterations):
     when ``|phi| <= tolerance`` is not reached in ``max_iterations`` or the mass matrix is singular."""
     d = E.borrowed(d)
     c = E.borrowed(c)
-    nu = c.zero_u.shape[0]
     m = active_rows(c.c_int)
     qdot = c.qdot
     for it in range(max_iterations + 1):
@@ -666,11 +620,7 @@ def project_positions(d, c, q, tolerance, max_iterations):
         for r in range(m):
             c.rhs[r] = -c.phi[r]
         _minimum_norm_solve(c, m)
-        for s in range(nu):
-            t = 0.0
-            for r in range(m):
-                t += c.lam[r] * c.Yt[r, s]
-            c.work[s] = t
+        _correction(c, m)
         K.coordinate_rates(d.topology, q, c.work, qdot)
         for s in range(q.shape[0]):
             q[s] += qdot[s]
@@ -698,11 +648,9 @@ def project_velocities(d, c, q, u):
             t += c.G[r, s] * u[s]
         c.rhs[r] = -t
     _minimum_norm_solve(c, m)
+    _correction(c, m)
     for s in range(nu):
-        t = 0.0
-        for r in range(m):
-            t += c.lam[r] * c.Yt[r, s]
-        u[s] += t
+        u[s] += c.work[s]
     return 0
 
 

@@ -43,7 +43,7 @@ from dynamics.engine import engine_data
 from dynamics.errors import ModelDefinitionError
 from dynamics import force_elements as FE
 from dynamics.force_elements import Bushing, SpringDamper, element_tables
-from dynamics.hinges import FREE, HINGE_TYPES, SPHERICAL
+from dynamics.hinges import FREE, SPHERICAL
 from dynamics.layout import HINGE_TYPE, NQ_HINGE, NU_HINGE, N_MODES, Q_START, U_START
 from dynamics.spatial import quaternion_to_rotation
 

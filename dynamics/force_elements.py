@@ -97,18 +97,56 @@ def _point_velocity(rotation, position, velocity, k, x0, x1, x2):
 
 
 @njit(cache=True, inline="always")
+def add_node_wrench(F, k, R, t0, t1, t2, f0, f1, f2):
+    """``F[k] += [R' t; R' f]``: a torque and force given in the axes R maps into the world, at node k's origin."""
+    a0, a1, a2 = rotate_back(R, t0, t1, t2)
+    b0, b1, b2 = rotate_back(R, f0, f1, f2)
+    F[k, 0] += a0
+    F[k, 1] += a1
+    F[k, 2] += a2
+    F[k, 3] += b0
+    F[k, 4] += b1
+    F[k, 5] += b2
+
+
+@njit(cache=True, inline="always")
 def _add_world_force(rotation, position, k, x0, x1, x2, p0, p1, p2, F):
     """Node k receives the world force P applied at world point x: node axes, about the node origin."""
-    R = rotation[k]
     m0, m1, m2 = cross(x0 - position[k, 0], x1 - position[k, 1], x2 - position[k, 2], p0, p1, p2)
-    t0, t1, t2 = rotate_back(R, m0, m1, m2)
-    f0, f1, f2 = rotate_back(R, p0, p1, p2)
-    F[k, 0] += t0
-    F[k, 1] += t1
-    F[k, 2] += t2
-    F[k, 3] += f0
-    F[k, 4] += f1
-    F[k, 5] += f2
+    add_node_wrench(F, k, rotation[k], m0, m1, m2, p0, p1, p2)
+
+
+@njit(cache=True, inline="always")
+def add_wrench_pair(F, a, b, rotation, rho0, rho1, rho2, t0, t1, t2, f0, f1, f2):
+    """The wrench ``[t; f]`` that node A exerts on node B (A's axes, at B's origin, ``rho`` = B's origin from A's in
+    A's axes) as node forces: B receives it (unless ``b < 0``: the world), A the opposite moved to its origin."""
+    m0, m1, m2 = cross(rho0, rho1, rho2, f0, f1, f2)
+    F[a, 0] -= t0 + m0
+    F[a, 1] -= t1 + m1
+    F[a, 2] -= t2 + m2
+    F[a, 3] -= f0
+    F[a, 4] -= f1
+    F[a, 5] -= f2
+    if b >= 0:
+        RA = rotation[a]
+        x0, x1, x2 = rotate(RA, t0, t1, t2)
+        y0, y1, y2 = rotate(RA, f0, f1, f2)
+        add_node_wrench(F, b, rotation[b], x0, x1, x2, y0, y1, y2)
+
+
+@njit(cache=True, inline="always")
+def frame_b(rotation, position, b, row, r_col, p_col, R):
+    """Pose of an element's or constraint's frame B: node b's (rotation into ``R``, origin returned), or, for
+    ``b < 0``, the world pose stored in ``row`` (rotation row major from ``r_col``, origin from ``p_col``)."""
+    if b >= 0:
+        for r in range(3):
+            for s in range(3):
+                R[r, s] = rotation[b, r, s]
+        return position[b, 0], position[b, 1], position[b, 2]
+    for r in range(3):
+        for s in range(3):
+            R[r, s] = row[r_col + 3 * r + s]
+    return row[p_col], row[p_col + 1], row[p_col + 2]
 
 
 @njit(cache=True, inline="always")
@@ -162,20 +200,6 @@ def _left_jacobian_inverse_transpose_times(t0, t1, t2, g0, g1, g2):
 
 
 @njit(cache=True, inline="always")
-def _frame_b(f_int, f_float, e, rotation, position, R):
-    b = f_int[e, F_NODE_B]
-    if b >= 0:
-        for r in range(3):
-            for s in range(3):
-                R[r, s] = rotation[b, r, s]
-        return position[b, 0], position[b, 1], position[b, 2]
-    for r in range(3):
-        for s in range(3):
-            R[r, s] = f_float[e, F_WORLD_R + 3 * r + s]
-    return f_float[e, F_WORLD_P], f_float[e, F_WORLD_P + 1], f_float[e, F_WORLD_P + 2]
-
-
-@njit(cache=True, inline="always")
 def _bushing_rows(f_float, e, offset, first, x):
     """Rows first..first+2 of the 6 x 6 matrix at ``offset`` times the 6-tuple x."""
     out0 = out1 = out2 = 0.0
@@ -191,7 +215,7 @@ def _bushing_deflection(f_int, f_float, e, rotation, position, RB, Rrel):
     """The deflection ``[theta; rho]`` of node B (or the world pose) from node A, A's axes; ``Rrel = R_A' R_B``."""
     a = f_int[e, F_NODE_A]
     RA = rotation[a]
-    pb0, pb1, pb2 = _frame_b(f_int, f_float, e, rotation, position, RB)
+    pb0, pb1, pb2 = frame_b(rotation, position, f_int[e, F_NODE_B], f_float[e], F_WORLD_R, F_WORLD_P, RB)
     for r in range(3):
         for s in range(3):
             Rrel[r, s] = RA[0, r] * RB[0, s] + RA[1, r] * RB[1, s] + RA[2, r] * RB[2, s]
@@ -233,22 +257,7 @@ def _bushing(f_int, f_float, e, rotation, position, velocity, F, RB, Rrel):
     j0, j1, j2 = _left_jacobian_inverse_transpose_times(t0, t1, t2, k0, k1, k2)
     wrench0, wrench1, wrench2 = -j0 - h0, -j1 - h1, -j2 - h2
     wrench3, wrench4, wrench5 = -k3 - h3, -k4 - h4, -k5 - h5
-    m0, m1, m2 = cross(r0, r1, r2, wrench3, wrench4, wrench5)
-    F[a, 0] -= wrench0 + m0
-    F[a, 1] -= wrench1 + m1
-    F[a, 2] -= wrench2 + m2
-    F[a, 3] -= wrench3
-    F[a, 4] -= wrench4
-    F[a, 5] -= wrench5
-    if b >= 0:
-        x0, x1, x2 = rotate_back(Rrel, wrench0, wrench1, wrench2)
-        y0, y1, y2 = rotate_back(Rrel, wrench3, wrench4, wrench5)
-        F[b, 0] += x0
-        F[b, 1] += x1
-        F[b, 2] += x2
-        F[b, 3] += y0
-        F[b, 4] += y1
-        F[b, 5] += y2
+    add_wrench_pair(F, a, b, rotation, r0, r1, r2, wrench0, wrench1, wrench2, wrench3, wrench4, wrench5)
 
 
 @njit(cache=True, inline="always")
@@ -671,8 +680,27 @@ class HingeFriction(_HingeElement):
         return ints, floats
 
 
+@dataclass(kw_only=True)
+class _Contact(_Element):
+    """The contact law every contact shares (keywords): Hunt-Crossley ``stiffness``, ``exponent`` (3/2),
+    ``damping`` or ``restitution`` at ``impact_speed``, Coulomb ``friction`` regularized below ``slip_speed``."""
+
+    stiffness: float = 0.0
+    exponent: float | None = None
+    damping: float | None = None
+    restitution: float | None = None
+    impact_speed: float | None = None
+    friction: float = 0.0
+    slip_speed: float = 1e-3
+
+    def _contact_rows(self, floats):
+        self._contact_law(floats, 1.5)
+        floats[F_FRICTION] = _number(self.friction, self.where, "friction", low=0.0)
+        floats[F_SLIP] = _number(self.slip_speed, self.where, "slip_speed", positive=True)
+
+
 @dataclass
-class PlaneContact(_Element):
+class PlaneContact(_Contact):
     """A sphere of ``radius`` centred on ``node`` against a plane through ``plane_node``'s origin with unit
     ``normal`` in its axes (default +z), or fixed in the world (``plane_node`` None: ``world_point`` and a
     world ``normal``)."""
@@ -683,13 +711,6 @@ class PlaneContact(_Element):
     plane_node: str | None = None
     normal: tuple = (0.0, 0.0, 1.0)
     world_point: tuple = (0.0, 0.0, 0.0)
-    stiffness: float = 0.0
-    exponent: float | None = None
-    damping: float | None = None
-    restitution: float | None = None
-    impact_speed: float | None = None
-    friction: float = 0.0
-    slip_speed: float = 1e-3
     kind = PLANE_CONTACT
 
     def compile(self, system, reference, allow_locked=False):
@@ -709,14 +730,12 @@ class PlaneContact(_Element):
         floats[F_NORMAL:F_NORMAL + 3] = n
         floats[F_WORLD_P:F_WORLD_P + 3] = p
         floats[F_RADIUS_A] = _number(self.radius, self.where, "radius", low=0.0)
-        self._contact_law(floats, 1.5)
-        floats[F_FRICTION] = _number(self.friction, self.where, "friction", low=0.0)
-        floats[F_SLIP] = _number(self.slip_speed, self.where, "slip_speed", positive=True)
+        self._contact_rows(floats)
         return ints, floats
 
 
 @dataclass
-class SphereContact(_Element):
+class SphereContact(_Contact):
     """Two spheres, radius ``radius_a`` on ``node_a`` and ``radius_b`` on ``node_b``."""
 
     name: str
@@ -724,13 +743,6 @@ class SphereContact(_Element):
     node_b: str
     radius_a: float = 0.0
     radius_b: float = 0.0
-    stiffness: float = 0.0
-    exponent: float | None = None
-    damping: float | None = None
-    restitution: float | None = None
-    impact_speed: float | None = None
-    friction: float = 0.0
-    slip_speed: float = 1e-3
     kind = SPHERE_CONTACT
 
     def compile(self, system, reference, allow_locked=False):
@@ -744,9 +756,7 @@ class SphereContact(_Element):
         floats[F_RADIUS_B] = _number(self.radius_b, self.where, "radius_b", low=0.0)
         if not floats[F_RADIUS_A] + floats[F_RADIUS_B] > 0.0:
             raise ModelDefinitionError(f"{self.where}: the radii must not both be zero")
-        self._contact_law(floats, 1.5)
-        floats[F_FRICTION] = _number(self.friction, self.where, "friction", low=0.0)
-        floats[F_SLIP] = _number(self.slip_speed, self.where, "slip_speed", positive=True)
+        self._contact_rows(floats)
         return ints, floats
 
 

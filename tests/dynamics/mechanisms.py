@@ -56,6 +56,15 @@ def rocker_angle(crank_angle):
     return np.arctan2(Q[1] - C[1], Q[0] - C[0]), Q, P
 
 
+def rk4_step(f, y, h):
+    """One classical Runge-Kutta step of ``y' = f(t, y)`` (autonomous)."""
+    k1 = f(0.0, y)
+    k2 = f(0.0, y + h / 2 * k1)
+    k3 = f(0.0, y + h / 2 * k2)
+    k4 = f(0.0, y + h * k3)
+    return y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
 def four_bar_state(crank_angle, crank_rate):
     """Tree coordinates on the loop (upper branch), with only the crank rate given (project to finish)."""
     theta3, Q, P = rocker_angle(crank_angle)

@@ -20,58 +20,11 @@ import pytest
 from dynamics import Multibody
 from dynamics.constraints import ClosureConstraint, ConstrainedSystem, ConstraintError
 
+from tests.dynamics.mechanisms import COUPLER, CRANK, ROCKER, four_bar, four_bar_state, rk4_step, rocker_angle
+
 from .random_flexible import flexible_body_data, random_node_model
 
-CRANK, COUPLER, ROCKER, GROUND = 1.0, 3.0, 2.5, 3.0  # m; Grashof crank-rocker (1 + 3 <= 2.5 + 3)
-Z = (0.0, 0.0, 1.0)
-
-
-def rod(length, mass):
-    """Slender rod along x from its hinge: mass, CG, inertia about the CG."""
-    return dict(mass=mass, com=(length / 2, 0.0, 0.0),
-                inertia=[1e-3, mass * length ** 2 / 12, mass * length ** 2 / 12 + 1e-3])
-
-
-def four_bar(gravity=(0.0, -9.81, 0.0), baumgarte=(0.0, 0.0)):
-    mb = Multibody(gravity=gravity)
-    mb.add_body("crank", None, hinge="revolute", axis=Z, **rod(CRANK, 1.0))
-    mb.add_body("coupler", "crank", hinge="revolute", axis=Z, inboard_position=(CRANK, 0, 0), **rod(COUPLER, 2.0))
-    mb.add_body("rocker", None, hinge="revolute", axis=Z, inboard_position=(GROUND, 0, 0), **rod(ROCKER, 1.5))
-    mb.add_node("coupler_tip", "coupler", position=(COUPLER, 0, 0))
-    mb.add_node("rocker_tip", "rocker", position=(ROCKER, 0, 0))
-    system = mb.compile()
-    pin = ClosureConstraint("coupler_tip", "rocker_tip", "revolute", axis=Z)
-    return ConstrainedSystem(system, [pin], baumgarte=baumgarte)
-
-
-def rocker_angle(crank_angle):
-    """Analytic loop closure: rocker angle (upper branch) for a crank angle (circle intersection)."""
-    P = CRANK * np.array([np.cos(crank_angle), np.sin(crank_angle)])
-    C = np.array([GROUND, 0.0])
-    dvec = P - C
-    dist = np.linalg.norm(dvec)
-    along = (ROCKER ** 2 - COUPLER ** 2 + dist ** 2) / (2 * dist)
-    h = np.sqrt(ROCKER ** 2 - along ** 2)
-    e = dvec / dist
-    Q = C + along * e + h * np.array([-e[1], e[0]])
-    if Q[1] < 0:  # keep the upper branch
-        Q = C + along * e - h * np.array([-e[1], e[0]])
-    return np.arctan2(Q[1] - C[1], Q[0] - C[0]), Q, P
-
-
-def assembled_state(crank_angle, crank_rate):
-    theta3, Q, P = rocker_angle(crank_angle)
-    phi2 = np.arctan2(Q[1] - P[1], Q[0] - P[0])
-    q = np.array([crank_angle, phi2 - crank_angle, theta3])
-    return q, np.array([crank_rate, 0.0, 0.0])
-
-
-def rk4_step(f, y, h):
-    k1 = f(0.0, y)
-    k2 = f(0.0, y + h / 2 * k1)
-    k3 = f(0.0, y + h / 2 * k2)
-    k4 = f(0.0, y + h * k3)
-    return y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+assembled_state = four_bar_state  # tree coordinates on the loop (upper branch) with the crank rate given
 
 
 def simulate(cs, t_final, h, project):
