@@ -44,7 +44,9 @@ from dynamics.errors import ModelDefinitionError
 from dynamics import force_elements as FE
 from dynamics.force_elements import Bushing, SpringDamper, element_tables
 from dynamics.hinges import FREE, SPHERICAL
+from dynamics.definitions import suggest
 from dynamics.layout import HINGE_TYPE, NQ_HINGE, NU_HINGE, N_MODES, Q_START, U_START
+from dynamics.reconfigure import attach_welds, latch_gap
 from dynamics.spatial import quaternion_to_rotation
 
 CONSTRAINT_KINDS = {name: CK.ROWS[code] for name, code in CK.KINDS.items()}
@@ -188,8 +190,6 @@ class ConstrainedSystem:
             where = f"constraint '{c.label}'"
             for role, nd in (("node_a", c.node_a), ("node_b", c.node_b)):
                 if nd is not None and nd not in system.node_names:
-                    from dynamics.definitions import suggest
-
                     raise ConstraintError(f"{where}: unknown node '{nd}' ({role}); nodes: {list(system.node_names)}"
                                           + suggest(nd, system.node_names))
             a = system.node_index(c.node_a)
@@ -257,8 +257,6 @@ class ConstrainedSystem:
         for i, c in enumerate(self.constraints):
             if c.label == name:
                 return i
-        from dynamics.definitions import suggest
-
         labels = [c.label for c in self.constraints]
         raise ConstraintError(f"unknown constraint '{name}'; constraints: {labels}" + suggest(name, labels))
 
@@ -493,15 +491,16 @@ class ConstrainedSystem:
         constraints = self.resolved_constraints()
         report = None
         if attach:
-            welds = []
-            for body, spec in attach.items():
-                try:
-                    body_node, target = spec
-                except (TypeError, ValueError):
-                    raise ConstraintError(f"attach: body '{body}': give (body_node, target_node), got {spec!r}") from None
-                welds.append(ClosureConstraint(body_node, target, "weld", name=f"attach {body}"))
-            latch = ConstrainedSystem(self.system, welds)
-            gap, worst = latch.worst_residual(q)
+            bodies = {b.name: b for b in self.system.definitions[0]}
+            joints = {b.joint_name: b for b in self.system.definitions[0]}
+
+            def find(name, what):
+                if name not in bodies and name not in joints:
+                    raise ConstraintError(f"{what}: unknown body or hinge '{name}' (bodies: {list(bodies)})"
+                                          + suggest(name, list(bodies)))
+                return bodies.get(name) or joints[name]
+            welds, _ = attach_welds(list(bodies.values()), self.system.definitions[1], attach, find)
+            gap, worst = latch_gap(ConstrainedSystem(self.system, welds).worst_residual(q), tolerance)
             latch = ConstrainedSystem(self.system, constraints + welds)
             u_latched, lost = latch.impact(q, u)
             report = AssemblyReport(gap, worst, 0.0, float(np.abs(u_latched - u).max(initial=0.0)), float(lost))

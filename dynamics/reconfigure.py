@@ -35,7 +35,7 @@ import dataclasses
 
 import numpy as np
 
-from dynamics.definitions import hinge_definition, rigid_mass_properties
+from dynamics.definitions import hinge_definition, rigid_mass_properties, suggest
 from dynamics.errors import ModelDefinitionError
 from dynamics.hinges import HINGE_TYPES, hinge_transform, neutral_hinge_coordinates
 from dynamics.spatial import rotation_to_quaternion
@@ -186,11 +186,10 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), attach=None, mas
     return new, q_new, u_new
 
 
-def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find, tolerance):
-    """The latch of each ``attach`` entry (module docstring): the plastic impact on the current system, then
-    the body's hinge made a locked hinge on the target node at the relative pose of the latch. Returns the new
-    coordinates."""
-    from dynamics.constraints import DEFAULT_ASSEMBLY_TOLERANCE, ClosureConstraint, ConstrainedSystem
+def attach_welds(bodies, nodes, attach, find):
+    """Check the ``attach`` entries against the body and node definitions and return ``(welds, moves)``: the weld
+    closure of each latch and ``(body, body_node, target_node)``."""
+    from dynamics.constraints import ClosureConstraint
 
     node_by_name = {nd.name: nd for nd in nodes}
     children = {}
@@ -213,7 +212,8 @@ def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find
                                        f"needs the hinge on the body frame")
         for role, nd in (("its node", body_node), ("the target node", target)):
             if nd not in node_by_name:
-                raise ModelDefinitionError(f"{where}: unknown node '{nd}' ({role}); nodes: {list(node_by_name)}")
+                raise ModelDefinitionError(f"{where}: unknown node '{nd}' ({role}); nodes: {list(node_by_name)}"
+                                           + suggest(nd, node_by_name))
         if node_by_name[body_node].body != body.name:
             raise ModelDefinitionError(f"{where}: node '{body_node}' is on body '{node_by_name[body_node].body}', "
                                        f"not on '{body.name}'")
@@ -227,15 +227,35 @@ def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find
                                        f"which moves with '{body.name}' (a loop: use a closure constraint)")
         welds.append(ClosureConstraint(body_node, target, "weld", name=f"attach {body.name}"))
         moves.append((body, body_node, target))
-    mid = _compile(system_class, bodies, nodes, gravity)
-    q_mid = np.concatenate([q_parts[b.name] for b in bodies])
-    u_mid = np.concatenate([u_parts[b.name] for b in bodies])
-    latch = ConstrainedSystem(mid, welds)
-    gap, worst = latch.worst_residual(q_mid)
+    return welds, moves
+
+
+def latch_gap(worst_residual, tolerance):
+    """``(gap, constraint)``: the largest misalignment (m or rad) of the latches' frames (a weld's
+    :meth:`~dynamics.constraints.ConstrainedSystem.worst_residual`), refused beyond ``tolerance``."""
+    from dynamics.constraints import DEFAULT_ASSEMBLY_TOLERANCE
+
+    gap, worst = worst_residual
     tolerance = DEFAULT_ASSEMBLY_TOLERANCE if tolerance is None else tolerance
     if gap > tolerance:
         raise ModelDefinitionError(f"attach: the frames of '{worst}' are {gap:.6g} (m or rad) apart, more than the "
                                    f"latch tolerance {tolerance:.3g}")
+    return gap, worst
+
+
+def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find, tolerance):
+    """The latch of each ``attach`` entry (module docstring): the plastic impact on the current system, then
+    the body's hinge made a locked hinge on the target node at the relative pose of the latch. Returns the new
+    coordinates."""
+    from dynamics.constraints import ConstrainedSystem
+
+    node_by_name = {nd.name: nd for nd in nodes}
+    welds, moves = attach_welds(bodies, nodes, attach, find)
+    mid = _compile(system_class, bodies, nodes, gravity)
+    q_mid = np.concatenate([q_parts[b.name] for b in bodies])
+    u_mid = np.concatenate([u_parts[b.name] for b in bodies])
+    latch = ConstrainedSystem(mid, welds)
+    latch_gap(latch.worst_residual(q_mid), tolerance)
     u_mid = latch.impact(q_mid, u_mid)[0]
     kin = mid.node_kinematics(q_mid, np.zeros(mid.nu))
     for k, b in enumerate(bodies):

@@ -331,3 +331,22 @@ def test_a_lock_in_a_closed_chain_is_the_projection_onto_both_the_lock_and_the_l
     locked, q1, u1, _ = cs.reconfigure(q, u, lock=["crank1"])
     np.testing.assert_allclose(u1, expected[1:], rtol=0, atol=1e-12)
     assert np.abs(locked.velocity_residual(q1, u1)).max() < 1e-12
+
+
+def test_bad_attach_requests_are_refused_with_the_body_named():
+    from dynamics import ModelDefinitionError
+    import pytest
+
+    cs, y = docking_scene()
+    q, u = y[:14], y[14:]
+    with pytest.raises(ModelDefinitionError, match="unknown node 'dock' \\(the target node\\)"):
+        cs.reconfigure(q, u, attach={"chaser": ("chaser_port", "dock")}, tolerance=1.0)
+    with pytest.raises(ModelDefinitionError, match="node 'target_port' is on body 'target', not on 'chaser'"):
+        cs.reconfigure(q, u, attach={"chaser": ("target_port", "plate")}, tolerance=1.0)
+    with pytest.raises(ModelDefinitionError, match="frames of 'attach chaser' are 0.1.* apart, more than the latch"):
+        cs.reconfigure(q, u, attach={"chaser": ("chaser_port", "target_port")})
+    stack, y = two_stage(spring=False)
+    with pytest.raises(ModelDefinitionError, match="only a body floating free .* it has a locked hinge to lower"):
+        stack.reconfigure(y[:7], y[7:], attach={"upper": ("upper_seat", "lower_seat")})
+    with pytest.raises(ModelDefinitionError, match="unknown body or hinge 'uper'"):
+        stack.reconfigure(y[:7], y[7:], detach=["uper"])

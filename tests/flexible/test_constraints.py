@@ -277,3 +277,36 @@ def test_bad_constraints_refused():
         ClosureConstraint("coupler_tip", "rocker_tip", "revolute")
     with pytest.raises(ConstraintError, match="q_reference"):
         ConstrainedSystem(cs.system, [ClosureConstraint("coupler_tip", None, "weld")])
+    with pytest.raises(ConstraintError, match="a prismatic closure needs an axis"):
+        ClosureConstraint("coupler_tip", "rocker_tip", "prismatic")
+    with pytest.raises(ConstraintError, match="only distance constraints take a length"):
+        ClosureConstraint("coupler_tip", "rocker_tip", "ball", length=1.0)
+    with pytest.raises(ConstraintError, match="length must be positive"):
+        ClosureConstraint("coupler_tip", "rocker_tip", "distance", length=0.0)
+    mb = Multibody()
+    mb.add_body("plate", None, mass=1.0, inertia=[0.1, 0.1, 0.1], hinge="free")
+    mb.add_node("corner1", "plate", position=(1, 0, 0))
+    mb.add_node("corner2", "plate", position=(0, 1, 0))
+    with pytest.raises(ConstraintError, match="both on the rigid body 'plate'"):
+        ConstrainedSystem(mb.compile(), [ClosureConstraint("corner1", "corner2", "ball")])
+    pin = ClosureConstraint("coupler_tip", "rocker_tip", "ball", name="pin")
+    with pytest.raises(ConstraintError, match="'pin': duplicate name"):
+        ConstrainedSystem(cs.system, [pin, pin])
+    with pytest.raises(ConstraintError, match="unknown constraint 'pn'.*Did you mean 'pin'"):
+        ConstrainedSystem(cs.system, [pin]).switch_on("pn", *assembled_state(1.0, 0.0))
+
+
+def test_assembly_projects_a_near_state_says_how_far_and_refuses_a_far_one():
+    """A state 1e-7 off the loop is projected (the report gives the residual, the constraint, how far q moved);
+    one 0.03 rad off is refused, naming the constraint and the tolerance."""
+    cs = four_bar()
+    q, u = assembled_state(np.radians(60.0), 2.0)
+    q_near = q + np.array([0.0, 1e-7, 0.0])
+    q1, u1, report = cs.assemble(q_near, u)
+    assert report.worst == "pin" and 5e-8 < report.residual < 5e-7 and 1e-8 < report.moved < 1e-6
+    assert np.abs(cs.residual(q1)).max() < 1e-12 and np.abs(cs.velocity_residual(q1, u1)).max() < 1e-12
+    assert report.energy_lost > 0.0  # the crank's rate alone violates the loop: the projection removes energy
+    with pytest.raises(ConstraintError, match=r"constraint 'pin' is violated by 0.0[0-9]* .*tolerance 1e-06"):
+        cs.assemble(q + np.array([0.0, 0.03, 0.0]), u)
+    q2, _, report = cs.assemble(q + np.array([0.0, 0.03, 0.0]), u, tolerance=0.1)
+    assert abs(q2[2] - rocker_angle(q2[0])[0]) < 1e-11 and report.moved > 0.01
