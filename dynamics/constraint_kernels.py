@@ -8,7 +8,7 @@ between nodes and on hinges (:mod:`dynamics.force_elements`). FModal paper (IEEE
 
 Constraint kinematics, every quantity in A's axes (``R_A`` node A -> world, ``rho = R_A'(p_B - p_A)``,
 ``w`` the angular velocity of A in A axes, node velocities and classical accelerations from
-:func:`dynamics.kernels.node_kinematics`, elastic motion included):
+:func:`dynamics.kernels.node_kinematics`, elastic motion included)::
 
     relative angular velocity    w_rel = R_A'(w_B - w_A)
     relative linear velocity     v_rel = rho_dot = R_A'(v_B - v_A) - w x rho   (B's origin relative to the
@@ -29,7 +29,7 @@ unit multiplier is the wrench ``S_r'`` that A exerts on B (A axes, at B's origin
 origin on A; :func:`node_forces_generalized` (the Newton-Euler backward pass, ``J' f``) turns the pair into
 column r of ``G'``, so ``G`` is exactly the velocity map whatever the bodies (rigid or flexible).
 
-Dynamics (index-1 form, Baumgarte 1972 stabilization with gains alpha, beta [1/s]):
+Dynamics (index-1 form, Baumgarte 1972 stabilization with gains alpha, beta [1/s])::
 
     M u_dot = tau - h + G' lambda,      G u_dot = -k - 2 alpha G u - beta^2 phi
 

@@ -383,7 +383,7 @@ class ConstrainedSystem:
         """(q, u) on the constraint manifold: Newton on phi(q) = 0 along M^-1 G' directions (the least
         kinetic-energy correction), then the M-orthogonal velocity projection onto G u = 0.
 
-        Stops when |phi| <= tol (rad, m); raises :class:`ConstraintError` when it does not converge."""
+        Stops when ``|phi| <= tol`` (rad, m); raises :class:`ConstraintError` when it does not converge."""
         q = self._q(q)
         u = np.array(u, dtype=float)
         if CK.project_positions(self.engine, self.data, q, tol, max_iterations) < 0:
@@ -394,7 +394,7 @@ class ConstrainedSystem:
         return q, u
 
     def worst_residual(self, q):
-        """(largest |phi| of the active rows, the constraint it belongs to)."""
+        """(largest ``|phi|`` of the active rows, the constraint it belongs to)."""
         phi = self.residual(q)
         slices, _ = self._active_slices()
         worst, name = 0.0, ""
