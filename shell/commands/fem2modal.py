@@ -6,6 +6,8 @@ import argparse
 import sys
 import warnings
 
+from shell.outputs import OVERWRITE_HELP
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -56,6 +58,7 @@ def register(subparsers) -> None:
                         "not modelled")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.add_argument("-o", "--output", required=True, metavar="BODY.h5", help="body file to write")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=run)
 
 
@@ -66,12 +69,15 @@ def run(args: argparse.Namespace) -> int:
     from dynamics.flex.geometric_stiffness import parse_preload
     from dynamics.flex.modes import EigenSolutionError
     from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal, parse_grid_dofs
+    from shell.outputs import BODY_FILE, guard_output
 
     def progress(msg):
         if not args.quiet:
             print(msg, file=sys.stderr, flush=True)
 
     try:
+        guard_output(args.output, BODY_FILE, inputs=((args.deck, "the deck itself"), (args.op4, "the OP4 file")),
+                     overwrite=args.overwrite)
         options = Fem2ModalOptions(
             n_modes=args.modes, cutoff_hz=args.cutoff,
             aset=[parse_grid_dofs(s) for s in args.aset],

@@ -21,6 +21,8 @@ import time
 import warnings
 from pathlib import Path
 
+from shell.outputs import OVERWRITE_HELP
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -49,6 +51,7 @@ def register(subparsers) -> None:
                                        "else 10 Hz)")
     parser.add_argument("--max-frames", type=int, default=6000,
                         help="most frames kept from a log (evenly decimated; default 6000)")
+    parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.set_defaults(func=view)
 
 
@@ -97,23 +100,10 @@ def _scale(value: str):
     return scale
 
 
-def _check_output(output: Path, source: Path) -> None:
-    from shell.log_file import check_output_place
-
-    check_output_place(output)
-    if output.exists() and output.resolve() == source.resolve():
-        raise ValueError(f"{output}: is the input itself; choose another output")
-    if output.exists() and output.stat().st_size:
-        with open(output, "rb") as f:
-            head = f.read(64).lstrip().lower()
-        if not head.startswith((b"<!doctype html", b"<html")):
-            raise ValueError(f"{output}: exists and is not an HTML page; refusing to overwrite it (remove it or "
-                             "choose another output)")
-
-
 def view(args) -> int:
     from shell.log_file import LogError
     from shell.model import ModelError
+    from shell.outputs import HTML, guard_output
     from shell.scenario import ScenarioError
     from shell.units import UnitError
     from shell.view.page import write_html
@@ -126,7 +116,9 @@ def view(args) -> int:
         if not source.is_file():
             raise ValueError(f"{source}: no such file")
         kind = _kind(source)
-        _check_output(output, source)
+        guard_output(output, HTML, inputs=((source, "the input itself"), (args.scenario, "the scenario of --scenario"),
+                                           *((item.partition("=")[2], "a mesh of --mesh") for item in args.mesh)),
+                     overwrite=args.overwrite)
         scale, meshes = _scale(args.scale), _meshes(args.mesh)
         if args.max_frames < 2:
             raise ValueError(f"--max-frames: expected at least 2, given {args.max_frames}")
