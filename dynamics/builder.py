@@ -142,13 +142,15 @@ class Multibody:
         if name in self._body_index:
             raise ModelDefinitionError(f"{where}: duplicate body name (already defined as body "
                                        f"#{self._body_index[name]})")
+        if parent is not GROUND and not isinstance(parent, str):
+            raise ModelDefinitionError(f"{where}: parent must be a body name (text) or None, got {parent!r}")
         if parent is not GROUND and parent not in self._body_index:
             known = list(self._body_index)
             raise ModelDefinitionError(
                 f"{where}: unknown parent '{parent}'; parents must be added before their children "
                 f"(bodies defined so far: {known or 'none'}; use parent=None for the ground)."
                 + _suggest(parent, known))
-        if hinge not in HINGE_TYPES:
+        if not isinstance(hinge, str) or hinge not in HINGE_TYPES:
             raise ModelDefinitionError(f"{where}: unknown hinge type {hinge!r}; expected one of "
                                        f"{sorted(HINGE_TYPES)}" + _suggest(hinge, HINGE_TYPES))
         try:
@@ -263,7 +265,7 @@ class Multibody:
             raise ModelDefinitionError(f"node name must be a non-empty string, got {name!r}")
         if name in self._node_names:
             raise ModelDefinitionError(f"node '{name}': duplicate node name")
-        if body not in self._body_index:
+        if not isinstance(body, str) or body not in self._body_index:
             raise ModelDefinitionError(f"node '{name}': unknown body '{body}' (bodies: "
                                        f"{list(self._body_index) or 'none'})" + _suggest(body, self._body_index))
         flexible = self.bodies[self._body_index[body]].flexible
@@ -336,9 +338,12 @@ class Multibody:
                     f"CONM2 I11-I33, PARAM COUPMASS 1 or CBEAM elements), or use a hinge that does not turn "
                     f"about that axis")
             return J
-        if eig[0] + eig[1] < eig[2] * (1.0 - 1e-9):
-            warnings.warn(f"{where}: principal moments {eig.tolist()} violate the triangle inequality "
-                          f"(I1 + I2 >= I3) that every physical mass distribution satisfies", stacklevel=3)
+        if eig[0] + eig[1] < eig[2] * (1.0 - 1e-9):  # refused, not warned: shell/diagnostics.py says why
+            raise ModelDefinitionError(
+                f"{where}: principal moments {eig.tolist()} kg m^2 violate the triangle inequality I1 + I2 >= I3 "
+                "that every mass distribution satisfies (I1 + I2 - I3 is twice the integral of z^2 dm): no body "
+                "has this inertia. Check the values and their axes (a wheel or disk of spin inertia Is has "
+                "transverse inertia of at least Is/2)")
         return J
 
     @staticmethod

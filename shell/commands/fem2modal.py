@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import warnings
 
 from shell.outputs import OVERWRITE_HELP
 
@@ -89,10 +88,7 @@ def run(args: argparse.Namespace) -> int:
             allow_unsupported=args.allow_unsupported, op4=args.op4,
             geometric_stiffness=args.geometric_stiffness,
             preloads=[parse_preload(s) for s in args.preload])
-        with warnings.catch_warnings():
-            warnings.simplefilter("always")
-            warnings.showwarning = lambda m, *a, **k: progress(f"warning: {m}")
-            body = fem2modal(args.deck, options, progress=progress)
+        body = fem2modal(args.deck, options, progress=progress)  # its warnings: flexshell messages (shell.cli)
         write_body_file(args.output, body)
     except (BulkDataError, CraigBamptonError, EigenSolutionError, ValueError,
             FileNotFoundError) as exc:

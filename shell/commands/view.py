@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import sys
 import time
-import warnings
 from pathlib import Path
 
 from shell.outputs import OVERWRITE_HELP
@@ -127,29 +126,24 @@ def view(args) -> int:
                              "(flexshell linearize)")
         if args.t_final is not None and kind != "scenario":
             raise ValueError(f"--t-final: {source} is a {kind}; --t-final runs a scenario")
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            if kind == "log":
-                scene = from_log(source, signals=args.signals, scenario=args.scenario, overrides=args.overrides,
-                                 meshes=meshes, scale=scale, max_frames=args.max_frames)
-            elif kind == "linear":
-                if args.mode is None:
-                    raise ValueError(f"{source}: a linear model; say which system mode to animate with --mode K "
-                                     "(1 = lowest frequency)")
-                scene = from_linear_model(source, args.mode, scenario=args.scenario,
-                                          overrides=args.overrides or None, meshes=meshes, scale=scale)
-            else:
-                t_final = None
-                if args.t_final is not None:
-                    from shell.commands.run import stop_time
+        if kind == "log":
+            scene = from_log(source, signals=args.signals, scenario=args.scenario, overrides=args.overrides,
+                             meshes=meshes, scale=scale, max_frames=args.max_frames)
+        elif kind == "linear":
+            if args.mode is None:
+                raise ValueError(f"{source}: a linear model; say which system mode to animate with --mode K "
+                                 "(1 = lowest frequency)")
+            scene = from_linear_model(source, args.mode, scenario=args.scenario,
+                                      overrides=args.overrides or None, meshes=meshes, scale=scale)
+        else:
+            t_final = None
+            if args.t_final is not None:
+                from shell.commands.run import stop_time
 
-                    t_final = stop_time(args.t_final, str(source))
-                scene = from_scenario(source, overrides=args.overrides, meshes=meshes, scale=scale, t_final=t_final,
-                                      rate=args.rate, signals=args.signals, max_frames=args.max_frames,
-                                      say=lambda text: print(f"flexshell view: {text}", flush=True))
-        for warning in caught:
-            if not issubclass(warning.category, (DeprecationWarning, PendingDeprecationWarning)):
-                print(f"flexshell view: warning: {warning.message}", file=sys.stderr)
+                t_final = stop_time(args.t_final, str(source))
+            scene = from_scenario(source, overrides=args.overrides, meshes=meshes, scale=scale, t_final=t_final,
+                                  rate=args.rate, signals=args.signals, max_frames=args.max_frames,
+                                  say=lambda text: print(f"flexshell view: {text}", flush=True))
         size = write_html(scene, output)
     except (ViewError, ScenarioError, LogError, ModelError, UnitError, ValueError, KeyError, OSError) as exc:
         print(f"flexshell view: {exc.args[0] if isinstance(exc, KeyError) else exc}", file=sys.stderr)
