@@ -86,7 +86,8 @@ def test_max_frequency_with_modes_warns_about_dropped_modes(capsys):
     assert main(["check", str(CONFIG), "--set", "multibody.structure.max_frequency=100 Hz",
                  "--set", "multibody.structure.modes=[0, 1, 30]"]) == 0
     err = capsys.readouterr().err
-    assert re.search(r"flexshell check: warning: \S*observatory.yaml: --set .*max_frequency: max_frequency = 100 Hz "
+    assert re.search(r"flexshell check: warning: \S*observatory.yaml:\d+: multibody.bodies\[0\]\(structure\).max_frequency: "
+                     r"max_frequency = 100 Hz "
                      r"drops the listed modes \[30\]", err), err
     assert "UserWarning" not in err
 
