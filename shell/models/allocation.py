@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 
-from shell.model import InputPort, Layout, count_option, Model, ModelError, OutputPort, Parameter, State, named_offsets
+from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, count_option, named_offsets
 from shell.registry import register_model
 
 

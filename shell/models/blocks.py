@@ -277,8 +277,10 @@ class Profile(_Block):
     offsets = {"p": P_PROFILE, "y": Y_PROFILE}
 
     def __init__(self, name: str, *, unit: str = "", shape=(), segments: int = 1, **kwargs):
-        if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)) or not 1 <= segments <= MAX_ELEMENTS:
-            raise ModelError(f"model {name}: Profile config segments must be a whole number >= 1, and at most {MAX_ELEMENTS:.0e}, got {segments!r}")
+        if (isinstance(segments, bool) or not isinstance(segments, (int, np.integer))
+                or not 1 <= segments <= MAX_ELEMENTS):
+            raise ModelError(f"model {name}: Profile config segments must be a whole number >= 1 (at most "
+                             f"{MAX_ELEMENTS:.0e}), got {segments!r}")
         self.segments = int(segments)
         super().__init__(name, unit=unit, shape=shape, **kwargs)
 

@@ -33,7 +33,7 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, count_option, ModelError, OutputPort, Parameter, named_offsets
+from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, count_option, named_offsets
 from shell.registry import register_model
 
 #: unit of each declaration by kind of hinge

@@ -359,3 +359,45 @@ def test_mutated_shipped_inputs_end_cleanly(kind, workspace):
 @pytest.mark.parametrize("kind", list(PLAN))
 def test_mutated_shipped_inputs_end_cleanly_slow(kind, workspace):
     fuzz_kind(workspace, kind, slow=True)
+
+
+# ------------------------------------------------------------------------------------------------
+# what the fuzzing found (issue 34), each kept as a case of its own
+def shipped(relative: str, old: str, new: str) -> str:
+    text = (CONFIGS / relative).read_text()
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+@pytest.mark.parametrize("new, expected", [
+    ("actuators: 3000000.0}", "config actuators: expected a whole number of actuators from 1 to 10000"),
+    ("actuators: 2.5}", "given 2.5"),  # was read as 2 actuators
+    ("actuators: 3000000}", "from 1 to 10000"),
+])
+def test_counts_are_whole_and_bounded(new, expected, workspace):
+    path = workspace.write("rw_attitude.yaml", shipped("rw_attitude.yaml", "actuators: 3}", new))
+    start = time.perf_counter()
+    code, message = workspace.command(["check", path])
+    assert code == 1 and expected in message and "models.allocator" in message, message
+    assert time.perf_counter() - start < 10
+
+
+@pytest.mark.parametrize("parent", ["[bus]", "{name: bus}"])
+def test_a_parent_that_is_not_a_name_is_refused(parent, workspace):
+    """Was a TypeError from dynamics/builder.py (a body's parent given as a list or a mapping)."""
+    text = shipped("rw_attitude_slosh_panels.yaml", "      parent: bus", f"      parent: {parent}")
+    code, message = workspace.command(["check", workspace.write("rw_attitude_slosh_panels.yaml", text)])
+    assert code == 1 and ".parent: expected a body name or world (text)" in message, message
+
+
+def test_a_missing_include_leaves_no_pyNastran_file_and_prints_only_flexshell(workspace):
+    """pyNastran dumped the lines it had read to pyNastran_crash.bdf in the working directory (replacing a file
+    of that name) and logged raw lines to stderr before flexshell's message."""
+    keep = workspace.root / "configs" / "pyNastran_crash.bdf"
+    keep.write_text("a user's file\n")
+    deck = workspace.write("fem/five_particle.dat",
+                           shipped("fem/five_particle.dat", "ENDDATA", "INCLUDE 'missing.dat'\nENDDATA"))
+    code, message = workspace.command(["fem2modal", deck, "--modes", "2", "-q", "-o", deck.with_name("out.h5")])
+    assert code == 1 and message.startswith("flexshell fem2modal: error: ") and "missing.dat" in message, message
+    assert keep.read_text() == "a user's file\n"
+    keep.unlink()

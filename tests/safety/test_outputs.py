@@ -234,3 +234,19 @@ def test_slosh_and_check_write_no_file(scene, cli, tmp_path, monkeypatch):
     assert code == 0 and "multibody:" in out
     assert cli("check", scene)[0] == 0
     assert sorted(os.listdir(tmp_path)) == before
+
+
+def test_every_verb_that_writes_takes_overwrite():
+    """A verb added later with an output option and no guard fails here (slosh, check and models write none)."""
+    import argparse
+
+    from shell.cli import build_parser
+
+    verbs = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+    writers = []
+    for verb, parser in verbs.items():
+        options = {option for action in parser._actions for option in action.option_strings}
+        if options & {"-o", "--output", "--save-state", "--mat"}:
+            writers.append(verb)
+            assert "--overwrite" in options, f"flexshell {verb} writes a file but takes no --overwrite"
+    assert sorted(writers) == ["fem2modal", "linearize", "montecarlo", "plot", "report", "run", "view"]
