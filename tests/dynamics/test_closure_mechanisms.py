@@ -245,3 +245,30 @@ def test_multipliers_of_redundant_rows_are_the_minimum_norm_solution():
         CK._minimum_norm_solve(c, 15)
         expected = np.linalg.pinv(A, rcond=1e-12) @ rhs
         np.testing.assert_allclose(c.lam, expected, rtol=0, atol=1e-12 * np.abs(expected).max() * 10)
+
+
+def test_a_prescribed_crank_in_a_closed_loop_reports_the_torque_that_drives_it():
+    """The four-bar with its crank's acceleration prescribed: the loop's other accelerations follow, and the
+    generalized force reported at the crank, applied as a torque to the same four-bar with a free crank,
+    produces exactly that motion (1e-10)."""
+    from dynamics import Multibody
+    from dynamics.constraints import ClosureConstraint, ConstrainedSystem
+
+    from .mechanisms import Z, rod
+
+    mb = Multibody(gravity=(0.0, -9.81, 0.0))
+    mb.add_body("crank", None, hinge="revolute", axis=Z, prescribed=True, **rod(CRANK, FOUR_BAR_MASSES[0]))
+    mb.add_body("coupler", "crank", hinge="revolute", axis=Z, inboard_position=(CRANK, 0, 0),
+                **rod(COUPLER, FOUR_BAR_MASSES[1]))
+    mb.add_body("rocker", None, hinge="revolute", axis=Z, inboard_position=(GROUND, 0, 0),
+                **rod(ROCKER, FOUR_BAR_MASSES[2]))
+    mb.add_node("coupler_tip", "coupler", position=(COUPLER, 0, 0))
+    mb.add_node("rocker_tip", "rocker", position=(ROCKER, 0, 0))
+    driven = ConstrainedSystem(mb.compile(), [ClosureConstraint("coupler_tip", "rocker_tip", "revolute", axis=Z)])
+    free = four_bar()
+    q, u = free.project(*four_bar_state(np.radians(70.0), 1.5))
+    acc = driven.forward_dynamics(q, u, prescribed_accel=np.array([2.5, 0.0, 0.0]))
+    assert acc.u_dot[0] == 2.5
+    check = free.forward_dynamics(q, u, tau=np.array([acc.tau[0], 0.0, 0.0]))
+    np.testing.assert_allclose(check.u_dot, acc.u_dot, rtol=0, atol=1e-10)
+    assert np.abs(driven.velocity_residual(q, u)).max() < 1e-12
