@@ -225,7 +225,7 @@ def constraint_rows(c_int, c_float, rotation, position, velocity, acceleration, 
     return m
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rho(c_int, c_float, i, rotation, position):
     """B's origin relative to A's, in A's axes."""
     a = c_int[i, C_NODE_A]
@@ -237,7 +237,7 @@ def _rho(c_int, c_float, i, rotation, position):
     return rotate_back(rotation[a], pb0 - position[a, 0], pb1 - position[a, 1], pb2 - position[a, 2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def add_constraint_wrench(c_int, c_float, i, rotation, position, wrench, F):
     """Node forces (node axes, about the node origins) into ``F`` equivalent to the wrench ``[torque; force]``
     that A exerts on B (A axes, at B's origin): B receives it, A the opposite moved to A's origin."""
@@ -246,7 +246,7 @@ def add_constraint_wrench(c_int, c_float, i, rotation, position, wrench, F):
                     wrench[2], wrench[3], wrench[4], wrench[5])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def row_wrench(c_int, c_float, i, r, rotation, position, wrench):
     """The unit wrench of row r of constraint i: ``S_r'`` (``[0; rho_hat]`` for a distance), A's axes."""
     if c_int[i, C_KIND] == DISTANCE:
@@ -307,7 +307,7 @@ def constraint_jacobian(d, c, q, m):
             row += 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def cholesky_solve(L, n, y):
     """``y <- (L L')^-1 y`` in place for the lower Cholesky factor in ``L[:n, :n]``."""
     for s in range(n):
@@ -455,7 +455,7 @@ def _minimum_norm_solve(c, m):
         c.lam[int(order[j])] = y[j]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _correction(c, m):
     """``c.work = M^-1 G' lambda`` (from the rows ``Yt`` and the multipliers)."""
     for s in range(c.work.shape[0]):

@@ -86,7 +86,7 @@ F_C6 = 61  # 36
 F_FLOAT_COLUMNS = 97
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _point_velocity(rotation, position, velocity, k, x0, x1, x2):
     """World velocity of the point at world position x moving with node k's frame."""
     R = rotation[k]
@@ -96,7 +96,7 @@ def _point_velocity(rotation, position, velocity, k, x0, x1, x2):
     return v0 + c0, v1 + c1, v2 + c2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def add_node_wrench(F, k, R, t0, t1, t2, f0, f1, f2):
     """``F[k] += [R' t; R' f]``: a torque and force given in the axes R maps into the world, at node k's origin."""
     a0, a1, a2 = rotate_back(R, t0, t1, t2)
@@ -109,14 +109,14 @@ def add_node_wrench(F, k, R, t0, t1, t2, f0, f1, f2):
     F[k, 5] += b2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _add_world_force(rotation, position, k, x0, x1, x2, p0, p1, p2, F):
     """Node k receives the world force P applied at world point x: node axes, about the node origin."""
     m0, m1, m2 = cross(x0 - position[k, 0], x1 - position[k, 1], x2 - position[k, 2], p0, p1, p2)
     add_node_wrench(F, k, rotation[k], m0, m1, m2, p0, p1, p2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def add_wrench_pair(F, a, b, rotation, rho0, rho1, rho2, t0, t1, t2, f0, f1, f2):
     """The wrench ``[t; f]`` that node A exerts on node B (A's axes, at B's origin, ``rho`` = B's origin from A's in
     A's axes) as node forces: B receives it (unless ``b < 0``: the world), A the opposite moved to its origin."""
@@ -134,7 +134,7 @@ def add_wrench_pair(F, a, b, rotation, rho0, rho1, rho2, t0, t1, t2, f0, f1, f2)
         add_node_wrench(F, b, rotation[b], x0, x1, x2, y0, y1, y2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def frame_b(rotation, position, b, row, r_col, p_col, R):
     """Pose of an element's or constraint's frame B: node b's (rotation into ``R``, origin returned), or, for
     ``b < 0``, the world pose stored in ``row`` (rotation row major from ``r_col``, origin from ``p_col``)."""
@@ -149,7 +149,7 @@ def frame_b(rotation, position, b, row, r_col, p_col, R):
     return row[p_col], row[p_col + 1], row[p_col + 2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def hunt_crossley(k, n, D, delta, delta_dot):
     """Normal force ``k delta^n (1 + D delta_dot)`` of a penetration ``delta > 0``, never pulling."""
     f = k * delta ** n * (1.0 + D * delta_dot)
@@ -184,7 +184,7 @@ def _contact(f_int, f_float, e, rotation, position, velocity, F, c0, c1, c2, n0,
         _add_world_force(rotation, position, b, c0, c1, c2, -p0, -p1, -p2, F)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _left_jacobian_inverse_transpose_times(t0, t1, t2, g0, g1, g2):
     """``J_l(theta)^-T g = g + theta x g / 2 + gamma theta x (theta x g)``,
     ``gamma = (1 - (theta/2) cot(theta/2)) / theta^2`` (series below 1e-2 rad)."""
@@ -199,7 +199,7 @@ def _left_jacobian_inverse_transpose_times(t0, t1, t2, g0, g1, g2):
     return g0 + 0.5 * c0 + gamma * d0, g1 + 0.5 * c1 + gamma * d1, g2 + 0.5 * c2 + gamma * d2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _bushing_rows(f_float, e, offset, first, x):
     """Rows first..first+2 of the 6 x 6 matrix at ``offset`` times the 6-tuple x."""
     out0 = out1 = out2 = 0.0
@@ -210,7 +210,7 @@ def _bushing_rows(f_float, e, offset, first, x):
     return out0, out1, out2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _bushing_deflection(f_int, f_float, e, rotation, position, RB, Rrel):
     """The deflection ``[theta; rho]`` of node B (or the world pose) from node A, A's axes; ``Rrel = R_A' R_B``."""
     a = f_int[e, F_NODE_A]
@@ -260,7 +260,7 @@ def _bushing(f_int, f_float, e, rotation, position, velocity, F, RB, Rrel):
     add_wrench_pair(F, a, b, rotation, r0, r1, r2, wrench0, wrench1, wrench2, wrench3, wrench4, wrench5)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sphere_plane(f_int, f_float, e, rotation, position):
     """(contact point, unit normal towards the sphere, penetration) of a sphere-plane pair."""
     a = f_int[e, F_NODE_A]
@@ -280,7 +280,7 @@ def _sphere_plane(f_int, f_float, e, rotation, position):
     return s0 - back * n0, s1 - back * n1, s2 - back * n2, n0, n1, n2, delta
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sphere_sphere(f_int, f_float, e, position):
     """(contact point, unit normal from B's centre towards A's, penetration) of two spheres."""
     a = f_int[e, F_NODE_A]
@@ -296,7 +296,7 @@ def _sphere_sphere(f_int, f_float, e, position):
     return position[a, 0] - back * n0, position[a, 1] - back * n1, position[a, 2] - back * n2, n0, n1, n2, delta
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _spring_geometry(f_int, f_float, e, rotation, position, velocity):
     """(unit vector from A to B, length, its rate) of a spring-damper."""
     a = f_int[e, F_NODE_A]
@@ -315,7 +315,7 @@ def _spring_geometry(f_int, f_float, e, rotation, position, velocity):
     return e0, e1, e2, length, rate
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _spring_acts(acts, stretch):
     return acts == 0 or (acts == 1 and stretch < 0.0) or (acts == 2 and stretch > 0.0)
 
