@@ -1,7 +1,7 @@
 """numba's on-disk cache for flexshell: one entry per compiled function, keyed on everything its machine code
 depends on, and the clock of compilations that ``flexshell run`` and Monte Carlo report.
 
-numba's own cache (``cache=True``) keys a function on its own file: after an edit of ``dynamics/kernels.py`` a
+numba's own cache (``cache=True``) keys a function on its own file: after an edit of ``dynamics/kernels/kinematics.py`` a
 cached caller in another file (the engine entry points, a model kernel) keeps the callee's old machine code, which
 numba compiled into it, and runs outdated physics. :func:`configure` makes ``enable_caching`` of numba's
 dispatchers (``@njit(cache=True)``, ``@cfunc(cache=True)``) install a :class:`DependencyCache` instead of numba's

@@ -205,7 +205,7 @@ def test_units_follow_the_architecture():
     assert "shell.compiled_loop.advance" in loop and "shell.compiled_loop._integrate" in loop
     assert not [m for m in loop if m.startswith(("shell.models.", "dynamics.kernels", "dynamics.single_body"))]
     engine = unit_members(engine_kernel)
-    assert "dynamics.kernels.forward_dynamics" in engine and "dynamics.spatial.mat6_vec" in engine
+    assert "dynamics.kernels.articulated_body.forward_dynamics" in engine and "dynamics.spatial.mat6_vec" in engine
     assert not [m for m in engine if m.startswith("shell.") and not m.startswith("shell.models.multibody.")]
     assert unit_members(_pd_update) == ["shell.models.pd_attitude._pd_update"]
 
