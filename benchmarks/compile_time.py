@@ -7,7 +7,7 @@ each step a fresh process running the demo, ``python3 -m shell.cli run configs/d
 1. ``cold``: empty cache; ``warm``: again;
 2. ``comment``: a comment appended to a model file the demo uses (``shell/models/pd_attitude.py``);
 3. ``model edit``: that model's update kernel changed (its gain multiplied by 1.0: same numbers, new code);
-4. ``kernels.py edit``: ``dynamics/kernels.py``'s ``coordinate_rates`` changed (rates scaled by 1.01), which the
+4. ``kernels edit``: ``dynamics/kernels/kinematics.py``'s ``coordinate_rates`` changed (rates scaled by 1.01), which the
    engine's kernel (``shell/models/multibody.py``) calls through ``dynamics/engine.py``: the engine must recompile,
    and the analytic spin-up test (tests/shell/test_multibody_model.py) must then fail on the edited copy;
 5. ``restored``: the sources back as they were: their entries are still cached.
@@ -40,7 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DEMO = ["-m", "shell.cli", "run", "configs/demo_attitude_hold.yaml", "-o", "demo.h5"]  # stderr is no TTY: no bar
 SPIN_UP_TEST = "tests/shell/test_multibody_model.py::test_constant_torque_spin_up_matches_the_analytic_rotation"
 MODEL_FILE = "shell/models/pd_attitude.py"
-KERNELS_FILE = "dynamics/kernels.py"
+KERNELS_FILE = "dynamics/kernels/kinematics.py"
 KERNELS_EDIT = ("        for k in range(nm):\n            qdot[q0 + k] = u[u0 + k]\n",
                 "        for k in range(nm):\n            qdot[q0 + k] = u[u0 + k]\n"
                 "    for k in range(qdot.shape[0]):\n        qdot[k] *= 1.01\n")
@@ -114,7 +114,7 @@ def steps(rounds: int) -> None:
         print(line("model edit", demo(source, cache)))
         (source / MODEL_FILE).write_text(originals[MODEL_FILE])
         edit(source / KERNELS_FILE, *KERNELS_EDIT)
-        print(line("kernels.py edit", demo(source, cache)))
+        print(line("kernels edit", demo(source, cache)))
         test = run(source, cache, ["-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", SPIN_UP_TEST])
         verdict = "fails, as it must" if test["returncode"] != 0 else "PASSES: stale engine code ran"
         print(f"{'spin-up test':<18} wall {test['wall']:7.1f} s   {verdict}")

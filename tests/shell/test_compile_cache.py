@@ -213,12 +213,12 @@ def test_units_follow_the_architecture():
 def test_a_constant_rebound_at_run_time_changes_the_key(monkeypatch):
     """Keys are hashed once per process, but a global read by a unit and rebound since is seen (numba would freeze
     the new value into code compiled now)."""
-    import dynamics.kernels as K
+    import dynamics.kernels.articulated_body as articulated_body
     from dynamics.compile_cache import unit_key
     from shell.models.multibody import engine_kernel
 
     before = unit_key(engine_kernel.py_func)
-    monkeypatch.setattr(K, "GROUND_ACCEL", K.GROUND_ACCEL + 1)
+    monkeypatch.setattr(articulated_body, "GROUND_ACCEL", articulated_body.GROUND_ACCEL + 1)
     assert unit_key(engine_kernel.py_func) != before
     monkeypatch.undo()
     assert unit_key(engine_kernel.py_func) == before
