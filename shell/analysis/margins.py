@@ -37,7 +37,9 @@ below it until no interval remains; the minimum is then solved as the zero of ``
 
 MIMO (:func:`channel_loops`): each (output, input) pair is a SISO loop with the other channels open, or, for a
 square loop (output k fed back to input k), loop-at-a-time: channel k broken, the others closed with the same
-feedback. A loop broken at a port of a scene, linearized from the port's input to the signal that drives it, is
+feedback. Each channel says whether its loop, closed, is stable: with the others open, the poles of the pair's
+minimal realization (an axis left uncontrolled is not this loop's instability); with the others closed, every
+pole of the whole loop. A loop broken at a port of a scene, linearized from the port's input to the signal that drives it, is
 closed by positive feedback (``u = +y``); its loop transfer function in the convention above is ``L = -G``.
 """
 
@@ -50,6 +52,7 @@ import numpy as np
 from scipy.linalg import eigvals
 from scipy.optimize import brentq
 
+from shell.linear.realization import minimal_realization
 from shell.linear.response import TransferEvaluator
 from shell.linear.system import LinearSystem, LinearSystemError
 
@@ -349,6 +352,7 @@ def channel_loops(system: LinearSystem, feedback: str = "negative", others: str 
             G = system.select([j], [i])
             L = LinearSystem(G.A, G.B, -sign * G.C, -sign * G.D, G.sample_time, G.input_names, G.output_names,
                              where=G.where)
-            stable = LinearSystem(_closed(G, sign), G.B, G.C, G.D, G.sample_time, where=G.where).is_stable()
+            seen = minimal_realization(G)  # the other channels' modes are not this loop's business
+            stable = LinearSystem(_closed(seen, sign), seen.B, seen.C, seen.D, G.sample_time, where=G.where).is_stable()
             channels.append(LoopChannel(G.output_names[0], G.input_names[0], L, stable, stability_margins(L)))
     return channels
