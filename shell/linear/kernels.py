@@ -21,30 +21,27 @@ from numba import njit
 
 
 @njit(cache=True)
+def _matrix_sum(M, x, N, u, out):
+    """``out = M x + N u``."""
+    for i in range(out.shape[0]):
+        acc = 0.0
+        for j in range(x.shape[0]):
+            acc += M[i, j] * x[j]
+        for j in range(u.shape[0]):
+            acc += N[i, j] * u[j]
+        out[i] = acc
+
+
+@njit(cache=True)
 def state_space_derivative(A, B, x, u, xdot):
     """``xdot = A x + B u``."""
-    n, m = B.shape
-    for i in range(n):
-        acc = 0.0
-        for j in range(n):
-            acc += A[i, j] * x[j]
-        for j in range(m):
-            acc += B[i, j] * u[j]
-        xdot[i] = acc
+    _matrix_sum(A, x, B, u, xdot)
 
 
 @njit(cache=True)
 def state_space_output(C, D, x, u, y):
     """``y = C x + D u``."""
-    p, n = C.shape
-    m = D.shape[1]
-    for i in range(p):
-        acc = 0.0
-        for j in range(n):
-            acc += C[i, j] * x[j]
-        for j in range(m):
-            acc += D[i, j] * u[j]
-        y[i] = acc
+    _matrix_sum(C, x, D, u, y)
 
 
 @njit(cache=True)

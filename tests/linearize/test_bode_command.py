@@ -18,6 +18,7 @@ import pytest
 
 from shell.analysis.linear_model_file import read_linear_model, to_statespace
 from shell.cli import main
+from tests.linearize.loops import attitude_loop
 
 PD_LOOP = """\
 name: pd_loop
@@ -119,11 +120,9 @@ def test_loop_broken_at_a_port_of_a_yaml_scene(tmp_path, capsys):
 
 
 def _attitude_loop_file(path, sample_time=None):
-    """Two attitude axes broken at the commanded torque (tests/linearize/test_margins.py), names as linearize
+    """Two attitude axes broken at the commanded torque (tests/linearize/loops.py), names as linearize
     writes them; sampled by a zero-order hold when sample_time is given."""
-    from tests.linearize.test_margins import _attitude_loop
-
-    A, B, C, D = _attitude_loop()
+    A, B, C, D = attitude_loop()
     if sample_time is not None:
         held = control.c2d(control.ss(A, B, C, D), sample_time, "zoh")
         A, B = held.A, held.B

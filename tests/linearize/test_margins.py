@@ -21,6 +21,7 @@ import pytest
 from shell.analysis.margins import channel_loops, stability_margins
 from shell.linear.response import TransferEvaluator
 from shell.linear.system import LinearSystem, LinearSystemError
+from tests.linearize.loops import attitude_loop
 
 s = control.tf("s")
 CONTINUOUS = {
@@ -154,27 +155,12 @@ def test_delay_margin_puts_the_loop_on_minus_one(name):
     assert margins.delay_margin == min(margins.delay_margins)
 
 
-def _attitude_loop():
-    """Two coupled attitude axes broken at the commanded torque: actuator lags (0.1 s), inertia with a product
-    term, PD control on the attitude and on the rate filtered at 0.2 s; input the commanded torque, output the
-    controller's command, which closes the loop by positive feedback (u = +y)."""
-    J = np.array([[10.0, 1.5], [1.5, 6.0]])
-    Kp, Kd, rate_filter, actuator = np.diag([4.0, 3.6]), np.diag([12.0, 6.0]), 0.2, 0.1
-    Z, I = np.zeros((2, 2)), np.eye(2)
-    # states: actuator torque, attitude, rate, filtered rate (2 each)
-    A = np.block([[-I / actuator, Z, Z, Z], [Z, Z, I, Z], [np.linalg.inv(J), Z, Z, Z],
-                  [Z, Z, I / rate_filter, -I / rate_filter]])
-    B = np.vstack([I / actuator, Z, Z, Z])
-    C = np.hstack([Z, -Kp, Z, -Kd])
-    return A, B, C, np.zeros((2, 2))
-
-
 @pytest.mark.parametrize("feedback, sign", [("negative", -1), ("positive", 1)])
 def test_loop_at_a_time_equals_python_control_feedback(feedback, sign):
     """Channel k broken, the other closed: python-control's feedback(G, K) with K the other channel's unit gain
     gives the same loop (response to 1e-12) and stability_margins the same margins (1e-9). The negative case
     is the same loop written as -G."""
-    A, B, C, D = _attitude_loop()
+    A, B, C, D = attitude_loop()
     C = C if feedback == "positive" else -C
     system = LinearSystem(A, B, C, D, input_names=("t0", "t1"), output_names=("c0", "c1"))
     plant = control.ss(A, B, C, D)
@@ -199,7 +185,7 @@ def test_loop_at_a_time_equals_python_control_feedback(feedback, sign):
 
 @pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")  # python-control at w = 0 (1/s^2)
 def test_open_channels_are_every_pair_and_positive_feedback_negates():
-    A, B, C, D = _attitude_loop()
+    A, B, C, D = attitude_loop()
     system = LinearSystem(A, B, C, D)
     channels = channel_loops(system, "positive", "open")
     assert [(c.output, c.input) for c in channels] == [("y[0]", "u[0]"), ("y[0]", "u[1]"), ("y[1]", "u[0]"),
@@ -212,7 +198,7 @@ def test_open_channels_are_every_pair_and_positive_feedback_negates():
 
 
 def test_refusals():
-    A, B, C, D = _attitude_loop()
+    A, B, C, D = attitude_loop()
     with pytest.raises(LinearSystemError, match="margins need a SISO loop"):
         stability_margins(LinearSystem(A, B, C, D))
     with pytest.raises(LinearSystemError, match="as many outputs as inputs"):
