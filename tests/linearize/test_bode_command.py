@@ -133,6 +133,7 @@ def _attitude_loop_file(path, sample_time=None):
     return control.ss(A, B, C, D, sample_time or 0)
 
 
+@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")  # python-control at w = 0 (1/s^2)
 def test_mimo_loop_at_a_time_from_an_npz_file(tmp_path, capsys):
     plant = _attitude_loop_file(tmp_path / "attitude.npz")
     code, out, err = _cli(capsys, "bode", tmp_path / "attitude.npz", "--feedback", "positive", "--others", "closed",
