@@ -1,8 +1,8 @@
 """The multibody engine as one shell model: hinge/node inputs in, kinematics out, states (q, u).
 
 The compiled :class:`dynamics.MultibodySystem` enters the component framework as a single model
-(ARCHITECTURE.md, TM-2020-5008164 App. D.1: the DARTS engine inside Dshell). Its continuous states are
-the generalized coordinates ``q`` and velocities ``u`` (CONVENTIONS.md ordering); the derivative is
+(docs/architecture.md, TM-2020-5008164 App. D.1: the DARTS engine inside Dshell). Its continuous states are
+the generalized coordinates ``q`` and velocities ``u`` (docs/conventions.md ordering); the derivative is
 ``[q_dot(q, u); forward_dynamics(q, u, tau, node forces, prescribed accelerations)]`` and hinge
 quaternions are renormalized by the integrator's ``normalize`` hook after every step.
 
@@ -46,21 +46,9 @@ from dynamics import kernels as K
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 
 from shell.model import InputPort, Model, ModelError, OutputPort, State
+from shell.ports import NODE_INPUTS, NODE_OUTPUTS
 from shell.registry import register_model
 
-NODE_OUTPUTS = {  # signal -> (unit, shape, description, feedthrough)
-    "attitude": ("", (4,), "quaternion [w, x, y, z] rotating node axes into world axes", False),
-    "rotation": ("", (3, 3), "rotation matrix node -> world", False),
-    "position": ("m", (3,), "node origin in the world frame", False),
-    "angular_velocity": ("rad/s", (3,), "inertial angular velocity, node axes", False),
-    "linear_velocity": ("m/s", (3,), "inertial velocity of the node origin, node axes", False),
-    "angular_acceleration": ("rad/s^2", (3,), "inertial angular acceleration, node axes", True),
-    "linear_acceleration": ("m/s^2", (3,), "classical acceleration of the node origin, node axes", True),
-}
-NODE_INPUTS = {
-    "torque": ("N*m", (3,), "external torque about the node origin, node axes"),
-    "force": ("N", (3,), "external force at the node origin, node axes"),
-}
 # unit of (q, u, u_dot, generalized force) per hinge type; "" = mixed or dimensionless (SI values)
 HINGE_UNITS = {
     "locked": ("", "", "", ""),
