@@ -33,7 +33,7 @@ read (``P``, ``U``, ``Y``, ``X``, ``Z`` for parameters, inputs, outputs, continu
 model's ``parameters``, ``inputs``, ``outputs``, ``continuous_states``, ``discrete_states``, ``zero_crossings``
 and ``offsets``::
 
-    PD = Declarations(parameters=(Parameter("kp", "N*m/rad", 1.0, (3,)), ...), inputs=ATTITUDE_AND_RATE,
+    PD = Declarations(parameters=(Parameter("kp", "N*m/rad", 1.0, (3,)), ...), inputs=MEASURED_ATTITUDE_AND_RATE,
                       outputs=(OutputPort("torque", "N*m", (3,)),), discrete=(State("torque", "N*m", (3,)),))
     P, U, Y, Z = PD.P, PD.U, PD.Y, PD.Z
 
