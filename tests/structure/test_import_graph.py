@@ -3,8 +3,8 @@ importing another module's private name, and no library depending on the command
 
 The graph is read from the source (tests/structure/import_graph.py), imports inside functions included:
 deferring an import into a function hides a circle from Python, not from the design. The two PENDING tables
-name what other branches of the same redesign remove (issue 32 and the flexible-engine issue), each with
-its owner; an entry that no longer occurs fails too, so the tables only shrink and are deleted when empty.
+name what other branches of the same redesign remove (issue 32; the dynamics circle builder <-> system
+<-> reconfigure <-> urdf <-> flexible_body went with branch flex-orders), each with its owner; an entry that no longer occurs fails too, so the tables only shrink and are deleted when empty.
 """
 
 from __future__ import annotations
@@ -18,8 +18,6 @@ PACKAGES = ("shell", "dynamics")
 
 #: circles other branches remove: circle -> who removes it
 PENDING_CIRCLES = {
-    frozenset({"dynamics.builder", "dynamics.flexible_body", "dynamics.reconfigure", "dynamics.system",
-               "dynamics.urdf"}): "branch flex-orders (the flexible-engine issue)",
     frozenset({"shell.integrators", "shell.integrators.driver"}): "branch shell-core (issue 32: one simulator core)",
 }
 #: private imports other branches remove: (importing module, source module, name) -> who removes it

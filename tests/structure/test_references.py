@@ -7,7 +7,7 @@ file name (``docs/conventions.md``, ``conventions.md``, ``README.md``): it must 
 (WRITTEN). A module or name is cited by its dotted
 path (``shell.schema.Where``, ``:mod:`dynamics.engine```): the longest prefix that is a module must exist
 and define the next part (a function, class, constant or submodule); ``dynamics.flexible_kernels.FX_*`` names
-a family and is not checked.
+a family and ``NAME`` a placeholder, not checked.
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ DOTTED = re.compile(r"(?<![\w/.-])((?:shell|dynamics)(?:\.[A-Za-z_]\w*)+)(?![\w*
 FILE_SUFFIXES = {"md", "py", "h5", "yaml", "png", "rst", "html", "csv", "npy", "txt", "dat", "json"}
 #: documents the programs write (cited as outputs, not as references)
 WRITTEN = {"percentiles.md"}
+#: a placeholder for any name (``dynamics.kernels.NAME``: each layout column re-exported)
+PLACEHOLDERS = {"NAME"}
 
 
 def _sources() -> list[Path]:
@@ -54,6 +56,8 @@ def _defined(module: str) -> frozenset[str]:
             targets = node.targets if isinstance(node, ast.Assign) else [node.target]
             for target in targets:
                 names.update(n.id for n in ast.walk(target) if isinstance(n, ast.Name))
+        elif isinstance(node, ast.ImportFrom) and node.names[0].name == "*" and _module_file(node.module or ""):
+            names.update(n for n in _defined(node.module) if not n.startswith("_"))
         elif isinstance(node, (ast.Import, ast.ImportFrom)):
             names.update((a.asname or a.name).split(".")[0] for a in node.names)
     if path.name == "__init__.py":
@@ -77,7 +81,7 @@ def dangling_names(text: str) -> list[str]:
     missing = []
     for match in DOTTED.finditer(text):
         parts = match.group(1).split(".")
-        if parts[-1] in FILE_SUFFIXES:
+        if parts[-1] in FILE_SUFFIXES or parts[-1] in PLACEHOLDERS:
             continue
         k = len(parts)
         while k > 1 and _module_file(".".join(parts[:k])) is None:
