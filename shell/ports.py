@@ -69,7 +69,7 @@ COMMANDED_TORQUE = node_load_outputs("torque", feedthrough=False,
                                      torque="commanded torque, node axes (held between samples)")
 HELD_TORQUE = State("torque", "N*m", (3,), None, "held torque command")
 
-#: reference signal -> (unit, shape, description): the attitude a controller tracks, with its rate and acceleration
+#: reference signal -> (unit, shape, description) of the attitude a controller tracks, its rate and acceleration
 ATTITUDE_REFERENCE = {
     "reference_attitude": ("", (4,), "reference quaternion [w, x, y, z], reference -> world"),
     "reference_angular_velocity": ("rad/s", (3,), "reference angular velocity, world axes"),

@@ -16,19 +16,17 @@ from __future__ import annotations
 import numpy as np
 
 from shell.assembly import Assembly
+from shell.diagnostics import located
 from shell.model import Model, ModelError
 from shell.models.multibody import MultibodyModel
 from shell.registry import lookup
-from shell.schema import (Scenario, ScenarioError, Where, apply_override, apply_value, check_sample_counts,
-                          check_time, connection_ends, decode_scenario, find, load_scenario, load_yaml,
-                          parse_scenario, show)
+from shell.schema import Scenario, ScenarioError, Where, connection_ends, find, show
+# the schema's names that users and the commands import from here (README: load_scenario)
+from shell.schema import (apply_override, apply_value, check_sample_counts, check_time, decode_scenario,  # noqa: F401
+                          load_scenario, load_yaml, parse_scenario)
 from shell.schema.multibody import read_multibody
 from shell.simulation import Simulation
 from shell.units import UnitError, written_numbers
-
-__all__ = ["Scenario", "ScenarioError", "apply_override", "apply_value", "build_member", "build_root",
-           "build_simulation", "check_sample_counts", "check_time", "decode_scenario", "load_scenario", "load_yaml",
-           "parse_scenario", "show"]
 
 
 def build_root(scenario: Scenario) -> Assembly:
@@ -93,7 +91,8 @@ def build_member(container: Assembly, name: str, entry: dict, here: Where, class
     if "offset" in entry:
         kwargs["offset"] = entry["offset"]
     try:
-        member = cls(name, **kwargs)
+        with located(here):  # a constructor's warnings, with the model's file, line and key
+            member = cls(name, **kwargs)
     except ScenarioError as exc:  # inside an assembly type: also say where it is used
         raise ScenarioError(f"{exc}\n  in {entry['type']} {name!r} used at {here.file}:{here.line}") from None
     except (ModelError, UnitError) as exc:
@@ -148,10 +147,11 @@ def build_simulation(scenario: Scenario):
     root = build_root(scenario)
     where = Where(scenario.file, 1, "")
     try:
-        simulation = Simulation(root, integrator=scenario.integrator, step=scenario.step,
-                                integrator_options=scenario.integrator_options, seed=scenario.seed,
-                                stop_events=scenario.stop_events, event_tol=scenario.event_tolerance,
-                                event_detection=scenario.event_detection)
+        with located(lambda text: _model_location(scenario, text)):  # configure()'s warnings, located
+            simulation = Simulation(root, integrator=scenario.integrator, step=scenario.step,
+                                    integrator_options=scenario.integrator_options, seed=scenario.seed,
+                                    stop_events=scenario.stop_events, event_tol=scenario.event_tolerance,
+                                    event_detection=scenario.event_detection)
     except (ModelError, UnitError) as exc:
         message = str(exc)
         raise ScenarioError(message if message.startswith(scenario.file) else f"{scenario.file}: {message}") from None
@@ -162,6 +162,15 @@ def build_simulation(scenario: Scenario):
             raise here.error(str(exc)) from None
     _check_initial_state(simulation, scenario)
     return simulation
+
+
+def _model_location(scenario: Scenario, message: str) -> str:
+    """Where the model a message names (``model controller.kp: ...``) is in the scenario: its entry under
+    models:, else the file."""
+    path = message[len("model "):].split(":", 1)[0] if message.startswith("model ") else ""
+    models = scenario.document.get("models")
+    top = path.split(".", 1)[0]
+    return scenario.location("models", top) if isinstance(models, dict) and top in models else scenario.file
 
 
 def _check_initial_state(simulation, scenario: Scenario) -> None:

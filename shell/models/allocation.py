@@ -33,7 +33,8 @@ import numpy as np
 from numba import njit
 
 
-from shell.model import Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets
+from shell.model import (Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, count_option,
+                         named_offsets)
 from shell.ports import node_load_inputs, node_load_outputs
 from shell.registry import register_model
 
@@ -105,7 +106,8 @@ class PseudoInverseAllocator(Model):
                  command_unit: str = "N*m", **kwargs):
         if "pseudo_inverse" in kwargs:
             raise ModelError(f"model {name}: pseudo_inverse is computed from effectiveness; do not give it")
-        self.n_demand, self.n_actuators = int(demand), int(actuators)
+        self.n_demand = count_option(name, "demand", demand, "demanded components")
+        self.n_actuators = count_option(name, "actuators", actuators, "actuators")
         self.demand_unit, self.command_unit = demand_unit, command_unit
         super().__init__(name, **kwargs)
 
@@ -157,7 +159,7 @@ class NodeLoadSum(Model):
     feedthrough_outputs = staticmethod(_sum_loads)
 
     def __init__(self, name: str, *, count: int = 2, **kwargs):
-        self.count = int(count)
+        self.count = count_option(name, "count", count, "loads")
         super().__init__(name, **kwargs)
 
     def declare(self):

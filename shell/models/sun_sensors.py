@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State
+from shell.model import Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, count_option
 from shell.models.ephemeris import ASTRONOMICAL_UNIT
 from shell.models.gravity import EARTH_RADIUS
 from shell.ports import node_inputs
@@ -134,10 +134,7 @@ class CoarseSunSensors(Model):
     update = staticmethod(_css_sample)
 
     def __init__(self, name: str, *, sensors: int = 1, **kwargs):
-        if isinstance(sensors, bool) or not isinstance(sensors, (int, np.integer)) or sensors < 1:
-            raise ModelError(f"model {name}: config sensors: expected a positive whole number of cells, "
-                             f"given {sensors!r}")
-        self.sensor_count = int(sensors)
+        self.sensor_count = count_option(name, "sensors", sensors, "cells")
         super().__init__(name, **kwargs)
 
     def declare(self):
@@ -244,10 +241,7 @@ class SunDirectionEstimate(Model):
     feedthrough_outputs = staticmethod(_sun_direction_estimate)
 
     def __init__(self, name: str, *, sensors: int = 3, **kwargs):
-        if isinstance(sensors, bool) or not isinstance(sensors, (int, np.integer)) or sensors < 1:
-            raise ModelError(f"model {name}: config sensors: expected a positive whole number of cells, "
-                             f"given {sensors!r}")
-        self.sensor_count = int(sensors)
+        self.sensor_count = count_option(name, "sensors", sensors, "cells")
         super().__init__(name, **kwargs)
 
     def declare(self):

@@ -13,13 +13,9 @@ Building the scene from a validated scenario (models, assemblies, connections, t
 :mod:`shell.scenario`; other readers of user files (the Monte Carlo campaign file) reuse the vocabulary.
 """
 
+# the package's public API, imported from here
 from shell.schema.document import LineDict, LineList, ScenarioError, decode_scenario, load_yaml, show, type_name
 from shell.schema.overrides import apply_override, apply_value, override_value
 from shell.schema.sections import Scenario, check_sample_counts, connection_ends, load_scenario, parse_scenario
 from shell.schema.validation import (Where, check_rate, check_time, expect_list, expect_mapping, expect_name, find,
                                      refuse_nan, seconds)
-
-__all__ = ["LineDict", "LineList", "Scenario", "ScenarioError", "Where", "apply_override", "apply_value",
-           "check_rate", "check_sample_counts", "check_time", "connection_ends", "decode_scenario", "expect_list",
-           "expect_mapping", "expect_name", "find", "load_scenario", "load_yaml", "override_value", "parse_scenario",
-           "refuse_nan", "seconds", "show", "type_name"]

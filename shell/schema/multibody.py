@@ -22,6 +22,7 @@ from dynamics import ModelDefinitionError, Multibody, MultibodySystem
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 from dynamics.mode_selection import select_modes
 from dynamics.spatial import quaternion_to_rotation
+from shell.diagnostics import located
 from shell.schema.validation import Where, expect_list, expect_mapping, expect_name
 from shell.units import UnitError, to_magnitude, ureg
 
@@ -138,6 +139,8 @@ def _add_body(builder: Multibody, body, here: Where) -> Where:
                 "the body file gives the mass properties of a flexible body" if flexible else
                 f"{key!r} applies to flexible bodies (with body_file:)")
     parent = body.get("parent", "world")
+    if parent is not None:
+        parent = expect_name(parent, here.child(body, "parent"), "a body name or world")
     kwargs = dict(
         hinge=expect_name(body["hinge"], here.child(body, "hinge"), "a hinge type"),
         inboard_position=_vector(body, "inboard_position", "m", (3,), here, (0, 0, 0)),
@@ -155,11 +158,12 @@ def _add_body(builder: Multibody, body, here: Where) -> Where:
         kwargs["parent_node"] = expect_name(body["parent_node"], here.child(body, "parent_node"), "a node")
     parent = None if parent in (None, "world") else parent
     try:
-        if flexible:
-            builder.add_flexible_body(body_name, parent, **_flexible_options(body, here), **kwargs)
-        else:
-            mass, com, inertia = rigid_mass_properties(body, here)
-            builder.add_body(body_name, parent, mass=mass, inertia=inertia, com=com, **kwargs)
+        with located(here):  # the engine's warnings about this body, with its file, line and key
+            if flexible:
+                builder.add_flexible_body(body_name, parent, **_flexible_options(body, here), **kwargs)
+            else:
+                mass, com, inertia = rigid_mass_properties(body, here)
+                builder.add_body(body_name, parent, mass=mass, inertia=inertia, com=com, **kwargs)
     except (ModelDefinitionError, OSError, KeyError) as exc:
         raise here.error(str(exc.args[0] if isinstance(exc, KeyError) else exc)) from None
     return here
