@@ -195,7 +195,7 @@ def test_every_cached_kernel_uses_the_dependency_keyed_cache():
 def test_units_follow_the_architecture():
     """The compiled loop calls model kernels and the engine through function pointers, so neither is in its unit (a
     model edit does not recompile the loop); the engine's unit is dynamics/ and its shell model; a model kernel's
-    unit is its own module."""
+    unit is its own module and the attitude-library functions it calls (shell/attitude.py)."""
     from dynamics.compile_cache import unit_members
     from shell.compiled_loop import advance
     from shell.models.multibody import engine_kernel
@@ -207,7 +207,8 @@ def test_units_follow_the_architecture():
     engine = unit_members(engine_kernel)
     assert "dynamics.kernels.articulated_body.forward_dynamics" in engine and "dynamics.spatial.mat6_vec" in engine
     assert not [m for m in engine if m.startswith("shell.") and not m.startswith("shell.models.multibody.")]
-    assert unit_members(_pd_update) == ["shell.models.pd_attitude._pd_update"]
+    assert unit_members(_pd_update) == ["shell.attitude.error_rotation_vector", "shell.attitude.quaternion_conjugate",
+                                        "shell.attitude.quaternion_multiply", "shell.models.pd_attitude._pd_update"]
 
 
 def test_a_constant_rebound_at_run_time_changes_the_key(monkeypatch):
