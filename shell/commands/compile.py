@@ -45,6 +45,8 @@ def describe(dispatcher) -> tuple[str, float]:
     """(what the compilation of ``dispatcher`` is part of, wall seconds that part took on an empty cache: an upper
     bound when some of its functions are cached already)."""
     module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+    if module.startswith("dynamics.flex."):
+        return "the FEM-to-modal pipeline", MODEL_SECONDS
     if module == "shell.models.multibody" or module.startswith("dynamics"):
         return "the multibody engine", ENGINE_SECONDS
     if module.startswith(("shell.compiled_loop", "shell.integrators")):
