@@ -1,11 +1,11 @@
 """Drift control of closure constraints: Baumgarte stabilization against projection after each step.
 
-The crank-rocker four-bar of tests/dynamics/mechanisms.py (gravity, crank started at 60 deg and 6 rad/s so that
-it turns over) is integrated by classical RK4 with each drift control of docs/closure_constraints.md, and the
-table reports the largest constraint residual, relative energy error and error of the rocker angle against the
-analytic loop closure for the simulated crank angle (sampled every 0.1 s), and the cost of a step relative to an unstabilized one
-(median of interleaved rounds, one process; compiled kernels called from Python, so the ratios include the
-call overhead a compiled loop would not pay).
+The crank-rocker four-bar of tests/dynamics/mechanisms.py (gravity, crank started at 60 deg and 6 rad/s so that it
+turns over) is integrated by classical RK4 with each drift control of docs/closure_constraints.md, and the table
+reports the largest constraint residual, relative energy error and error of the rocker angle against the analytic
+loop closure for the simulated crank angle (sampled every 0.1 s), and the cost of a step relative to an unstabilized
+one (median of interleaved rounds, one process; compiled kernels called from Python, so the ratios include the call
+overhead a compiled loop would not pay).
 
     python benchmarks/closure_drift.py
 """

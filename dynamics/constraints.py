@@ -46,7 +46,7 @@ from dynamics.force_elements import Bushing, SpringDamper, element_tables
 from dynamics.hinges import FREE, SPHERICAL
 from dynamics.definitions import suggest
 from dynamics.layout import HINGE_TYPE, NQ_HINGE, NU_HINGE, N_MODES, Q_START, U_START
-from dynamics.reconfigure import attach_welds, latch_gap
+from dynamics.reconfigure import attach_moves
 from dynamics.spatial import quaternion_to_rotation
 
 CONSTRAINT_KINDS = {name: CK.ROWS[code] for name, code in CK.KINDS.items()}
@@ -321,7 +321,8 @@ class ConstrainedSystem:
         status = CK.forward_dynamics(self.engine, self.data, q, u, tau, F, udot, tau_out, loads)
         self._check(status)
         slices, m = self._active_slices()
-        multipliers = [np.zeros(c.size) if s is None else self.data.lam[s].copy() for c, s in zip(self.constraints, slices)]
+        multipliers = [np.zeros(c.size) if s is None else self.data.lam[s].copy()
+                       for c, s in zip(self.constraints, slices)]
         return ConstrainedAccelerations(udot, multipliers, self.data.phi[:m].copy(), loads, tau_out)
 
     def _check(self, status):
@@ -483,9 +484,10 @@ class ConstrainedSystem:
         """The tree changed as :func:`dynamics.reconfigure.reconfigure` does, with the constraints and force
         elements carried over: returns ``(ConstrainedSystem, q, u, report)``. The impacts include the active
         constraints: an ``attach`` latch is the plastic impact of its weld together with them (``report``: its
-        :class:`AssemblyReport`, the frames' misalignment at the latch as the residual, or None), a ``lock`` is followed by the projection onto the constraints in the
-        locked system (two nested M-orthogonal projections are the projection onto both). Hinge elements on a
-        hinge that becomes locked are switched off."""
+        :class:`AssemblyReport`, the frames' misalignment at the latch as the residual, refused beyond
+        ``tolerance``; or None), a ``lock`` is followed by the projection onto the constraints in the locked system
+        (two nested M-orthogonal projections are the projection onto both). Hinge elements on a hinge that becomes
+        locked are switched off."""
         q = self._q(q)
         u = np.array(u, dtype=float)
         constraints = self.resolved_constraints()
@@ -499,14 +501,19 @@ class ConstrainedSystem:
                     raise ConstraintError(f"{what}: unknown body or hinge '{name}' (bodies: {list(bodies)})"
                                           + suggest(name, list(bodies)))
                 return bodies.get(name) or joints[name]
-            welds, _ = attach_welds(list(bodies.values()), self.system.definitions[1], attach, find)
-            gap, worst = latch_gap(ConstrainedSystem(self.system, welds).worst_residual(q), tolerance)
+            welds = [ClosureConstraint(body_node, target, "weld", name=f"attach {body.name}")
+                     for body, body_node, target in attach_moves(list(bodies.values()), self.system.definitions[1],
+                                                                 attach, find)]
+            gap, worst = ConstrainedSystem(self.system, welds).worst_residual(q)
+            if gap > tolerance:
+                raise ConstraintError(f"attach: the frames of '{worst}' are {gap:.6g} (m or rad) apart, more than "
+                                      f"the latch tolerance {tolerance:.3g}")
             latch = ConstrainedSystem(self.system, constraints + welds)
             u_latched, lost = latch.impact(q, u)
             report = AssemblyReport(gap, worst, 0.0, float(np.abs(u_latched - u).max(initial=0.0)), float(lost))
             u = u_latched
         system, q, u = self.system.reconfigure(q, u, lock=lock, unlock=unlock, detach=detach, attach=attach,
-                                               mass_properties=mass_properties, attach_tolerance=tolerance)
+                                               mass_properties=mass_properties)
         new = ConstrainedSystem.__new__(ConstrainedSystem)
         new._build(system, constraints, self.resolved_forces(), (self.alpha, self.beta), None, allow_locked=True)
         if lock:

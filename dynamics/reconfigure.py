@@ -15,13 +15,12 @@ previous one's definitions and maps the state across (Dshell's run-time reconfig
 * **detach** a body: the subtree it roots separates from its parent (a separation event). The body is
   re-attached to the ground by a free hinge placed at its current world pose and moving with its
   current spatial velocity; every node keeps its pose and velocity, so nothing jumps.
-* **attach** (a latch, a docking) a body floating free (a root on a free hinge) to a node of another body: a
-  perfectly plastic impact (the velocity projection of a weld between the two mating node frames: momentum
-  conserved exactly, the energy ``1/2 (G u)' (G M^-1 G')^+ (G u)`` lost), then the body becomes the node's
-  child through a locked hinge whose outboard frame is its mating node, at the relative pose where the latch
-  caught it: nothing moves, so nothing jumps. The frames' misalignment at the latch (m or rad) is refused
-  beyond a tolerance (and reported by :meth:`dynamics.constraints.ConstrainedSystem.reconfigure`). Bodies are
-  renumbered so that parents come first.
+* **attach** (a latch, a docking) a body floating free (a root on a free hinge) to a node of another body: the
+  body becomes the node's child through a locked hinge whose outboard frame is its mating node, at the relative
+  pose where the latch caught it (nothing moves, so nothing jumps). The two mating frames must already move
+  together: the latch's perfectly plastic impact (the velocity projection of a weld between them, momentum
+  conserved, misalignment checked) is :meth:`dynamics.constraints.ConstrainedSystem.reconfigure`'s; here a
+  relative velocity left between them is refused. Bodies are renumbered so that parents come first.
 * **mass properties** of rigid bodies, via a new system or in place with
   :meth:`dynamics.MultibodySystem.set_mass_properties` (cheap enough for per-step mass depletion).
 
@@ -51,14 +50,12 @@ def _hinge_pose(system, body, q):
     return R, p
 
 
-def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), attach=None, mass_properties=None,
-                attach_tolerance=None):
+def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), attach=None, mass_properties=None):
     """Return ``(new_system, q_new, u_new)`` after the requested changes (applied in the order
     mass properties, detach, unlock, attach, lock).
 
     ``attach``: ``{body: (body_node, target_node)}``: body (a root on a free hinge) latched with its node
-    ``body_node`` onto ``target_node`` of another body; ``attach_tolerance`` [m, rad] bounds the misalignment of
-    the two frames the latch may capture (default :data:`dynamics.constraints.DEFAULT_ASSEMBLY_TOLERANCE`)."""
+    ``body_node`` onto ``target_node`` of another body, the two frames moving together already."""
     bodies, nodes, gravity = system.definitions
     bodies = [dataclasses.replace(b) for b in bodies]
     by_name = {b.name: b for b in bodies}
@@ -136,8 +133,7 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), attach=None, mas
         u_parts[body.name] = np.concatenate([np.zeros(nu), modal_u])
 
     if attach:
-        q_parts, u_parts = _attach(type(system), bodies, nodes, gravity, q_parts, u_parts, attach, find,
-                                   attach_tolerance)
+        q_parts, u_parts = _attach(type(system), bodies, nodes, gravity, q_parts, u_parts, attach, find)
         bodies = _parents_first(bodies)
         by_name = {b.name: b for b in bodies}
 
@@ -186,16 +182,14 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), attach=None, mas
     return new, q_new, u_new
 
 
-def attach_welds(bodies, nodes, attach, find):
-    """Check the ``attach`` entries against the body and node definitions and return ``(welds, moves)``: the weld
-    closure of each latch and ``(body, body_node, target_node)``."""
-    from dynamics.constraints import ClosureConstraint
-
+def attach_moves(bodies, nodes, attach, find):
+    """Check the ``attach`` entries against the body and node definitions; returns ``(body, body_node,
+    target_node)`` per entry."""
     node_by_name = {nd.name: nd for nd in nodes}
     children = {}
     for b in bodies:
         children.setdefault(b.parent, []).append(b.name)
-    welds, moves = [], []
+    moves = []
     for name, spec in attach.items():
         body = find(name, "attach")
         where = f"attach: body '{body.name}'"
@@ -225,41 +219,35 @@ def attach_welds(bodies, nodes, attach, find):
         if node_by_name[target].body in subtree:
             raise ModelDefinitionError(f"{where}: target node '{target}' is on body '{node_by_name[target].body}', "
                                        f"which moves with '{body.name}' (a loop: use a closure constraint)")
-        welds.append(ClosureConstraint(body_node, target, "weld", name=f"attach {body.name}"))
         moves.append((body, body_node, target))
-    return welds, moves
+    return moves
 
 
-def latch_gap(worst_residual, tolerance):
-    """``(gap, constraint)``: the largest misalignment (m or rad) of the latches' frames (a weld's
-    :meth:`~dynamics.constraints.ConstrainedSystem.worst_residual`), refused beyond ``tolerance``."""
-    from dynamics.constraints import DEFAULT_ASSEMBLY_TOLERANCE
-
-    gap, worst = worst_residual
-    tolerance = DEFAULT_ASSEMBLY_TOLERANCE if tolerance is None else tolerance
-    if gap > tolerance:
-        raise ModelDefinitionError(f"attach: the frames of '{worst}' are {gap:.6g} (m or rad) apart, more than the "
-                                   f"latch tolerance {tolerance:.3g}")
-    return gap, worst
+LATCH_VELOCITY_TOLERANCE = 1e-9
+"""Largest relative speed (rad/s, m/s, relative to the fastest node) two frames may have to be attached."""
 
 
-def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find, tolerance):
-    """The latch of each ``attach`` entry (module docstring): the plastic impact on the current system, then
-    the body's hinge made a locked hinge on the target node at the relative pose of the latch. Returns the new
-    coordinates."""
-    from dynamics.constraints import ConstrainedSystem
-
+def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find):
+    """Each ``attach`` entry (module docstring): the body's hinge made a locked hinge on the target node at the
+    relative pose of the latch. Returns the new coordinates."""
     node_by_name = {nd.name: nd for nd in nodes}
-    welds, moves = attach_welds(bodies, nodes, attach, find)
+    moves = attach_moves(bodies, nodes, attach, find)
     mid = _compile(system_class, bodies, nodes, gravity)
     q_mid = np.concatenate([q_parts[b.name] for b in bodies])
     u_mid = np.concatenate([u_parts[b.name] for b in bodies])
-    latch = ConstrainedSystem(mid, welds)
-    latch_gap(latch.worst_residual(q_mid), tolerance)
-    u_mid = latch.impact(q_mid, u_mid)[0]
-    kin = mid.node_kinematics(q_mid, np.zeros(mid.nu))
-    for k, b in enumerate(bodies):
-        u_parts[b.name] = u_mid[mid.u_slices[k]]
+    kin = mid.node_kinematics(q_mid, u_mid)
+    w = np.einsum("nab,nb->na", kin.rotation, kin.angular_velocity)
+    v = np.einsum("nab,nb->na", kin.rotation, kin.linear_velocity)
+    scale = max(1.0, float(np.abs(w).max(initial=0.0)), float(np.abs(v).max(initial=0.0)))
+    for body, body_node, target in moves:
+        a, b = mid.node_index(body_node), mid.node_index(target)
+        arm = kin.position[a] - kin.position[b]
+        slip = max(np.abs(w[a] - w[b]).max(), np.abs(v[a] - v[b] - np.cross(w[b], arm)).max())
+        if slip > LATCH_VELOCITY_TOLERANCE * scale:
+            raise ModelDefinitionError(
+                f"attach: body '{body.name}': its node '{body_node}' moves at {slip:.3g} (rad/s or m/s) relative to "
+                f"'{target}'; a latch is a plastic impact first: use ConstrainedSystem.reconfigure(attach=...) "
+                f"(dynamics.constraints)")
     for body, body_node, target in moves:
         node = node_by_name[body_node]
         n = 0 if body.flexible is None else body.flexible.n_modes

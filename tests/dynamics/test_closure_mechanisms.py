@@ -157,8 +157,9 @@ def test_linearized_four_bar_frequency_on_the_constraint_manifold():
     """About its hanging equilibrium the four-bar oscillates at omega^2 = V''/m_eff (one-DOF Lagrange equation,
     V'' by a central difference of the hand-built dV). The engine's state (3 angles + 3 rates) linearized by
     central differences has, besides the pendulum pair, four eigenvalues at zero (the constraint directions
-    of positions and of velocities: a planar loop removes two DOFs of three); restricted to the manifold's tangent space (2 states) it keeps
-    only the pair, at the frequency of the one-DOF equation to 1e-6 relative (finite differences)."""
+    of positions and of velocities: a planar loop removes two DOFs of three); restricted to the manifold's tangent
+    space (2 states) it keeps only the pair, at the frequency of the one-DOF equation to 1e-6 relative (finite
+    differences)."""
     thetas = np.linspace(0.0, 2 * np.pi, 73)
     dv = [four_bar_one_dof(t)[1] for t in thetas]
     roots = [brentq(lambda t: four_bar_one_dof(t)[1], a, b) for a, b, fa, fb in

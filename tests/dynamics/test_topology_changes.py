@@ -350,3 +350,6 @@ def test_bad_attach_requests_are_refused_with_the_body_named():
         stack.reconfigure(y[:7], y[7:], attach={"upper": ("upper_seat", "lower_seat")})
     with pytest.raises(ModelDefinitionError, match="unknown body or hinge 'uper'"):
         stack.reconfigure(y[:7], y[7:], detach=["uper"])
+    cs, y = docking_scene()
+    with pytest.raises(ModelDefinitionError, match="moves at 0.05.* relative to 'target_port'; a latch is a plastic"):
+        cs.system.reconfigure(y[:14], y[14:], attach={"chaser": ("chaser_port", "target_port")})
