@@ -23,9 +23,10 @@ import scipy.sparse as sp
 from dynamics.flex.geometric_stiffness import GeometricStiffness
 from dynamics.flex.modal_integrals import ModalIntegrals
 
-FORMAT_VERSION = "1.1"
-"""Layout version. 1.1 (issue 15) adds the optional ``GeometricStiffness`` group; 1.0 files (without it)
-read unchanged, with ``geometric_stiffness = None``."""
+FORMAT_VERSION = "1.2"
+"""Layout version. 1.1 (issue 15) adds the optional ``GeometricStiffness`` group; 1.2 (issue 33) the
+optional ``Units`` (the deck's unit system and its factors to SI) and ``OutputFrame`` (CSID axes) groups.
+Older files read unchanged, without them."""
 
 
 @dataclass
@@ -112,6 +113,13 @@ class ModalBody:
     # element; empty when unknown (files written before it was kept)
     element_types: list = field(default_factory=list)
     element_grids: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
+    # the deck's units and the factors that brought the body to SI (``--units``): keys spec, length, mass,
+    # time, force (SI per deck unit), wtmass; None when the deck was taken as SI
+    deck_units: dict | None = None
+    # output coordinate system (``--csid``): its id and axes in basic (columns); the body frame has these
+    # axes. 0 and the identity: basic axes
+    output_csid: int = 0
+    output_axes: np.ndarray = field(default_factory=lambda: np.eye(3))
     version: str = FORMAT_VERSION
     time_stamp: str = ""
 
@@ -280,6 +288,16 @@ def write_body_file(path, body: ModalBody) -> None:
             geometry.create_dataset("ElementType", data=np.array(body.element_types, dtype=object),
                                     dtype=h5py.string_dtype())
             geometry.create_dataset("ElementGrids", data=np.asarray(body.element_grids, dtype=np.int64))
+        if body.deck_units is not None:
+            units = h5.create_group("Units")
+            units.attrs["spec"] = body.deck_units["spec"]
+            units.create_dataset("DECK_UNITS", data=body.deck_units["spec"])
+            for key in UNIT_FACTORS:
+                units.create_dataset(key.upper(), data=float(body.deck_units[key]))
+        if body.output_csid:
+            frame = h5.create_group("OutputFrame")
+            frame.create_dataset("CSID", data=int(body.output_csid))
+            frame.create_dataset("Axes", data=np.asarray(body.output_axes, dtype=np.float64))
         cbs = h5.create_group("ChildBodies")
         for k, child in enumerate(body.child_bodies):
             g = cbs.create_group(f"{k:04d}")
@@ -288,6 +306,10 @@ def write_body_file(path, body: ModalBody) -> None:
             g.create_dataset("mass", data=float(child.mass))
             g.create_dataset("cmoffset", data=child.cm_offset)
             g.create_dataset("inertia", data=child.inertia)
+
+
+# datasets of the ``Units`` group: SI per deck unit of length, mass, time and force, and PARAM WTMASS
+UNIT_FACTORS = ("length", "mass", "time", "force", "wtmass")
 
 
 def _str(ds) -> str:
@@ -362,6 +384,13 @@ def read_body_file(path) -> ModalBody:
             time_stamp=_str(h5["TIME_STAMP"]),
         )
         body.element_types, body.element_grids = _read_geometry(h5)
+        if "Units" in h5:
+            units = h5["Units"]
+            body.deck_units = {"spec": _str(units["DECK_UNITS"]),
+                               **{key: float(units[key.upper()][()]) for key in UNIT_FACTORS}}
+        if "OutputFrame" in h5:
+            body.output_csid = int(h5["OutputFrame/CSID"][()])
+            body.output_axes = h5["OutputFrame/Axes"][()]
     return body
 
 

@@ -39,13 +39,13 @@ import numpy as np
 SUPPORTED_CARDS = frozenset({
     "GRID", "GRDSET", "CORD2R", "CORD2C", "CORD1R",
     "CBAR", "PBAR", "PBARL", "CBEAM", "PBEAM", "PBEAML", "CROD", "PROD",
-    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1", "MAT2", "MAT8",
-    "CQUAD4", "CTRIA3", "PSHELL", "PCOMP", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
-    "RBE2", "RBE3", "CBUSH", "PBUSH", "CORD2S", "CORD1C", "CORD1S",
-    "SPC", "SPC1", "SPCADD", "ASET", "ASET1", "PARAM", "ENDDATA",
+    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "CMASS1", "CMASS2", "PMASS", "MAT1", "MAT2", "MAT8",
+    "CQUAD4", "CTRIA3", "CQUAD8", "CTRIA6", "PSHELL", "PCOMP", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
+    "RBE2", "RBE3", "RBAR", "RBE1", "MPC", "MPCADD", "CBUSH", "PBUSH", "CORD2S", "CORD1C", "CORD1S",
+    "SPC", "SPC1", "SPCADD", "ASET", "ASET1", "PARAM", "ENDDATA", "DMIG",
 })
 # PARAMs that change the structural matrices or the products; all others are reported as ignored.
-USED_PARAMS = frozenset({"WTMASS", "COUPMASS", "GRDPNT"})
+USED_PARAMS = frozenset({"WTMASS", "COUPMASS", "GRDPNT", "CK2", "CM2"})
 # Containers of the pyNastran model whose unsupported members would change M or K.
 STRUCTURAL_CONTAINERS = ("elements", "properties", "materials", "masses", "rigid_elements",
                          "coords", "mpcs", "plotels", "properties_mass", "dmig", "dmiji", "dmik")
