@@ -25,7 +25,8 @@ from dynamics.flex.modal_integrals import ModalIntegrals
 
 FORMAT_VERSION = "1.2"
 """Layout version. 1.1 (issue 15) adds the optional ``GeometricStiffness`` group; 1.2 (issue 33) the
-optional ``Units`` (the deck's unit system and its factors to SI) and ``OutputFrame`` (CSID axes) groups.
+optional ``Units`` (the deck's unit system and its factors to SI), ``OutputFrame`` (CSID axes) and
+``LoadsRecovery`` groups.
 Older files read unchanged, without them."""
 
 
@@ -120,6 +121,8 @@ class ModalBody:
     # axes. 0 and the identity: basic axes
     output_csid: int = 0
     output_axes: np.ndarray = field(default_factory=lambda: np.eye(3))
+    # element forces / stresses and interface forces from the modal coordinates (dynamics.flex.loads_recovery)
+    loads_recovery: object = None
     version: str = FORMAT_VERSION
     time_stamp: str = ""
 
@@ -294,6 +297,8 @@ def write_body_file(path, body: ModalBody) -> None:
             units.create_dataset("DECK_UNITS", data=body.deck_units["spec"])
             for key in UNIT_FACTORS:
                 units.create_dataset(key.upper(), data=float(body.deck_units[key]))
+        if body.loads_recovery is not None:
+            _write_loads_recovery(h5.create_group("LoadsRecovery"), body.loads_recovery)
         if body.output_csid:
             frame = h5.create_group("OutputFrame")
             frame.create_dataset("CSID", data=int(body.output_csid))
@@ -306,6 +311,29 @@ def write_body_file(path, body: ModalBody) -> None:
             g.create_dataset("mass", data=float(child.mass))
             g.create_dataset("cmoffset", data=child.cm_offset)
             g.create_dataset("inertia", data=child.inertia)
+
+
+def _write_loads_recovery(g: h5py.Group, lr) -> None:
+    g.attrs["reaction"] = lr.reaction
+    g.create_dataset("REACTION", data=lr.reaction)
+    g.create_dataset("REFERENCE_GRID", data=int(lr.reference_grid))
+    g.create_dataset("Names", data=np.array(lr.names, dtype=object), dtype=h5py.string_dtype())
+    g.create_dataset("Kinds", data=np.array(lr.kinds, dtype=object), dtype=h5py.string_dtype())
+    for name, value in (("ModeDisplacement", lr.mode_displacement),
+                        ("ReferenceAcceleration", lr.reference_acceleration), ("Loads", lr.loads)):
+        g.create_dataset(name, data=np.asarray(value, dtype=np.float64))
+    g.create_dataset("LoadDofs", data=np.asarray(lr.load_dofs, dtype=np.int64).reshape(-1, 2))
+
+
+def _read_loads_recovery(g: h5py.Group):
+    from dynamics.flex.loads_recovery import LoadsRecovery
+
+    def strings(ds):
+        return [s.decode() if isinstance(s, bytes) else str(s) for s in ds[()]]
+    return LoadsRecovery(names=strings(g["Names"]), kinds=strings(g["Kinds"]),
+                         mode_displacement=g["ModeDisplacement"][()],
+                         reference_acceleration=g["ReferenceAcceleration"][()], reaction=_str(g["REACTION"]), reference_grid=int(g["REFERENCE_GRID"][()]),
+                         load_dofs=g["LoadDofs"][()], loads=g["Loads"][()])
 
 
 # datasets of the ``Units`` group: SI per deck unit of length, mass, time and force, and PARAM WTMASS
@@ -388,6 +416,8 @@ def read_body_file(path) -> ModalBody:
             units = h5["Units"]
             body.deck_units = {"spec": _str(units["DECK_UNITS"]),
                                **{key: float(units[key.upper()][()]) for key in UNIT_FACTORS}}
+        if "LoadsRecovery" in h5:
+            body.loads_recovery = _read_loads_recovery(h5["LoadsRecovery"])
         if "OutputFrame" in h5:
             body.output_csid = int(h5["OutputFrame/CSID"][()])
             body.output_axes = h5["OutputFrame/Axes"][()]

@@ -327,7 +327,7 @@ def rigid_motion_loads(blocks: np.ndarray, l0: np.ndarray) -> np.ndarray:
     return np.einsum("nij,njc->nic", blocks, field_)
 
 
-def _static_displacements(sm, K, M, loads_f, held, rigid_vectors):
+def static_displacements(sm, K, M, loads_f, held, rigid_vectors):
     """f-set displacements for the f-set loads (n_f, c): ``held`` DOFs fixed (a-set) or, without them,
     inertia relief with the rigid-body vectors."""
     from dynamics.flex.modes import factorize  # supernodal Cholesky (SPD: held or SPC'd), else SuperLU
@@ -391,7 +391,7 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
     g[:, :3] = np.einsum("nba,nbc->nac", Rcd, loads_basic[:, :3])
     g[:, 3:] = np.einsum("nba,nbc->nac", Rcd, loads_basic[:, 3:])
     loads_f = np.asarray(sm.T_gf.T @ g.reshape(6 * N, -1))
-    u_f = _static_displacements(sm, K, M, loads_f, held, rigid_vectors)
+    u_f = static_displacements(sm, K, M, loads_f, held, rigid_vectors)
     ug = np.asarray(sm.T_gf @ u_f).reshape(N, 6, -1)
     ub = np.empty_like(ug)
     ub[:, :3] = np.einsum("nab,nbc->nac", Rcd, ug[:, :3])

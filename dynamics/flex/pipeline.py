@@ -60,6 +60,10 @@ class Fem2ModalOptions:
         deck is taken as SI (its densities are checked for plausibility). ``--preload`` values are SI.
     csid: output coordinate system (rectangular): the body frame takes its axes (origin still at the
         reference point); mass properties, grid positions, mode shapes and modal integrals are in them.
+    recover_elements, recover_grids: loads recovery (:mod:`dynamics.flex.loads_recovery`): element forces
+        and stresses of these CBAR/CBEAM/CROD elements and interface forces at these grids, by mode
+        displacement and mode acceleration, stored for the LoadsRecovery model; the residual-vector DOFs
+        are its load DOFs.
     op2: a NASTRAN OP2 file: its SOL 103 eigenvalues and eigenvectors replace our eigen-solution (the deck
         supplies geometry and the mass for normalization, mass properties and modal integrals; our own
         modes are computed too and compared), or, without eigenvectors, its KGG and MGG replace the
@@ -89,6 +93,8 @@ class Fem2ModalOptions:
     units: str | None = None
     csid: int | None = None
     op2: str | None = None
+    recover_elements: list = field(default_factory=list)
+    recover_grids: list = field(default_factory=list)
 
 
 def validate_options(options: Fem2ModalOptions) -> None:
@@ -120,6 +126,9 @@ def validate_options(options: Fem2ModalOptions) -> None:
         parse_units(options.units)
     if options.op2 is not None and options.op4 is not None:
         raise ValueError("give one of --op2 and --op4, not both")
+    if (options.recover_elements or options.recover_grids) and options.op4 is not None:
+        raise ValueError("loads recovery (--recover-elements, --recover-grids) needs the deck's elements; "
+                         "--op4 matrices carry none")
     if options.csid is not None and (int(options.csid) != options.csid or options.csid < 0):
         raise ValueError(f"--csid (csid) must be a coordinate system id >= 0, got {options.csid}")
     if options.n_modes == 0 and not has_aset:
@@ -513,6 +522,21 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
                                      lm.inertia_cg) for lm in sm.lumped_masses],
         card_report=bulk.report.lines())
     body.element_types, body.element_grids = elements_of_deck(bulk.model)
+    if options.recover_elements or options.recover_grids:
+        from dynamics.flex.loads_recovery import loads_recovery
+        say.step("loads recovery", f"loads recovery of elements {list(options.recover_elements)} and grids "
+                 f"{list(options.recover_grids)}")
+        reference_row = None
+        if aset_pairs:
+            reference_row = _interface_row(bulk, aset_pairs)
+            if reference_row is None or len({int(g) for g, _ in aset_pairs}) != 1:
+                raise ValueError(f"{deck}: loads recovery by mode acceleration needs the body held at one interface "
+                                 f"grid in all six components (the a-set is {sorted({int(g) for g, _ in aset_pairs})})")
+        body.loads_recovery = loads_recovery(
+            sm, K, M, flex.vectors, options.recover_elements, options.recover_grids,
+            held=b_idx if aset_pairs else None, rigid_vectors=rigid_geometry, reference_row=reference_row,
+            reference_point=ref_point, load_dofs=[tuple(int(v) for v in row) for row in res_uset])
+        say(f"loads recovery: {body.loads_recovery.n_outputs} outputs, reaction {body.loads_recovery.reaction}")
     if options.units is not None or options.csid:
         axes = _output_axes(bulk, options.csid)
         say.step("units and axes", f"body expressed in SI from {units.describe()}"

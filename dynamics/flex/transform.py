@@ -61,6 +61,32 @@ def _rotate_omega_products(products: np.ndarray, R: np.ndarray) -> np.ndarray:
     return np.stack([W[a, b] for a, b in OMEGA_PAIRS])
 
 
+def _loads_recovery(lr, u: DeckUnits, R: np.ndarray, c: np.ndarray):
+    """The recovery matrices in SI and the output axes: each row scales by its quantity's factor (force f,
+    moment f l, stress f / l^2), the modal columns by 1 / c, the reference-acceleration columns per SI unit
+    of angular (1/tau^2) and linear (l/tau^2) acceleration, the load columns per SI force or moment of their
+    CD component; interface forces (basic rows) and the reference acceleration (basic columns) turn with R."""
+    from dynamics.flex.loads_recovery import DIMENSIONS, LoadsRecovery
+
+    L, mu, tau = u.length, u.mass, u.time
+    row = np.array([L ** a * mu ** b * tau ** t for a, b, t in (DIMENSIONS[k] for k in lr.kinds)])
+    S = lr.reference_acceleration * row[:, None] * np.r_[np.full(3, tau ** 2), np.full(3, tau ** 2 / L)]
+    S = np.hstack([S[:, :3] @ R, S[:, 3:] @ R])
+    load_unit = np.where(np.asarray(lr.load_dofs, dtype=np.int64).reshape(-1, 2)[:, 1] <= 3, u.force,
+                         u.force * L)
+    rows = {name: k for k, name in enumerate(lr.names)}
+    out = LoadsRecovery(names=list(lr.names), kinds=list(lr.kinds),
+                        mode_displacement=lr.mode_displacement * row[:, None] / c, reference_acceleration=S,
+                        reaction=lr.reaction, reference_grid=lr.reference_grid, load_dofs=lr.load_dofs,
+                        loads=lr.loads * row[:, None] / load_unit)
+    for name, k in rows.items():           # interface forces: [F; M] triples in basic rows -> output axes
+        if name.startswith("GRID ") and name.endswith(" FX"):
+            for arrays in (out.mode_displacement, out.reference_acceleration, out.loads):
+                arrays[k:k + 3] = R.T @ arrays[k:k + 3]
+                arrays[k + 3:k + 6] = R.T @ arrays[k + 3:k + 6]
+    return out
+
+
 def express_body(body: ModalBody, units: DeckUnits = SI, axes: np.ndarray | None = None,
                  coordinate_scale: np.ndarray | None = None) -> ModalBody:
     """``body`` (deck units, basic axes) in SI and in the output ``axes`` (columns in basic; None =
@@ -99,6 +125,9 @@ def express_body(body: ModalBody, units: DeckUnits = SI, axes: np.ndarray | None
             angular_velocity=_rotate_omega_products(gs.angular_velocity, R) * (mu * L ** 2 / pair),
             preload_names=list(gs.preload_names),
             preload=None if gs.preload is None else gs.preload * (f * L / pair), elements=gs.elements)
+    lr = body.loads_recovery
+    if lr is not None:
+        lr = _loads_recovery(lr, units, R, c)
     modal_matrix = body.modal_matrix
     if modal_matrix is not None:
         rows = np.tile(np.r_[np.full(3, L), np.ones(3)], len(body.grid_ids))
@@ -117,5 +146,6 @@ def express_body(body: ModalBody, units: DeckUnits = SI, axes: np.ndarray | None
         modal_damping=np.asarray(body.modal_damping) * (f * L * tau / pair),
         craig_bampton=cb, geometric_stiffness=gs,
         gset=_scale_physical(body.gset, units), fset=_scale_physical(body.fset, units), modal_matrix=modal_matrix,
+        loads_recovery=lr,
         child_bodies=[ChildRigidBody(ch.element_id, ch.grid_id, ch.mass * mu, vec(ch.cm_offset) * L,
                                      inertia(ch.inertia) * mu * L ** 2) for ch in body.child_bodies])
