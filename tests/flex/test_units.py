@@ -13,6 +13,7 @@ asserted 1e-9.
 """
 
 import subprocess
+import warnings
 import sys
 
 import numpy as np
@@ -31,10 +32,11 @@ FIELD_DIMENSIONS = {
               **{k: (2, 1, 0) for k in range(10, 16)}},
     "MAT1": {3: (-1, 1, -2), 4: (-1, 1, -2), 6: (-3, 1, 0)},
     "PSHELL": {4: (1, 0, 0), 9: (-2, 1, 0)},
-    "PBAR": {4: (2, 0, 0), 5: (4, 0, 0), 6: (4, 0, 0), 7: (4, 0, 0), 8: (-1, 1, 0)},
+    "PBAR": {4: (2, 0, 0), 5: (4, 0, 0), 6: (4, 0, 0), 7: (4, 0, 0), 8: (-1, 1, 0), **{k: (1, 0, 0) for k in range(10, 18)}},
     "PBUSH": {4: (0, 1, -2), 5: (0, 1, -2), 6: (0, 1, -2), 7: (2, 1, -2), 8: (2, 1, -2), 9: (2, 1, -2)},
 }
-OPTIONS = dict(n_modes=8, geometric_stiffness=True, preloads=[("thrust", 187, 1, -200.0)])
+OPTIONS = dict(n_modes=8, geometric_stiffness=True, preloads=[("thrust", 187, 1, -200.0)],
+               recover_elements=[164, 170], recover_grids=[38])
 
 
 def convert(text, units, mass_unit=None):
@@ -82,6 +84,9 @@ def _same_body(a, b, shapes_rtol=1e-9):
     assert_allclose(gb.translation, ga.translation, rtol=0, atol=1e-9 * scale)
     for name in ("rotation", "angular_velocity", "preload"):
         close(getattr(ga, name), getattr(gb, name), shapes_rtol)
+    la, lb = a.loads_recovery, b.loads_recovery
+    assert la.names == lb.names and la.reaction == lb.reaction == "inertia_relief"
+    close(la.mode_displacement, lb.mode_displacement, shapes_rtol)
 
 
 @pytest.mark.parametrize("system", ["in,lbf,s", "mm,N,s", "mm,kg,s"])
@@ -121,6 +126,25 @@ def test_unknown_or_inconsistent_systems_are_refused(text, match):
         parse_units(text)
     with pytest.raises(ValueError, match=match):
         fem2modal(SPACECRAFT, Fem2ModalOptions(n_modes=2, units=text))
+
+
+def test_loads_recovery_in_other_units(write_deck):
+    """The cantilever of configs/fem/cantilever_loads.dat (held at its root: the reference-acceleration columns
+    are not zero) in mm,N,s: its recovery matrices (element forces, stresses at the PBAR stress points,
+    interface forces) are the SI deck's."""
+    deck = "configs/fem/cantilever_loads.dat"
+    options = dict(n_modes=6, aset=[(1, [1, 2, 3, 4, 5, 6])], recover_elements=[101, 110], recover_grids=[1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = fem2modal(deck, Fem2ModalOptions(**options))
+        b = fem2modal(write_deck(convert(open(deck).read(), parse_units("mm,N,s")), "mm.dat"),
+                      Fem2ModalOptions(units="mm,N,s", **options))
+    la, lb = a.loads_recovery, b.loads_recovery
+    assert la.names == lb.names and la.reaction == lb.reaction == "aset"
+    for name in ("mode_displacement", "reference_acceleration"):
+        x, y = getattr(la, name), getattr(lb, name)
+        assert_allclose(y, x, rtol=0, atol=1e-9 * np.abs(x).max())
+    assert np.abs(la.reference_acceleration).max() > 0
 
 
 def test_derived_units():
