@@ -1255,10 +1255,14 @@ def massless_mechanism_dofs(K, M, avoid: np.ndarray | None = None) -> np.ndarray
             raise BulkDataError("24 or more massless mechanisms (motions with neither mass nor "
                                 "stiffness): give the rotations mass (PARAM COUPMASS 1, CBEAM, "
                                 "CONM2 inertia) or constrain them")
+    if avoid is not None and np.any(avoid[o]) and Z.shape[1]:
+        # a mechanism that moves interface DOFs is restrained by them in the Craig-Bampton reduction (K_ee);
+        # holding another DOF would add a stiffness the structure does not have (the spin of a lumped CBAR
+        # line held at its tip twisting against its interface). Hold only the motions off the interface.
+        Z = Z @ sla.null_space(Z[avoid[o]], rcond=1e-10)
     if Z.shape[1] == 0:
         return np.zeros(0, dtype=np.int64)
-    weight = np.ones(len(o)) if avoid is None else np.where(avoid[o], 1e-6, 1.0)
-    _, _, piv = sla.qr(Z.T * weight, pivoting=True, mode="economic")
+    _, _, piv = sla.qr(Z.T, pivoting=True, mode="economic")
     return np.sort(o[piv[:Z.shape[1]]])
 
 

@@ -85,7 +85,7 @@ class ModalBody:
     mass: float                            # [kg]
     cm_offset: np.ndarray                  # (3,) from the reference point [m]
     inertia: np.ndarray                    # (3,3) about the reference point [kg m^2]
-    frequencies_hz: np.ndarray             # (n,)
+    frequencies_hz: np.ndarray             # (n,); inf for the quasi-static modes
     n_rigid_modes_removed: int
     n_residual_vectors: int
     grid_ids: np.ndarray                   # (N,) int64
@@ -123,6 +123,10 @@ class ModalBody:
     output_axes: np.ndarray = field(default_factory=lambda: np.eye(3))
     # element forces / stresses and interface forces from the modal coordinates (dynamics.flex.loads_recovery)
     loads_recovery: object = None
+    # the last n_quasi_static modes have stiffness and no mass (massless interface DOFs of normalized component
+    # modes, dynamics.flex.component_modes): frequency inf, modal mass 0, modal stiffness the largest flexible
+    # eigenvalue each
+    n_quasi_static: int = 0
     version: str = FORMAT_VERSION
     time_stamp: str = ""
 
@@ -245,6 +249,8 @@ def write_body_file(path, body: ModalBody) -> None:
         ms.create_dataset("N_FLEX_MODES", data=body.n_modes)
         ms.create_dataset("N_RIGID_MODES", data=int(body.n_rigid_modes_removed))
         ms.create_dataset("N_RESIDUAL_VECTORS", data=int(body.n_residual_vectors))
+        if body.n_quasi_static:
+            ms.create_dataset("N_QUASI_STATIC_MODES", data=int(body.n_quasi_static))
         ms.create_dataset("ModalMassMatrix", data=body.modal_mass)
         ms.create_dataset("ModalStiffnessMatrix", data=body.modal_stiffness)
         ms.create_dataset("ModalDampingMatrix", data=body.modal_damping)
@@ -416,6 +422,8 @@ def read_body_file(path) -> ModalBody:
             units = h5["Units"]
             body.deck_units = {"spec": _str(units["DECK_UNITS"]),
                                **{key: float(units[key.upper()][()]) for key in UNIT_FACTORS}}
+        if "N_QUASI_STATIC_MODES" in ms:
+            body.n_quasi_static = int(ms["N_QUASI_STATIC_MODES"][()])
         if "LoadsRecovery" in h5:
             body.loads_recovery = _read_loads_recovery(h5["LoadsRecovery"])
         if "OutputFrame" in h5:

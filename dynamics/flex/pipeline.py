@@ -382,6 +382,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
 
     aset_pairs = list(sm.deck_aset) + list(options.aset)
     cb_data = None
+    quasi_static = EigenSolution(np.zeros(0), np.zeros((K.shape[0], 0)))
     n_rigid = 0
     rigid_vectors = None
     if aset_pairs:
@@ -398,16 +399,17 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
         cb_data = CraigBamptonData(frequencies_hz=cb.fixed_interface.frequencies_hz,
                                    mass=signs[:, None] * cb.mass * signs, stiffness=signs[:, None] * cb.stiffness * signs,
                                    uset=b_uset)
-        rigid, flex, split = normalized_component_modes(cb, rigid_geometry)
-        massless = cb.mass.shape[0] - len(rigid.eigenvalues) - len(flex.eigenvalues)
-        if massless:
-            warnings.warn(
-                f"{deck}: {massless} direction(s) of the Craig-Bampton basis carry no mass and were "
-                f"dropped (the {cb.n_modes} fixed-interface modes span the interior motion of a "
-                "constraint mode of a massless a-set DOF, e.g. a beam-end rotation with lumped mass); "
-                f"the body has {len(flex.eigenvalues)} flexible modes instead of "
-                f"{len(flex.eigenvalues) + massless}. Ask fewer "
-                "fixed-interface modes, or use PARAM COUPMASS 1 so every DOF has mass", stacklevel=2)
+        component = normalized_component_modes(cb, rigid_geometry)
+        rigid, flex, split = component.rigid, component.flexible, component.split
+        quasi_static = component.quasi_static
+        if component.n_massless_rigid:
+            say(f"{component.n_massless_rigid} massless rigid motion(s) of the Craig-Bampton basis removed (no mass "
+                "and no stiffness: e.g. a lumped-mass CBAR line spinning about its axis, which the interface carries)")
+        if len(quasi_static.eigenvalues):
+            say(f"{len(quasi_static.eigenvalues)} quasi-static mode(s) kept: directions of the Craig-Bampton basis "
+                "with stiffness and no mass (the constraint mode of a massless interface DOF, e.g. a beam-end "
+                "rotation with lumped mass); the bodies attached at the interface give them inertia. They are the "
+                "last modes of the body (infinite frequency, zero modal mass) and need the engine's dense solver")
         mode_set = "normalized-component"
         grids = sorted({int(g) for g in b_uset[:, 0]})
         say("normalized component modes: their frequencies below are those of the free, "
@@ -453,6 +455,10 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
 
     n_residual = 0
     res_uset = np.zeros((0, 2), dtype=np.int64)
+    if options.residual and len(quasi_static.eigenvalues):
+        raise ValueError(f"{deck}: residual vectors with quasi-static modes (massless interface DOFs) are not "
+                         "supported: give the interface DOFs mass (PARAM COUPMASS 1, CONM2 inertia) or leave out "
+                         "--residual")
     if options.residual:
         r_idx, res_uset = _f_indices(sm, options.residual, "residual-vector grid")
         say.step("residual vectors", f"residual vectors for {len(r_idx)} load DOFs")
@@ -460,6 +466,9 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
         n_residual = len(res.eigenvalues)
         flex = append_residual_vectors(K, M, flex, res)
 
+    if len(quasi_static.eigenvalues):
+        flex = EigenSolution(np.concatenate([flex.eigenvalues, quasi_static.eigenvalues]),
+                             np.hstack([flex.vectors, quasi_static.vectors]))
     if op2 is None or not op2.has_modes:       # NASTRAN's modes keep NASTRAN's signs
         flex.vectors *= energy_signs(flex.vectors, K.diagonal())
     n = len(flex.eigenvalues)
@@ -468,6 +477,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
     if damping.shape != (n,):
         raise ValueError(f"damping: {len(damping)} ratios given for {n} modes")
     omega = np.sqrt(np.maximum(flex.eigenvalues, 0.0))
+    omega[np.isinf(omega)] = 0.0           # quasi-static modes: no mass, no modal damping
 
     # physical shapes: f -> g (CD frames) -> basic, rows [rotation; translation] per grid
     say.step("mode shapes", "mode shapes per grid")
@@ -510,7 +520,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
         rotation_shapes=rot, translation_shapes=trans, node_mass=nm, node_cm_offset=npos,
         node_inertia=nJ, modal_mass=0.5 * (Mr + Mr.T), modal_stiffness=0.5 * (Kr + Kr.T),
         modal_damping=np.diag(2.0 * damping * omega), damping_ratios=damping,
-        craig_bampton=cb_data, geometric_stiffness=gs,
+        craig_bampton=cb_data, geometric_stiffness=gs, n_quasi_static=len(quasi_static.eigenvalues),
         gset=SparseModel(sm.mass_g, sm.stiffness_g, _uset(sm, np.arange(6 * N)))
         if options.write_gset else None,
         fset=SparseModel(M, K, _uset(sm, sm.f_dofs)) if options.write_fset else None,
