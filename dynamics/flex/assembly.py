@@ -39,8 +39,7 @@ from dynamics.flex import solids
 from dynamics.flex.laminates import mat8_moduli, pcomp_section
 from dynamics.flex.sections import section_properties
 from dynamics.flex.shells import property_row as shell_props
-from dynamics.flex.quadratic_shells import curved_shell_batch
-from dynamics.flex.quadratic_shells import rules as curved_shell_rules
+from dynamics.flex.quadratic_shells import cquad8_batch, tria6_parts
 from dynamics.flex.shells import shell_batch
 from dynamics.flex.bulk_data import (BulkData, BulkDataError, displacement_frame_rotation,
                                       vector_to_basic)
@@ -474,11 +473,15 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
         rows = np.array([sh[0] for sh in group], dtype=np.int64)
         xyz = pos[rows]
         props = np.array([sh[1] for sh in group], dtype=float)
-        if nn in (3, 4):
+        if nn == 8:
+            Kg, Mg, MLg = cquad8_batch(xyz, props, bulk.coupled_mass)
+        elif nn == 6:
+            xyz, props, local = tria6_parts(xyz, props)
+            rows = np.take_along_axis(np.repeat(rows, 4, axis=0), local, axis=1)
             Kg, Mg, MLg = shell_batch(xyz, props, bulk.coupled_mass)
         else:
-            Kg, Mg, MLg = curved_shell_batch(xyz, props, bulk.coupled_mass, *curved_shell_rules(nn))
-        dofs = (6 * rows[:, :, None] + np.arange(6)).reshape(len(group), 6 * nn)
+            Kg, Mg, MLg = shell_batch(xyz, props, bulk.coupled_mass)
+        dofs = (6 * rows[:, :, None] + np.arange(6)).reshape(len(rows), 6 * rows.shape[1])
         K_b.add_batch(dofs, Kg)
         M_b.add_batch(dofs, Mg)
         ML_b.add_batch(dofs, MLg)
