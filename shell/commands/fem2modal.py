@@ -58,6 +58,11 @@ def register(subparsers) -> None:
                    help="NASTRAN OP2 results: its SOL 103 eigenvalues and eigenvectors (OUGV1/BOUGV1) are the "
                         "body's modes, normalized with the deck's mass and checked against our own; without "
                         "eigenvectors, its KGG and MGG replace the assembled matrices")
+    p.add_argument("--recover-elements", action="append", default=[], metavar="EID[,EID...]",
+                   help="loads recovery: element forces and stresses of these CBAR/CBEAM/CROD elements by mode "
+                        "displacement and mode acceleration, for the LoadsRecovery model; repeatable")
+    p.add_argument("--recover-grids", action="append", default=[], metavar="GRID[,GRID...]",
+                   help="loads recovery: interface forces at these grids; repeatable")
     p.add_argument("--gset", action="store_true", help="store the G-set sparse K and M")
     p.add_argument("--fset", action="store_true", help="store the F-set sparse K and M")
     p.add_argument("--modal-matrix", action="store_true",
@@ -68,6 +73,18 @@ def register(subparsers) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.add_argument("-o", "--output", required=True, metavar="BODY.h5", help="body file to write")
     p.set_defaults(func=run)
+
+
+def _ids(items, flag):
+    """[int] of repeatable comma-separated ids; ValueError naming the flag."""
+    out = []
+    for item in items:
+        for text in str(item).split(","):
+            try:
+                out.append(int(text))
+            except ValueError:
+                raise ValueError(f"{flag}: expected integer ids separated by commas, got {item!r}") from None
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -94,7 +111,8 @@ def run(args: argparse.Namespace) -> int:
             allow_unsupported=args.allow_unsupported, op4=args.op4,
             geometric_stiffness=args.geometric_stiffness,
             preloads=[parse_preload(s) for s in args.preload], units=args.units, csid=args.csid,
-            op2=args.op2)
+            op2=args.op2, recover_elements=_ids(args.recover_elements, "--recover-elements"),
+            recover_grids=_ids(args.recover_grids, "--recover-grids"))
         with warnings.catch_warnings():
             warnings.simplefilter("always")
             warnings.showwarning = lambda m, *a, **k: progress(f"warning: {m}")
