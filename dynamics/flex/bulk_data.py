@@ -5,9 +5,10 @@ is parsed with pyNastran's BDF reader. Every card type is then sorted into one o
 reported by name and count, so nothing is silently dropped:
 
 * supported: modelled by :mod:`dynamics.flex.elements` / :mod:`dynamics.flex.assembly`
-  (GRID, GRDSET, CORD2R, CORD2C, CORD2S, CORD1R, CORD1C, CORD1S, RBE3, CBUSH/PBUSH, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
-  CQUAD4/CTRIA3/PSHELL/PCOMP, CHEXA/CTETRA/CPENTA/PSOLID,
-  CONM1, CONM2, MAT1, MAT2, MAT8, RBE2, SPC, SPC1, ASET, ASET1, PARAM WTMASS/COUPMASS/GRDPNT);
+  (GRID, GRDSET, CORD2R, CORD2C, CORD2S, CORD1R, CORD1C, CORD1S, RBE3, CBUSH/PBUSH, CBAR/PBAR/PBARL,
+  CBEAM/PBEAM/PBEAML, CROD/PROD, CELAS1/PELAS, CELAS2, CQUAD4/CTRIA3/CQUAD8/CTRIA6 with PSHELL/PCOMP,
+  CHEXA/CTETRA/CPENTA (6 and 15 grids)/PSOLID, CONM1, CONM2, CMASS1/PMASS, CMASS2, MAT1, MAT2, MAT8, RBE2,
+  RBAR, RBE1, MPC, MPCADD, SPC, SPC1, SPCADD, ASET, ASET1, DMIG (K2GG/M2GG), PARAM WTMASS/COUPMASS/GRDPNT/CK2/CM2);
 * ignored: cards that carry no mass, stiffness or constraint (solution controls, output and
   load cards, SPOINTs without elements, other PARAMs): reported as a warning;
 * unsupported structural cards (other elements, properties, materials, rigid elements, MPCs,

@@ -7,7 +7,7 @@ figures; the dimensions are read as there: the section's y axis (plane 1, I1 = i
 BAR and BOX and along DIM1 (the height) for I, z along DIM1 (BAR, BOX) or the flange width (I).
 
 Verified against NASTRAN's own equivalent entries (pyNastran's models/aero/fmondsp.f06, MSC Nastran 2005;
-models/aero/aerobeam.f06, NX Nastran; models/beam_modes/beam_modes.f06, MSC: tests/flex/test_sections.py):
+models/aero/aerobeam.f06, NX Nastran; models/beam_modes/beam_modes.f06, MSC: tests/flex/test_interop_cards.py):
 
 * ROD (DIM1 = r): A = pi r^2, I1 = I2 = pi r^4 / 4, J = pi r^4 / 2, K1 = K2 = 0.9 (MSC's value; it
   reproduces MSC's eigenvalues of beam_modes to 7 digits, tests/flex/test_nastran_reference.py).
