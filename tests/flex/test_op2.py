@@ -184,3 +184,44 @@ def test_dmig_refusals_and_unselected_warning(write_deck):
     with pytest.warns(UserWarning, match="DMIG KX not selected"):
         fem2modal(write_deck(_dmig_beam("", "DMIG,KX,0,6,2\nDMIG,KX,3,2,,3,2,3.0e5\n"), "unused.dat"),
                   Fem2ModalOptions(n_modes=2))
+
+
+def test_kgg_and_mgg_from_an_op2(write_deck, tmp_path, monkeypatch):
+    """An OP2 of DMAP OUTPUT2 matrices (no eigenvectors): its KGG and MGG replace the assembled matrices, as
+    from an OP4. No public OP2 with KGG/MGG was found (pyNastran's models/ hold other DMAP matrices) and
+    pyNastran 1.3.4 writes no matrices, so pyNastran's reader is replaced here by one returning what it
+    returns for OUTPUT2 matrices (sparse data per name): the deck's own assembled KGG and MGG give the deck's
+    body (1e-12), and a file without them is refused naming the matrices it has."""
+    import types
+
+    import scipy.sparse as sp
+
+    from dynamics.flex import op2 as op2_module
+    from dynamics.flex.assembly import assemble
+    from dynamics.flex.bulk_data import read_bulk_data
+
+    deck = write_deck(decks.beam_deck(8, 2.0), "beam.dat")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sm = assemble(read_bulk_data(deck))
+    matrices = {"KGG": sm.stiffness_g, "MGG": sm.mass_g}
+
+    def fake_reader():
+        def read_op2(path, **kw):
+            return types.SimpleNamespace(
+                matrices={name: types.SimpleNamespace(data=sp.coo_matrix(m)) for name, m in matrices.items()},
+                eigenvectors={}, eigenvalues={}, grid_point_weight={})
+        return read_op2
+
+    monkeypatch.setattr(op2_module, "_op2_reader", fake_reader)
+    fake = tmp_path / "matrices.op2"
+    fake.write_bytes(b"\0")
+    own = _quiet(deck, Fem2ModalOptions(n_modes=6))
+    body = _quiet(deck, Fem2ModalOptions(n_modes=6, op2=str(fake)))
+    assert_allclose(body.frequencies_hz, own.frequencies_hz, rtol=1e-12)
+    assert_allclose(body.mass, own.mass, rtol=1e-14)
+    scale = np.abs(own.translation_shapes).max()
+    assert_allclose(body.translation_shapes, own.translation_shapes, atol=1e-10 * scale)
+    matrices = {"KAA": sm.stiffness_g}
+    with pytest.raises(Exception, match=r"matrices \['KGG', 'MGG'\] not found \(has \['KAA'\]\)"):
+        _quiet(deck, Fem2ModalOptions(n_modes=6, op2=str(fake)))
