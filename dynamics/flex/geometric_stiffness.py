@@ -55,10 +55,11 @@ Theory of Matrix Structural Analysis, 1968, sec. 15.2, eq. 15.53, I_p = I1 + I2 
 centroid (a tapered PBEAM: its end-A section); element offsets through the same rigid links as the
 stiffness) and CROD (a string: N / L on the transverse translations). The geometry,
 properties and offsets are read through :mod:`dynamics.flex.assembly`'s own beam functions. Shells
-(CQUAD4, CTRIA3: membrane resultants on u, v, w) and solids (CHEXA8/20, CTETRA4/10, CPENTA6: the full
+(CQUAD4, CTRIA3: membrane resultants on u, v, w) and solids (CHEXA8/20, CTETRA4/10, CPENTA6/15: the full
 stress) through :mod:`dynamics.flex.geometric_stiffness_continuum` (initial-stress matrix int G' S G dV from
 the elements' own Gauss-point stresses). Springs
-(CBUSH, CELAS) contribute no geometric stiffness: the pipeline warns naming them.
+(CBUSH, CELAS) and the shells with mid-side grids (CQUAD8, CTRIA6) contribute no geometric stiffness: the
+pipeline warns naming them.
 Limits: the shear-flexible beam (PBEAM K) uses the Euler-Bernoulli geometric stiffness; the geometric
 stiffness of node rotary inertia loads is left out (second order for slender beams).
 """

@@ -14,7 +14,7 @@ Element Method, vol. 2, 6th ed., 2005, sec. 6.2 and 10.6 for plates)::
 three displacement components). These kernels return H per element and load case; the caller applies it to
 the element's translations.
 
-* Solids (CHEXA8/20, CTETRA4/10, CPENTA6, :mod:`dynamics.flex.solids`): sigma = C (B u + B_a alpha) at every
+* Solids (CHEXA8/20, CTETRA4/10, CPENTA6/15, :mod:`dynamics.flex.solids`): sigma = C (B u + B_a alpha) at every
   Gauss point of the element's own rule; for CHEXA8 the nine incompatible-mode amplitudes are recovered from
   the static condensation, ``alpha = -K_aa^-1 K_ua' u`` (the same B_a as the element: centre Jacobian scaled
   by det J0 / det J), so the stress is the element's own (its nodal forces int B' sigma dV equal K u, tested).
