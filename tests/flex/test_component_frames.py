@@ -28,29 +28,21 @@ from numpy.testing import assert_allclose
 
 from dynamics import Multibody
 from dynamics.flex import Fem2ModalOptions, fem2modal
-from dynamics.modal_analysis import rest_body_data, system_modes
+from dynamics.modal_analysis import BeamDeck, rest_body_data, system_modes
 
 LENGTH, ELEMENTS = 2.0, 20
 ALL = [1, 2, 3, 4, 5, 6]
 
 
 def frame_deck(lines, spc=None, extra=()):
-    """Free-field deck of CBAR lines: each (first grid id, start, direction, reuse the first grid id)."""
-    out, grids, elements, eid = [], {}, [], 1
+    """Free-field deck of CBAR lines: each (first grid id, start, direction, reuse the first grid id); the grid
+    and element layout of :class:`BeamDeck`, written as lumped-mass CBARs on their own PBAR/MAT1."""
+    deck, eid = BeamDeck(), 1
     for first, start, direction, reuse in lines:
-        ids = []
-        for k in range(ELEMENTS + 1):
-            if k == 0 and reuse is not None:
-                ids.append(reuse)
-                continue
-            gid = first + k
-            grids[gid] = np.asarray(start, float) + np.asarray(direction, float) * LENGTH * k / ELEMENTS
-            ids.append(gid)
-        for k in range(ELEMENTS):
-            elements.append((eid, ids[k], ids[k + 1]))
-            eid += 1
-    out += [f"GRID,{g},,{float(x[0])!r},{float(x[1])!r},{float(x[2])!r}" for g, x in sorted(grids.items())]
-    out += [f"CBAR,{e},1,{a},{b},0.,0.,1." for e, a, b in elements]
+        deck.add_line(first, start, direction, LENGTH, ELEMENTS, (0.0, 0.0, 1.0), eid, start_grid=reuse)
+        eid += ELEMENTS
+    out = [f"GRID,{g},,{float(x[0])!r},{float(x[1])!r},{float(x[2])!r}" for g, x in sorted(deck.grids.items())]
+    out += [f"CBAR,{e},1,{a},{b},0.,0.,1." for e, a, b, _ in deck.beams]
     out += ["PBAR,1,1,1.e-3,2.e-7,3.e-7,4.e-7", "MAT1,1,7.e10,,0.3,2700."]
     if spc:
         out.append(f"SPC1,1,123456,{spc}")
