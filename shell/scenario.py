@@ -827,9 +827,6 @@ def build_member(container: Assembly, name: str, entry: dict, here: _Where, clas
 
     cls = classes.get(entry["type"]) or lookup(entry["type"])
     kwargs = dict(entry.get("config", {}) or {})
-    for key, value in kwargs.items():   # a file named in config is relative to the scenario, as body_file is
-        if key.endswith("_file") and isinstance(value, str) and not Path(value).is_absolute():
-            kwargs[key] = str(Path(here.file).parent / value)
     kwargs.update(entry.get("parameters", {}) or {})
     kwargs = container.child_parameters(name, **kwargs)
     for key in ("rate", "period"):

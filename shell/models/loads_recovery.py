@@ -59,8 +59,9 @@ def _recover(t, x, z, u, p, y):
 @register_model
 class LoadsRecovery(Model):
     """Element forces / stresses and interface forces of a flexible body by mode displacement and mode
-    acceleration (config: ``body_file``, the body's file with a LoadsRecovery group, relative to the
-    scenario); connect its modal coordinates and the reference grid's accelerations."""
+    acceleration (config: ``body_file``, the body's file with a LoadsRecovery group, relative to the working
+    directory or absolute, as a controller's ``gain_file``); connect its modal coordinates and the reference
+    grid's accelerations."""
 
     summary = ("loads recovery: element forces, stresses, interface forces of a flexible body by mode displacement "
                "and mode acceleration (config: body_file)")

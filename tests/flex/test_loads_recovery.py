@@ -125,7 +125,8 @@ def test_base_shaken_cantilever_through_the_command_line(tmp_path):
     scene = tmp_path / "cantilever_loads_scene.yaml"
     shutil.copy(FEM / "cantilever_loads_scene.yaml", scene)
     log_path = tmp_path / "log.h5"
-    run = subprocess.run(cli + ["run", str(scene), "-o", str(log_path), "--quiet"], capture_output=True, text=True)
+    run = subprocess.run(cli + ["run", str(scene), "-o", str(log_path), "--quiet",
+                                "--set", f"loads.config.body_file={body_path}"], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     from shell.log_file import read_log
     log = read_log(log_path)
