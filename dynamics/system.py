@@ -1,6 +1,6 @@
 """The compiled multibody system: immutable arrays, a private workspace, and the user-facing algorithms.
 
-Coordinates (CONVENTIONS.md): ``q`` and ``u`` concatenate, in body order, each body's hinge coordinates
+Coordinates (docs/conventions.md): ``q`` and ``u`` concatenate, in body order, each body's hinge coordinates
 (see :mod:`dynamics.hinges`) followed by its modal coordinates (none for rigid bodies). Generalized
 forces ``tau`` are conjugate to ``u``: a torque for a revolute DOF, a force for a prismatic one, the
 hinge's ``[torque; force]`` in the outboard frame for spherical/free hinges.

@@ -75,7 +75,7 @@ class ModalBody:
 
     Body frame: origin at the reference point (GRDPNT grid, or the basic origin), axes of the
     basic frame. Mode shapes per grid: ``mode_shape(grid)`` = [rotation (3); translation (3)]
-    x n_modes, i.e. Pi(j) = [lambda; gamma] of TM eq. E.1.19 and CONVENTIONS.md.
+    x n_modes, i.e. Pi(j) = [lambda; gamma] of TM eq. E.1.19 and docs/conventions.md.
     """
 
     source: str
