@@ -304,7 +304,7 @@ def _csr_from_blocks(n, dof_ptr, dofs, val_ptr, vals):
     return indptr, indices[:nnz].copy(), data[:nnz].copy()
 
 
-def _material(model, mid: int, context: str):
+def material_card(model, mid: int, context: str):
     mat = model.materials.get(mid)
     if mat is None:
         raise BulkDataError(f"{context}: material {mid} is not defined")
@@ -316,7 +316,7 @@ def _material(model, mid: int, context: str):
     return E, G, rho
 
 
-def _property(model, pid: int, kinds: tuple, context: str):
+def property_card(model, pid: int, kinds: tuple, context: str):
     prop = model.properties.get(pid)
     if prop is None:
         raise BulkDataError(f"{context}: property {pid} is not defined")
@@ -420,18 +420,18 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
         if elem.type in bulk.report.unsupported:
             continue    # reported by read_bulk_data and accepted with allow_unsupported
         if elem.type in ("CBAR", "CBEAM"):
-            beams.append(_beam_data(bulk, elem, ctx, wt, idx, sections))
+            beams.append(beam_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type in ("CQUAD4", "CTRIA3", "CQUAD8", "CTRIA6"):
-            shells.append(_shell_data(bulk, elem, ctx, wt, idx, sections))
+            shells.append(shell_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
-            solid_elems.append(_solid_data(bulk, elem, ctx, wt, idx, sections))
+            solid_elems.append(solid_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type == "CBUSH":
             _add_bush(bulk, elem, ctx, K_b, M_b, ML_b, idx)
         elif elem.type == "CROD":
             _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
         elif elem.type in ("CELAS1", "CELAS2"):
             if elem.type == "CELAS1":
-                prop = _property(model, int(elem.pid), ("PELAS",), ctx)
+                prop = property_card(model, int(elem.pid), ("PELAS",), ctx)
                 k = float(prop.k)
             else:
                 k = float(elem.k)
@@ -442,7 +442,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
     if beams:
         if progress is not None:
             progress(f"element matrices for {len(beams)} beams")
-        dofs, props, frames, wa, wb, torsion = _beam_batch(bulk, beams)
+        dofs, props, frames, wa, wb, torsion = beam_batch(bulk, beams)
         Kg, Mg, MLg = el.beam_element_batch(props, frames, wa, wb, bulk.coupled_mass, torsion)
         for e, beam in enumerate(beams):
             if beam[9] is None:
@@ -669,7 +669,7 @@ def _add_scalar(triplets, value, elem, ctx, idx):
 SHELL_NAMES = {3: "CTRIA3", 4: "CQUAD4", 6: "CTRIA6", 8: "CQUAD8"}
 
 
-def _shell_data(bulk, elem, ctx, wt, idx, sections):
+def shell_data(bulk, elem, ctx, wt, idx, sections):
     """(grid rows, property row of :func:`shells.shell_batch`) of one CQUAD4/CTRIA3/CQUAD8/CTRIA6 with a
     PSHELL or a PCOMP (its equivalent PSHELL, :mod:`dynamics.flex.laminates`)."""
     model = bulk.model
@@ -684,7 +684,7 @@ def _shell_data(bulk, elem, ctx, wt, idx, sections):
         raise BulkDataError(f"{ctx}: repeated grid (degenerate element)")
     key = ("SHELL", int(elem.pid))
     if key not in sections:
-        prop = _property(model, int(elem.pid), ("PSHELL", "PCOMP"), ctx)
+        prop = property_card(model, int(elem.pid), ("PSHELL", "PCOMP"), ctx)
         sections[key] = (pcomp_section(model, int(elem.pid), ctx) if prop.type == "PCOMP"
                          else _pshell_moduli(model, int(elem.pid), ctx))
     Gm, Gb, Gs, rho, t, nsm, bend, ts, rigid, Gc = sections[key]
@@ -721,7 +721,7 @@ def _plane_modulus(model, mid: int, context: str):
     if mat is None:
         raise BulkDataError(f"{context}: material {mid} is not defined")
     if mat.type == "MAT1":
-        E, G, rho = _material(model, mid, context)
+        E, G, rho = material_card(model, mid, context)
         nu = _poisson(model, mid)
         c = E / (1.0 - nu * nu)
         Q = np.array([[c, nu * c, 0.0], [nu * c, c, 0.0], [0.0, 0.0, G]])
@@ -740,7 +740,7 @@ def _plane_modulus(model, mid: int, context: str):
 def _pshell_moduli(model, pid: int, ctx: str):
     """Membrane, bending and shear moduli, the scalars and the membrane-bending coupling modulus
     (-G4 of MID4, :mod:`dynamics.flex.laminates`) of a PSHELL (NASTRAN QRG PSHELL)."""
-    prop = _property(model, pid, ("PSHELL",), ctx)
+    prop = property_card(model, pid, ("PSHELL",), ctx)
     pctx = f"{ctx} -> PSHELL {prop.pid}"
     if not prop.mid1:
         raise BulkDataError(f"{pctx}: MID1 blank (no membrane stiffness) is not supported")
@@ -792,7 +792,7 @@ _SOLID_KINDS = {("CHEXA", 8): solids.HEXA8, ("CHEXA", 20): solids.HEXA20,
                 ("CPENTA", 6): solids.PENTA6, ("CPENTA", 15): solids.PENTA15}
 
 
-def _solid_data(bulk, elem, ctx, wt, idx, sections):
+def solid_data(bulk, elem, ctx, wt, idx, sections):
     """(kind, grid rows, (E, nu, rho)) of one CHEXA/CTETRA/CPENTA with PSOLID and MAT1."""
     model = bulk.model
     nodes = list(elem.nodes)
@@ -804,13 +804,13 @@ def _solid_data(bulk, elem, ctx, wt, idx, sections):
     rows = [idx(int(g), ctx) for g in nodes]
     key = ("PSOLID", int(elem.pid))
     if key not in sections:
-        prop = _property(model, int(elem.pid), ("PSOLID",), ctx)
+        prop = property_card(model, int(elem.pid), ("PSOLID",), ctx)
         pctx = f"{ctx} -> PSOLID {prop.pid}"
         if str(getattr(prop, "fctn", "SMECH") or "SMECH").strip() not in ("SMECH", "PFLUID"):
             raise BulkDataError(f"{pctx}: FCTN = {prop.fctn} is not supported")
         if str(getattr(prop, "fctn", "SMECH") or "SMECH").strip() == "PFLUID":
             raise BulkDataError(f"{pctx}: FCTN = PFLUID (fluid element) is not supported")
-        E, G, rho = _material(model, int(prop.mid), pctx)
+        E, G, rho = material_card(model, int(prop.mid), pctx)
         sections[key] = (E, _poisson(model, int(prop.mid)), rho * wt)
     return kind, rows, sections[key]
 
@@ -823,7 +823,7 @@ def _poisson(model, mid: int) -> float:
     return float(E) / (2.0 * float(G)) - 1.0
 
 
-def _beam_data(bulk, elem, ctx, wt, idx, sections):
+def beam_data(bulk, elem, ctx, wt, idx, sections):
     """Raw fields of one CBAR/CBEAM: (eid, ia, ib, x, i_g0, wa, wb, section, is_cbeam, taper);
     taper None or (stations, (ns, 5) A I1 I2 J NSM*WTMASS, rho*WTMASS) of a tapered PBEAM."""
     model = bulk.model
@@ -845,7 +845,7 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
         i0, x = -1, elem.x
     key = (elem.type, int(elem.pid))
     if key not in sections:
-        prop = _property(model, int(elem.pid), ("PBAR", "PBARL") if elem.type == "CBAR"
+        prop = property_card(model, int(elem.pid), ("PBAR", "PBARL") if elem.type == "CBAR"
                          else ("PBEAM", "PBEAML"), ctx)
         A, I1, I2, J, nsm, k1, k2, taper = _beam_section(prop,
                                                          f"{ctx} -> {prop.type} {prop.pid}")
@@ -853,7 +853,7 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
             note = _shape_section(prop, f"{prop.type} {prop.pid}").note
             if note:
                 bulk.report.notes.append(f"{prop.type} {prop.pid} {note}")
-        E, G, rho = _material(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
+        E, G, rho = material_card(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
         if taper is not None:
             # mass per length rho A + NSM, both scaled by WTMASS
             taper = (taper[0], taper[1] * np.array([1.0, 1.0, 1.0, 1.0, wt]), rho * wt)
@@ -868,7 +868,7 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
 _ZERO3 = np.zeros(3)
 
 
-def _beam_batch(bulk, beams):
+def beam_batch(bulk, beams):
     """Vectorized geometry of all beams: dofs, props, frames, offsets (basic), CBEAM flags."""
     eids = np.array([b[0] for b in beams])
     ia = np.array([b[1] for b in beams])
@@ -921,7 +921,7 @@ def _add_bush(bulk, elem, ctx, K_b, M_b, ML_b, idx):
     used (the body's damping is modal).
     """
     model = bulk.model
-    prop = _property(model, int(elem.pid), ("PBUSH",), ctx)
+    prop = property_card(model, int(elem.pid), ("PBUSH",), ctx)
     pctx = f"{bulk.path}: {ctx} -> PBUSH {prop.pid}"
     k = np.array([float(v or 0.0) for v in (list(prop.Ki) + [0.0] * 6)[:6]])
     mass = float(getattr(prop, "mass", None) or 0.0)
@@ -1006,8 +1006,8 @@ def _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
     trial = np.eye(3)[np.argmin(np.abs(axis))]
     Lam = el.beam_frame(axis, trial, ctx)
     L = float(np.linalg.norm(axis))
-    prop = _property(model, int(elem.pid), ("PROD",), ctx)
-    E, G, rho = _material(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
+    prop = property_card(model, int(elem.pid), ("PROD",), ctx)
+    E, G, rho = material_card(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
     A, J, nsm = float(prop.A), float(prop.j or 0.0), float(prop.nsm or 0.0)
     mu = (rho * A + nsm) * wt
     Kl, Ml = el.rod_local_matrices(L, E, G, A, J, mu, bulk.coupled_mass)

@@ -338,7 +338,8 @@ def _read_loads_recovery(g: h5py.Group):
         return [s.decode() if isinstance(s, bytes) else str(s) for s in ds[()]]
     return LoadsRecovery(names=strings(g["Names"]), kinds=strings(g["Kinds"]),
                          mode_displacement=g["ModeDisplacement"][()],
-                         reference_acceleration=g["ReferenceAcceleration"][()], reaction=_str(g["REACTION"]), reference_grid=int(g["REFERENCE_GRID"][()]),
+                         reference_acceleration=g["ReferenceAcceleration"][()], reaction=_str(g["REACTION"]),
+                         reference_grid=int(g["REFERENCE_GRID"][()]),
                          load_dofs=g["LoadDofs"][()], loads=g["Loads"][()])
 
 

@@ -202,7 +202,7 @@ def _line_elements(sm):
         if elem.type in bulk.report.unsupported:
             continue
         if elem.type in ("CBAR", "CBEAM"):
-            beams.append(asm._beam_data(bulk, elem, f"{elem.type} {eid}", bulk.wtmass, idx, sections))
+            beams.append(asm.beam_data(bulk, elem, f"{elem.type} {eid}", bulk.wtmass, idx, sections))
         elif elem.type == "CROD":
             rods.append((eid, elem))
         elif elem.type in CONTINUUM_ELEMENTS:
@@ -212,7 +212,7 @@ def _line_elements(sm):
     ia, ib, T, ea_l, axes, KG = [], [], [], [], [], []
     counts = {}
     if beams:
-        dofs, props, frames, wa, wb, is_cbeam = asm._beam_batch(bulk, beams)
+        dofs, props, frames, wa, wb, is_cbeam = asm.beam_batch(bulk, beams)
         for e in range(len(beams)):
             L, E, A = props[e, 0], props[e, 1], props[e, 3]  # props: L, E, G, A, I1, I2, J, mu, k1, k2
             I1, I2 = props[e, 4], props[e, 5]
@@ -229,8 +229,8 @@ def _line_elements(sm):
         axis = bulk.positions[b] - bulk.positions[a]
         Lam = el.beam_frame(axis, np.eye(3)[np.argmin(np.abs(axis))], ctx)
         L = float(np.linalg.norm(axis))
-        prop = asm._property(model, int(elem.pid), ("PROD",), ctx)
-        E, _, _ = asm._material(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
+        prop = asm.property_card(model, int(elem.pid), ("PROD",), ctx)
+        E, _, _ = asm.material_card(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
         ia.append(a)
         ib.append(b)
         T.append(el.local_to_grids(Lam, np.zeros(3), np.zeros(3)))
@@ -264,14 +264,14 @@ def _continuum_elements(sm, counts):
             continue
         ctx = f"{elem.type} {eid}"
         if elem.type in ("CQUAD4", "CTRIA3"):
-            shells.append(asm._shell_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
+            shells.append(asm.shell_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
             if np.any(shells[-1][1][33:42]):
                 # the membrane resultants of gsc leave out B kappa
                 raise BulkDataError(f"{ctx}: the geometric stiffness of a shell with membrane-"
                                     f"bending coupling (property {elem.pid}: PSHELL MID4 or an "
                                     "unsymmetric PCOMP) is not modelled")
         elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
-            solid_elems.append(asm._solid_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
+            solid_elems.append(asm.solid_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
         else:
             continue
         counts[elem.type] = counts.get(elem.type, 0) + 1

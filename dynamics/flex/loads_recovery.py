@@ -104,10 +104,10 @@ def _beam_operator(sm, eid, elem, ctx):
     def idx(gid, c):
         return bulk.grid_index(int(gid), c)
 
-    beam = asm._beam_data(bulk, elem, ctx, bulk.wtmass, idx, rows_of)
+    beam = asm.beam_data(bulk, elem, ctx, bulk.wtmass, idx, rows_of)
     if beam[9] is not None:
         raise BulkDataError(f"{bulk.path}: {ctx}: loads recovery of a tapered PBEAM is not supported")
-    _, props, frames, wa, wb, torsion = asm._beam_batch(bulk, [beam])
+    _, props, frames, wa, wb, torsion = asm.beam_batch(bulk, [beam])
     L, E, G, A, I1, I2, J, mu, k1, k2 = props[0]
     Kl, _ = el.beam_local_matrices(L, E, G, A, I1, I2, J, mu, k1, k2, False, bool(torsion[0]))
     T = el.local_to_grids(frames[0], wa[0], wb[0])
@@ -204,8 +204,8 @@ def _rod_operator(sm, eid, elem, ctx):
     ia, ib = (bulk.grid_index(int(g), ctx) for g in elem.nodes)
     axis = bulk.positions[ib] - bulk.positions[ia]
     length = float(np.linalg.norm(axis))
-    prop = asm._property(bulk.model, int(elem.pid), ("PROD",), ctx)
-    E, G, _ = asm._material(bulk.model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
+    prop = asm.property_card(bulk.model, int(elem.pid), ("PROD",), ctx)
+    E, G, _ = asm.material_card(bulk.model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
     e = axis / length
     Rcd = bulk.displacement_rotation
     rows = np.zeros((2, 12))
@@ -261,7 +261,8 @@ def loads_recovery(sm, K, M, modes_f: np.ndarray, element_ids, grid_ids, held=No
     if reaction == "inertia_relief":
         correction[:, :6] = 0.0          # the rigid inertia balances a rigid acceleration's load exactly
     return LoadsRecovery(names=names, kinds=kinds, mode_displacement=Y, reference_acceleration=correction[:, :6],
-                         reaction=reaction, reference_grid=int(bulk.grid_ids[reference_row]) if reaction == "aset" else 0,
+                         reaction=reaction,
+                         reference_grid=int(bulk.grid_ids[reference_row]) if reaction == "aset" else 0,
                          load_dofs=np.asarray(load_dofs, dtype=np.int64).reshape(-1, 2), loads=correction[:, 6:])
 
 

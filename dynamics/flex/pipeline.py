@@ -31,7 +31,7 @@ from dynamics.flex.bulk_data import BulkData, BulkDataError, coordinate_axes, re
 from dynamics.flex.component_modes import craig_bampton, normalized_component_modes
 from dynamics.flex.mass_properties import rigid_body_mass_properties
 from dynamics.flex.modal_integrals import modal_integrals, point_mass_integrals
-from dynamics.flex.modes import (EigenSolution, RigidSplit, _largest_entry_signs, free_free_modes,
+from dynamics.flex.modes import (EigenSolution, RigidSplit, free_free_modes, largest_entry_signs,
                                  massless_dofs)
 from dynamics.flex.residual_vectors import append_residual_vectors, residual_vectors
 from dynamics.flex.transform import express_body
@@ -165,7 +165,7 @@ def energy_signs(vectors: np.ndarray, stiffness_diagonal: np.ndarray) -> np.ndar
     signs = np.where(total < 0.0, -1.0, 1.0)
     tied = np.abs(total) <= 1e-8 * (weights @ np.abs(scaled))
     if np.any(tied):
-        signs[tied] = _largest_entry_signs(np.ascontiguousarray(scaled[:, tied]))
+        signs[tied] = largest_entry_signs(np.ascontiguousarray(scaled[:, tied]))
     return signs
 
 
@@ -397,7 +397,8 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
         signs = np.ones(cb.mass.shape[0])
         signs[:cb.n_modes] = energy_signs(cb.fixed_interface.vectors, K.diagonal()[cb.interior])
         cb_data = CraigBamptonData(frequencies_hz=cb.fixed_interface.frequencies_hz,
-                                   mass=signs[:, None] * cb.mass * signs, stiffness=signs[:, None] * cb.stiffness * signs,
+                                   mass=signs[:, None] * cb.mass * signs,
+                                   stiffness=signs[:, None] * cb.stiffness * signs,
                                    uset=b_uset)
         component = normalized_component_modes(cb, rigid_geometry)
         rigid, flex, split = component.rigid, component.flexible, component.split

@@ -23,7 +23,7 @@ tied by their local Cartesian components (MITC9 ties covariant ones; on a distor
 reproduce a constant strain, and the membrane patch test failed by 6 %). This removes shear locking of thin
 plates and membrane locking of curved shells and leaves no zero-energy mode but the six rigid motions
 (tests/flex/test_quadratic_shells.py). Bending and drilling use the 3 x 3 Gauss rule. A, D, S, B are those of
-the flat shells (:func:`dynamics.flex.shells._materials`: MAT1, MAT2, MAT8, PCOMP; material axes by THETA or
+the flat shells (:func:`dynamics.flex.shells.shell_materials`: MAT1, MAT2, MAT8, PCOMP; material axes by THETA or
 MCID from the element x axis of the corner grids, as for CQUAD4). Mass: consistent (rho t + NSM) int N_i N_j
 dA on the translations of the serendipity field and the Mindlin rotary inertia rho t^3 / 12 on the two
 bending rotations (the bubble carries no inertia, as the MITC3+ bubble of CTRIA3); lumped: the translational
@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dynamics.flex.shells import _materials, drilling_modulus, element_frame
+from dynamics.flex.shells import drilling_modulus, element_frame, shell_materials
 
 _Q8_NODES = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0],
                       [0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])
@@ -157,7 +157,7 @@ def cquad8(xyz, p, coupled):
     docstring) on the eight grids plus a bubble condensed statically."""
     nd = 54
     Lam, _, _ = element_frame(np.ascontiguousarray(xyz[:4]))
-    A, D, S, gt, Bc = _materials(p, Lam)
+    A, D, S, gt, Bc = shell_materials(p, Lam)
     x_axis = np.ascontiguousarray(Lam[0])
     a, b = TIE_A, TIE_B
     lin = np.array([-a, a])

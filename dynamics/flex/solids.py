@@ -201,7 +201,7 @@ def elasticity(E, nu):
 
 
 @njit(cache=True)
-def _strain_matrix(dNx, n):
+def strain_matrix(dNx, n):
     B = np.zeros((6, 3 * n))
     for i in range(n):
         x, y, z = dNx[0, i], dNx[1, i], dNx[2, i]
@@ -261,7 +261,7 @@ def solid_matrices(kind, xyz, E, nu, rho, pts, wts, coupled):
         if det <= 0.0:
             raise ValueError("solid element: inverted or badly ordered grids (det J <= 0)")
         dNx = np.linalg.solve(J, dN)
-        B = _strain_matrix(dNx, n)
+        B = strain_matrix(dNx, n)
         w = wts[q] * det
         K += B.T @ C @ B * w
         volume += w

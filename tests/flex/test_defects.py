@@ -79,7 +79,8 @@ def test_lumped_cbar_component_split_condenses_the_massless_spin(write_deck):
     assert body.n_quasi_static == 1
     twist = body.rotation_shapes[:, 0, -1]          # the quasi-static mode: rotation about x only
     assert np.abs(body.translation_shapes[:, :, -1]).max() < 1e-9 * np.abs(twist).max()
-    assert_allclose(twist, twist[0] * np.linspace(1.0, -1.0, 11) if twist[0] != 0 else twist, atol=1e-9 * abs(twist).max())
+    assert_allclose(twist, twist[0] * np.linspace(1.0, -1.0, 11) if twist[0] != 0 else twist,
+                    atol=1e-9 * abs(twist).max())
     held = write_deck(decks.beam_deck(10, 2.0, coupled=False, extra="SPC1,1,4,6",
                                       with_header=True), "held.dat")
     free = _quiet(fem2modal, deck, Fem2ModalOptions(n_modes=8))

@@ -134,7 +134,7 @@ def test_solid_stresses_are_the_elements_own(kind):
     E, nu = 2.0e5, 0.27
     u = rng.normal(size=(3 * n, 2))
     stress, grads, w = gsc.solid_stresses(kind, xyz, E, nu, pts, wts, u)
-    forces = sum(solids._strain_matrix(grads[q], n).T @ stress[q] * w[q] for q in range(len(w)))
+    forces = sum(solids.strain_matrix(grads[q], n).T @ stress[q] * w[q] for q in range(len(w)))
     K, _ = solids.solid_matrices(kind, xyz, E, nu, 1.0, pts, wts, False)
     np.testing.assert_allclose(forces, K @ u, atol=1e-10 * np.abs(K @ u).max())
     # a uniform strain field gives the exact uniform stress (patch test)
@@ -202,7 +202,7 @@ def test_shell_initial_stress_matrix_is_the_hessian_of_the_membrane_energy(nn, z
     local[:, :2] = loc @ G.T
     grid = np.linalg.solve(T, local.reshape(-1))  # grid basic DOFs giving that local field
     res, _, _ = gsc.shell_membrane_resultants(xyz, props, grid.reshape(-1, 1))
-    A = shells._materials(props, Lam)[0]
+    A = shells.shell_materials(props, Lam)[0]
     expected = A @ np.array([G[0, 0], G[1, 1], G[0, 1] + G[1, 0]])
     np.testing.assert_allclose(res[:, :, 0], np.tile(expected, (len(res), 1)), atol=1e-10 * np.abs(expected).max())
 

@@ -109,7 +109,8 @@ def test_basic_frame_vectors_and_rigid_body_modes(write_deck):
     """BOUGV1 (basic frame) vectors of a free body with CD frames that are not basic: our own modes written as
     an OP2 would hold them (six rigid-body modes first, then the flexible ones, in basic) come back as the
     same flexible modes."""
-    text = decks.beam_deck(8, 2.0).replace("PARAM,GRDPNT,1", "PARAM,GRDPNT,1\nCORD2R,7,,0.,0.,0.,0.3,0.2,1.\n,1.,0.,0.2")
+    text = decks.beam_deck(8, 2.0).replace("PARAM,GRDPNT,1",
+                                           "PARAM,GRDPNT,1\nCORD2R,7,,0.,0.,0.,0.3,0.2,1.\n,1.,0.,0.2")
     text = "\n".join(ln + ",7" if ln.startswith("GRID,") else ln for ln in text.splitlines()) + "\n"
     path = write_deck(text, "free.dat")
     own = _quiet(path, Fem2ModalOptions(n_modes=6, write_modal_matrix=True))

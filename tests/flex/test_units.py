@@ -32,7 +32,8 @@ FIELD_DIMENSIONS = {
               **{k: (2, 1, 0) for k in range(10, 16)}},
     "MAT1": {3: (-1, 1, -2), 4: (-1, 1, -2), 6: (-3, 1, 0)},
     "PSHELL": {4: (1, 0, 0), 9: (-2, 1, 0)},
-    "PBAR": {4: (2, 0, 0), 5: (4, 0, 0), 6: (4, 0, 0), 7: (4, 0, 0), 8: (-1, 1, 0), **{k: (1, 0, 0) for k in range(10, 18)}},
+    "PBAR": {4: (2, 0, 0), 5: (4, 0, 0), 6: (4, 0, 0), 7: (4, 0, 0), 8: (-1, 1, 0),
+             **{k: (1, 0, 0) for k in range(10, 18)}},
     "PBUSH": {4: (0, 1, -2), 5: (0, 1, -2), 6: (0, 1, -2), 7: (2, 1, -2), 8: (2, 1, -2), 9: (2, 1, -2)},
 }
 OPTIONS = dict(n_modes=8, geometric_stiffness=True, preloads=[("thrust", 187, 1, -200.0)],
@@ -206,7 +207,8 @@ def test_csid_output_frame_equals_the_unrotated_body(reference, write_deck, tmp_
 
 
 def test_csid_must_be_rectangular(write_deck):
-    text = open(SPACECRAFT).read().replace("PARAM,GRDPNT,1000", "PARAM,GRDPNT,1000\nCORD2C,4,,0.,0.,0.,0.,0.,1.\n,1.,0.,0.")
+    text = open(SPACECRAFT).read().replace("PARAM,GRDPNT,1000",
+                                           "PARAM,GRDPNT,1000\nCORD2C,4,,0.,0.,0.,0.,0.,1.\n,1.,0.,0.")
     with pytest.raises(ValueError, match="--csid 4 is a cylindrical system"):
         fem2modal(write_deck(text, "c.dat"), Fem2ModalOptions(n_modes=2, csid=4))
 
