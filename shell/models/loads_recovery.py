@@ -15,24 +15,44 @@ body file's
 ``LoadsRecovery/Names`` (``flexshell fem2modal`` prints them; e.g. ``CBAR 1 BM1A``: the bending moment in plane
 1 at end A of element 1, NASTRAN's sign).
 
-Parameter layout (the sizes are the body file's, so the kernel derives the offsets): ``sizes`` = [m, l] first,
-then Y (n x m), S (n x 6), F (n x l), row-major; n = half the output size. Input layout: eta (m), the
-angular and linear accelerations (3 + 3), the loads (l).
+Layout (the sizes are the body file's: ``per_mode`` and everything after it are ``sized``, so the kernel derives
+the offsets): parameters ``sizes`` = [m, l], then Y (``per_mode``, n x m), S (``per_acceleration``, n x 6), F
+(``per_load``, n x l), row-major; n = half the output size. Inputs: eta (m), the angular and linear accelerations
+(3 + 3), the loads (l). Outputs: the n by mode displacement, then the n by mode acceleration.
 """
 
 from __future__ import annotations
 
-from collections import namedtuple
+import warnings
 
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter
+from shell.model import Declarations, InputPort, Model, ModelError, OutputPort, Parameter
 from shell.registry import register_model
 
-P = namedtuple("LoadsRecoveryParameters", "sizes mode_displacement reference_acceleration loads")(0, 2, None, None)
-U = namedtuple("LoadsRecoveryInputs", "modal_q angular_acceleration linear_acceleration loads")(0, None, None, None)
-Y = namedtuple("LoadsRecoveryOutputs", "mode_displacement mode_acceleration")(0, None)
+#: shapes (n outputs, m modes, l loads) come from the body file: set per instance in ``declare``
+RECOVERY = Declarations(
+    parameters=(Parameter("sizes", "", None, (2,), None, "modes m and load DOFs l (from the body file)"),
+                Parameter("per_mode", "", None, (1, 1), None, "Y: outputs per unit modal coordinate"),
+                Parameter("per_acceleration", "", None, (1, 6), None,
+                          "S: residual-flexibility outputs per unit [angular; linear] reference acceleration"),
+                Parameter("per_load", "", None, (1, 1), None,
+                          "F: residual-flexibility outputs per unit load at the load DOFs")),
+    inputs=(InputPort("modal_q", "", (1,), "modal coordinates eta of the body", feedthrough=True),
+            InputPort("angular_acceleration", "rad/s^2", (3,), "angular acceleration of the reference grid, body "
+                      "axes", feedthrough=True, required=False),
+            InputPort("linear_acceleration", "m/s^2", (3,), "linear acceleration of the reference grid (minus "
+                      "gravity), body axes", feedthrough=True, required=False),
+            InputPort("loads", "", (1,), "loads at the body file's load DOFs (N, N m)", feedthrough=True,
+                      required=False)),
+    outputs=(OutputPort("mode_displacement", "", (1,), "outputs by mode displacement (SI: N, N m, Pa)",
+                        feedthrough=True),
+             OutputPort("mode_acceleration", "", (1,), "outputs by mode acceleration (SI)", feedthrough=True)),
+    sized=("per_mode", "per_acceleration", "per_load", "modal_q", "loads", "mode_displacement",
+           "mode_acceleration"),
+)
+P, U, Y = RECOVERY.P, RECOVERY.U, RECOVERY.Y
 
 
 @njit(cache=True)
@@ -40,20 +60,20 @@ def _recover(t, x, z, u, p, y):
     n = y.shape[0] // 2
     m = int(p[P.sizes])
     nl = int(p[P.sizes + 1])
-    acc, loads = U.modal_q + m, U.modal_q + m + 6
-    ps = P.mode_displacement + n * m
+    acc, loads = U.modal_q + m, U.modal_q + m + 6          # after eta: the accelerations, then the loads
+    ps = P.per_mode + n * m                                  # S after the n x m Y, F after the n x 6 S
     pf = ps + 6 * n
     for i in range(n):
         md = 0.0
         for k in range(m):
-            md += p[P.mode_displacement + i * m + k] * u[U.modal_q + k]
+            md += p[P.per_mode + i * m + k] * u[U.modal_q + k]
         ma = md
         for j in range(6):
             ma += p[ps + 6 * i + j] * u[acc + j]
         for j in range(nl):
             ma += p[pf + nl * i + j] * u[loads + j]
         y[Y.mode_displacement + i] = md
-        y[n + i] = ma
+        y[n + i] = ma                                        # mode_acceleration follows the n by mode displacement
 
 
 @register_model
@@ -65,8 +85,8 @@ class LoadsRecovery(Model):
 
     summary = ("loads recovery: element forces, stresses, interface forces of a flexible body by mode displacement "
                "and mode acceleration (config: body_file)")
+    declarations = RECOVERY
     feedthrough_outputs = staticmethod(_recover)
-    offsets = {"p": P, "u": U, "y": Y}
 
     def __init__(self, name: str, *, body_file: str, **kwargs):
         from dynamics.flex.body_file import read_body_file
@@ -88,35 +108,20 @@ class LoadsRecovery(Model):
         n, m = lr.mode_displacement.shape
         nl = lr.loads.shape[1]
         listing = ", ".join(lr.names[:6]) + (" ..." if n > 6 else "")
-        self.parameters = (
-            Parameter("sizes", "", np.array([m, nl], dtype=float), (2,), description="modes m, loads l"),
-            Parameter("mode_displacement", "", lr.mode_displacement, (n, m), description="Y: outputs per unit eta"),
-            Parameter("reference_acceleration", "", lr.reference_acceleration, (n, 6),
-                      description="S: residual-flexibility outputs per unit [angular; linear] reference acceleration"),
-            Parameter("loads", "", lr.loads, (n, nl),
-                      description="F: residual-flexibility outputs per unit load at the load DOFs"),
-        )
-        self.inputs = (
-            InputPort("modal_q", "", (m,), "modal coordinates eta of the body", feedthrough=True),
-            InputPort("angular_acceleration", "rad/s^2", (3,), f"angular acceleration of the reference grid "
-                      f"{lr.reference_grid}, body axes", feedthrough=True, required=False),
-            InputPort("linear_acceleration", "m/s^2", (3,), "linear acceleration of the reference grid (minus "
-                      "gravity), body axes", feedthrough=True, required=False),
-            InputPort("loads", "", (nl,), "loads at the body file's load DOFs (N, N m)", feedthrough=True,
-                      required=False),
-        )
-        self.outputs = (
-            OutputPort("mode_displacement", "", (n,), f"outputs by mode displacement (SI: N, N m, Pa): {listing}",
-                       feedthrough=True),
-            OutputPort("mode_acceleration", "", (n,), f"outputs by mode acceleration (SI): {listing}",
-                       feedthrough=True),
-        )
+        self.use_declarations(RECOVERY.replace(
+            sizes={"default": np.array([m, nl], dtype=float)},
+            per_mode={"default": lr.mode_displacement, "shape": (n, m)},
+            per_acceleration={"default": lr.reference_acceleration, "shape": (n, 6)},
+            per_load={"default": lr.loads, "shape": (n, nl)},
+            modal_q={"shape": (m,)}, loads={"shape": (nl,)},
+            angular_acceleration={"description": f"angular acceleration of the reference grid {lr.reference_grid}, "
+                                                 "body axes"},
+            mode_displacement={"shape": (n,), "description": f"outputs by mode displacement (SI): {listing}"},
+            mode_acceleration={"shape": (n,), "description": f"outputs by mode acceleration (SI): {listing}"}))
 
     def configure(self):
         lr = self.recovery
         if lr.reaction == "inertia_relief" and lr.loads.shape[1] == 0:
-            import warnings
-
             warnings.warn(f"model {self.path}: {self.body_file} is a free body without load DOFs: its mode "
                           "acceleration recovery has no external loads to add (make the body with --residual at the "
                           "loaded grids)", stacklevel=2)

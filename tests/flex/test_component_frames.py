@@ -24,7 +24,6 @@ import warnings
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
 
 from dynamics import Multibody
 from dynamics.flex import Fem2ModalOptions, fem2modal
