@@ -23,7 +23,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-import pytest
 import scipy.linalg as sla
 from numpy.testing import assert_allclose
 
