@@ -80,6 +80,12 @@ def _is_diagonal(a):
     return not np.any(a - np.diag(np.diag(a)))
 
 
+def has_quasi_static_modes(data) -> bool:
+    """True when a flexible body has quasi-static modes (infinite frequency, no modal mass: the massless
+    interface DOFs of normalized component modes, dynamics/flex/component_modes.py)."""
+    return bool(np.any(np.isposinf(np.asarray(data.frequencies_hz, dtype=float))))
+
+
 def _modal_mass_inverse(G0, where):
     """(kind, inverse) of the constant modal mass: its reciprocal diagonal when G0 is exactly diagonal,
     else the symmetric inverse from a Cholesky factorization. Refuses a G0 that is not positive definite."""
@@ -296,7 +302,14 @@ class MultibodySystem:
                     notes.append(f"body '{b.name}': terms {', '.join(cubic)} of M(eta) cost O(n^3) or more per "
                                  f"evaluation at {t[L.N_MODES]} modes; omit_terms={tuple(cubic)!r} leaves them out "
                                  f"(see dynamics/flexible_body.py)")
-        if solver is None:
+        quasi = [b.name for b in bodies if b.flexible is not None and has_quasi_static_modes(b.flexible)]
+        if quasi and solver == "aba":
+            raise ModelDefinitionError(f"bodies {quasi} have quasi-static modes (no modal mass): the articulated-body "
+                                       "recursion needs the inverse modal mass; use the dense solver")
+        if solver is None and quasi:
+            solver, reason = "dense", (f"dense M udot = tau - h (bodies {quasi} have quasi-static modes without "
+                                       "modal mass: the articulated-body recursion cannot invert their modal mass)")
+        elif solver is None:
             solver, reason = choose_solver(topology)
         elif solver in ("aba", "dense"):
             reason = f"{solver} (requested)"
@@ -352,7 +365,8 @@ class MultibodySystem:
                                            f"shape {a.shape}")
             fx[col] = params.push(a)
             fx[diag_col] = _is_diagonal(a)
-        if terms.G1 is not None or terms.G2 is not None:
+        if terms.G1 is not None or terms.G2 is not None or has_quasi_static_modes(data):
+            # quasi-static modes make G singular: no inverse (the dense solver factors the whole mass matrix)
             kind, inverse = L.GINV_FACTORED, None
         else:
             kind, inverse = _modal_mass_inverse(M0[6:, 6:], where)

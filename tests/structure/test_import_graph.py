@@ -28,12 +28,6 @@ PENDING_PRIVATE = {
        "evaluation object)" for name in ("_Evaluator", "_Signals", "_StateMap", "_input_signals")},
     ("shell.compiled_loop", "shell.integrators.exponential", "_phi_into"): "branch shell-core (issue 32: "
     "integrators own their compiled stepping)",
-    **{("dynamics.flex.geometric_stiffness", "dynamics.flex.assembly", name): "the owner of dynamics/flex"
-       for name in ("_beam_batch", "_beam_data", "_material", "_property", "_shell_data", "_solid_data")},
-    **{("dynamics.flex.geometric_stiffness_continuum", "dynamics.flex.shells", name): "the owner of dynamics/flex"
-       for name in ("_G2", "_materials", "_membrane_bending_B", "_quad_shape")},
-    ("dynamics.flex.geometric_stiffness_continuum", "dynamics.flex.solids", "_strain_matrix"):
-        "the owner of dynamics/flex",
 }
 
 
