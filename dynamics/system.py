@@ -425,10 +425,11 @@ class MultibodySystem:
         except ValueError:
             raise KeyError(f"unknown node '{name}'; nodes: {list(self.node_names)}") from None
 
-    def reconfigure(self, q, u, *, lock=(), unlock=(), detach=(), mass_properties=None):
-        """A new system after locking/unlocking hinges, detaching subtrees or changing mass properties,
-        with the state mapped across: returns ``(system, q, u)``. See :mod:`dynamics.reconfigure`."""
-        return reconfigure(self, q, u, lock=lock, unlock=unlock, detach=detach, mass_properties=mass_properties)
+    def reconfigure(self, q, u, *, lock=(), unlock=(), detach=(), attach=None, mass_properties=None):
+        """A new system after locking/unlocking hinges, detaching subtrees, attaching free bodies or changing
+        mass properties, with the state mapped across: returns ``(system, q, u)``. See :mod:`dynamics.reconfigure`."""
+        return reconfigure(self, q, u, lock=lock, unlock=unlock, detach=detach, attach=attach,
+                           mass_properties=mass_properties)
 
     def set_mass_properties(self, body, mass, com, inertia):
         """Change a rigid body's mass, center of mass and inertia (about the COM) in place, O(1): for
