@@ -662,7 +662,9 @@ def parse_campaign(text: str, filename: str = "<string>", validate: bool = True)
         raise root.error(f"expected a mapping at the top level (keys {sorted(CAMPAIGN_KEYS)})")
     _mapping(document, root, CAMPAIGN_KEYS, required=("scenario", "runs"))
     here = root.child(document, "scenario")
-    scenario_file = Path(filename).parent / str(document["scenario"])
+    if not isinstance(document["scenario"], str) or not document["scenario"].strip() or "\0" in document["scenario"]:
+        raise here.error(f"expected the scenario's file name, given {show(document['scenario'])}")
+    scenario_file = Path(filename).parent / document["scenario"]
     try:
         with open(scenario_file, "rb") as f:
             scenario_text = decode_scenario(f.read(), str(scenario_file))
