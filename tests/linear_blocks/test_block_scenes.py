@@ -366,3 +366,21 @@ def test_sample_time_and_filter_refusals(tmp_path):
         config: {shape: [1]}
         parameters: {lower: [1], upper: [-1]}""")
     assert "models.block.parameters.lower" in message and "lower <= upper" in message
+
+
+def test_models_command_shows_ports_that_depend_on_config(capsys):
+    """``flexshell models TYPE`` shows the ports of an example configuration, and says so; a model whose
+    ports follow a file says what sets them, with an example."""
+    for name, expected in (("StateSpace", ["shapes depend on config; shown for the example config: {'A': [[-1.0]]",
+                                           "u                            [1] shape (1,)", "continuous states: x"]),
+                           ("Filter", ["shown for the example config: {'kind': 'notch'", "feedthrough"]),
+                           ("Delay", ["shapes of buffer, u, y depend on config", "buffer [1] (2,)"]),
+                           ("RateLimiter", ["rising_rate", "[1/s] shape ()", "sampled: set rate: or period:"]),
+                           ("LinearizedState", ["port sizes follow the linear model",
+                                                "config: {linear_model: plant.h5}",
+                                                "q                            [1] shape set by the configuration"]),
+                           ("LqrStateFeedback", ["port sizes follow K (m x n)"])):
+        assert main(["models", name]) == 0
+        out = capsys.readouterr().out
+        for text in expected:
+            assert text in out, (name, text, out)
