@@ -18,7 +18,8 @@ input through only when D is not zero.
 
 Where the matrices come from (``config:``): ``StateSpace`` from a file (``file``: HDF5, .mat or .npz through
 :func:`shell.linear.matrix_files.read_state_space`, with ``group``) or inline (``A``, ``B``, ``C``, ``D``:
-lists of rows); a file with ``sample_time`` makes a sampled block at that period (``rate``/``period`` may
+lists of rows), or in Python ``system=`` a :class:`~shell.linear.system.LinearSystem` or a python-control
+``StateSpace`` or ``TransferFunction`` (its ``dt``: 0 continuous, a number the sample time); a file with ``sample_time`` makes a sampled block at that period (``rate``/``period`` may
 repeat it); inline matrices are sampled when ``rate`` or ``period`` is given. ``TransferFunction``:
 ``numerator``, ``denominator`` (highest power first; in s, or in z when sampled, as python-control's
 ``tf(num, den, dt)``), realized minimal and balanced. ``Filter``: ``kind`` low_pass, notch or bending with
@@ -280,12 +281,16 @@ class StateSpace(_LinearBlock):
     example_config = {"A": [[-1.0]], "B": [[1.0]], "C": [[1.0]], "D": [[0.0]]}
 
     def __init__(self, name: str, *, file: str | None = None, group: str | None = None, A=None, B=None, C=None,
-                 D=None, period=None, **kwargs):
+                 D=None, system=None, period=None, **kwargs):
         inline = {key: value for key, value in zip("ABCD", (A, B, C, D)) if value is not None}
-        if file is not None and inline:
-            raise ModelError(f"model {name}: config: give the matrices either in a file (file: ...) or inline "
-                             f"(A, B, C, D), not both (given file and {', '.join(inline)})")
-        if file is not None:
+        sources = [what for what, given in (("file", file is not None), ("A, B, C, D", inline),
+                                            ("system", system is not None)) if given]
+        if len(sources) > 1:
+            raise ModelError(f"model {name}: config: give the matrices one way: a file (file: ...), inline (A, B, C, "
+                             f"D) or, in Python, system=; given {' and '.join(sources)}")
+        if system is not None:
+            system = _python_system(name, system, period)
+        elif file is not None:
             try:
                 system = read_state_space(file, group)
             except LinearSystemError as exc:
@@ -306,6 +311,33 @@ class StateSpace(_LinearBlock):
             except LinearSystemError as exc:
                 raise _located(name, "A", exc, where) from None
         super().__init__(name, system, period=period, **kwargs)
+
+
+def _python_system(name: str, system, period) -> LinearSystem:
+    """A :class:`LinearSystem`, or python-control's ``StateSpace`` or ``TransferFunction`` (``dt`` 0: continuous;
+    a number: its sample time; True, a sampled system of unspecified period: the block's ``period``)."""
+    if isinstance(system, LinearSystem):
+        return system
+    if not hasattr(system, "A") and hasattr(system, "num"):  # a python-control TransferFunction
+        import control
+
+        system = control.ss(system)
+    if not all(hasattr(system, key) for key in "ABCD"):
+        raise ModelError(f"model {name}: system: expected a LinearSystem or a python-control StateSpace or "
+                         f"TransferFunction, given {type(system).__name__}")
+    dt = getattr(system, "dt", 0)
+    if dt is True:
+        if period is None:
+            raise ModelError(f"model {name}: system: sampled with an unspecified period (dt=True); give period=")
+        sample_time = float(parse_period(period, f"model {name}: period"))
+    else:
+        sample_time = float(dt) if dt else None
+    where = f"model {name}"
+    try:
+        return LinearSystem(*(np.asarray(getattr(system, key), dtype=float) for key in "ABCD"), sample_time,
+                            where=where)
+    except LinearSystemError as exc:
+        raise _located(name, "A", exc, where) from None
 
 
 def _matrix(name: str, key: str, value) -> np.ndarray:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+from fractions import Fraction
 
 import h5py
 import numpy as np
@@ -29,6 +30,7 @@ from scipy.linalg import expm
 
 from shell.cli import main
 from shell.log_file import read_log
+from shell.model import ModelError
 from shell.scenario import ScenarioError, build_simulation, parse_scenario
 
 A = np.array([[0.5, 0.2, 0.0], [-0.1, 0.7, 0.3], [0.0, -0.2, 0.4]])
@@ -384,3 +386,38 @@ def test_models_command_shows_ports_that_depend_on_config(capsys):
         out = capsys.readouterr().out
         for text in expected:
             assert text in out, (name, text, out)
+
+
+def test_python_control_objects_in_python(tmp_path):
+    """In Python, ``StateSpace(system=...)`` takes python-control's StateSpace (sampled: its dt is the period)
+    and TransferFunction (continuous): the same step responses as above, to 1e-12 (sampled) and 1e-10 (RK4)."""
+    control = pytest.importorskip("control")
+    from shell.assembly import Assembly
+    from shell.models.blocks import Constant
+    from shell.models.linear_blocks import StateSpace
+    from shell.simulation import Simulation
+
+    root = Assembly("scene")
+    root.add(Constant("step", shape=(2,), value=[1.0, -2.0]))
+    root.add(Constant("one", shape=(1,), value=[1.0]))
+    root.add(StateSpace("sampled", system=control.ss(A, B, C, D, T)))
+    root.add(StateSpace("tf", system=control.tf([1.0, 3.0], [1.0, 2.0, 5.0])))
+    root.connect("step.y", "sampled.u")
+    root.connect("one.y", "tf.u")
+    simulation = Simulation(root, integrator="rk4", step=1e-3)
+    assert simulation.mode == "compiled" and simulation.models[2].period == Fraction(1, 10)
+    simulation.log(["sampled.y", "tf.y"], 10.0)
+    simulation.run(3.0, log_path=tmp_path / "log.h5")
+    log = read_log(tmp_path / "log.h5")
+    k = np.arange(log["time"].size)
+    u = np.array([1.0, -2.0])
+    inverse = np.linalg.inv(np.eye(3) - A)
+    expected = np.array([C @ inverse @ (np.eye(3) - np.linalg.matrix_power(A, j)) @ B @ u + D @ u for j in k])
+    np.testing.assert_allclose(log["sampled.y"], expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    t, poles = log["time"], np.roots([1.0, 2.0, 5.0])
+    tf = 3.0 / 5.0 + sum((p + 3.0) / (p * (2 * p + 2.0)) * np.exp(p * t) for p in poles).real
+    np.testing.assert_allclose(log["tf.y"][:, 0], tf, rtol=0, atol=1e-10)
+    with pytest.raises(ModelError, match="sampled with an unspecified period"):
+        StateSpace("b", system=control.ss(A, B, C, D, True))
+    with pytest.raises(ModelError, match="give the matrices one way"):
+        StateSpace("b", system=control.ss(A, B, C, D), A=[[1.0]])
