@@ -50,6 +50,7 @@ from shell.linear.realization import bending, low_pass, notch, transfer_function
 from shell.linear.system import LinearSystem, LinearSystemError
 from shell.model import (MAX_ELEMENTS, Declarations, InputPort, Model, ModelError, OutputPort, Parameter, State,
                          parse_period)
+from shell.models.blocks import _Block
 from shell.registry import register_model
 from shell.units import UnitError, to_magnitude
 
@@ -404,9 +405,9 @@ class Filter(_LinearBlock):
                              + (f"; not used: {', '.join(extra)}" if extra else ""))
         values = {}
         for key in needs[kind]:
-            unit = "Hz" if key.endswith("frequency") else ""
             try:
-                values[key] = float(to_magnitude(given[key], unit, (), f"model {name}: config {key}"))
+                values[key] = float(to_magnitude(given[key], "Hz" if key.endswith("frequency") else "", (),
+                                                 f"model {name}: config {key}"))
             except UnitError as exc:
                 raise ModelError(str(exc)) from None
         where = f"model {name}"
@@ -425,18 +426,8 @@ class Filter(_LinearBlock):
                          state_unit=unit, period=period, **kwargs)
 
 
-class _Shaped(Model):
-    """A signal block whose port unit and shape are construction options (``unit``, ``shape``)."""
-
-    def __init__(self, name: str, *, unit: str = "", shape=(), **kwargs):
-        self.unit = unit
-        self.shape = _port_shape(name, shape)
-        self.port = {"unit": unit, "shape": self.shape}
-        super().__init__(name, **kwargs)
-
-
 @register_model
-class Delay(_Shaped):
+class Delay(_Block):
     """y[k] = u[k - N]: a delay of N samples at the block's period, held (N = 0: a sample and hold)."""
 
     summary = "delay of N samples (config: samples, unit, shape; rate: or period:)"
@@ -458,7 +449,7 @@ class Delay(_Shaped):
                                             buffer={"unit": self.unit, "shape": rows}))
 
 
-class _Limits(_Shaped):
+class _Limits(_Block):
     """Lower and upper limits in the port unit, per element; lower <= upper."""
 
     template: Declarations
@@ -494,7 +485,7 @@ class DeadZone(_Limits):
 
 
 @register_model
-class RateLimiter(_Shaped):
+class RateLimiter(_Block):
     """Sampled: the output moves toward the input by at most rising_rate T up, falling_rate T down, per sample."""
 
     summary = "sampled rate limiter (parameters rising_rate, falling_rate in unit/s; config: unit, shape)"
