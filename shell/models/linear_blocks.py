@@ -50,7 +50,7 @@ from shell.linear.realization import bending, low_pass, notch, transfer_function
 from shell.linear.system import LinearSystem, LinearSystemError
 from shell.model import (MAX_ELEMENTS, Declarations, InputPort, Model, ModelError, OutputPort, Parameter, State,
                          parse_period)
-from shell.models.blocks import _Block
+from shell.models.blocks import SignalBlock
 from shell.registry import register_model
 from shell.units import UnitError, to_magnitude
 
@@ -427,7 +427,7 @@ class Filter(_LinearBlock):
 
 
 @register_model
-class Delay(_Block):
+class Delay(SignalBlock):
     """y[k] = u[k - N]: a delay of N samples at the block's period, held (N = 0: a sample and hold)."""
 
     summary = "delay of N samples (config: samples, unit, shape; rate: or period:)"
@@ -449,13 +449,13 @@ class Delay(_Block):
                                             buffer={"unit": self.unit, "shape": rows}))
 
 
-class _Limits(_Block):
+class _Limits(SignalBlock):
     """Lower and upper limits in the port unit, per element; lower <= upper."""
 
-    template: Declarations
+    example_config = {"lower": -1.0, "upper": 1.0}
 
     def declare(self):
-        self.use_declarations(self.template.replace(lower=self.port, upper=self.port, u=self.port, y=self.port))
+        self.use_declarations(self.declarations.replace(lower=self.port, upper=self.port, u=self.port, y=self.port))
 
     def configure(self):
         lower, upper = self.parameter("lower"), self.parameter("upper")
@@ -469,9 +469,8 @@ class Saturation(_Limits):
     """y = min(max(u, lower), upper), element by element."""
 
     summary = "saturation y = min(max(u, lower), upper) (direct feedthrough; config: unit, shape)"
-    declarations = template = SATURATION
+    declarations = SATURATION
     feedthrough_outputs = staticmethod(_saturation)
-    example_config = {"lower": -1.0, "upper": 1.0}
 
 
 @register_model
@@ -479,13 +478,12 @@ class DeadZone(_Limits):
     """y = u - upper above upper, u - lower below lower, 0 between."""
 
     summary = "dead zone: 0 between lower and upper, u - limit outside (direct feedthrough; config: unit, shape)"
-    declarations = template = DEAD_ZONE
+    declarations = DEAD_ZONE
     feedthrough_outputs = staticmethod(_dead_zone)
-    example_config = {"lower": -1.0, "upper": 1.0}
 
 
 @register_model
-class RateLimiter(_Block):
+class RateLimiter(SignalBlock):
     """Sampled: the output moves toward the input by at most rising_rate T up, falling_rate T down, per sample."""
 
     summary = "sampled rate limiter (parameters rising_rate, falling_rate in unit/s; config: unit, shape)"
