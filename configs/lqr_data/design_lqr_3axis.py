@@ -16,7 +16,12 @@ this script computes; the test suite checks that they are):
 3. the loop of configs/gallery/13_lqr_3axis.yaml (``LinearizedState`` -> ``LqrStateFeedback`` -> the acs
    torque) runs from a 0.5 deg error about the skew axis (1, 1, 1)/sqrt(3) with these files, and its logged
    command is compared with the linear discrete prediction ``u_k = -K x_k``, ``x_{k+1} = (Ad - Bd K) x_k``
-   (the full 24-state ZOH model, the same initial state in the linear model's coordinates).
+   (the full 24-state ZOH model, the same initial state in the linear model's coordinates);
+4. the observer-based (LQG) compensator: a steady-state Kalman predictor on the 18 states from the measured bus
+   rotation vector and rate (``shell.analysis.kalman.kalman_design``) with K on its estimate, one sampled
+   state-space system from LinearizedState's x to the torques (DIR/lqg_3axis.npz); configs/lqg_3axis.yaml closes
+   it as a ``StateSpace`` block, and its logged torque is compared with the linear closed loop of plant and
+   compensator (the compensator's state starts at 0).
 """
 
 from __future__ import annotations
@@ -37,6 +42,9 @@ RATE_WEIGHT = 1.0 / np.deg2rad(0.05) ** 2      # ... 0.05 deg/s of bus rate ...
 MODAL_WEIGHT = 1.0 / 0.01 ** 2                  # ... and 0.01 of modal coordinate or rate cost as much as ...
 TORQUE_WEIGHT = 1.0 / 20.0 ** 2                 # ... 20 N m of torque per axis
 ERROR_DEG, ERROR_AXIS = 0.5, np.ones(3) / math.sqrt(3.0)
+TORQUE_NOISE = 1.0                              # N m, process noise on each torque (the LQG's Kalman design) ...
+ANGLE_NOISE = np.deg2rad(10.0 / 3600.0)         # ... 10 arcsec of measured rotation vector ...
+RATE_NOISE = 1e-5                               # ... and 1e-5 rad/s of measured rate
 
 
 def linear_plant(directory: Path):
@@ -79,6 +87,45 @@ def design(model):
     return K, full.A, full.B
 
 
+def lqg_compensator(model, K, Ad, Bd):
+    """The observer-based compensator, a sampled state-space system from the linear model's full state (the
+    output of LinearizedState; it reads only the measured bus rotation vector and rate) to the three torques:
+    the steady-state Kalman predictor on the 18 non-translation states (``shell.analysis.kalman.kalman_design``:
+    process noise on the torques, measurement noise on the 6 measurements) with the LQR gain on its estimate::
+
+        xh[k+1] = (A - B K - L C) xh[k] + L C_m x[k],    u[k] = -K xh[k]
+
+    (C_m picks the measurements out of the full state, C out of the reduced one). Returns (A, B, C, D)."""
+    from shell.analysis.kalman import kalman_design
+
+    n = model.A.shape[0]
+    keep = np.setdiff1d(np.arange(n), translation_states(model))
+    measured = np.concatenate([model.state_index["multibody.bus.hinge_q"][:3],
+                               model.state_index["multibody.bus.hinge_u"][:3]])
+    pick = np.eye(n)[measured]
+    A, B, C, gain = Ad[np.ix_(keep, keep)], Bd[keep], pick[:, keep], K[:, keep]
+    noise = np.diag([ANGLE_NOISE ** 2] * 3 + [RATE_NOISE ** 2] * 3)
+    L = kalman_design(A, B, C, TORQUE_NOISE ** 2 * np.eye(3), noise, PERIOD).predictor_gain
+    return A - B @ gain - L @ C, L @ pick, -gain, np.zeros((3, n))
+
+
+def write_compensator(matrices, directory: Path) -> Path:
+    path = Path(directory) / "lqg_3axis.npz"
+    np.savez(path, **dict(zip("ABCD", matrices)), sample_time=PERIOD)
+    return path
+
+
+def lqg_prediction(matrices, Ad, Bd, x0, steps):
+    """The torques u_k of the linear closed loop: plant (full ZOH model) and compensator from xh_0 = 0."""
+    Ac, Bc, Cc, _ = matrices
+    x, xh, out = x0.copy(), np.zeros(Ac.shape[0]), []
+    for _ in range(steps):
+        u = Cc @ xh
+        out.append(u)
+        x, xh = Ad @ x + Bd @ u, Ac @ xh + Bc @ x
+    return np.array(out)
+
+
 def write_gain(K, directory: Path) -> Path:
     path = Path(directory) / "gain_3axis.csv"
     np.savetxt(path, K, delimiter=", ", fmt="%.17g")
@@ -92,36 +139,60 @@ def initial_error(model) -> np.ndarray:
     return x
 
 
-def closed_loop(K, Ad, Bd, x0, t_final=60.0, directory=None, log=None):
-    """(time, logged command, predicted command) at the controller samples, the loop of
-    configs/gallery/13_lqr_3axis.yaml run with the plant and gain of ``directory`` (None: the shipped ones)."""
+def run_loop(scene: Path, t_final: float, overrides=(), log=None) -> dict:
+    """The log (a dict) of ``scene`` run to ``t_final`` with ``overrides``, refused when it would run interpreted."""
     from shell.log_file import read_log
     from shell.scenario import build_simulation, load_scenario
 
-    overrides = [f"stop.time={t_final} s"]
+    scenario = load_scenario(scene, [f"stop.time={t_final} s", *overrides])
+    simulation = build_simulation(scenario)
+    if simulation.mode != "compiled":
+        raise SystemExit(f"{scene}: the loop runs interpreted: {simulation.interpreted_reason}")
+    log = Path(log or f"{scene.stem}.h5")
+    simulation.run(scenario.t_final, log_path=log)
+    return read_log(log)
+
+
+def closed_loop(K, Ad, Bd, x0, t_final=60.0, directory=None, log=None):
+    """(time, logged command, predicted command) at the controller samples, the loop of
+    configs/gallery/13_lqr_3axis.yaml run with the plant and gain of ``directory`` (None: the shipped ones)."""
+    overrides = []
     if directory is not None:
         directory = Path(directory).resolve()
         overrides += [f"x_hat.config.linear_model={directory / 'lqr_3axis_plant.h5'}",
                       f"lqr.config.gain_file={directory / 'gain_3axis.csv'}"]
-    scenario = load_scenario(CONFIGS / "gallery" / "13_lqr_3axis.yaml", overrides)
-    simulation = build_simulation(scenario)
-    if simulation.mode != "compiled":
-        raise SystemExit(f"the loop runs interpreted: {simulation.interpreted_reason}")
-    log = Path(log or "lqr_3axis.h5")
-    simulation.run(scenario.t_final, log_path=log)
-    data = read_log(log)
-    steps = data["time"].size
+    data = run_loop(CONFIGS / "gallery" / "13_lqr_3axis.yaml", t_final, overrides, log)
     predicted, x = [], x0.copy()
-    for _ in range(steps):
+    for _ in range(data["time"].size):
         predicted.append(-K @ x)
         x = (Ad - Bd @ K) @ x
     return data["time"], data["lqr.command"], np.array(predicted)
 
 
+def lqg_closed_loop(matrices, Ad, Bd, x0, t_final=60.0, directory=None, log=None):
+    """(time, logged torque, predicted torque) of configs/lqg_3axis.yaml (the compensator as a StateSpace block)
+    with the plant and compensator of ``directory`` (None: the shipped ones)."""
+    overrides = []
+    if directory is not None:
+        directory = Path(directory).resolve()
+        overrides += [f"x_hat.config.linear_model={directory / 'lqr_3axis_plant.h5'}",
+                      f"lqg.config.file={directory / 'lqg_3axis.npz'}"]
+    data = run_loop(CONFIGS / "lqg_3axis.yaml", t_final, overrides, log)
+    return data["time"], data["lqg.y"], lqg_prediction(matrices, Ad, Bd, x0, data["time"].size)
+
+
+def _compare(what, times, logged, predicted):
+    peak = np.max(np.abs(predicted))
+    error = np.max(np.abs(logged - predicted))
+    print(f"{what}: peak predicted torque {peak:.6g} N m; largest |logged - predicted| over {times[-1]:g} s: "
+          f"{error:.3g} N m = {error / peak:.3g} of the peak")
+
+
 def main(argv) -> int:
-    parser = argparse.ArgumentParser(description="3-axis LQR on the linearized flexible spacecraft, closed in YAML")
+    parser = argparse.ArgumentParser(description="3-axis LQR and LQG on the linearized flexible spacecraft, "
+                                                 "closed in YAML")
     parser.add_argument("--output-directory", default="lqr_3axis_design",
-                        help="where the plant, the gain and the closed-loop log go (default lqr_3axis_design)")
+                        help="where the plant, the gain, the compensator and the logs go (default lqr_3axis_design)")
     args = parser.parse_args(argv)
     out = Path(args.output_directory)
     if out.resolve() == HERE:
@@ -130,15 +201,16 @@ def main(argv) -> int:
     model, _ = linear_plant(out)
     K, Ad, Bd = design(model)
     write_gain(K, out)
-    radius = np.max(np.abs(np.linalg.eigvals(Ad - Bd @ K)[np.abs(np.linalg.eigvals(Ad - Bd @ K) - 1.0) > 1e-9]))
+    compensator = lqg_compensator(model, K, Ad, Bd)
+    write_compensator(compensator, out)
+    poles = np.linalg.eigvals(Ad - Bd @ K)
     print(f"plant: {model}")
     print(f"K: 3 x {K.shape[1]}, translation columns 0; closed-loop discrete poles (translation's 1 aside) "
-          f"|z| <= {radius:.4f}")
-    times, command, predicted = closed_loop(K, Ad, Bd, initial_error(model), directory=out, log=out / "lqr_3axis.h5")
-    peak = np.max(np.abs(predicted))
-    error = np.max(np.abs(command - predicted))
-    print(f"peak predicted command {peak:.6g} N m; largest |logged - predicted| over {times[-1]:g} s: {error:.3g} N m "
-          f"= {error / peak:.3g} of the peak")
+          f"|z| <= {np.max(np.abs(poles[np.abs(poles - 1.0) > 1e-9])):.4f}; compensator poles |z| <= "
+          f"{np.max(np.abs(np.linalg.eigvals(compensator[0]))):.4f}")
+    x0 = initial_error(model)
+    _compare("LQR", *closed_loop(K, Ad, Bd, x0, directory=out, log=out / "lqr_3axis.h5"))
+    _compare("LQG", *lqg_closed_loop(compensator, Ad, Bd, x0, directory=out, log=out / "lqg_3axis.h5"))
     return 0
 
 
