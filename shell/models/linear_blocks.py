@@ -261,6 +261,13 @@ class _LinearBlock(Model):
         self.use_declarations(template.replace(**matrices, **ports, **states))
         self.offsets = template.offsets
 
+    def configure(self):
+        for key in ("A", "B", "C", "D"):  # the kernels and the feedthrough were chosen for these matrices
+            if not np.array_equal(self.parameter(key), getattr(self.system, key)):
+                raise ModelError(f"model {self.path}: parameter {key}: set by the block's configuration "
+                                 f"({type(self).__name__}: its file, inline matrices or design), not a parameter to "
+                                 "give")
+
 
 def _located(name: str, key: str, exc: LinearSystemError, where: str | None = None) -> ModelError:
     """A refusal of the matrices as a ModelError naming the config key (``where``: the prefix of the message

@@ -373,6 +373,11 @@ def test_sample_time_and_filter_refusals(tmp_path):
         config: {kind: low_pass, frequency: 6 Hz, damping: 0.5, shape: [1], unit: N*m}""")
     assert "connection one.y -> block.u: unit dimensions differ" in message  # the filter's ports take its unit
     message = _refusal(tmp_path, """
+        type: Filter
+        config: {kind: low_pass, frequency: 6 Hz, damping: 0.5, shape: [1]}
+        parameters: {D: [[1.0]]}""")
+    assert "models.block.parameters.D" in message and "set by the block's configuration" in message
+    message = _refusal(tmp_path, """
         type: Saturation
         config: {shape: [1]}
         parameters: {lower: [1], upper: [-1]}""")
