@@ -132,13 +132,17 @@ def _assembly_class(name: str, spec: dict, where: Where, scenario: Scenario) -> 
 
 
 def _locate_error(here: Where, entry: dict, exc: Exception) -> ScenarioError:
-    """Point an error from a model constructor at the parameter line it concerns, if any."""
+    """Point an error from a model constructor at the parameter or config line it concerns, if any."""
     message = str(exc)
     params = entry.get("parameters", {}) or {}
     unknown_part = message.split("known:")[0] if "unknown parameter" in message else ""
     for key in params:
         if f"parameter {key}:" in message or f"'{key}'" in unknown_part:
             return here.child(entry, "parameters").child(params, key).error(message)
+    config = entry.get("config", {}) or {}
+    for key in config:
+        if f"config {key}:" in message:
+            return here.child(entry, "config").child(config, key).error(message)
     return here.error(message)
 
 
