@@ -39,6 +39,7 @@ from numba import njit
 from shell.assembly import Assembly, Connection, flatten
 from shell.graphs import CycleError, Digraph, condensation_order, find_cycle, topological_order
 from shell.model import ModelError
+from shell.names import NameIndex
 from shell.units import UnitError, conversion_factor, format_unit, to_magnitude
 
 
@@ -93,6 +94,8 @@ class Diagram:
         #: initial continuous and discrete states of the models (their declared or overridden values)
         self.initial_x = _frozen(np.concatenate([m.initial_continuous_state() for m in self.models]))
         self.initial_z = _frozen(np.concatenate([m.initial_discrete_state() for m in self.models]))
+        #: every parameter, state, sample schedule and model value by dotted name (:mod:`shell.names`)
+        self.names = NameIndex(self)
 
     # ------------------------------------------------------------------------------------------------
     # build
@@ -578,7 +581,22 @@ class Context:
         self.periods = list(diagram.periods)
         self.offsets = list(diagram.offsets)
         self.next_sample = [diagram.first_sample(self.periods[i], self.offsets[i], self.t) for i in range(len(models))]
+        #: no run has advanced this context yet: initial values and changes that build a model again may be given
+        self.unstarted = True
         self._reuse_cache: dict = {}
+
+    def set(self, name: str, value) -> None:
+        """Give parameter, state, sample rate or model value ``name`` the value ``value`` (a number or array in the
+        declared unit, a string with a unit, ``{value, unit}``): :meth:`shell.names.NameIndex.assign`."""
+        self.diagram.names.assign(self, [(name, value)])
+
+    def assign(self, items) -> None:
+        """Several (name, value) pairs at once (one construction per model whose configuration they change)."""
+        self.diagram.names.assign(self, items)
+
+    def get(self, name: str):
+        """The current value of ``name`` in its declared unit (a copy)."""
+        return self.diagram.names.value(self, name)
 
     def reuse_for(self, stages) -> tuple[bool, ...]:
         key = id(stages)

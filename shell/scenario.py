@@ -888,20 +888,11 @@ def build_simulation(scenario: Scenario):
     from shell.simulation import Simulation
 
     root = build_root(scenario)
-    where = _Where(scenario.file, 1, "")
     try:
-        simulation = Simulation(root, integrator=scenario.integrator, step=scenario.step,
-                                integrator_options=scenario.integrator_options, seed=scenario.seed,
-                                stop_events=scenario.stop_events, event_tol=scenario.event_tolerance,
-                                event_detection=scenario.event_detection)
+        simulation = Simulation.of_scenario(scenario, root)
     except (ModelError, UnitError) as exc:
         message = str(exc)
         raise ScenarioError(message if message.startswith(scenario.file) else f"{scenario.file}: {message}") from None
-    for name, rate, here in scenario.log_signals:
-        try:
-            simulation.log([name], rate)
-        except ModelError as exc:
-            raise here.error(str(exc)) from None
     _check_initial_state(simulation, scenario)
     return simulation
 

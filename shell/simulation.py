@@ -59,6 +59,10 @@ def _warn_python_updates(models) -> None:
                   "(python_update); everything else stays compiled", SimulationWarning, stacklevel=3)
 
 
+#: per diagram, the logged signals already described: {name: (LoggedSignal, kind, slice)}
+_LOGGED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 class SimulationError(RuntimeError):
     """A run that could not continue; the message names the model and the time."""
 
@@ -174,6 +178,25 @@ class Simulation:
         #: (time, "model.zero_crossing") of every handled event, in order
         self.events: list[tuple[float, str]] = []
 
+    @classmethod
+    def of_scenario(cls, scenario, root: Assembly | None = None, *, diagram: Diagram | None = None,
+                    context=None) -> "Simulation":
+        """The Simulation of a validated scenario (:class:`shell.scenario.Scenario`): its integrator and options,
+        seed, stop events and event settings, and its log: the scene ``root``, or a new ``context`` of a
+        ``diagram`` built before (a Monte Carlo run). A log signal the scene does not have is refused at the
+        scenario's line for it."""
+        seed = scenario.seed if context is None else context.seed
+        simulation = cls(root, integrator=scenario.integrator, step=scenario.step,
+                         integrator_options=scenario.integrator_options, seed=seed, stop_events=scenario.stop_events,
+                         event_tol=scenario.event_tolerance, event_detection=scenario.event_detection, diagram=diagram,
+                         context=context)
+        for name, rate, here in scenario.log_signals:
+            try:
+                simulation.log([name], rate)
+            except ModelError as exc:
+                raise here.error(str(exc)) from None
+        return simulation
+
     @property
     def plan(self):
         """The compiled form of this run (:class:`shell.compiled_plan.CompiledPlan`), None when interpreted."""
@@ -279,12 +302,15 @@ class Simulation:
         period = parse_period(rate, "log rate")
         group = f"every_{float(period):g}s"
         entries = self._log_groups.setdefault(group, {"period": period, "signals": [], "next": None})
+        known = _LOGGED.setdefault(self.diagram, {})
         for name in signals:
-            kind, sl, decl = self.diagram.locate(name)
+            if name not in known:  # the same for every run of the diagram (formatting a unit costs ~0.1 ms)
+                kind, sl, decl = self.diagram.locate(name)
+                known[name] = (LoggedSignal(name, tuple(decl.shape), format_unit(decl.unit), decl.description), kind,
+                               sl)
             if any(s.name == name for s, _, _ in entries["signals"]):
                 continue
-            entries["signals"].append((LoggedSignal(name, tuple(decl.shape), format_unit(decl.unit),
-                                                    decl.description), kind, sl))
+            entries["signals"].append(known[name])
 
     def log_groups(self) -> dict:
         """{group name: [LoggedSignal, ...]} of what :meth:`log` requested (a writer's layout)."""
@@ -368,6 +394,7 @@ class Simulation:
         blas = self._single_threaded_blas()
         try:
             self._initialize()
+            self.context.unstarted = False
             end = Fraction(t_final).limit_denominator(10**9)
             compiled = self._compiled_run(end, writer, progress) if self._compiled_loop_applies() else None
             if compiled is not None:
@@ -967,6 +994,7 @@ class Simulation:
                                       f"{self.t:.9g} s: {type(exc).__name__}: {exc}") from exc
         self._integrator_stale = True
         self._initialized = True
+        self.context.unstarted = False
 
     def save_state(self, path) -> None:
         """Write :meth:`snapshot` to an HDF5 restart file."""

@@ -326,10 +326,13 @@ class MultibodyModel(Model):
         "continuous states: q, u (docs/scenario_schema.md, section multibody)",
     )
 
-    def __init__(self, name: str, system, *, initial_q=None, initial_u=None):
+    def __init__(self, name: str, system, *, initial_q=None, initial_u=None, written_q=None):
         self.system = system
         self._initial_q = system.neutral_configuration() if initial_q is None else np.asarray(initial_q, float)
         self._initial_u = np.zeros(system.nu) if initial_u is None else np.asarray(initial_u, float)
+        #: the initial coordinates as written, before their quaternions were normalized: a run that changes a
+        #: body's initial value normalizes from these, as the scene built with that value does
+        self.written_q = self._initial_q.copy() if written_q is None else np.asarray(written_q, float)
         super().__init__(name)
 
     @property
@@ -455,6 +458,76 @@ class MultibodyModel(Model):
                 "is singular: the subtree it moves has no inertia along a free DOF (massless subtree, or a "
                 "configuration where the hinge axes align)")
 
+    # -- named values (shell.names): mass properties and initial values a run may change ------------------------
+    def named_values(self) -> dict:
+        """``<body>.mass``, ``.com``, ``.inertia`` of each rigid body (a run's own engine system takes them:
+        :meth:`dynamics.MultibodySystem.set_mass_properties`) and ``<body>.initial.<key>`` of each body (the
+        scenario's initial keys its hinge takes): {leaf: (unit, shape, description, is an initial value)}; an
+        inertia takes 3 principal moments or a 3 x 3 matrix (shape None)."""
+        s = self.system
+        values = {}
+        for b, body in enumerate(s.body_names):
+            if not s.topology[b, K.FLEXIBLE]:
+                values[f"{body}.mass"] = ("kg", (), f"mass of {body}", False)
+                values[f"{body}.com"] = ("m", (3,), f"center of mass of {body}, body frame", False)
+                values[f"{body}.inertia"] = ("kg*m^2", None, f"inertia of {body} about its center of mass", False)
+            for key, (_, _, shape, unit) in initial_targets(s, b).items():
+                values[f"{body}.initial.{key}"] = (unit, shape, f"initial {key} of {body}'s hinge", True)
+        return values
+
+    def named_value(self, leaf: str, system):
+        """The value of named value ``leaf`` in the run whose engine system is ``system``."""
+        body, _, key = leaf.partition(".")
+        if key.startswith("initial."):
+            target, sl, shape, _ = initial_targets(system, system.body_index(body))[key[len("initial."):]]
+            return (self.written_q if target == "q" else self._initial_u)[sl].reshape(shape).copy()
+        definition = system.definitions[0][system.body_index(body)]
+        return np.array(getattr(definition, key), dtype=float)
+
+    def assign_named(self, items, system, x) -> None:
+        """Named values ``items`` ((leaf, value) pairs) into the run's engine ``system`` (mass properties) and its
+        state ``x`` (initial values: the coordinates as written, the changed ones replaced, quaternions then
+        normalized, so the run starts where the scene built with those values starts)."""
+        masses: dict[str, dict] = {}
+        initial = []
+        for leaf, value in items:
+            body, _, key = leaf.partition(".")
+            if key.startswith("initial."):
+                initial.append((body, key[len("initial."):], value))
+            else:
+                masses.setdefault(body, {})[key] = value
+        for body, given in masses.items():
+            definition = system.definitions[0][system.body_index(body)]
+            mass = float(_converted(given["mass"], "kg", (), f"{body}.mass")) if "mass" in given else definition.mass
+            com = _converted(given["com"], "m", (3,), f"{body}.com") if "com" in given else definition.com
+            inertia = definition.inertia
+            if "inertia" in given:
+                inertia = _converted(given["inertia"], "kg*m^2", None, f"{body}.inertia")
+                inertia = np.diag(inertia) if inertia.shape == (3,) else inertia
+                if inertia.shape != (3, 3):
+                    raise ModelError(f"{self.path}.{body}.inertia: expected a 3x3 matrix or 3 principal moments, "
+                                     f"given shape {inertia.shape}")
+            try:
+                system.set_mass_properties(body, mass, com, inertia)
+            except ValueError as exc:
+                raise ModelError(f"{self.path}.{body}: {exc}") from None
+        if initial:
+            q, u = self.written_q.copy(), self._initial_u.copy()
+            for body, key, value in initial:
+                target, sl, shape, unit = initial_targets(system, system.body_index(body))[key]
+                value_si = _converted(value, unit, None, f"{body}.initial.{key}")
+                value_si = value_si.reshape(1) if value_si.shape == () and shape == (1,) else value_si
+                if value_si.shape != shape:
+                    raise ModelError(f"{self.path}.{body}.initial.{key}: expected shape {shape}, given "
+                                     f"{value_si.shape}")
+                if key == "attitude" and abs(np.linalg.norm(value_si) - 1.0) > 1e-9:
+                    raise ModelError(f"{self.path}.{body}.initial.attitude: expected a unit quaternion [w, x, y, z], "
+                                     f"given norm {np.linalg.norm(value_si):.12g}")
+                (q if target == "q" else u)[sl] = value_si
+            system.normalize_quaternions(q)
+            x[:system.nq] = q
+            x[system.nq:] = u
+
     def attachment_ports(self, kind: str, target: str):
         s = self.system
         if kind == "node":
@@ -579,8 +652,51 @@ class MultibodyModel(Model):
             system = builder.compile()
         except ModelDefinitionError as exc:
             raise where.error(str(exc)) from None
-        q0, u0 = initial_state(system, [(spec, here, body) for _, spec, here, body in initial])
-        return cls(name, system, initial_q=q0, initial_u=u0)
+        written, u0 = initial_state(system, [(spec, here, body) for _, spec, here, body in initial])
+        q0 = system.normalize_quaternions(written.copy())
+        return cls(name, system, initial_q=q0, initial_u=u0, written_q=written)
+
+
+def _converted(value, unit, shape, name):
+    try:
+        return to_magnitude(value, unit, shape, name)
+    except UnitError as exc:
+        raise ModelError(str(exc)) from None
+
+
+def initial_targets(system, b) -> dict:
+    """{key: ("q" or "u", slice of q or u, shape, unit)} of the initial keys (INITIAL_KEYS) body ``b``'s hinge
+    takes: the hinge's own coordinates first, then a flexible body's modal coordinates (CONVENTIONS.md)."""
+    cached = _INITIAL_TARGETS.get((id(system.topology), b))
+    if cached is not None and cached[0] is system.topology:
+        return cached[1]
+    hinge = system.hinge_names[b]
+    qs, us = system.q_slices[b], system.u_slices[b]
+    nq, nu = qs.stop - qs.start, us.stop - us.start
+    hinge_nq, hinge_nu = int(HINGE_NQ[HINGE_TYPES[hinge]]), int(HINGE_NU[HINGE_TYPES[hinge]])
+    n_modes = nq - hinge_nq
+    kinds = set(hinge.split() + (["flexible"] if n_modes else []))
+    local = {
+        "q": ("q", 0, nq), "u": ("u", 0, nu), "angle": ("q", 0, hinge_nq), "angle_rate": ("u", 0, hinge_nu),
+        "displacement": ("q", 0, 1), "displacement_rate": ("u", 0, 1), "attitude": ("q", 0, 4),
+        "angular_velocity": ("u", 0, 3), "position": ("q", 4, 7), "velocity": ("u", 3, 6),
+        "modal": ("q", hinge_nq, nq), "modal_rate": ("u", hinge_nu, nu),
+    }
+    targets = {}
+    for key, (unit, applies) in INITIAL_KEYS.items():
+        if applies != "all" and not set(applies.split()) & kinds:
+            continue
+        target, start, stop = local[key]
+        base = qs.start if target == "q" else us.start
+        targets[key] = (target, slice(base + start, base + stop), (stop - start,), unit)
+    if len(_INITIAL_TARGETS) > 1024:
+        _INITIAL_TARGETS.clear()
+    _INITIAL_TARGETS[(id(system.topology), b)] = (system.topology, targets)
+    return targets
+
+
+#: initial_targets per (engine topology, body): the same for every run of a scene (its systems share the topology)
+_INITIAL_TARGETS: dict = {}
 
 
 def rigid_mass_properties(body, where):
@@ -591,12 +707,11 @@ def rigid_mass_properties(body, where):
 
 def initial_state(system, entries):
     """(q0, u0) from each body's ``initial:`` entry (``entries``: (spec or None, where, body entry) in body
-    order), quaternions normalized."""
+    order), as written: the engine model normalizes the quaternions (MultibodyModel's ``written_q``)."""
     q0, u0 = system.neutral_configuration(), np.zeros(system.nu)
     for b, (spec, here, body) in enumerate(entries):
         if spec is not None:
             _apply_initial(system, b, spec, here.child(body, "initial"), q0, u0)
-    system.normalize_quaternions(q0)
     return q0, u0
 
 
@@ -748,24 +863,12 @@ def _apply_initial(system, b, spec, where, q0, u0) -> None:
 
     hinge = system.hinge_names[b]
     _expect_mapping(spec, where, {k: f"{unit or 'SI'} ({applies})" for k, (unit, applies) in INITIAL_KEYS.items()})
-    qs, us = system.q_slices[b], system.u_slices[b]
-    nq, nu = qs.stop - qs.start, us.stop - us.start
-    hinge_nq, hinge_nu = int(HINGE_NQ[HINGE_TYPES[hinge]]), int(HINGE_NU[HINGE_TYPES[hinge]])
-    n_modes = nq - hinge_nq
-    kinds = hinge.split() + (["flexible"] if n_modes else [])
+    targets = initial_targets(system, b)
     for key, value in spec.items():
-        unit, applies = INITIAL_KEYS[key]
-        if applies != "all" and not set(applies.split()) & set(kinds):
+        if key not in targets:
             raise where.child(spec, key).error(f"{key!r} does not apply to a {hinge} hinge; use "
                                                f"{[k for k, (_, a) in INITIAL_KEYS.items() if a == 'all' or hinge in a.split()]}")
-        target, sl, shape = {
-            "q": (q0, slice(0, nq), (nq,)), "u": (u0, slice(0, nu), (nu,)),
-            "angle": (q0, slice(0, hinge_nq), (hinge_nq,)), "angle_rate": (u0, slice(0, hinge_nu), (hinge_nu,)),
-            "displacement": (q0, slice(0, 1), (1,)), "displacement_rate": (u0, slice(0, 1), (1,)),
-            "attitude": (q0, slice(0, 4), (4,)), "angular_velocity": (u0, slice(0, 3), (3,)),
-            "position": (q0, slice(4, 7), (3,)), "velocity": (u0, slice(3, 6), (3,)),
-            "modal": (q0, slice(hinge_nq, nq), (n_modes,)), "modal_rate": (u0, slice(hinge_nu, nu), (n_modes,)),
-        }[key]
+        target, sl, shape, unit = targets[key]
         value_si = _vector(spec, key, unit, None, where)
         if value_si.shape == () and shape == (1,):
             value_si = value_si.reshape(1)
@@ -774,5 +877,4 @@ def _apply_initial(system, b, spec, where, q0, u0) -> None:
         if key == "attitude" and abs(np.linalg.norm(value_si) - 1.0) > 1e-9:
             raise where.child(spec, key).error(f"expected a unit quaternion [w, x, y, z], given norm "
                                                f"{np.linalg.norm(value_si):.12g}")
-        base = qs.start if target is q0 else us.start
-        target[base + sl.start:base + sl.stop] = value_si
+        (q0 if target == "q" else u0)[sl] = value_si
