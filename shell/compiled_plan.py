@@ -196,6 +196,8 @@ def _tables(diagram) -> _Tables:
 class CompiledPlan:
     """The compiled form of ``diagram`` bound to ``context``; see the module docstring."""
 
+    mode = "compiled"
+
     def __init__(self, diagram, context):
         self.diagram, self.context = diagram, context
         tables = _tables(diagram)
@@ -240,9 +242,12 @@ class CompiledPlan:
         return int(self.buffers.update_ops[i, L.KIND]) in (L.UPDATE, L.UPDATE_NOISE)
 
     def update(self, t: float, i: int) -> None:
-        """Model ``i``'s discrete update at the context's state, compiled: the outputs its inputs need, its
-        noise drawn from its own generator, its kernel (the same numbers as ``Diagram.update``; for loops
-        that stay in Python, e.g. with an adaptive or exponential integrator)."""
+        """Model ``i``'s discrete update at the context's state: compiled (the outputs its inputs need, its noise
+        drawn from its own generator, its kernel: the same numbers as ``Diagram.update``), or a Python-only update
+        through the diagram."""
+        if not self.update_is_compiled(i):
+            self.diagram.update(self.context, i, t)
+            return
         rng = self.rngs[int(self.buffers.update_ops[i, L.RNG])]  # its own stream (slot 0, unused, without noise)
         L.update_model_alone(i, self.kernels, self.engine, rng, float(t), self.buffers)
 
@@ -264,8 +269,8 @@ class CompiledPlan:
 
     def derivatives_into(self, t: float, stages, source=None, factor=None) -> None:
         """Derivatives at the context's ``x`` into its ``xdot``, running only the output ``stages`` first,
-        with the gather arrays ``source``/``factor`` (an opened diagram's): the compiled form of
-        ``OpenedDiagram.derivatives_into``, for linearization and trim."""
+        with the gather arrays ``source``/``factor`` (an opened diagram's: linearization and trim), as
+        ``InterpretedPlan.derivatives_into``."""
         key = (id(stages), id(source))
         cached = self._variants.get(key)
         if cached is None or cached[0] is not stages:
@@ -283,3 +288,16 @@ def compile_plan(diagram, context):
         return CompiledPlan(diagram, context), None
     except NotCompilable as exc:
         return None, str(exc)
+
+
+def evaluation_plan(diagram, context, mode: str = "compiled"):
+    """``(plan, reason)``: the compiled plan of ``context``, or the interpreted one (``mode="interpreted"``, or a scene
+    that cannot run compiled: ``reason`` says why, None otherwise). Both have the same methods and numbers."""
+    from shell.diagram import InterpretedPlan
+
+    if mode == "compiled":
+        plan, reason = compile_plan(diagram, context)
+        if plan is not None:
+            return plan, None
+        return InterpretedPlan(diagram, context), reason
+    return InterpretedPlan(diagram, context), None

@@ -526,9 +526,44 @@ class OpenedDiagram:
                       self.gather_factor)
         gather_inputs(context.signals, self.gather_source, d.gather_destination, self.gather_factor, 0, d.n_gather)
 
-    def derivatives_into(self, context: "Context", t: float, stages) -> None:
-        """Derivatives at ``context.x`` into ``context.xdot``, running only ``stages`` first."""
-        self.diagram._derivatives(context, t, stages, self.gather_source, self.gather_factor)
+
+class InterpretedPlan:
+    """The evaluation of ``diagram`` at ``context`` with every kernel called from Python: the reference that the
+    compiled plan (:class:`shell.compiled_plan.CompiledPlan`, the same methods) must equal, and what runs a scene
+    whose kernels are not all numba functions. A failing kernel raises :class:`EvaluationError` naming the model,
+    the stage and the time."""
+
+    mode = "interpreted"
+    #: the sampled models whose update is Python (here: every one; the compiled plan lists its Python-only ones)
+    python_updates = ()
+
+    def __init__(self, diagram: Diagram, context: "Context"):
+        self.diagram, self.context = diagram, context
+
+    def derivative(self, t: float, y: np.ndarray) -> np.ndarray:
+        """f(t, y), a new array (the integrators' right-hand side)."""
+        return self.diagram.derivatives(self.context, t, y)
+
+    def evaluate(self, t: float, stages=None) -> None:
+        """Every output (or those of ``stages``), then every input, at the context's state."""
+        self.diagram.evaluate(self.context, t, stages)
+
+    def zero_crossings(self, t: float, y: np.ndarray) -> np.ndarray:
+        return self.diagram.zero_crossings(self.context, t, y)
+
+    def update(self, t: float, i: int) -> None:
+        """Sampled model ``i``'s update (its inputs' stages first, its noise drawn)."""
+        self.diagram.update(self.context, i, t)
+
+    def normalize(self, y: np.ndarray) -> None:
+        self.diagram.normalize(self.context, y)
+
+    def derivatives_into(self, t: float, stages, source=None, factor=None) -> None:
+        """Derivatives at the context's ``x`` into its ``xdot``, running only the output ``stages`` first, with the
+        gather arrays ``source``/``factor`` (an opened diagram's, for linearization and trim)."""
+        d = self.diagram
+        d._derivatives(self.context, t, stages, d.gather_source if source is None else source,
+                       d.gather_factor if factor is None else factor)
 
 
 @dataclass

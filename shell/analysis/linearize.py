@@ -333,11 +333,7 @@ class _Evaluator:
 
     def derivatives_into(self, t) -> None:
         """Derivatives at the context's state into its xdot: compiled when the scene is (the same numbers)."""
-        plan = self.sim.plan
-        if plan is not None:
-            plan.derivatives_into(t, self.stages, self.opened.gather_source, self.opened.gather_factor)
-        else:
-            self.opened.derivatives_into(self.sim.context, t, self.stages)
+        self.sim.plan.derivatives_into(t, self.stages, self.opened.gather_source, self.opened.gather_factor)
 
 
 def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4, richardson: bool = True,
