@@ -2,13 +2,14 @@
 
 The compiled loop runs the instants of :mod:`shell.python_loop` (updates, steps, zero-crossing checks, log rows)
 inside numba on integer ticks of a common time base ``1 / den`` s (every sample instant, period, log instant and
-the end are multiples of it; a run whose ticks would exceed 2**53 runs the Python loop). It returns to Python
-for what must be Python, and this module answers: a Python-only model due (its update, and the compiled ones due
-with it, in order), a full log buffer (its rows to the writer), a spent budget of instants (progress; the budget
-adapts to about 0.1 s of wall time per call), a step that may contain a crossing (located on the step's dense
-output and handled as in the Python loop), a failure (named as in the Python loop), and what the integrator asks
-of its Python side (:mod:`shell.integrators.exponential`: a check of its linear part, its creation). When the loop
-ends, or fails, the times, the sample and log schedules and the counters go back to the simulation (``sync``).
+the end are multiples of it; a run whose ticks would exceed 2**53 runs the Python loop). The integrator steps
+there when it says it can (its ``compiled_stepping``: :mod:`shell.integrators.compiled`; nothing here names a
+method). The loop returns to Python for what must be Python, and this module answers: a Python-only model due
+(its update, and the compiled ones due with it, in order), a full log buffer (its rows to the writer), a spent
+budget of instants (progress; the budget adapts to about 0.1 s of wall time per call), a step that may contain a
+crossing (located on the method's dense output and handled as in the Python loop), a failure (named as in the
+Python loop), and what the integrator asks of its Python side. When the loop ends, or fails, the times, the sample
+and log schedules, the counters and the integrator's Python side are brought up to date (``sync``).
 """
 
 from __future__ import annotations
@@ -21,34 +22,56 @@ import numpy as np
 
 from shell import compiled_loop as CL
 from shell.integrators import INTEGRATORS
-from shell.model import ModelError
+from shell.integrators import compiled as IC
 
 
 class CompiledRun:
-    """Runs ``simulation`` in the compiled loop (see the module docstring)."""
+    """Runs ``simulation`` in the compiled loop (see the module docstring); also the run's side that the
+    integrator's :class:`shell.integrators.compiled.CompiledStepping` sees."""
 
     def __init__(self, simulation):
         self.sim = simulation
-        self.stepper = None
-        # the exponential stepper's linear part, the time its state is current at, its slope's state (CL.F_DUE)
-        self.part, self.stepper_t, self.f_state = None, None, 0
+        self.stepping = None
+
+    # -- what the integrator's compiled stepping sees --------------------------------------------------------
+    @property
+    def t(self) -> float:
+        return self.sim.t
+
+    @property
+    def x(self) -> np.ndarray:
+        return self.sim.x
+
+    @property
+    def options(self) -> dict:
+        return self.sim.integrator_options
+
+    @property
+    def integrator(self):
+        return self.sim._integrator
+
+    def make_integrator(self, t_end: float):
+        """The method's Python integrator at the run's state, as the Python loop makes it at its first
+        integration (heading for ``t_end``)."""
+        self.sim._integrator = None
+        return self.sim.python_loop.restart_integrator(float(t_end))
+
+    # -- whether, and what ----------------------------------------------------------------------------------
+    def _method(self):
+        return INTEGRATORS.get(str(self.sim.integrator_name).lower())
 
     def applies(self) -> bool:
-        """Fixed-step explicit Runge-Kutta and the exponential RK4 run in the compiled loop; adaptive and
-        implicit methods run the Python loop on the compiled derivative."""
-        from shell.integrators.exponential import ExponentialRK4
-        from shell.integrators.fixed import FixedStepRungeKutta
+        """The plan is compiled and the integrator steps in the compiled loop for this run (its options, its
+        dense output for the scene's zero crossings)."""
+        sim, method = self.sim, self._method()
+        stepping = getattr(method, "compiled_stepping", None)
+        return (sim.mode == "compiled" and stepping is not None
+                and stepping.applies(method, sim.integrator_options, sim.diagram.n_zero_crossings > 0))
 
-        sim = self.sim
-        cls = INTEGRATORS.get(str(sim.integrator_name).lower())
-        if sim.mode != "compiled" or cls is None or sim.integrator_options.get("step") is None:
-            return False
-        if cls is ExponentialRK4:
-            return True
-        if not issubclass(cls, FixedStepRungeKutta):
-            return False
-        # events are located on the dense output: the compiled loop evaluates the cubic Hermite one
-        return sim.diagram.n_zero_crossings == 0 or cls.name in ("euler", "heun", "rk4")
+    @property
+    def stepper(self):
+        """The current stepper (None before a compiled run)."""
+        return None if self.stepping is None else self.stepping.st
 
     def time_base(self, end: Fraction):
         """Common denominator of every instant of this run, or None when ticks would exceed 2**53."""
@@ -65,56 +88,6 @@ class CompiledRun:
         if den >= limit or max(abs(f) for f in fractions) * den >= limit:
             return None
         return den
-
-    # -- steppers --------------------------------------------------------------------------------------------
-    def _exponential_stepper(self):
-        """The exponential RK4's stepper (:class:`shell.compiled_loop.ExponentialStepper`), or a placeholder
-        (step 0) until the integrator exists: the loop then returns NEW_INTEGRATOR where the Python loop would
-        make it (at the start of the first integration, after the updates at that instant), so that its linear
-        part and driven rows are built at the same state. The :class:`ExponentialRK4` object stays the home
-        of the linear part, its matrix functions and check counters (the compiled loop reads and writes them
-        back), and of the events' dense output."""
-        from shell.integrators.exponential import ExponentialRK4
-
-        sim = self.sim
-        integ = sim._integrator
-        if not isinstance(integ, ExponentialRK4):
-            self.stepper, self.part = CL.exponential_placeholder(sim.x.size), None
-        elif not isinstance(self.stepper, CL.ExponentialStepper) or self.part is not integ.part:
-            # the Python loop's integrator moved on: the loop restarts from the context (no slope needed here)
-            self.stepper = CL.exponential_stepper(integ, integ.y, np.zeros_like(integ.y))
-            self.part = integ.part
-            sim._integrator_stale = True
-        return self.stepper
-
-    def _new_exponential_integrator(self, ints, reals, end):
-        """NEW_INTEGRATOR: make the integrator at the loop's time and state (as the Python loop does at its first
-        integration) and return its stepper, with its slope."""
-        sim = self.sim
-        sim.t = float(reals[CL.R_T])
-        sim._integrator = None
-        integ = sim.python_loop.restart_integrator(float(end))
-        self.stepper, self.part = CL.exponential_stepper(integ), integ.part
-        ints[CL.I_F_VALID] = 1
-        ints[CL.I_SINCE_CHECK] = integ.steps_since_check
-        ints[CL.I_CHECK_INTERVAL] = integ.check_interval
-        reals[CL.R_PHI_H] = np.nan
-        return self.stepper
-
-    def _runge_kutta_stepper(self):
-        sim = self.sim
-        cls = INTEGRATORS[str(sim.integrator_name).lower()]
-        options = sim.integrator_options
-        step = float(options["step"])
-        if not (step > 0.0 and math.isfinite(step)):
-            raise ModelError(f"integrator step must be a positive number of seconds, got {options['step']!r}")
-        h = min(step, float(options.get("max_step", np.inf)))
-        if not isinstance(self.stepper, CL.Stepper) or self.stepper.h != h or self.stepper.A is not cls.tableau.A:
-            tb, n = cls.tableau, sim.x.size
-            self.stepper = CL.Stepper(tb.A, tb.b, tb.c, tb.n_stages, h, sim.x.copy(), np.zeros(n),
-                                      np.zeros((tb.n_stages, n)), np.zeros(n), np.zeros(n))
-            sim._integrator_stale = True
-        return self.stepper
 
     # -- the run ---------------------------------------------------------------------------------------------
     def _schedule(self, den: int, end: Fraction) -> tuple:
@@ -152,23 +125,18 @@ class CompiledRun:
         if den is None:
             return None
         sim = self.sim
-        exponential = getattr(INTEGRATORS.get(str(sim.integrator_name).lower()), "uses_linear_part", False)
-        stepper = self._exponential_stepper() if exponential else self._runge_kutta_stepper()
+        if self.stepping is None:
+            method = self._method()
+            self.stepping = method.compiled_stepping(self, method)
+        st, f_valid = self.stepping.stepper(sim._integrator_stale)
         schedule, next_tick, period, groups, widths = self._schedule(den, end)
-        ints = np.zeros(CL.N_INTS, dtype=np.int64)
-        reals = np.zeros(CL.N_REALS)
-        reals[CL.R_T] = sim.t
-        ints[CL.I_F_VALID] = 0 if sim._integrator_stale else 1
-        ints[CL.I_NOW] = int(Fraction(sim.t).limit_denominator(10**9) * den)
-        if exponential and self.part is not None:
-            ints[CL.I_SINCE_CHECK] = sim._integrator.steps_since_check
-            ints[CL.I_CHECK_INTERVAL] = sim._integrator.check_interval
-            reals[CL.R_PHI_H] = np.nan
-            if sim._integrator_stale or self.stepper_t != sim.t:
-                ints[CL.I_F_VALID] = 0
-            else:
-                ints[CL.I_F_VALID] = self.f_state
+        ints = np.zeros(IC.N_INTS, dtype=np.int64)
+        reals = np.zeros(IC.N_REALS)
+        reals[IC.R_T] = sim.t
+        ints[IC.I_F_VALID] = f_valid
+        ints[IC.I_NOW] = int(Fraction(sim.t).limit_denominator(10**9) * den)
         names = list(sim.log_session.groups)
+        current = [st]
 
         def flush():
             for g in range(len(groups)):
@@ -178,25 +146,21 @@ class CompiledRun:
                 schedule.log_count[g] = 0
 
         def sync():
-            sim.t = float(reals[CL.R_T])
+            sim.t = float(reals[IC.R_T])
             for i in sim.diagram.update_order:
                 sim.context.next_sample[i] = Fraction(int(next_tick[i]), den)
             for g, group in enumerate(groups):
                 group["next"] = Fraction(int(schedule.log_next[g]), den)
-            done = ints[[CL.I_STEPS, CL.I_NFEV, CL.I_UPDATES]]
+            done = ints[[IC.I_STEPS, IC.I_NFEV, IC.I_UPDATES]]
             sim.counters["steps"] += int(done[0])
             sim.counters["nfev"] += int(done[1])
             sim.counters["updates"] += int(done[2])
-            ints[[CL.I_STEPS, CL.I_NFEV, CL.I_UPDATES]] = 0
-            sim._integrator_stale = ints[CL.I_F_VALID] == 0
-            if exponential and self.part is not None:
-                sim._integrator.steps_since_check = int(ints[CL.I_SINCE_CHECK])
-                sim._integrator.check_interval = int(ints[CL.I_CHECK_INTERVAL])
-                self.stepper_t = sim.t
-                self.f_state = int(ints[CL.I_F_VALID])
+            ints[[IC.I_STEPS, IC.I_NFEV, IC.I_UPDATES]] = 0
+            sim._integrator_stale = ints[IC.I_F_VALID] == 0
+            self.stepping.sync(current[0], ints)
 
         try:
-            stop_reason = self._loop(stepper, schedule, ints, reals, next_tick, period, end, writer, progress, flush,
+            stop_reason = self._loop(current, schedule, ints, reals, next_tick, period, end, writer, progress, flush,
                                      sync)
         finally:
             flush()
@@ -209,9 +173,9 @@ class CompiledRun:
             progress(sim.t)
         return "completed", "reached t_final"
 
-    def _loop(self, stepper, schedule, ints, reals, next_tick, period, end, writer, progress, flush, sync):
+    def _loop(self, current, schedule, ints, reals, next_tick, period, end, writer, progress, flush, sync):
         """Call the compiled loop until it is done; answer each return (module docstring). The stop reason of a
-        terminal event, or None."""
+        terminal event, or None. ``current[0]``: the stepper (a request may replace it)."""
         sim = self.sim
         plan = sim.plan
         n_g, n_x = sim.diagram.n_zero_crossings, sim.x.size
@@ -219,12 +183,12 @@ class CompiledRun:
                                              CL.SIGN_CHANGE)
         events = CL.Events(mode, sim.event_location.directions(), np.zeros(n_g), np.zeros(n_g),
                            np.zeros((CL.SUBDIVISIONS + 1, n_g)), np.zeros(n_x), np.zeros(n_x), np.zeros(n_x))
-        reals[CL.R_LAST_EVENT] = sim.event_location.last[0]
-        budget, integrate, b = 64, n_x > 0, plan.buffers
+        reals[IC.R_LAST_EVENT] = sim.event_location.last[0]
+        budget, integrate = 64, n_x > 0
         while True:
             started = _time.perf_counter()
-            status = CL.advance(plan.kernels, plan.engine, plan.rngs, b, stepper, events, schedule, ints, reals,
-                                budget, writer is not None, integrate)
+            status = CL.advance(plan.kernels, plan.slots, plan.rngs, plan.buffers, current[0], events, schedule, ints,
+                                reals, budget, writer is not None, integrate)
             elapsed = _time.perf_counter() - started
             if status == CL.DONE:
                 return None
@@ -235,107 +199,64 @@ class CompiledRun:
             elif status == CL.BUDGET:
                 budget = int(min(max(budget * 0.1 / max(elapsed, 1e-6), 16), 1 << 20))
             elif status == CL.EVENT_CANDIDATE:
-                stop_reason = self._event(events, stepper, ints, reals)
+                stop_reason = self._event(events, current[0], ints, reals)
                 if stop_reason is not None:
                     return stop_reason
-            elif status in (CL.LINEAR_CHECK, CL.STIFF_REMAINDER):
-                stepper = self._check_linear_part(sim._integrator, stepper, ints, reals, status == CL.STIFF_REMAINDER)
-            elif status == CL.NEW_INTEGRATOR:
-                stepper = self._new_exponential_integrator(ints, reals, end)
+            elif status >= IC.FIRST_REQUEST:
+                sim.t = float(reals[IC.R_T])
+                current[0] = self.stepping.request(status, current[0], ints, reals, float(end))
             else:
                 sync()
-                self._raise_failure(status, stepper, reals)
+                self._raise_failure(status, current[0], reals)
             if progress is not None and status != CL.PYTHON_UPDATE:
-                sim.t = float(reals[CL.R_T])
+                sim.t = float(reals[IC.R_T])
                 progress(sim.t)
 
-    def _event(self, events, stepper, ints, reals) -> str | None:
+    def _event(self, events, st, ints, reals) -> str | None:
         """A step of the compiled loop that may contain a crossing: locate it on the step's dense output (the
-        integrator's: cubic Hermite for the Runge-Kutta methods) and handle it; the loop restarts at the event
-        (or, with no crossing after all, goes on from the step's end)."""
-        from shell.integrators.base import HermiteDenseOutput
-
+        method's, from the samples the loop took of it) and handle it; the loop restarts at the event (or, with no
+        crossing after all, goes on from the step's end)."""
         sim = self.sim
-        t_old, t_new = float(reals[CL.R_T_OLD]), float(reals[CL.R_T])
-        samples = None
-        if isinstance(stepper, CL.ExponentialStepper):
-            from shell.integrators.exponential import ExponentialDenseOutput
-
-            sol = ExponentialDenseOutput(t_old, t_new, events.y_old, stepper.N, self.part)
-            samples = events.samples[1:-1].copy()  # the loop sampled the dense output already (same numbers)
-        else:
-            sol = HermiteDenseOutput(t_old, t_new, events.y_old, events.f_old, stepper.Y, stepper.F)
+        t_old, t_new = float(reals[IC.R_T_OLD]), float(reals[IC.R_T])
+        sol = self.stepping.dense_output(st, t_old, t_new, events.y_old, events.f_old)
+        samples = events.samples[1:-1].copy()  # the loop sampled the dense output already (the same numbers)
         handled, stop = sim.handle_crossings(sol, t_old, t_new, events.g_old.copy(), events.g_new.copy(),
                                              sim.plan.normalize, samples)
         if handled:
-            reals[CL.R_T] = sim.t
-            reals[CL.R_LAST_EVENT] = sim.t
-            ints[CL.I_F_VALID] = 0
+            reals[IC.R_T] = sim.t
+            reals[IC.R_LAST_EVENT] = sim.t
+            ints[IC.I_F_VALID] = 0
         else:
-            sim.x[:] = stepper.Y
+            sim.x[:] = st.Y
         return stop
-
-    def _check_linear_part(self, integ, stepper, ints, reals, stiff: bool):
-        """The compiled exponential RK4 asks for a check of its linear part (due by the check counters, or
-        forced by a stiff remainder): ExponentialRK4._check_drift's work, in Python; a rebuilt linear part gives
-        a new stepper (the state and slope carried over). Returns the stepper to continue with."""
-        t, h = float(reals[CL.R_T]), stepper.h
-        if stiff:
-            integ.last_rho = float(reals[CL.R_RHO]) / h
-            if not stepper.check_drift:  # a fixed (indices, L): the interpreted integrator warns and goes on
-                saved, integ.t = integ.t, t
-                integ._warn_stiff(h)
-                integ.t = saved
-                return stepper
-        before = integ.nfev
-        integ.steps_since_check = 0
-        integ.check_interval = int(ints[CL.I_CHECK_INTERVAL])
-        rebuilt = integ.check_linear_part(t, stepper.Y.copy())
-        ints[CL.I_SINCE_CHECK] = 0
-        ints[CL.I_CHECK_INTERVAL] = integ.check_interval
-        ints[CL.I_NFEV] += integ.nfev - before
-        if not rebuilt:
-            return stepper
-        if stiff:  # the step is taken again from its start with the new linear part
-            ints[CL.I_STEP_FLAGS] &= ~CL.RESUME
-            integ.nrejected += 1
-        self.stepper = CL.exponential_stepper(integ, stepper.Y, stepper.F)
-        self.part = integ.part
-        reals[CL.R_PHI_H] = np.nan
-        return self.stepper
 
     def _python_updates(self, ints, reals, next_tick, period) -> None:
         """The updates at the current instant when a Python-only model is due (all due models, in order)."""
         sim = self.sim
-        t = float(reals[CL.R_T])
+        t = float(reals[IC.R_T])
         sim.t = t
-        now = int(ints[CL.I_NOW])
+        now = int(ints[IC.I_NOW])
         due = [i for i in sim.diagram.update_order if next_tick[i] == now]
         for i in due:
             next_tick[i] += period[i]
-        ints[CL.I_UPDATES] += sim.update_models(t, due, schedule=False)
-        ints[CL.I_F_VALID] = 0
+        ints[IC.I_UPDATES] += sim.update_models(t, due, schedule=False)
+        ints[IC.I_F_VALID] = 0
 
-    def _raise_failure(self, status, stepper, reals) -> None:
+    def _raise_failure(self, status, st, reals) -> None:
         sim = self.sim
-        t = float(reals[CL.R_T])
+        t = float(reals[IC.R_T])
         if status == CL.UPDATE_FAILED:
             sim.check_finite(f"the discrete updates at t = {t:.9g} s")
-        if status == CL.START_FAILED:
+        if status == IC.START_FAILED:
             culprit = sim.nonfinite_derivative(t, sim.x.copy())
             raise sim.failure(f"{culprit or 'a non-finite derivative'} at t = {t:.9g} s")
-        failed_t = float(reals[CL.R_FAILED_T])
-        bad_y = stepper.YN.copy()
-        sim.x[:] = stepper.Y
+        failed_t = float(reals[IC.R_FAILED_T])
+        bad_y = st.YN.copy()
+        sim.x[:] = st.Y
         culprit = sim.nonfinite_state(bad_y)
         if culprit is None:
             culprit = sim.nonfinite_derivative(failed_t, bad_y)
-            sim.x[:] = stepper.Y
-        advice = ("if the state grew without bound the step may exceed the explicit stability limit: reduce "
-                  "the step, remove fast modes, or use an implicit method")
-        if isinstance(stepper, CL.ExponentialStepper):
-            sim._integrator.last_rho = float(reals[CL.R_RHO]) / stepper.h
-            advice = sim._integrator._suggestion(stepper.h)
+            sim.x[:] = st.Y
         raise sim.failure(f"{culprit or 'a non-finite value'} at t = {failed_t:.9g} s; the run stopped there (last "
-                          f"good state at t = {t:.9g} s). Integrator: {sim.integrator_name} with step "
-                          f"{stepper.h:.6g} s; " + advice)
+                          f"good state at t = {t:.9g} s). Integrator: {sim.integrator_name} with step {st.h:.6g} s; "
+                          + self.stepping.advice(st))

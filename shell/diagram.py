@@ -20,11 +20,13 @@ The diagram's public methods evaluate a context: :meth:`Diagram.evaluate` (every
 :meth:`Diagram.derivatives` (the integrator's right-hand side: only the output stages the derivatives
 need, then every derivative kernel), :meth:`Diagram.zero_crossings`, :meth:`Diagram.update` (one sampled
 model), and :meth:`Diagram.opened` (the same plan with some inputs cut from their drivers, for
-linearization). This interpreted path calls each model kernel from Python; :mod:`shell.codegen` writes
-the same sequence as one compiled function and must give the same numbers.
+linearization). This interpreted path calls each model kernel from Python (:class:`InterpretedPlan` offers it with
+the methods of the compiled plan); :mod:`shell.compiled_loop` runs the same sequence compiled and must give the
+same numbers.
 
-Kernel signatures (:mod:`shell.model`): ``kernel(t, x, z, u, p, out)``; a model with per-run data
-(``Model.uses_data``) receives it after ``p``: ``kernel(t, x, z, u, p, d, out)``.
+Kernel signatures (:mod:`shell.model`, :mod:`shell.kernel_protocol`): ``kernel(t, x, z, u, p, out)``; a model with
+per-run data (``Model.uses_data``) receives it after ``p``: ``kernel(t, x, z, u, p, d, out)`` (its data slot, one
+float64 array of the context's ``flat_data``, or its typed data).
 """
 
 from __future__ import annotations
@@ -377,7 +379,7 @@ class Diagram:
         return OpenedDiagram(self, destination_elements)
 
     # ------------------------------------------------------------------------------------------------
-    # interpreted evaluation (the reference for shell.codegen)
+    # interpreted evaluation (the reference for shell.compiled_loop)
     def evaluate(self, context: "Context", t: float | None = None, stages=None) -> None:
         """Compute every output (or those of ``stages``) and then every input at ``context``'s state."""
         t = context.t if t is None else t
@@ -599,13 +601,27 @@ class Context:
         models = diagram.models
         self.x[:] = diagram.initial_x
         self.z[:] = diagram.initial_z
-        #: per model: (host, data) of models with per-run data: ``data`` the tuple its kernels receive,
-        #: ``host`` the Python object owning those arrays (the engine's MultibodySystem), else None
+        #: per model: (host, data) of models with per-run data: ``data`` what its kernels receive after ``p`` (one
+        #: float64 array, the model's *data slot*, or a typed tuple served by its op kernel), ``host`` the Python
+        #: object owning those arrays (the engine's MultibodySystem), else None
         self.hosts, self.data = [], []
+        #: the data slots of every model that has one, side by side (``data[i]`` is a view), and each one's slice
+        self.flat_slices: list = []
+        slots, n_flat = [], 0
         for m in models:
             host, data = m.create_data(own=own_data) if m.uses_data else (None, None)
             self.hosts.append(host)
             self.data.append(data)
+            if isinstance(data, np.ndarray) and data.ndim == 1 and data.dtype == np.float64:
+                self.flat_slices.append(slice(n_flat, n_flat + data.size))
+                slots.append(data)
+                n_flat += data.size
+            else:
+                self.flat_slices.append(None)
+        self.flat_data = np.concatenate(slots) if slots else np.zeros(0)
+        for i, sl in enumerate(self.flat_slices):
+            if sl is not None:
+                self.data[i] = self.flat_data[sl]
         self.rngs = [m.random_stream(seed) for m in models]
         self.noise = {i: np.zeros(int(m.noise_size)) for i, m in enumerate(models) if m.noise_size}
         self.views = [ModelViews(m, self.x[diagram.x_block[i]], self.z[diagram.z_block[i]],

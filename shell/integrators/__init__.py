@@ -14,11 +14,27 @@ from .base import DenseOutput, Integrator, quaternion_gauge
 from .driver import IntegrationResult, integrate
 from .events import event, locate_events
 from .exponential import ExponentialRK4, StiffRemainderWarning
+from .exponential_stepper import ExponentialStepping
 from .implicit import Radau5
 from .fixed import RK4, RK8, ExplicitEuler, FixedStepRungeKutta, Heun
 
-INTEGRATORS = {cls.name: cls for cls in (ExplicitEuler, Heun, RK4, RK8, BogackiShampine32, DormandPrince54,
-                                         DOP853, Radau5, ExponentialRK4)}
+#: the integrators by name (a scenario's integrator.method, make_integrator)
+INTEGRATORS: dict = {}
+
+
+def register_integrator(cls, compiled_stepping=None):
+    """Make the :class:`Integrator` subclass ``cls`` available by its ``name``; ``compiled_stepping``: the
+    :class:`shell.integrators.compiled.CompiledStepping` of a method that steps in the compiled loop, when it lives
+    in another file than the class (one that lives with it is the class's ``compiled_stepping``). Returns ``cls``."""
+    if compiled_stepping is not None:
+        cls.compiled_stepping = compiled_stepping
+    INTEGRATORS[cls.name] = cls
+    return cls
+
+
+for _method in (ExplicitEuler, Heun, RK4, RK8, BogackiShampine32, DormandPrince54, DOP853, Radau5):
+    register_integrator(_method)
+register_integrator(ExponentialRK4, compiled_stepping=ExponentialStepping)
 
 
 def make_integrator(method, fun, t0, y0, t_bound, **options):
@@ -43,7 +59,7 @@ def make_integrator(method, fun, t0, y0, t_bound, **options):
     return cls(fun, t0, y0, t_bound, **options)
 
 
-__all__ = ["INTEGRATORS", "make_integrator", "Integrator", "DenseOutput", "quaternion_gauge",
+__all__ = ["INTEGRATORS", "register_integrator", "make_integrator", "Integrator", "DenseOutput", "quaternion_gauge",
            "locate_events", "event", "integrate", "IntegrationResult",
            "FixedStepRungeKutta", "ExplicitEuler", "Heun", "RK4", "RK8",
            "EmbeddedRungeKutta", "BogackiShampine32", "DormandPrince54", "DOP853", "StiffnessWarning", "Radau5",

@@ -434,6 +434,7 @@ class ExponentialRK4(Integrator):
     name = "etdrk4"
     order = 4
     fixed_step = True
+    options = {"max_step": ("s", "largest step: the step taken is min(step, max_step)")}
     #: the simulation passes ``linear_part`` (from the models' ``stiff_linear_part``)
     uses_linear_part = True
 

@@ -45,6 +45,8 @@ from dynamics import engine as E
 from dynamics import kernels as K
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 
+from shell.kernel_protocol import (DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, FEEDTHROUGH_OUTPUTS, NORMALIZE,
+                                   STATE_OUTPUTS)
 from shell.model import InputPort, Model, ModelError, OutputPort, State
 from shell.registry import register_model
 from shell.units import UnitError, to_magnitude
@@ -201,17 +203,13 @@ def _copy_blocks(source, blocks, y):
             y[y0 + k] = source[s0 + k]
 
 
-# operations of engine_kernel
-STATE_OUTPUTS, FEEDTHROUGH_OUTPUTS, DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, NORMALIZE = range(5)
-
-
 @njit(cache=True)
 def engine_kernel(op, t, x, z, u, p, d, out):
-    """Every kernel of the engine model in one compiled function (``op`` selects it), so the engine's
-    code is compiled once, not once per kernel: state outputs, feedthrough outputs (forward dynamics and
-    node accelerations), derivatives (solving, or reusing the feedthrough stage's accelerations), and the
-    quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as borrowed
-    references (:func:`dynamics.engine.borrowed`): their reference counting was about a third of the
+    """Every kernel of the engine model in one compiled function, its op kernel (:mod:`shell.kernel_protocol`:
+    ``op`` selects it), so the engine's code is compiled once, not once per kernel: state outputs, feedthrough
+    outputs (forward dynamics and node accelerations), derivatives (solving, or reusing the feedthrough stage's
+    accelerations), and the quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as
+    borrowed references (:func:`dynamics.engine.borrowed`): their reference counting was about a third of the
     derivative of a single-body scene."""
     d = E.borrowed(d)
     engine, ports, work = d
@@ -248,15 +246,6 @@ def engine_kernel(op, t, x, z, u, p, d, out):
         E.normalize_quaternions(engine, x)
 
 
-@njit(cache=True)
-def no_engine_kernel(op, t, x, z, u, p, d, out):
-    """Fills the compiled loop's engine slot in a scene without the engine model. Such a scene has no engine
-    op, so this is never called; it exists so that such a scene does not compile :func:`engine_kernel`, the
-    whole engine (measured: 200 trivial models compiled from an empty cache in 155 s CPU, the engine's
-    share being most of it)."""
-    return
-
-
 def _engine_state_outputs(t, x, z, u, p, d, y):
     engine_kernel(STATE_OUTPUTS, t, x, z, u, p, d, y)
 
@@ -290,17 +279,6 @@ def _node_outputs(rotation, position, velocity, y, offsets):
             y[o[2] + a] = position[n, a]
             y[o[3] + a] = velocity[n, a]
             y[o[4] + a] = velocity[n, 3 + a]
-
-
-def probe_engine_data():
-    """The data tuple of a one-body engine model: its numba type is that of every engine model's data
-    (the compiled loop's signature), and it stands in where a scene has no engine."""
-    from dynamics import Multibody
-
-    builder = Multibody()
-    builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
-    builder.add_node("probe_node", "probe")
-    return MultibodyModel("probe", builder.compile()).create_data()[1]
 
 
 def _private_system(system):
@@ -543,6 +521,8 @@ class MultibodyModel(Model):
 
     # -- kernels (dynamics.engine under the uniform signature, with the per-run data d) ------------------
     uses_data = True
+    #: the op kernel serving every kernel below in the compiled loop (shell.kernel_protocol)
+    compiled_kernel = staticmethod(engine_kernel)
     state_outputs = staticmethod(_engine_state_outputs)
     feedthrough_outputs = staticmethod(_engine_feedthrough_outputs)
     derivatives = staticmethod(_engine_derivatives)
