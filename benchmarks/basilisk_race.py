@@ -51,7 +51,7 @@ gravity with the center of mass at rest. Without orbit the two agree to round-of
 60,000 RK4 steps of closed loop), and in orbit too since the engine leaves the velocity-product term
 ``v x (m v)`` out of its bias (zero in exact arithmetic; with the 7 km/s orbital velocity carried in body
 axes by the free hinge, its round-off was a torque of order eps m |v|^2 that drifted the wheel speeds by
-a few 1e-7 in 600 s; found by this check, fixed in ``dynamics.kernels.rigid_bias_add``). Measured
+a few 1e-7 in 600 s; found by this check, fixed in ``dynamics.kernels.body_terms.rigid_bias_add``). Measured
 2026-11-23 in orbit, reaction-wheel scene: attitude 1.5e-13, body rate 1.9e-13, wheel speeds 2.4e-13
 (relative), hub position 1.8e-6 m on a 1e7 m orbit. The slosh-and-panels scene in orbit stays at
 5e-8..1e-6 (relative): where the gravity-gradient acts differs between the two (tidal forces on the

@@ -9,8 +9,9 @@ from dynamics.compile_cache import configure as _configure_compile_cache
 
 _configure_compile_cache()  # before any kernel module is imported: see dynamics.compile_cache
 
-from dynamics.builder import GROUND, ModelDefinitionError, Multibody  # noqa: E402
-from dynamics.system import MultibodySystem, NodeKinematics, SingularConfigurationError  # noqa: E402
+from dynamics.builder import GROUND, Multibody  # noqa: E402
+from dynamics.errors import ModelDefinitionError, SingularConfigurationError  # noqa: E402
+from dynamics.system import MultibodySystem, NodeKinematics  # noqa: E402
 
 __all__ = ["GROUND", "ModelDefinitionError", "Multibody", "MultibodySystem", "NodeKinematics",
            "SingularConfigurationError"]

@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dynamics.builder import ModelDefinitionError
+from dynamics.errors import ModelDefinitionError
 from dynamics.spatial import skew
 
 OMITTABLE_TERMS = ("G1", "F2", "G2")

@@ -23,9 +23,9 @@ flexible body (n > 0) needs, each function over plain arrays:
   ``G^-1``, either precomputed at compile time (constant G: orders 0 and 1 without G1) or factored
   per call (G1 or G2 present).
 
-Layout of a flexible body's data: the ``FX_*`` columns of its topology row (from column
-``dynamics.kernels.FLEX`` on) hold offsets into the float ``params`` array (immutable description) and
-into the float ``pool`` (workspace).
+Layout of a flexible body's data (:mod:`dynamics.layout`): the ``FX_*`` columns of its topology row (from
+column ``FLEX`` on) hold offsets into the float ``params`` array (immutable description) and into the float
+``pool`` (workspace).
 """
 
 from __future__ import annotations
@@ -33,54 +33,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-# topology columns for hinges on deforming nodes: the parent node a hinge is attached to (-1: the parent
-# frame) and the node of the body itself that carries the hinge's outboard frame (-1: the body frame)
-PARENT_NODE = 24
-OUTBOARD_NODE = 25
-
-# flexible-body columns, relative to dynamics.kernels.FLEX (offsets: -1 when the term is absent)
-FX_ORDER = 0
-FX_M0RE = 1  # params: M0[:6, 6:] (6 x n)
-FX_G0 = 2  # params: M0[6:, 6:] (n x n), the constant modal mass
-FX_R1 = 3  # params: (n, 6, 6) first-order rigid/rigid block
-FX_C1 = 4  # params: (n, C1_ROWS, n) first-order rigid/modal block
-FX_C1_ROWS = 5  # 3 when only the rotational rows are non-zero (E1 = 0: no CG offsets), else 6
-FX_G1 = 6  # params: (n, n, n) first-order modal/modal block
-FX_J2 = 7  # params: (n, n, 3, 3)
-FX_F2 = 8  # params: (n, n, 3, n)
-FX_G2 = 9  # params: (n, n, n, n)
-FX_K = 10  # params: stiffness (n x n)
-FX_K_DIAGONAL = 11  # 1 when the stiffness is diagonal
-FX_C = 12  # params: damping (n x n)
-FX_C_DIAGONAL = 13
-FX_GINV_KIND = 14  # how G^-1 is applied: GINV_DIAGONAL, GINV_DENSE (constant G) or GINV_FACTORED
-FX_GINV = 15  # params: 1 / diag(G0) (n) or G0^-1 (n x n); -1 when factored
-FX_ZM0 = 16  # params: M0[:6, 6:] G0^-1 (6 x n) for a constant G; -1 when factored
-FX_P_MRE = 17  # pool: M_re(eta) (6 x n); the coupling block of the composite inertia in the CRBA
-FX_P_MDRE = 18  # pool: dM_re/dt (6 x n)
-FX_P_BP = 19  # pool: B' = IA_re - IA_rr Pc (6 x n)
-FX_P_ZM = 20  # pool: M_re G^-1 (6 x n), then B' G^-1
-FX_P_W = 21  # pool: W' = B' E'^-1 (6 x n)
-FX_P_VEC = 22  # pool: N_PV n-vectors (PV_*)
-FX_P_G = 23  # pool: G(eta), its Cholesky factor, or the composite modal inertia (n x n)
-FX_P_F = 24  # pool: force columns of the CRBA (6 x (6 + n))
-FX_P_SMALL = 25  # pool: the Woodbury system (V and Q r x r, [C | rhs] r x (r + 7), U and Z r x n)
-FX_RANK = 26  # r = 6 (child attachment nodes) + 12 (when the hinge sits on a node of the body)
-FX_P_MRR = 27  # pool: M_rr(eta) (6 x 6)
-FX_P2 = 28  # params: (n, n, 3) second-order mass-centre shift of geometric stiffening (ModalMassTerms.P2)
-N_FX = 29
-
-# n-vectors of a flexible body in the pool (FX_P_VEC + k n)
-PV_FORCE = 0  # modal bias minus applied modal forces (ABA) / modal body force (RNEA)
-PV_RHS = 1  # G^-1 d (ABA)
-PV_Y = 2  # E'^-1 d (ABA), kept for the acceleration pass
-PV_TMP = 3
-N_PV = 4
-
-# how G^-1 is applied
-GINV_DIAGONAL = 0
-GINV_DENSE = 1
-GINV_FACTORED = 2
+from dynamics.layout import (
+    FX_C, FX_C1, FX_C1_ROWS, FX_C_DIAGONAL, FX_F2, FX_G0, FX_G1, FX_G2, FX_GINV, FX_GINV_KIND, FX_J2, FX_K,
+    FX_K_DIAGONAL, FX_M0RE, FX_P2, FX_R1, GINV_DENSE, GINV_DIAGONAL, GINV_FACTORED)
 
 
 @njit(cache=True, inline="always")

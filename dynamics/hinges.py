@@ -49,6 +49,14 @@ HINGE_NAXES = {LOCKED: 0, REVOLUTE: 1, PRISMATIC: 1, UJOINT: 2, SPHERICAL: 0, FR
 """How many user axes each hinge type takes."""
 
 
+def neutral_hinge_coordinates(hinge_type):
+    """The hinge's coordinates at rest: zero angles and displacements, identity quaternions."""
+    q = np.zeros(int(HINGE_NQ[hinge_type]))
+    if hinge_type in (SPHERICAL, FREE):
+        q[0] = 1.0
+    return q
+
+
 @njit(cache=True)
 def hinge_transform(hinge_type, q, q0, axes, R_FM, p_FM, R1, R2):
     """Pose of the outboard frame M in the inboard frame F: ``R_FM`` and ``p_FM`` (written in place).

@@ -25,15 +25,14 @@ import dataclasses
 
 import numpy as np
 
-from dynamics.builder import Multibody, ModelDefinitionError
-from dynamics.hinges import HINGE_TYPES
+from dynamics.definitions import hinge_definition, rigid_mass_properties
+from dynamics.errors import ModelDefinitionError
+from dynamics.hinges import HINGE_TYPES, hinge_transform, neutral_hinge_coordinates
 from dynamics.spatial import rotation_to_quaternion
 
 
 def _hinge_pose(system, body, q):
     """(R_FM, p_FM) of a body's hinge at configuration q."""
-    from dynamics.hinges import hinge_transform
-
     i = system.body_index(body)
     R = np.empty((3, 3))
     p = np.empty(3)
@@ -68,11 +67,9 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), mass_properties=
         if body.flexible is not None:
             raise ModelDefinitionError(f"mass_properties: '{name}' is flexible; its mass properties come "
                                        f"from its modal data")
-        probe = Multibody()
-        probe.add_body(name, None, mass=props.get("mass", body.mass), com=props.get("com", body.com),
-                       inertia=props.get("inertia", body.inertia), hinge="locked")
-        checked = probe.bodies[0]
-        body.mass, body.com, body.inertia = checked.mass, checked.com, checked.inertia
+        body.mass, body.com, body.inertia = rigid_mass_properties(
+            props.get("mass", body.mass), props.get("com", body.com), props.get("inertia", body.inertia),
+            f"mass_properties: body '{name}'")
 
     if detach:
         rotations, origins = system.body_poses(q)
@@ -110,11 +107,14 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), mass_properties=
             body.hinge, body.axes, body.prescribed = hinge, axes, prescribed
             body.inboard_rotation, body.inboard_position = R_in, p_in
         else:
-            probe = Multibody()
-            probe.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], **spec)
-            body.hinge, body.axes, body.prescribed = probe.bodies[0].hinge, probe.bodies[0].axes, \
-                probe.bodies[0].prescribed
-            q_hinge = probe.compile().neutral_configuration()
+            spec = dict(spec)
+            unknown = sorted(set(spec) - {"hinge", "axis", "axes", "prescribed"})
+            if unknown or "hinge" not in spec:
+                raise ModelDefinitionError(f"unlock: hinge '{body.joint_name}': give 'hinge' and its 'axis' / 'axes' / "
+                                           f"'prescribed', got {sorted(spec)}")
+            body.hinge, body.axes, body.prescribed = hinge_definition(spec.pop("hinge"), f"unlock: hinge "
+                                                                      f"'{body.joint_name}'", **spec)
+            q_hinge = neutral_hinge_coordinates(HINGE_TYPES[body.hinge])
         body.locked_from = None
         nu = int(len(body.prescribed))
         q_parts[body.name] = np.concatenate([q_hinge, modal_q])
@@ -128,7 +128,7 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), mass_properties=
 
     # impulsive lock: project the velocities of the current (possibly detached/unlocked) system
     if locked_names:
-        mid = _compile(bodies, nodes, gravity)
+        mid = _compile(type(system), bodies, nodes, gravity)
         q_mid = np.concatenate([q_parts[b.name] for b in bodies])
         u_mid = np.concatenate([u_parts[b.name] for b in bodies])
         locked_dofs = []
@@ -159,16 +159,13 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), mass_properties=
             q_parts[name] = q_parts[name][nh:]
             u_parts[name] = u_parts[name][nu:]
 
-    new = _compile(bodies, nodes, gravity)
+    new = _compile(type(system), bodies, nodes, gravity)
     q_new = np.concatenate([q_parts[b.name] for b in bodies])
     u_new = np.concatenate([u_parts[b.name] for b in bodies])
     return new, q_new, u_new
 
 
-def _compile(bodies, nodes, gravity):
-    from dynamics.system import MultibodySystem
-
-    for b in bodies:
-        if b.hinge not in HINGE_TYPES:
-            raise ModelDefinitionError(f"body '{b.name}': unknown hinge {b.hinge!r}")
-    return MultibodySystem.from_definitions(bodies, nodes, gravity)
+def _compile(system_class, bodies, nodes, gravity):
+    """The changed definitions compiled by the class of the system they came from
+    (:meth:`dynamics.MultibodySystem.from_definitions`)."""
+    return system_class.from_definitions(bodies, nodes, gravity)

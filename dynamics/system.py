@@ -7,8 +7,8 @@ hinge's ``[torque; force]`` in the outboard frame for spherical/free hinges.
 
 Node forces are spatial forces ``[torque; force]`` in node axes, applied at the node origin.
 
-Compilation lays the description out for the kernels of :mod:`dynamics.kernels` (one recursion for
-rigid and flexible bodies): ``topology`` and ``nodes`` (int tables), ``joint_rot``/``joint_vec`` (hinge
+Compilation lays the description out (:mod:`dynamics.layout`) for the kernels of :mod:`dynamics.kernels` (one
+recursion for rigid and flexible bodies): ``topology`` and ``nodes`` (int tables), ``joint_rot``/``joint_vec`` (hinge
 frames), ``params`` (ground acceleration, inertias, modal data, node frames and mode shapes, and what
 can be precomputed from them: the inverse modal mass ``G0^-1``, ``M0_re G0^-1``, ``Pi G0^-1`` at the
 nodes children hang from), and sizes the workspace (``ws_rot``, ``ws_vec``, ``ws_mat``, ``pool``). The
@@ -27,15 +27,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dynamics import flexible_kernels as FK
 from dynamics import kernels as K
-from dynamics.builder import ModelDefinitionError
+from dynamics import layout as L
+from dynamics.definitions import rigid_mass_properties
+from dynamics.errors import ModelDefinitionError, SingularConfigurationError
 from dynamics.hinges import FREE, HINGE_NQ, HINGE_NU, HINGE_TYPES, SPHERICAL
+from dynamics.reconfigure import reconfigure
 from dynamics.spatial import spatial_inertia as _spatial_inertia
-
-
-class SingularConfigurationError(RuntimeError):
-    """The articulated inertia of a hinge vanished: the forward dynamics has no unique solution."""
 
 
 class NodeKinematics(NamedTuple):
@@ -89,15 +87,15 @@ def _modal_mass_inverse(G0, where):
     if n and not np.allclose(G0, G0.T, rtol=0.0, atol=1e-12 * np.abs(G0).max()):
         raise ModelDefinitionError(f"{where}: the modal mass matrix M0[6:, 6:] is not symmetric")
     try:
-        L = np.linalg.cholesky(G0) if n else np.zeros((0, 0))
+        factor = np.linalg.cholesky(G0) if n else np.zeros((0, 0))
     except np.linalg.LinAlgError:
         raise ModelDefinitionError(f"{where}: the modal mass matrix M0[6:, 6:] is not positive definite "
                                    f"(eigenvalues {np.linalg.eigvalsh(G0)[:3].tolist()} ...)") from None
     if _is_diagonal(G0):
-        return FK.GINV_DIAGONAL, 1.0 / np.diag(G0)
-    Linv = np.linalg.solve(L, np.eye(n))
+        return L.GINV_DIAGONAL, 1.0 / np.diag(G0)
+    Linv = np.linalg.solve(factor, np.eye(n))
     inverse = Linv.T @ Linv
-    return FK.GINV_DENSE, 0.5 * (inverse + inverse.T)
+    return L.GINV_DENSE, 0.5 * (inverse + inverse.T)
 
 
 def choose_solver(topology):
@@ -118,29 +116,29 @@ def choose_solver(topology):
     nu_total = 0
     depth = np.zeros(topology.shape[0], dtype=np.int64)
     for i, t in enumerate(topology):
-        n = int(t[K.N_MODES])
-        ncol = int(t[K.NU_HINGE]) + n
+        n = int(t[L.N_MODES])
+        ncol = int(t[L.NU_HINGE]) + n
         nu_total += ncol
-        depth[i] = 0 if t[K.PARENT] < 0 else depth[t[K.PARENT]] + 1
+        depth[i] = 0 if t[L.PARENT] < 0 else depth[t[L.PARENT]] + 1
         dense += 40.0 * ncol * depth[i]
-        if not t[K.FLEXIBLE]:
+        if not t[L.FLEXIBLE]:
             aba += 600.0
             dense += 1100.0
             continue
-        fx = t[K.FLEX:]
-        kind = int(fx[FK.FX_GINV_KIND])
-        r = int(fx[FK.FX_RANK])
-        varying = fx[FK.FX_C1] >= 0 or fx[FK.FX_F2] >= 0
+        fx = t[L.FLEX:]
+        kind = int(fx[L.FX_GINV_KIND])
+        r = int(fx[L.FX_RANK])
+        varying = fx[L.FX_C1] >= 0 or fx[L.FX_F2] >= 0
         aba += 6000.0 + 3.0 * r * r * n
-        if kind == FK.GINV_DIAGONAL:
+        if kind == L.GINV_DIAGONAL:
             aba += 7.0 * n * (1 + 6 * varying)
-        elif kind == FK.GINV_DENSE:
+        elif kind == L.GINV_DENSE:
             aba += 1.0 * n * n * (1 + 6 * varying)
         else:
             aba += n ** 3 / 3.0 + 2.0 * n * n * (r + 13)
         dense += 4000.0 + 8.0 * n * n
-        dense += (n ** 3 if fx[FK.FX_G1] >= 0 else 0) + (3 * n ** 3 if fx[FK.FX_F2] >= 0 else 0) + \
-            (n ** 4 if fx[FK.FX_G2] >= 0 else 0)
+        dense += (n ** 3 if fx[L.FX_G1] >= 0 else 0) + (3 * n ** 3 if fx[L.FX_F2] >= 0 else 0) + \
+            (n ** 4 if fx[L.FX_G2] >= 0 else 0)
     dense += nu_total ** 3 / 3.0 + 2.0 * nu_total ** 2
     if dense < aba:
         return "dense", (f"dense M udot = tau - h (estimated {dense:.3g} multiply-adds against {aba:.3g} for "
@@ -165,40 +163,40 @@ class MultibodySystem:
         self.node_names = tuple(node_names)
         self.node_bodies = tuple(node_bodies)
         self.topology = _frozen(topology, np.int64)
-        self.nodes = _frozen(nodes.reshape(-1, K.NODE_COLUMNS), np.int64)
+        self.nodes = _frozen(nodes.reshape(-1, L.NODE_COLUMNS), np.int64)
         self.joint_rot = _frozen(joint_rot)
         self.joint_vec = _frozen(joint_vec)
         self.params = _frozen(params)
         self.pool_size = int(pool_size)
         nb = self.topology.shape[0]
-        self.hinge_dofs = _frozen(np.stack([self.topology[:, K.FREE_DOFS:K.FREE_DOFS + 6],
-                                            self.topology[:, K.PRESCRIBED_DOFS:K.PRESCRIBED_DOFS + 6]], axis=1),
+        self.hinge_dofs = _frozen(np.stack([self.topology[:, L.FREE_DOFS:L.FREE_DOFS + 6],
+                                            self.topology[:, L.PRESCRIBED_DOFS:L.PRESCRIBED_DOFS + 6]], axis=1),
                                   np.int64)
         self.spatial_inertia = self.params[6:6 + 36 * nb].reshape(nb, 6, 6)
         self.gravity = _frozen(gravity)
-        self.ground_accel = self.params[K.GROUND_ACCEL:K.GROUND_ACCEL + 6]
-        self.node_body = _frozen(self.nodes[:, K.NODE_BODY], np.int64)
+        self.ground_accel = self.params[L.GROUND_ACCEL:L.GROUND_ACCEL + 6]
+        self.node_body = _frozen(self.nodes[:, L.NODE_BODY], np.int64)
         self.node_rot = _frozen(np.asarray(node_rot).reshape(-1, 3, 3))
         self.node_pos = _frozen(np.asarray(node_pos).reshape(-1, 3))
         self.masses = _frozen(masses)
-        self.n_modes = tuple(int(t[K.N_MODES]) for t in self.topology)
-        self.is_flexible = bool(np.any(self.topology[:, K.FLEXIBLE]))
+        self.n_modes = tuple(int(t[L.N_MODES]) for t in self.topology)
+        self.is_flexible = bool(np.any(self.topology[:, L.FLEXIBLE]))
         last = self.topology[-1]
         self.nbodies = nb
         self.nnodes = len(self.node_names)
-        self.nq = int(last[K.Q_START] + last[K.NQ_HINGE] + last[K.N_MODES])
-        self.nu = int(last[K.U_START] + last[K.NU_HINGE] + last[K.N_MODES])
-        self.parents = tuple(int(p) for p in self.topology[:, K.PARENT])
-        self.q_slices = tuple(slice(int(t[K.Q_START]), int(t[K.Q_START] + t[K.NQ_HINGE] + t[K.N_MODES]))
+        self.nq = int(last[L.Q_START] + last[L.NQ_HINGE] + last[L.N_MODES])
+        self.nu = int(last[L.U_START] + last[L.NU_HINGE] + last[L.N_MODES])
+        self.parents = tuple(int(p) for p in self.topology[:, L.PARENT])
+        self.q_slices = tuple(slice(int(t[L.Q_START]), int(t[L.Q_START] + t[L.NQ_HINGE] + t[L.N_MODES]))
                               for t in self.topology)
-        self.u_slices = tuple(slice(int(t[K.U_START]), int(t[K.U_START] + t[K.NU_HINGE] + t[K.N_MODES]))
+        self.u_slices = tuple(slice(int(t[L.U_START]), int(t[L.U_START] + t[L.NU_HINGE] + t[L.N_MODES]))
                               for t in self.topology)
         self.quaternion_q_indices = np.array(
-            [t[K.Q_START] for t in self.topology if t[K.HINGE_TYPE] in (SPHERICAL, FREE)], dtype=np.int64)
+            [t[L.Q_START] for t in self.topology if t[L.HINGE_TYPE] in (SPHERICAL, FREE)], dtype=np.int64)
         prescribed = np.zeros(self.nu, dtype=bool)
         for t in self.topology:
-            for kk in range(t[K.N_PRESCRIBED]):
-                prescribed[t[K.U_START] + t[K.PRESCRIBED_DOFS + kk]] = True
+            for kk in range(t[L.N_PRESCRIBED]):
+                prescribed[t[L.U_START] + t[L.PRESCRIBED_DOFS + kk]] = True
         self.prescribed_dofs = _frozen(prescribed, bool)
         self.solver, self.solver_reason = solver, solver_reason
         self.notes = tuple(notes)
@@ -212,8 +210,8 @@ class MultibodySystem:
         index = {b.name: i for i, b in enumerate(bodies)}
         node_index = {n.name: k for k, n in enumerate(nodes)}
         nb, nn = len(bodies), len(nodes)
-        topology = np.zeros((nb, K.TOPOLOGY_COLUMNS), dtype=np.int64)
-        table = np.full((nn, K.NODE_COLUMNS), -1, dtype=np.int64)
+        topology = np.zeros((nb, L.TOPOLOGY_COLUMNS), dtype=np.int64)
+        table = np.full((nn, L.NODE_COLUMNS), -1, dtype=np.int64)
         joint_rot = np.zeros((nb, 2, 3, 3))
         joint_vec = np.zeros((nb, 4, 3))
         params = _Packer()
@@ -222,7 +220,7 @@ class MultibodySystem:
         inertia = np.zeros((nb, 6, 6))
         n_modes = [0 if b.flexible is None else int(b.flexible.n_modes) for b in bodies]
         nmax = max(n_modes)
-        pool = _Packer(K.POOL_HEADER + 6 * nmax)
+        pool = _Packer(L.POOL_HEADER + 6 * nmax)
         q0 = u0 = 0
         child_nodes = [[] for _ in bodies]  # nodes of each flexible body that children hang from
         for i, b in enumerate(bodies):
@@ -237,29 +235,29 @@ class MultibodySystem:
             outboard_node = node_index[b.outboard_node] if b.outboard_node else -1
             flexible = b.flexible is not None
             t = topology[i]
-            for col, value in ((K.PARENT, -1 if b.parent is None else index[b.parent]), (K.HINGE_TYPE, code),
-                               (K.Q_START, q0), (K.NQ_HINGE, nq), (K.U_START, u0), (K.NU_HINGE, nu),
-                               (K.N_MODES, n_modes[i]), (K.N_FREE, len(free)), (K.N_PRESCRIBED, len(pres)),
-                               (K.OUTBOARD_IDENTITY, outboard_identity), (K.PARENT_NODE, parent_node),
-                               (K.OUTBOARD_NODE, outboard_node)):
+            for col, value in ((L.PARENT, -1 if b.parent is None else index[b.parent]), (L.HINGE_TYPE, code),
+                               (L.Q_START, q0), (L.NQ_HINGE, nq), (L.U_START, u0), (L.NU_HINGE, nu),
+                               (L.N_MODES, n_modes[i]), (L.N_FREE, len(free)), (L.N_PRESCRIBED, len(pres)),
+                               (L.OUTBOARD_IDENTITY, outboard_identity), (L.PARENT_NODE, parent_node),
+                               (L.OUTBOARD_NODE, outboard_node)):
                 t[col] = value
-            t[K.FLEXIBLE] = flexible
-            t[K.GENERAL] = flexible or parent_node >= 0 or outboard_node >= 0
-            t[K.FREE_DOFS:K.FREE_DOFS + len(free)] = free
-            t[K.PRESCRIBED_DOFS:K.PRESCRIBED_DOFS + len(pres)] = pres
-            t[K.INERTIA] = 6 + 36 * i
-            t[K.FIRST_SLOT] = -1
+            t[L.FLEXIBLE] = flexible
+            t[L.GENERAL] = flexible or parent_node >= 0 or outboard_node >= 0
+            t[L.FREE_DOFS:L.FREE_DOFS + len(free)] = free
+            t[L.PRESCRIBED_DOFS:L.PRESCRIBED_DOFS + len(pres)] = pres
+            t[L.INERTIA] = 6 + 36 * i
+            t[L.FIRST_SLOT] = -1
             if parent_node >= 0 and parent_node not in child_nodes[index[b.parent]]:
                 child_nodes[index[b.parent]].append(parent_node)
             R_in, p_in = b.inboard_rotation, b.inboard_position
             if b.parent_node and not parent_flexible:  # a node of a rigid parent: fold its fixed pose in
                 node = nodes[node_index[b.parent_node]]
                 R_in, p_in = node.rotation @ R_in, node.position + node.rotation @ p_in
-            joint_rot[i, K.INBOARD] = R_in
-            joint_rot[i, K.OUTBOARD] = b.outboard_rotation
-            joint_vec[i, K.INBOARD] = p_in
-            joint_vec[i, K.OUTBOARD] = b.outboard_position
-            joint_vec[i, K.AXIS1:K.AXIS2 + 1] = b.axes
+            joint_rot[i, L.INBOARD] = R_in
+            joint_rot[i, L.OUTBOARD] = b.outboard_rotation
+            joint_vec[i, L.INBOARD] = p_in
+            joint_vec[i, L.OUTBOARD] = b.outboard_position
+            joint_vec[i, L.AXIS1:L.AXIS2 + 1] = b.axes
             inertia[i] = b.flexible.M0[:6, :6] if flexible else _spatial_inertia(b.mass, b.com, b.inertia)
             q0 += nq + n_modes[i]
             u0 += nu + n_modes[i]
@@ -269,34 +267,34 @@ class MultibodySystem:
                 ginv[i] = cls._flexible_layout(i, b, topology[i], params, pool, len(child_nodes[i]))
         for k, nd in enumerate(nodes):
             i = index[nd.body]
-            table[k, K.NODE_BODY] = i
-            table[k, K.NODE_FRAME] = params.push(np.concatenate([nd.rotation.ravel(), nd.position]))
+            table[k, L.NODE_BODY] = i
+            table[k, L.NODE_FRAME] = params.push(np.concatenate([nd.rotation.ravel(), nd.position]))
             if bodies[i].flexible is not None:
-                table[k, K.NODE_SHAPE] = params.push(nd.shape)
+                table[k, L.NODE_SHAPE] = params.push(nd.shape)
         for i, b in enumerate(bodies):
-            slots = child_nodes[i] + ([topology[i, K.OUTBOARD_NODE]] if topology[i, K.OUTBOARD_NODE] >= 0 else [])
+            slots = child_nodes[i] + ([topology[i, L.OUTBOARD_NODE]] if topology[i, L.OUTBOARD_NODE] >= 0 else [])
             for k in dict.fromkeys(slots):
-                table[k, K.NODE_SLOT] = pool.reserve(K.SL_PSI + 12 * n_modes[i])
+                table[k, L.NODE_SLOT] = pool.reserve(L.SL_PSI + 12 * n_modes[i])
                 kind, inverse = ginv[i]
-                if kind != FK.GINV_FACTORED:
+                if kind != L.GINV_FACTORED:
                     shape = np.asarray(nodes[k].shape, dtype=np.float64).reshape(6, n_modes[i])
-                    table[k, K.NODE_SHAPE_GINV] = params.push(shape * inverse if kind == FK.GINV_DIAGONAL
+                    table[k, L.NODE_SHAPE_GINV] = params.push(shape * inverse if kind == L.GINV_DIAGONAL
                                                               else shape @ inverse)
             for a, k in enumerate(child_nodes[i]):
                 if a == 0:
-                    topology[i, K.FIRST_SLOT] = k
-                table[k, K.NODE_NEXT_SLOT] = child_nodes[i][a + 1] if a + 1 < len(child_nodes[i]) else -1
+                    topology[i, L.FIRST_SLOT] = k
+                table[k, L.NODE_NEXT_SLOT] = child_nodes[i][a + 1] if a + 1 < len(child_nodes[i]) else -1
         flat = params.array()
         flat[6:6 + 36 * nb] = inertia.ravel()
         notes = [f"body '{b.name}': {b.flexible.note}" for b in bodies if b.flexible is not None and b.flexible.note]
         for i, b in enumerate(bodies):
             t = topology[i]
-            if t[K.FLEXIBLE] and t[K.N_MODES] > 40:
-                fx = t[K.FLEX:]
-                cubic = [name for name, col in (("G1", FK.FX_G1), ("F2", FK.FX_F2), ("G2", FK.FX_G2)) if fx[col] >= 0]
+            if t[L.FLEXIBLE] and t[L.N_MODES] > 40:
+                fx = t[L.FLEX:]
+                cubic = [name for name, col in (("G1", L.FX_G1), ("F2", L.FX_F2), ("G2", L.FX_G2)) if fx[col] >= 0]
                 if cubic:
                     notes.append(f"body '{b.name}': terms {', '.join(cubic)} of M(eta) cost O(n^3) or more per "
-                                 f"evaluation at {t[K.N_MODES]} modes; omit_terms={tuple(cubic)!r} leaves them out "
+                                 f"evaluation at {t[L.N_MODES]} modes; omit_terms={tuple(cubic)!r} leaves them out "
                                  f"(see dynamics/flexible_body.py)")
         if solver is None:
             solver, reason = choose_solver(topology)
@@ -331,23 +329,23 @@ class MultibodySystem:
         if data.order not in (0, 1, 2):
             raise ModelDefinitionError(f"{where}: modal-integral order must be 0, 1 or 2, got {data.order!r}")
         terms = data.mass_terms()
-        fx = t[K.FLEX:]
+        fx = t[L.FLEX:]
         fx[:] = -1
-        fx[FK.FX_ORDER] = data.order
-        fx[FK.FX_M0RE] = params.push(M0[:6, 6:])
-        fx[FK.FX_G0] = params.push(M0[6:, 6:])
+        fx[L.FX_ORDER] = data.order
+        fx[L.FX_M0RE] = params.push(M0[:6, 6:])
+        fx[L.FX_G0] = params.push(M0[6:, 6:])
         if terms.R1 is not None:
-            fx[FK.FX_R1] = params.push(terms.R1)
-        fx[FK.FX_C1_ROWS] = 6
+            fx[L.FX_R1] = params.push(terms.R1)
+        fx[L.FX_C1_ROWS] = 6
         if terms.C1 is not None:
             rows = 3 if not np.any(terms.C1[:, 3:6, :]) else 6  # no CG offsets: E1 = 0
-            fx[FK.FX_C1_ROWS] = rows
-            fx[FK.FX_C1] = params.push(terms.C1[:, :rows, :])
-        for col, term in ((FK.FX_G1, terms.G1), (FK.FX_J2, terms.J2), (FK.FX_F2, terms.F2), (FK.FX_G2, terms.G2),
-                          (FK.FX_P2, terms.P2)):
+            fx[L.FX_C1_ROWS] = rows
+            fx[L.FX_C1] = params.push(terms.C1[:, :rows, :])
+        for col, term in ((L.FX_G1, terms.G1), (L.FX_J2, terms.J2), (L.FX_F2, terms.F2), (L.FX_G2, terms.G2),
+                          (L.FX_P2, terms.P2)):
             if term is not None:
                 fx[col] = params.push(term)
-        for col, diag_col, name in ((FK.FX_K, FK.FX_K_DIAGONAL, "stiffness"), (FK.FX_C, FK.FX_C_DIAGONAL, "damping")):
+        for col, diag_col, name in ((L.FX_K, L.FX_K_DIAGONAL, "stiffness"), (L.FX_C, L.FX_C_DIAGONAL, "damping")):
             a = np.asarray(getattr(data, name), dtype=np.float64)
             if a.shape != (n, n) or not np.all(np.isfinite(a)):
                 raise ModelDefinitionError(f"{where}: the modal {name} must be a finite {n} x {n} matrix, got "
@@ -355,28 +353,28 @@ class MultibodySystem:
             fx[col] = params.push(a)
             fx[diag_col] = _is_diagonal(a)
         if terms.G1 is not None or terms.G2 is not None:
-            kind, inverse = FK.GINV_FACTORED, None
+            kind, inverse = L.GINV_FACTORED, None
         else:
             kind, inverse = _modal_mass_inverse(M0[6:, 6:], where)
-            fx[FK.FX_GINV] = params.push(inverse)
-            fx[FK.FX_ZM0] = params.push(M0[:6, 6:] * inverse if kind == FK.GINV_DIAGONAL else M0[:6, 6:] @ inverse)
-        fx[FK.FX_GINV_KIND] = kind
-        r = 6 * n_child_nodes + (12 if t[K.OUTBOARD_NODE] >= 0 else 0)
-        fx[FK.FX_RANK] = r if n else 0
-        for col in (FK.FX_P_MRE, FK.FX_P_MDRE, FK.FX_P_BP, FK.FX_P_ZM, FK.FX_P_W):
+            fx[L.FX_GINV] = params.push(inverse)
+            fx[L.FX_ZM0] = params.push(M0[:6, 6:] * inverse if kind == L.GINV_DIAGONAL else M0[:6, 6:] @ inverse)
+        fx[L.FX_GINV_KIND] = kind
+        r = 6 * n_child_nodes + (12 if t[L.OUTBOARD_NODE] >= 0 else 0)
+        fx[L.FX_RANK] = r if n else 0
+        for col in (L.FX_P_MRE, L.FX_P_MDRE, L.FX_P_BP, L.FX_P_ZM, L.FX_P_W):
             fx[col] = pool.reserve(6 * n)
-        fx[FK.FX_P_VEC] = pool.reserve(FK.N_PV * n)
-        fx[FK.FX_P_G] = pool.reserve(n * n)
-        fx[FK.FX_P_F] = pool.reserve(6 * (6 + n))
-        fx[FK.FX_P_MRR] = pool.reserve(36)
-        fx[FK.FX_P_SMALL] = pool.reserve(3 * r * r + 14 * r + 2 * r * n)
+        fx[L.FX_P_VEC] = pool.reserve(L.N_PV * n)
+        fx[L.FX_P_G] = pool.reserve(n * n)
+        fx[L.FX_P_F] = pool.reserve(6 * (6 + n))
+        fx[L.FX_P_MRR] = pool.reserve(36)
+        fx[L.FX_P_SMALL] = pool.reserve(3 * r * r + 14 * r + 2 * r * n)
         return kind, inverse
 
     def _allocate_workspace(self):
         nb = self.nbodies
-        self.ws_rot = np.zeros((nb, K.N_ROT, 3, 3))
-        self.ws_vec = np.zeros((nb, K.N_VEC, 6))
-        self.ws_mat = np.zeros((nb, K.N_MAT, 6, 6))
+        self.ws_rot = np.zeros((nb, L.N_ROT, 3, 3))
+        self.ws_vec = np.zeros((nb, L.N_VEC, 6))
+        self.ws_mat = np.zeros((nb, L.N_MAT, 6, 6))
         self.pool = np.zeros(self.pool_size)
         K.initialize_workspace(self.topology, self.joint_rot, self.joint_vec, self.ws_rot, self.ws_mat)
         # zeros for omitted inputs; writable like the caller's arrays (the kernels never write inputs), so
@@ -396,7 +394,7 @@ class MultibodySystem:
             other.params = _frozen(np.array(self.params))
             other.masses = _frozen(np.array(self.masses))
             other.spatial_inertia = other.params[6:6 + 36 * nb].reshape(nb, 6, 6)
-            other.ground_accel = other.params[K.GROUND_ACCEL:K.GROUND_ACCEL + 6]
+            other.ground_accel = other.params[L.GROUND_ACCEL:L.GROUND_ACCEL + 6]
         other._allocate_workspace()
         return other
 
@@ -416,32 +414,27 @@ class MultibodySystem:
     def reconfigure(self, q, u, *, lock=(), unlock=(), detach=(), mass_properties=None):
         """A new system after locking/unlocking hinges, detaching subtrees or changing mass properties,
         with the state mapped across: returns ``(system, q, u)``. See :mod:`dynamics.reconfigure`."""
-        from dynamics.reconfigure import reconfigure
-
         return reconfigure(self, q, u, lock=lock, unlock=unlock, detach=detach, mass_properties=mass_properties)
 
     def set_mass_properties(self, body, mass, com, inertia):
         """Change a rigid body's mass, center of mass and inertia (about the COM) in place, O(1): for
-        mass depletion during a run. The values are validated like :meth:`Multibody.add_body`'s."""
-        from dynamics.builder import Multibody
-
+        mass depletion during a run. The values are validated like :meth:`Multibody.add_body`'s
+        (:func:`dynamics.definitions.rigid_mass_properties`)."""
         i = self.body_index(body)
-        if self.topology[i, K.FLEXIBLE]:
+        if self.topology[i, L.FLEXIBLE]:
             raise ModelDefinitionError(f"set_mass_properties: '{body}' is flexible; its mass properties come "
                                        f"from its modal data")
-        probe = Multibody()
-        probe.add_body(body, None, mass=mass, com=com, inertia=inertia, hinge="locked")
-        b = probe.bodies[0]
-        M = _spatial_inertia(b.mass, b.com, b.inertia)
-        o = int(self.topology[i, K.INERTIA])
+        mass, com, inertia = rigid_mass_properties(mass, com, inertia, f"body '{body}'")
+        M = _spatial_inertia(mass, com, inertia)
+        o = int(self.topology[i, L.INERTIA])
         self.params.setflags(write=True)
         self.params[o:o + 36] = M.ravel()
         self.params.setflags(write=False)
         self.masses.setflags(write=True)
-        self.masses[i] = b.mass
+        self.masses[i] = mass
         self.masses.setflags(write=False)
         definitions = list(self.definitions[0])
-        definitions[i] = dataclasses.replace(definitions[i], mass=b.mass, com=b.com, inertia=b.inertia)
+        definitions[i] = dataclasses.replace(definitions[i], mass=mass, com=com, inertia=inertia)
         self.definitions = (tuple(definitions),) + self.definitions[1:]
 
     def neutral_configuration(self):
@@ -543,7 +536,7 @@ class MultibodySystem:
         for i, s in enumerate(self.u_slices):
             n = self.n_modes[i]
             if n:
-                start = int(self.topology[i, K.FLEX + column])
+                start = int(self.topology[i, L.FLEX + column])
                 out[s.stop - n:s.stop, s.stop - n:s.stop] = self.params[start:start + n * n].reshape(n, n)
         return out
 
@@ -552,11 +545,11 @@ class MultibodySystem:
 
         At rest without gravity this is the exact linearization of the generalized forces, so
         ``K phi = omega^2 M(q0) phi`` gives the system modes."""
-        return self._modal_matrix(FK.FX_K)
+        return self._modal_matrix(L.FX_K)
 
     def damping_matrix(self):
         """Generalized damping (nu, nu): the modal damping blocks of flexible bodies, zero elsewhere."""
-        return self._modal_matrix(FK.FX_C)
+        return self._modal_matrix(L.FX_C)
 
     def node_kinematics(self, q, u, u_dot=None):
         """Pose, velocity and (classical) acceleration of every node; see :class:`NodeKinematics`."""
@@ -575,12 +568,12 @@ class MultibodySystem:
     def body_poses(self, q):
         """(rotations (nb, 3, 3) body -> world, origins (nb, 3) in the world)."""
         self._energy_momentum(q, self._zero_u)
-        return self.ws_rot[:, K.ROT_WB].copy(), self.ws_vec[:, K.VEC_WPOS, :3].copy()
+        return self.ws_rot[:, L.ROT_WB].copy(), self.ws_vec[:, L.VEC_WPOS, :3].copy()
 
     def body_velocities(self, q, u):
         """Spatial velocities ``[omega; v]`` of every body reference frame, body axes, at its origin."""
         self._energy_momentum(q, u)
-        return self.ws_vec[:, K.VEC_V].copy()
+        return self.ws_vec[:, L.VEC_V].copy()
 
     def _energy_momentum(self, q, u):
         out = np.empty(8)
@@ -609,15 +602,15 @@ class MultibodySystem:
         """A few lines describing the compiled system: sizes, flexible bodies, solver and notes."""
         lines = [repr(self)]
         for i, name in enumerate(self.body_names):
-            if self.topology[i, K.FLEXIBLE]:
-                fx = self.topology[i, K.FLEX:]
-                terms = [term for term, col in (("R1", FK.FX_R1), ("C1", FK.FX_C1), ("G1", FK.FX_G1),
-                                                ("J2", FK.FX_J2), ("F2", FK.FX_F2), ("G2", FK.FX_G2),
-                                                ("P2", FK.FX_P2)) if fx[col] >= 0]
-                kind = {FK.GINV_DIAGONAL: "diagonal G0", FK.GINV_DENSE: "G0^-1 precomputed",
-                        FK.GINV_FACTORED: "G(eta) factored per call"}[int(fx[FK.FX_GINV_KIND])]
+            if self.topology[i, L.FLEXIBLE]:
+                fx = self.topology[i, L.FLEX:]
+                terms = [term for term, col in (("R1", L.FX_R1), ("C1", L.FX_C1), ("G1", L.FX_G1),
+                                                ("J2", L.FX_J2), ("F2", L.FX_F2), ("G2", L.FX_G2),
+                                                ("P2", L.FX_P2)) if fx[col] >= 0]
+                kind = {L.GINV_DIAGONAL: "diagonal G0", L.GINV_DENSE: "G0^-1 precomputed",
+                        L.GINV_FACTORED: "G(eta) factored per call"}[int(fx[L.FX_GINV_KIND])]
                 lines.append(f"  flexible body '{name}': {self.n_modes[i]} modes, modal-integral order "
-                             f"{fx[FK.FX_ORDER]}, terms {'+'.join(['M0'] + terms)}, {kind}")
+                             f"{fx[L.FX_ORDER]}, terms {'+'.join(['M0'] + terms)}, {kind}")
         lines.append(f"  solver: {self.solver_reason}")
         lines.extend(f"  note: {note}" for note in self.notes)
         return "\n".join(lines)

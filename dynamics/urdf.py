@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dynamics.builder import ModelDefinitionError, Multibody
+from dynamics.errors import ModelDefinitionError
 from dynamics.spatial import rotation_from_rpy
 
 
@@ -104,8 +104,9 @@ def _read_link_inertia(link):
     return _LinkInertia(mass, p, R @ J @ R.T)
 
 
-def multibody_from_urdf(path, floating_base=False, gravity=(0.0, 0.0, -9.81)):
-    """Parse ``path`` and return a :class:`~dynamics.Multibody` builder (call ``compile()`` on it)."""
+def multibody_from_urdf(path, mb, floating_base=False):
+    """Parse ``path`` and add its links and joints to the empty :class:`~dynamics.Multibody` builder ``mb``;
+    returns ``mb`` (call ``compile()`` on it). ``Multibody.from_urdf`` is the user's entry point."""
     path = Path(path)
     try:
         root = ET.parse(path).getroot()
@@ -163,7 +164,6 @@ def multibody_from_urdf(path, floating_base=False, gravity=(0.0, 0.0, -9.81)):
         children[entry[2]].append(entry)
 
     inertia = {name: _read_link_inertia(link) for name, link in links.items()}
-    mb = Multibody(gravity=gravity)
     # Depth-first traversal. Each link maps to (body it is welded into, or None for the ground;
     # rotation and origin of the link frame in that body's frame).
     placement = {}

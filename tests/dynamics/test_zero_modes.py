@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from dynamics import Multibody
-from dynamics import kernels as K
+from dynamics import layout as L
 from dynamics.flexible_body import FlexibleBodyData
 from dynamics.samples import _random_inertia, _random_rotation
 from dynamics.spatial import spatial_inertia
@@ -118,7 +118,7 @@ def test_zero_mode_flexible_bodies_reproduce_the_rigid_kernels(seed):
     rigid, flexible = rigid_mb.compile(), flexible_mb.compile()
     dense = flexible_mb.compile(solver="dense")
     assert rigid.node_names == flexible.node_names and rigid.nu == flexible.nu
-    assert not any(rigid.topology[:, K.GENERAL]) and any(flexible.topology[:, K.GENERAL])  # both paths are used
+    assert not any(rigid.topology[:, L.GENERAL]) and any(flexible.topology[:, L.GENERAL])  # both paths are used
     assert flexible.is_flexible and not rigid.is_flexible and flexible.n_modes == (0,) * 9
     rng = np.random.default_rng(100 + seed)
     for _ in range(2):

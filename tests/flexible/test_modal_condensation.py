@@ -25,8 +25,7 @@ import numpy as np
 import pytest
 
 from dynamics import ModelDefinitionError, Multibody, engine
-from dynamics import flexible_kernels as FK
-from dynamics import kernels as K
+from dynamics import layout as L
 from dynamics.flex.modal_integrals import modal_integrals
 from dynamics.flexible_body import FlexibleBodyData, flexible_body_from_modal_body, mass_matrix_polynomial
 from dynamics.system import choose_solver  # the real one: tests/flexible/conftest.py forces "aba" in compile()
@@ -75,8 +74,8 @@ def tree_with_heavy_children(order, child_grid, diagonal_modal_mass):
 def test_condensation_equals_dense_solve(order, child_grid, diagonal):
     mb = tree_with_heavy_children(order, child_grid, diagonal)
     aba, dense = mb.compile(solver="aba"), mb.compile(solver="dense")
-    kind = aba.topology[0, K.FLEX + FK.FX_GINV_KIND]  # the three ways G^-1 is applied
-    assert kind == (FK.GINV_FACTORED if order >= 1 else (FK.GINV_DIAGONAL if diagonal else FK.GINV_DENSE))
+    kind = aba.topology[0, L.FLEX + L.FX_GINV_KIND]  # the three ways G^-1 is applied
+    assert kind == (L.GINV_FACTORED if order >= 1 else (L.GINV_DIAGONAL if diagonal else L.GINV_DENSE))
     rng = np.random.default_rng(order + 2 * child_grid + 4 * diagonal)
     for _ in range(2):
         q, u, tau = random_state(aba, rng)
@@ -150,9 +149,9 @@ def test_omitted_terms_match_the_nodal_formulation_without_them(order, omitted):
     mb = Multibody()
     mb.add_flexible_body("beam", None, modal=flexible_body_data(model, order), hinge="free", omit_terms=omitted)
     system = mb.compile()
-    column = {"G1": FK.FX_G1, "F2": FK.FX_F2, "G2": FK.FX_G2}
+    column = {"G1": L.FX_G1, "F2": L.FX_F2, "G2": L.FX_G2}
     for name in ("G1", "F2", "G2"):
-        stored = system.topology[0, K.FLEX + column[name]] >= 0
+        stored = system.topology[0, L.FLEX + column[name]] >= 0
         assert stored == (name not in omitted and (order == 2 or name == "G1")), name
     rng = np.random.default_rng(order)
     for _ in range(2):

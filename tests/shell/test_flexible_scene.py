@@ -110,7 +110,7 @@ def test_flexible_child_hinged_at_its_grid_from_yaml(scene, beam_file):
     """)
     system = sim.models[0].system
     assert "beam2.hinge" in system.node_names and system.n_modes == (4, 2)
-    from dynamics.flexible_kernels import OUTBOARD_NODE
+    from dynamics.layout import OUTBOARD_NODE
 
     assert system.topology[1, OUTBOARD_NODE] == system.node_index("beam2.hinge")
     with pytest.raises(ScenarioError, match=r"child_grid: expected an FE grid id"):
