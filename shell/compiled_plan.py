@@ -296,8 +296,8 @@ class CompiledPlan:
             buffers = self.buffers._replace(derivative_ops=table, n_derivative_stages=len(stages))
             cached = self._variants[key] = (stages, buffers)
         b = cached[1]
-        L.derivatives_with(self.kernels, self.slots, float(t), b, b.src if source is None else source,
-                           b.fac if factor is None else factor)
+        L.derivatives(self.kernels, self.slots, b, float(t), b.src if source is None else source,
+                      b.fac if factor is None else factor)
 
 
 def compile_plan(diagram, context):

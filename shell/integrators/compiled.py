@@ -24,7 +24,9 @@ names a method):
     the state at ``t_old + theta h`` on the accepted step's continuous extension (prepared once per step).
 
 The *system* is what the loop integrates: :func:`derivative`, :func:`normalize` and :func:`state` dispatch on its
-type (registered by the loop with :func:`register_system`), so a stepper is written once for any system.
+type (registered by the loop with :func:`register_system`), so a stepper is written once for any system. The
+dispatch is inlined (numba's ``inline="always"``), and a stepper's ``step`` should be too: the system's evaluation is
+then inlined into it, instead of copying the scene's arrays by value at every call (shell.compiled_loop).
 
 The Python side of a compiled integrator is a :class:`CompiledStepping` subclass (the integrator class's
 ``compiled_stepping``; None: the method steps in Python): it says whether a run of the method steps compiled, makes
@@ -110,56 +112,56 @@ def state(system):
     """The system's current state x (the run's context)."""
 
 
-@overload(start)
+@overload(start, inline="always")
 def _start(system, st, t, ints, reals):
     impl = _registered(_STEPPERS, "stepper", st, "start")
     return lambda system, st, t, ints, reals: impl(system, st, t, ints, reals)
 
 
-@overload(step)
+@overload(step, inline="always")
 def _step(system, st, t, h, t_new, skip_slope, ints, reals):
     impl = _registered(_STEPPERS, "stepper", st, "step")
     return lambda system, st, t, h, t_new, skip_slope, ints, reals: impl(system, st, t, h, t_new, skip_slope, ints,
                                                                          reals)
 
 
-@overload(keep)
+@overload(keep, inline="always")
 def _keep(st, ev):
     impl = _registered(_STEPPERS, "stepper", st, "keep")
     return lambda st, ev: impl(st, ev)
 
 
-@overload(accept)
+@overload(accept, inline="always")
 def _accept(st, ints, skipped):
     impl = _registered(_STEPPERS, "stepper", st, "accept")
     return lambda st, ints, skipped: impl(st, ints, skipped)
 
 
-@overload(prepare_dense)
+@overload(prepare_dense, inline="always")
 def _prepare_dense(st, ev):
     impl = _registered(_STEPPERS, "stepper", st, "prepare_dense")
     return lambda st, ev: impl(st, ev)
 
 
-@overload(dense)
+@overload(dense, inline="always")
 def _dense(st, ev, theta, h, out):
     impl = _registered(_STEPPERS, "stepper", st, "dense")
     return lambda st, ev, theta, h, out: impl(st, ev, theta, h, out)
 
 
-@overload(derivative)
+@overload(derivative, inline="always")
 def _derivative(system, t, y):
     impl = _registered(_SYSTEMS, "system", system, "derivative")
     return lambda system, t, y: impl(system, t, y)
 
 
-@overload(normalize)
+@overload(normalize, inline="always")
 def _normalize(system, y):
     impl = _registered(_SYSTEMS, "system", system, "normalize")
     return lambda system, y: impl(system, y)
 
 
-@overload(state)
+@overload(state, inline="always")
 def _state(system):
     impl = _registered(_SYSTEMS, "system", system, "state")
     return lambda system: impl(system)

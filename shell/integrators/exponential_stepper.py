@@ -179,7 +179,7 @@ def _start(system, st, t, ints, reals):
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _step(system, st, t, h, t_new, skip_slope, ints, reals):
     """ExponentialRK4._step_impl from (t, Y) into YN (module docstring); a request returns before the step."""
     Y, F, S, N, counters = st.Y, st.F, st.S, st.N, st.counters

@@ -57,7 +57,7 @@ def _start(system, st, t, ints, reals):
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _step(system, st, t, h, t_new, skip_slope, ints, reals):
     """FixedStepRungeKutta._step_impl: the same arithmetic."""
     Y, K, YS, YN = st.Y, st.K, st.YS, st.YN
