@@ -1,6 +1,6 @@
 """A scene's immutable evaluation plan (:class:`Diagram`) and the state of one run of it (:class:`Context`).
 
-Drake's ``Diagram`` / ``Context`` split (STYLE.md) applied to flexshell's flat buffers:
+Drake's ``Diagram`` / ``Context`` split (docs/architecture.md) applied to flexshell's flat buffers:
 
 * The **diagram** is built once from an assembly: the model tree is flattened
   (:func:`shell.assembly.flatten`); every output and input port gets a slice of one signal buffer, every

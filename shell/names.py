@@ -1,7 +1,7 @@
 """Parameters, states and sample schedules addressed by dotted name: the Diagram's index and a Context's writes.
 
 Drake keeps a system's numeric parameters in its Context and MuJoCo its model's fields in named arrays
-(STYLE.md); here :class:`NameIndex` maps each name of a scene to where its value lives in a run's
+(docs/architecture.md); here :class:`NameIndex` maps each name of a scene to where its value lives in a run's
 :class:`shell.diagram.Context`, with the unit, shape and bounds the value is checked against:
 
 ====================================  =====================================================================

@@ -1,6 +1,6 @@
 """What an integrator supplies to step in flexshell's compiled loop, and what the loop supplies to it.
 
-scipy's ``OdeSolver`` shape (STYLE.md: a step, a dense output) as numba functions over a *stepper*: a NamedTuple
+scipy's ``OdeSolver`` shape (docs/architecture.md: a step, a dense output) as numba functions over a *stepper*: a NamedTuple
 of the method's numbers and arrays (its coefficients, its nominal step ``h``, the state ``Y`` at the current time,
 the state ``YN`` the last step produced, work arrays). An integrator that steps compiled registers its stepper
 class with :func:`register_stepper` and these njit functions (its own file; :mod:`shell.compiled_loop` never
@@ -71,7 +71,7 @@ def register_system(system_class, *, derivative, normalize, state) -> None:
 def _registered(table, what, numba_type, name):
     impl = table.get(getattr(numba_type, "instance_class", None))
     if impl is None:
-        raise TypeError(f"{numba_type} is not a registered {what} (shell.integrators.compiled.register_{what})")
+        raise TypeError(f"{numba_type} is not a registered {what} (register_{what} of shell.integrators.compiled)")
     return impl[name]
 
 

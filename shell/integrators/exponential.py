@@ -128,11 +128,11 @@ def phi_functions(z, k_max):
 
     Taylor series ``phi_k(z) = sum_j z^j / (j + k)!`` for |z| < 1 (30 terms: truncation below 1e-32), the
     recurrence ``phi_{k+1} = (phi_k - 1/k!) / z`` from ``e^z`` otherwise (cancellation bounded by 1/|z|^k <= 1).
-    Compiled (:func:`_phi_into`): the dense output evaluates it at every event-search sample.
+    Compiled (:func:`phi_into`): the dense output evaluates it at every event-search sample.
     """
     z = np.asarray(z, dtype=np.complex128).ravel()
     out = np.empty((k_max + 1, z.size), dtype=np.complex128)
-    _phi_into(z, int(k_max), out)
+    phi_into(z, int(k_max), out)
     return out
 
 
@@ -141,7 +141,7 @@ _INVERSE_FACTORIALS = np.array([1.0 / math.factorial(j) for j in range(40)])
 
 
 @njit(cache=True)
-def _phi_into(z, k_max, out):
+def phi_into(z, k_max, out):
     inverse_factorials = _INVERSE_FACTORIALS
     for i in range(z.size):
         zi = z[i]
@@ -380,7 +380,7 @@ def dense_state(theta, h, y_old, n, z, lam, V, indices, z_work, phi, modal, z_ou
         return
     for a in range(m):
         z_work[a] = th * lam[a]
-    _phi_into(z_work[:m], 3, phi)
+    phi_into(z_work[:m], 3, phi)
     for a in range(m):
         modal[a] = phi[0, a] * z[0, a] + th * (phi[1, a] * z[1, a] + theta * phi[2, a] * z[2, a]
                                                + 2.0 * theta * theta * phi[3, a] * z[3, a])
@@ -442,7 +442,7 @@ class ExponentialRK4(Integrator):
         if linear_part is None:
             raise ValueError(f"{self.name} needs linear_part=(indices, L) or a callable linear_part(t, y) -> "
                              f"(indices, L): the stiff linear dynamics it propagates exactly (a flexible scene's "
-                             f"shell.Simulation supplies it from dynamics.modal_linear_part)")
+                             f"shell.simulation.Simulation supplies it from dynamics.modal_linear_part)")
         if not callable(linear_part):
             if not isinstance(linear_part, (tuple, list)) or len(linear_part) != 2:
                 raise ValueError(f"{self.name}: linear_part must be (indices, L) or a callable, got "

@@ -137,7 +137,7 @@ def _phi_diagonal(st, h):
         kf = st.phi_k[f]
         for i in range(m):
             st.z_work[i] = c * h * st.lam[i]
-        EX._phi_into(st.z_work, kf, st.phi_work)
+        EX.phi_into(st.z_work, kf, st.phi_work)
         for i in range(m):
             st.phi_diag[f, i] = st.phi_work[kf, i]
 

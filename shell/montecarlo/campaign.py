@@ -41,8 +41,7 @@ import numpy as np
 from shell.montecarlo.draws import DISTRIBUTIONS, CorrelationGroup, Dispersion, draw_run
 from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples, parse_requirement
 from shell.scenario import ScenarioError, build_simulation, decode_scenario, load_yaml, parse_scenario, show
-from shell.scenario import _expect_mapping
-from shell.scenario import _Where as scenario_Where
+from shell.schema import Where, expect_mapping
 from shell.units import UnitError, conversion_factor, parse_unit, to_magnitude, ureg
 
 class CampaignError(ScenarioError):
@@ -53,7 +52,7 @@ class RunTimeout(Exception):
     """Raised from the progress callback when a run exceeds the campaign's wall-time limit."""
 
 
-class _Where(scenario_Where):
+class _Where(Where):
     """A location in the campaign file (file, line, dotted key path); errors are CampaignErrors."""
 
     def error(self, message: str) -> CampaignError:
@@ -61,7 +60,7 @@ class _Where(scenario_Where):
                              else f"{self.file}:{self.line}: {message}")
 
 
-_mapping = _expect_mapping  # the scenario's key check; the _Where decides the error type
+_mapping = expect_mapping  # the scenario's key check; the _Where decides the error type
 
 
 def _plain(value):
