@@ -63,19 +63,25 @@ def work_items() -> list[tuple[str, object]]:
     return items
 
 
-def _engine() -> None:
-    """The engine's op kernel for the numba type of every engine model's data (a one-body probe's)."""
+def engine_signature():
+    """The op-kernel signature of the engine model (:mod:`shell.kernel_protocol`) for the numba type of every engine
+    model's data (a one-body probe's)."""
     from numba import typeof
 
     from dynamics import Multibody
     from shell.kernel_protocol import op_kernel_signature
-    from shell.models.multibody import MultibodyModel, engine_kernel
+    from shell.models.multibody import MultibodyModel
 
     builder = Multibody()
     builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
     builder.add_node("probe_node", "probe")
-    data = MultibodyModel("probe", builder.compile()).create_data()[1]
-    engine_kernel.compile(op_kernel_signature(typeof(data)))
+    return op_kernel_signature(typeof(MultibodyModel("probe", builder.compile()).create_data()[1]))
+
+
+def _engine() -> None:
+    from shell.models.multibody import engine_kernel
+
+    engine_kernel.compile(engine_signature())
 
 
 def _loop(method: str):
