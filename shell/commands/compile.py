@@ -121,13 +121,13 @@ def _kernels(cls) -> list[tuple[str, object]]:
 
 def _model(name: str, cls):
     def compile_model() -> None:
-        """Each numba kernel of ``cls`` for the compiled loop's uniform signature (an update of five arguments, or
-        of six with the noise array, whose signature is the output kernels')."""
-        from shell.kernel_protocol import KERNEL_SIGNATURE, UPDATE_SIGNATURE
+        """Each numba kernel of ``cls`` for the compiled loop's signature of its arity (:mod:`shell.kernel_protocol`:
+        an update without noise of five arguments, a kernel of six, a kernel of a model with a data slot of seven)."""
+        from shell.kernel_protocol import DATA_KERNEL_SIGNATURE, KERNEL_SIGNATURE, UPDATE_SIGNATURE
 
-        for kernel_name, kernel in _kernels(cls):
-            five = kernel_name == "update" and kernel.py_func.__code__.co_argcount == 5
-            kernel.compile(UPDATE_SIGNATURE if five else KERNEL_SIGNATURE)
+        by_arity = {5: UPDATE_SIGNATURE, 6: KERNEL_SIGNATURE, 7: DATA_KERNEL_SIGNATURE}
+        for _, kernel in _kernels(cls):
+            kernel.compile(by_arity[kernel.py_func.__code__.co_argcount])
 
     return compile_model
 

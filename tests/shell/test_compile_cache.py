@@ -272,7 +272,7 @@ def test_flexshell_compile_compiles_what_a_first_run_needs(tmp_path, capsys):
     assert [label for label, _ in parts][:2] == [f"simulation loop, {FAMILIES[0][1]}", "multibody engine"]
     assert engine_signature().args in engine_kernel.overloads
     steppers = {signature[4].instance_class.__name__ for signature in advance.signatures}  # advance(k, engine, ., ., st
-    assert {"Stepper", "ExponentialStepper"} <= steppers
+    assert {"RungeKuttaStepper", "ExponentialStepper"} <= steppers
     kernels = ("state_outputs", "feedthrough_outputs", "derivatives", "zero_crossing_values", "update")
     uncompiled = [f"{name}.{kernel}" for name, cls in registered().items() for kernel in kernels
                   if isinstance(getattr(cls, kernel, None), CPUDispatcher) and not getattr(cls, kernel).overloads]
