@@ -7,7 +7,7 @@ At an operating point (t0, x0, the scene's inputs), the Jacobians
 of the tangent state rates (the linearization's coordinates: quaternions as rotation vectors,
 :mod:`shell.analysis.linearize`) and of named outputs with respect to the elements of named parameters, by the
 linearization's central differences (2 or 4 points, Richardson extrapolation, step ``scale_j tol^(1/p)`` with
-``scale_j`` the larger of |p_j| and the parameter's typical size, error estimate of every entry). The parameters are
+``scale_j`` the larger of ``abs(p_j)`` and the parameter's typical size, error estimate of every entry). The parameters are
 written by name into the run's Context (:mod:`shell.names`): a model parameter's slice of ``p``, a rigid body's mass,
 center of mass and inertia in the run's own engine system (:class:`shell.analysis.linearize.NamedParameters`); the
 operating values are written back afterwards. This is the input of a covariance or worst-case analysis

@@ -142,6 +142,8 @@ _INVERSE_FACTORIALS = np.array([1.0 / math.factorial(j) for j in range(40)])
 
 @njit(cache=True)
 def phi_into(z, k_max, out):
+    """``phi_0(z) .. phi_{k_max}(z)`` into ``out`` (shape (k_max + 1, z.size)), as :func:`phi_functions` says; the
+    exponential stepper's dense output calls it at each event-search sample (no allocation)."""
     inverse_factorials = _INVERSE_FACTORIALS
     for i in range(z.size):
         zi = z[i]
