@@ -45,9 +45,13 @@ from dynamics import engine as E
 from dynamics import kernels as K
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 
+from shell.kernel_protocol import (DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, FEEDTHROUGH_OUTPUTS, NORMALIZE,
+                                   STATE_OUTPUTS)
 from shell.model import InputPort, Model, ModelError, OutputPort, State
 from shell.ports import NODE_INPUTS, NODE_OUTPUTS
 from shell.registry import register_model
+from shell.schema.multibody import initial_targets
+from shell.units import UnitError, to_magnitude
 
 # unit of (q, u, u_dot, generalized force) per hinge type; "" = mixed or dimensionless (SI values)
 HINGE_UNITS = {
@@ -158,17 +162,13 @@ def _copy_blocks(source, blocks, y):
             y[y0 + k] = source[s0 + k]
 
 
-# operations of engine_kernel
-STATE_OUTPUTS, FEEDTHROUGH_OUTPUTS, DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, NORMALIZE = range(5)
-
-
 @njit(cache=True)
 def engine_kernel(op, t, x, z, u, p, d, out):
-    """Every kernel of the engine model in one compiled function (``op`` selects it), so the engine's
-    code is compiled once, not once per kernel: state outputs, feedthrough outputs (forward dynamics and
-    node accelerations), derivatives (solving, or reusing the feedthrough stage's accelerations), and the
-    quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as borrowed
-    references (:func:`dynamics.engine.borrowed`): their reference counting was about a third of the
+    """Every kernel of the engine model in one compiled function, its op kernel (:mod:`shell.kernel_protocol`:
+    ``op`` selects it), so the engine's code is compiled once, not once per kernel: state outputs, feedthrough
+    outputs (forward dynamics and node accelerations), derivatives (solving, or reusing the feedthrough stage's
+    accelerations), and the quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as
+    borrowed references (:func:`dynamics.engine.borrowed`): their reference counting was about a third of the
     derivative of a single-body scene."""
     d = E.borrowed(d)
     engine, ports, work = d
@@ -203,15 +203,6 @@ def engine_kernel(op, t, x, z, u, p, d, out):
         E.coordinate_rates(engine, x[:nq], x[nq:], out[:nq])
     else:
         E.normalize_quaternions(engine, x)
-
-
-@njit(cache=True)
-def no_engine_kernel(op, t, x, z, u, p, d, out):
-    """Fills the compiled loop's engine slot in a scene without the engine model. Such a scene has no engine
-    op, so this is never called; it exists so that such a scene does not compile :func:`engine_kernel`, the
-    whole engine (measured: 200 trivial models compiled from an empty cache in 155 s CPU, the engine's
-    share being most of it)."""
-    return
 
 
 def _engine_state_outputs(t, x, z, u, p, d, y):
@@ -249,17 +240,6 @@ def _node_outputs(rotation, position, velocity, y, offsets):
             y[o[4] + a] = velocity[n, 3 + a]
 
 
-def probe_engine_data():
-    """The data tuple of a one-body engine model: its numba type is that of every engine model's data
-    (the compiled loop's signature), and it stands in where a scene has no engine."""
-    from dynamics import Multibody
-
-    builder = Multibody()
-    builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
-    builder.add_node("probe_node", "probe")
-    return MultibodyModel("probe", builder.compile()).create_data()[1]
-
-
 def _private_system(system):
     """A copy of ``system`` with its own workspace and its own mass properties (a run that changes mass
     properties must not change another run's)."""
@@ -283,10 +263,13 @@ class MultibodyModel(Model):
         "continuous states: q, u (docs/scenario_schema.md, section multibody)",
     )
 
-    def __init__(self, name: str, system, *, initial_q=None, initial_u=None):
+    def __init__(self, name: str, system, *, initial_q=None, initial_u=None, written_q=None):
         self.system = system
         self._initial_q = system.neutral_configuration() if initial_q is None else np.asarray(initial_q, float)
         self._initial_u = np.zeros(system.nu) if initial_u is None else np.asarray(initial_u, float)
+        #: the initial coordinates as written, before their quaternions were normalized: a run that changes a
+        #: body's initial value normalizes from these, as the scene built with that value does
+        self.written_q = self._initial_q.copy() if written_q is None else np.asarray(written_q, float)
         super().__init__(name)
 
     @property
@@ -412,6 +395,76 @@ class MultibodyModel(Model):
                 "is singular: the subtree it moves has no inertia along a free DOF (massless subtree, or a "
                 "configuration where the hinge axes align)")
 
+    # -- named values (shell.names): mass properties and initial values a run may change ------------------------
+    def named_values(self) -> dict:
+        """``<body>.mass``, ``.com``, ``.inertia`` of each rigid body (a run's own engine system takes them:
+        :meth:`dynamics.MultibodySystem.set_mass_properties`) and ``<body>.initial.<key>`` of each body (the
+        scenario's initial keys its hinge takes): {leaf: (unit, shape, description, is an initial value)}; an
+        inertia takes 3 principal moments or a 3 x 3 matrix (shape None)."""
+        s = self.system
+        values = {}
+        for b, body in enumerate(s.body_names):
+            if not s.topology[b, K.FLEXIBLE]:
+                values[f"{body}.mass"] = ("kg", (), f"mass of {body}", False)
+                values[f"{body}.com"] = ("m", (3,), f"center of mass of {body}, body frame", False)
+                values[f"{body}.inertia"] = ("kg*m^2", None, f"inertia of {body} about its center of mass", False)
+            for key, (_, _, shape, unit) in initial_targets(s, b).items():
+                values[f"{body}.initial.{key}"] = (unit, shape, f"initial {key} of {body}'s hinge", True)
+        return values
+
+    def named_value(self, leaf: str, system):
+        """The value of named value ``leaf`` in the run whose engine system is ``system``."""
+        body, _, key = leaf.partition(".")
+        if key.startswith("initial."):
+            target, sl, shape, _ = initial_targets(system, system.body_index(body))[key[len("initial."):]]
+            return (self.written_q if target == "q" else self._initial_u)[sl].reshape(shape).copy()
+        definition = system.definitions[0][system.body_index(body)]
+        return np.array(getattr(definition, key), dtype=float)
+
+    def assign_named(self, items, system, x) -> None:
+        """Named values ``items`` ((leaf, value) pairs) into the run's engine ``system`` (mass properties) and its
+        state ``x`` (initial values: the coordinates as written, the changed ones replaced, quaternions then
+        normalized, so the run starts where the scene built with those values starts)."""
+        masses: dict[str, dict] = {}
+        initial = []
+        for leaf, value in items:
+            body, _, key = leaf.partition(".")
+            if key.startswith("initial."):
+                initial.append((body, key[len("initial."):], value))
+            else:
+                masses.setdefault(body, {})[key] = value
+        for body, given in masses.items():
+            definition = system.definitions[0][system.body_index(body)]
+            mass = float(_converted(given["mass"], "kg", (), f"{body}.mass")) if "mass" in given else definition.mass
+            com = _converted(given["com"], "m", (3,), f"{body}.com") if "com" in given else definition.com
+            inertia = definition.inertia
+            if "inertia" in given:
+                inertia = _converted(given["inertia"], "kg*m^2", None, f"{body}.inertia")
+                inertia = np.diag(inertia) if inertia.shape == (3,) else inertia
+                if inertia.shape != (3, 3):
+                    raise ModelError(f"{self.path}.{body}.inertia: expected a 3x3 matrix or 3 principal moments, "
+                                     f"given shape {inertia.shape}")
+            try:
+                system.set_mass_properties(body, mass, com, inertia)
+            except ValueError as exc:
+                raise ModelError(f"{self.path}.{body}: {exc}") from None
+        if initial:
+            q, u = self.written_q.copy(), self._initial_u.copy()
+            for body, key, value in initial:
+                target, sl, shape, unit = initial_targets(system, system.body_index(body))[key]
+                value_si = _converted(value, unit, None, f"{body}.initial.{key}")
+                value_si = value_si.reshape(1) if value_si.shape == () and shape == (1,) else value_si
+                if value_si.shape != shape:
+                    raise ModelError(f"{self.path}.{body}.initial.{key}: expected shape {shape}, given "
+                                     f"{value_si.shape}")
+                if key == "attitude" and abs(np.linalg.norm(value_si) - 1.0) > 1e-9:
+                    raise ModelError(f"{self.path}.{body}.initial.attitude: expected a unit quaternion [w, x, y, z], "
+                                     f"given norm {np.linalg.norm(value_si):.12g}")
+                (q if target == "q" else u)[sl] = value_si
+            system.normalize_quaternions(q)
+            x[:system.nq] = q
+            x[system.nq:] = u
+
     def attachment_ports(self, kind: str, target: str):
         s = self.system
         if kind == "node":
@@ -427,6 +480,8 @@ class MultibodyModel(Model):
 
     # -- kernels (dynamics.engine under the uniform signature, with the per-run data d) ------------------
     uses_data = True
+    #: the op kernel serving every kernel below in the compiled loop (shell.kernel_protocol)
+    compiled_kernel = staticmethod(engine_kernel)
     state_outputs = staticmethod(_engine_state_outputs)
     feedthrough_outputs = staticmethod(_engine_feedthrough_outputs)
     derivatives = staticmethod(_engine_derivatives)
@@ -446,3 +501,10 @@ class MultibodyModel(Model):
     def quaternion_w_indices(self) -> list[int]:
         """Positions in this model's state of each hinge quaternion's w (for the integrator's error norm)."""
         return [int(k) for k in self.system.quaternion_q_indices]
+
+
+def _converted(value, unit, shape, name):
+    try:
+        return to_magnitude(value, unit, shape, name)
+    except UnitError as exc:
+        raise ModelError(str(exc)) from None

@@ -260,8 +260,8 @@ def test_flexshell_compile_compiles_what_a_first_run_needs(tmp_path, capsys):
     from numba.core.registry import CPUDispatcher
 
     from shell.cli import main
-    from shell.commands.compile import FAMILIES, work_items
-    from shell.compiled_loop import ENGINE_SIGNATURE, advance
+    from shell.commands.compile import FAMILIES, engine_signature, work_items
+    from shell.compiled_loop import advance
     from shell.models.multibody import engine_kernel
     from shell.registry import registered
 
@@ -270,9 +270,9 @@ def test_flexshell_compile_compiles_what_a_first_run_needs(tmp_path, capsys):
     parts = work_items()
     assert f"[{len(parts)}/{len(parts)}]" in captured.err and "functions compiled" in captured.out
     assert [label for label, _ in parts][:2] == [f"simulation loop, {FAMILIES[0][1]}", "multibody engine"]
-    assert ENGINE_SIGNATURE.args in engine_kernel.overloads
+    assert engine_signature().args in engine_kernel.overloads
     steppers = {signature[4].instance_class.__name__ for signature in advance.signatures}  # advance(k, engine, ., ., st
-    assert {"Stepper", "ExponentialStepper"} <= steppers
+    assert {"RungeKuttaStepper", "ExponentialStepper"} <= steppers
     kernels = ("state_outputs", "feedthrough_outputs", "derivatives", "zero_crossing_values", "update")
     uncompiled = [f"{name}.{kernel}" for name, cls in registered().items() for kernel in kernels
                   if isinstance(getattr(cls, kernel, None), CPUDispatcher) and not getattr(cls, kernel).overloads]
