@@ -23,7 +23,7 @@ from numba.core.registry import CPUDispatcher
 from numba.experimental.function_type import _get_jit_address, _get_wrapper_address
 
 from shell import compiled_loop as L
-from shell.models.multibody import MultibodyModel, engine_kernel, no_engine_kernel
+from shell.models.multibody import MultibodyModel, no_engine_kernel
 
 
 class NotCompilable(Exception):
@@ -48,13 +48,14 @@ _ENGINE_POINTERS: dict = {}
 _PROBE: list = []
 
 
-def _engine_pointers(has_engine: bool):
-    """The engine slot of the kernel table: :func:`engine_kernel`, or for a scene without the engine model a
-    stand-in that is never called (so that such a scene does not compile the engine)."""
-    if has_engine not in _ENGINE_POINTERS:
-        _ENGINE_POINTERS[has_engine] = _pointer(engine_kernel if has_engine else no_engine_kernel,
-                                                L.ENGINE_SIGNATURE)
-    return np.asarray(_ENGINE_POINTERS[has_engine], dtype=np.int64)
+def _engine_pointers(engine_model):
+    """The engine slot of the kernel table: the engine model's kernel (the one for its system's path, so a
+    scene compiles that path only), or for a scene without the engine model a stand-in that is never called
+    (so that such a scene does not compile the engine)."""
+    kernel = no_engine_kernel if engine_model is None else engine_model.engine_kernel
+    if kernel not in _ENGINE_POINTERS:
+        _ENGINE_POINTERS[kernel] = _pointer(kernel, L.ENGINE_SIGNATURE)
+    return np.asarray(_ENGINE_POINTERS[kernel], dtype=np.int64)
 
 
 def _probe():
@@ -178,7 +179,7 @@ class _Tables:
         self.noise_size = max(noise_offset, 1)
         self.kernels = L.Kernels(np.asarray(fns, dtype=np.int64).reshape(-1, 2),
                                  np.asarray(update_fns, dtype=np.int64).reshape(-1, 2),
-                                 _engine_pointers(bool(engine_models)))
+                                 _engine_pointers(models[engine_models[0]] if engine_models else None))
         self.tables = (_table(full), _table(derivative), len(diagram.derivative_stages), _table(zc), _table(updates),
                        np.asarray(normalizers, dtype=np.int64).reshape(-1, 3), _table(input_stage_rows),
                        _table([stage_op(s) for s in diagram.zero_crossing_stages]))

@@ -65,9 +65,10 @@ def work_items() -> list[tuple[str, object]]:
 
 def _engine() -> None:
     from shell.compiled_loop import ENGINE_SIGNATURE
-    from shell.models.multibody import engine_kernel
+    from shell.models.multibody import ENGINE_KERNELS
 
-    engine_kernel.compile(ENGINE_SIGNATURE)
+    for kernel in ENGINE_KERNELS.values():  # single body, articulated-body recursion, dense solve
+        kernel.compile(ENGINE_SIGNATURE)
 
 
 def _loop(method: str):
