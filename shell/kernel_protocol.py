@@ -6,11 +6,12 @@ Most kernels have the uniform signature of :mod:`shell.model` and are called thr
 (``Model.create_data``) is one float64 array (tables, scratch: its *data slot*) receives a view of it after ``p``:
 ``kernel(t, x, z, u, p, d, out)``, ``update(t, x, z, u, p, d)``; with ``noise_size``, the noise after that.
 
-A model whose per-run data is a typed tuple (the engine's arrays and workspace) implements the *op-kernel
-protocol* instead: one numba function ``compiled_kernel(op, t, x, z, u, p, d, out)`` (class attribute) serving
-every kernel of the model, ``op`` one of the codes below. The compiled plan recognizes such a model by that
-attribute; any number of them may share a scene when their data have the same numba type (the loop is compiled
-once per such type, not per scene). Having every kernel in one function compiles the model's code once.
+A model whose per-run data is a typed tuple (the engine's arrays and workspace) implements the *op-kernel protocol*
+instead: one numba function ``compiled_kernel(op, t, x, z, u, p, d, out)`` (an attribute of the model; the engine's
+depends on its system's solver path) serving every kernel of the model, ``op`` one of the codes below. The compiled
+plan recognizes such a model by that attribute; any number of them may share a scene when their data have the same
+numba type (the loop is compiled once per such type, not per scene). Having every kernel in one function compiles the
+model's code once.
 """
 
 from numba import types

@@ -79,9 +79,11 @@ def engine_signature():
 
 
 def _engine() -> None:
-    from shell.models.multibody import engine_kernel
+    from shell.models.multibody import ENGINE_KERNELS
 
-    engine_kernel.compile(engine_signature())
+    signature = engine_signature()
+    for kernel in ENGINE_KERNELS.values():  # single body, articulated-body recursion, dense solve
+        kernel.compile(signature)
 
 
 def _loop(method: str):

@@ -132,12 +132,10 @@ class EngineWork(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _solve_accelerations(x, u, d):
-    """Scatter the input ports into the engine's arrays and run its forward dynamics into ``work.udot``.
-    A singular articulated inertia records the body in ``work.status`` and makes the accelerations NaN,
-    which the simulation reports with the body's name (``MultibodyModel.failure_message``)."""
+def _gather_inputs(x, u, d):
+    """Scatter the input ports into the engine's arrays: hinge forces, node forces and the prescribed
+    accelerations (``work.udot``, zero elsewhere) that the forward dynamics reads."""
     engine, ports, work = d
-    nq = ports.nq
     for k in range(ports.tau_src.shape[0]):
         work.tau[ports.tau_dst[k]] = u[ports.tau_src[k]]
     for k in range(ports.force_src.shape[0]):
@@ -147,7 +145,13 @@ def _solve_accelerations(x, u, d):
         work.udot[k] = 0.0
     for k in range(ports.acc_src.shape[0]):
         work.udot[ports.acc_dst[k]] = u[ports.acc_src[k]]
-    status = E.forward_dynamics(engine, x[:nq], x[nq:], work.tau, work.node_forces, work.udot, work.tau_out)
+
+
+@njit(cache=True, inline="always")
+def _record_status(status, d):
+    """A singular articulated inertia records the body in ``work.status`` and makes the accelerations NaN,
+    which the simulation reports with the body's name (``MultibodyModel.failure_message``)."""
+    engine, ports, work = d
     work.status[0] = status
     if status != 0:
         for k in range(ports.nu):
@@ -162,67 +166,67 @@ def _copy_blocks(source, blocks, y):
             y[y0 + k] = source[s0 + k]
 
 
-@njit(cache=True)
-def engine_kernel(op, t, x, z, u, p, d, out):
-    """Every kernel of the engine model in one compiled function, its op kernel (:mod:`shell.kernel_protocol`:
-    ``op`` selects it), so the engine's code is compiled once, not once per kernel: state outputs, feedthrough
-    outputs (forward dynamics and node accelerations), derivatives (solving, or reusing the feedthrough stage's
-    accelerations), and the quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as
-    borrowed references (:func:`dynamics.engine.borrowed`): their reference counting was about a third of the
-    derivative of a single-body scene."""
-    d = E.borrowed(d)
-    engine, ports, work = d
-    nq, nu = ports.nq, ports.nu
-    if op == STATE_OUTPUTS:
-        for k in range(nq):
-            out[ports.q_out + k] = x[k]
-        for k in range(nu):
-            out[ports.u_out + k] = x[nq + k]
-        _copy_blocks(x, ports.hinge_q, out)
-        _copy_blocks(x[nq:], ports.hinge_u, out)
-        if ports.node_offsets.shape[0]:
-            E.node_kinematics(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
-                              work.acceleration)
-            _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets)
-    elif op == FEEDTHROUGH_OUTPUTS:
-        _solve_accelerations(x, u, d)
-        _copy_blocks(work.udot, ports.hinge_udot, out)
-        if ports.accel_offsets.shape[0]:  # reusing the workspace the forward dynamics just left
-            E.node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
-                                             work.velocity, work.acceleration)
-            for n in range(ports.accel_offsets.shape[0]):
-                a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
-                for k in range(3):
-                    out[a + k] = work.acceleration[n, k]
-                    out[b + k] = work.acceleration[n, 3 + k]
-    elif op == DERIVATIVES or op == DERIVATIVES_AFTER_FEEDTHROUGH:
-        if op == DERIVATIVES:
-            _solve_accelerations(x, u, d)
-        for k in range(nu):
-            out[nq + k] = work.udot[k]
-        E.coordinate_rates(engine, x[:nq], x[nq:], out[:nq])
-    else:
-        E.normalize_quaternions(engine, x)
+def _engine_kernel(path):
+    """The engine model's kernel for the systems of one path (:data:`dynamics.engine.PATHS`): it contains that
+    path's code only, so a rigid single-body scene compiles neither the articulated-body recursion nor the
+    dense solver (measured on the demo from an empty cache: see docs/benchmarks.md, "Compile time")."""
+    forward_dynamics = path.forward_dynamics
+    node_kinematics = path.node_kinematics
+    node_kinematics_after_dynamics = path.node_kinematics_after_dynamics
+
+    def engine_kernel(op, t, x, z, u, p, d, out):
+        """Every kernel of the engine model in one compiled function, its op kernel (:mod:`shell.kernel_protocol`:
+        ``op`` selects it), so the engine's code is compiled once, not once per kernel: state outputs, feedthrough outputs (forward dynamics and
+        node accelerations), derivatives (solving, or reusing the feedthrough stage's accelerations), and the
+        quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as borrowed
+        references (:func:`dynamics.engine.borrowed`): their reference counting was about a third of the
+        derivative of a single-body scene."""
+        d = E.borrowed(d)
+        engine, ports, work = d
+        nq, nu = ports.nq, ports.nu
+        if op == STATE_OUTPUTS:
+            for k in range(nq):
+                out[ports.q_out + k] = x[k]
+            for k in range(nu):
+                out[ports.u_out + k] = x[nq + k]
+            _copy_blocks(x, ports.hinge_q, out)
+            _copy_blocks(x[nq:], ports.hinge_u, out)
+            if ports.node_offsets.shape[0]:
+                node_kinematics(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
+                                work.acceleration)
+                _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets)
+        elif op == FEEDTHROUGH_OUTPUTS:
+            _gather_inputs(x, u, d)
+            _record_status(forward_dynamics(engine, x[:nq], x[nq:], work.tau, work.node_forces, work.udot,
+                                            work.tau_out), d)
+            _copy_blocks(work.udot, ports.hinge_udot, out)
+            if ports.accel_offsets.shape[0]:  # reusing the workspace the forward dynamics just left
+                node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
+                                               work.velocity, work.acceleration)
+                for n in range(ports.accel_offsets.shape[0]):
+                    a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
+                    for k in range(3):
+                        out[a + k] = work.acceleration[n, k]
+                        out[b + k] = work.acceleration[n, 3 + k]
+        elif op == DERIVATIVES or op == DERIVATIVES_AFTER_FEEDTHROUGH:
+            if op == DERIVATIVES:
+                _gather_inputs(x, u, d)
+                _record_status(forward_dynamics(engine, x[:nq], x[nq:], work.tau, work.node_forces, work.udot,
+                                                work.tau_out), d)
+            for k in range(nu):
+                out[nq + k] = work.udot[k]
+            E.coordinate_rates(engine, x[:nq], x[nq:], out[:nq])
+        else:
+            E.normalize_quaternions(engine, x)
+
+    # a name of its own per path: compiled code is named after the function, and the three closures share one
+    # code object (loaded from the cache into one process, same-named kernels would resolve to one another)
+    engine_kernel.__name__ = engine_kernel.__qualname__ = f"engine_kernel_{path.name}"
+    return njit(cache=True)(engine_kernel)
 
 
-def _engine_state_outputs(t, x, z, u, p, d, y):
-    engine_kernel(STATE_OUTPUTS, t, x, z, u, p, d, y)
-
-
-def _engine_feedthrough_outputs(t, x, z, u, p, d, y):
-    engine_kernel(FEEDTHROUGH_OUTPUTS, t, x, z, u, p, d, y)
-
-
-def _engine_derivatives(t, x, z, u, p, d, xdot):
-    engine_kernel(DERIVATIVES, t, x, z, u, p, d, xdot)
-
-
-def _engine_derivatives_after_feedthrough(t, x, z, u, p, d, xdot):
-    engine_kernel(DERIVATIVES_AFTER_FEEDTHROUGH, t, x, z, u, p, d, xdot)
-
-
-def _engine_normalize(x, d):
-    engine_kernel(NORMALIZE, 0.0, x, x, x, x, d, x)
+#: path name -> the engine model's kernel for systems of that path (each compiled on first use)
+ENGINE_KERNELS = {name: _engine_kernel(path) for name, path in E.PATHS.items()}
 
 
 @njit(cache=True)
@@ -265,6 +269,8 @@ class MultibodyModel(Model):
 
     def __init__(self, name: str, system, *, initial_q=None, initial_u=None, written_q=None):
         self.system = system
+        #: the engine's path for this system (its kernel compiles that path only)
+        self.engine_path = E.path_of(system)
         self._initial_q = system.neutral_configuration() if initial_q is None else np.asarray(initial_q, float)
         self._initial_u = np.zeros(system.nu) if initial_u is None else np.asarray(initial_u, float)
         #: the initial coordinates as written, before their quaternions were normalized: a run that changes a
@@ -480,14 +486,29 @@ class MultibodyModel(Model):
 
     # -- kernels (dynamics.engine under the uniform signature, with the per-run data d) ------------------
     uses_data = True
-    #: the op kernel serving every kernel below in the compiled loop (shell.kernel_protocol)
-    compiled_kernel = staticmethod(engine_kernel)
-    state_outputs = staticmethod(_engine_state_outputs)
-    feedthrough_outputs = staticmethod(_engine_feedthrough_outputs)
-    derivatives = staticmethod(_engine_derivatives)
-    derivatives_after_feedthrough = staticmethod(_engine_derivatives_after_feedthrough)
-    #: renormalize hinge quaternions in place (the integrator's normalize hook): ``normalize_state(x, d)``
-    normalize_state = staticmethod(_engine_normalize)
+
+    @property
+    def compiled_kernel(self):
+        """The op kernel serving every kernel below in the compiled loop (:mod:`shell.kernel_protocol`): the one for
+        this model's system (:data:`ENGINE_KERNELS`, by :func:`dynamics.engine.path_of`; a copy of the system, as a
+        run's own, takes the same path)."""
+        return ENGINE_KERNELS[self.engine_path]
+
+    def state_outputs(self, t, x, z, u, p, d, y):
+        self.compiled_kernel(STATE_OUTPUTS, t, x, z, u, p, d, y)
+
+    def feedthrough_outputs(self, t, x, z, u, p, d, y):
+        self.compiled_kernel(FEEDTHROUGH_OUTPUTS, t, x, z, u, p, d, y)
+
+    def derivatives(self, t, x, z, u, p, d, xdot):
+        self.compiled_kernel(DERIVATIVES, t, x, z, u, p, d, xdot)
+
+    def derivatives_after_feedthrough(self, t, x, z, u, p, d, xdot):
+        self.compiled_kernel(DERIVATIVES_AFTER_FEEDTHROUGH, t, x, z, u, p, d, xdot)
+
+    def normalize_state(self, x, d):
+        """Renormalize hinge quaternions in place (the integrator's normalize hook)."""
+        self.compiled_kernel(NORMALIZE, 0.0, x, x, x, x, d, x)
 
     def stiff_linear_part(self, x, system=None):
         """(indices into this model's [q; u], L): the linear modal dynamics at the configuration of ``x`` that
