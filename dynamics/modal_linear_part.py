@@ -36,8 +36,13 @@ When the configuration changes (refresh or not): ``L`` depends on ``q`` only thr
 
 * A free or spherical base hinge does not enter ``M``: velocities are in body axes, so the mass matrix of a
   free-flying structure does not depend on its attitude or position.
-* A rotor that is axisymmetric about its hinge axis (a reaction wheel) leaves ``M`` unchanged when it
-  spins; the observatory scene (free structure, four wheels) therefore has a constant ``L`` up to the
+* A rotor (a rigid body without children on a revolute hinge: a reaction wheel) enters ``L`` with its inertia
+  averaged over its spin angle (:func:`spin_averaged_inertia`: the axial moment kept, the transverse ones made
+  equal, the centre of mass put on the axis), so ``L`` does not depend on the rotor's angle: an axisymmetric
+  wheel is unchanged by the averaging, and an unbalanced one (a real imbalance: products of inertia, a centre
+  of mass off the axis) no longer makes ``L`` drift at every turn (each drift is a rebuild of the matrix
+  functions by forward differences, m + 1 derivative evaluations); its imbalance, a small part of ``M``, is
+  in ``N``. The observatory scene (free structure, four wheels) therefore has a constant ``L`` up to the
   ``O(eta)`` terms of the order-1/2 modal integrals, which are of the size of the elastic deflection.
 * Articulated parts that rotate a lot relative to each other (a solar-array drive turning a flexible
   array, a gimbaled flexible boom) change ``M_ff(q)`` and hence the system modes. The stiff term
@@ -69,6 +74,38 @@ def modal_indices(system):
     return np.asarray(q_index, dtype=np.int64), np.asarray(u_index, dtype=np.int64)
 
 
+def spin_averaged_inertia(mass, com, inertia, point, axis):
+    """``(mass, com, inertia about the com)`` of a rigid body averaged over its rotation about the line through
+    ``point`` along the unit ``axis`` (body frame): the centre of mass projected on the line, the inertia
+    about ``point`` replaced by its mean over the angle, ``(a' J a) a a' + (tr J - a' J a) / 2 (I - a a')``."""
+    a = np.asarray(axis, dtype=float)
+    d = np.asarray(com, dtype=float) - point
+    J_point = np.asarray(inertia, dtype=float) + mass * (d @ d * np.eye(3) - np.outer(d, d))
+    axial = a @ J_point @ a
+    J_mean = axial * np.outer(a, a) + 0.5 * (np.trace(J_point) - axial) * (np.eye(3) - np.outer(a, a))
+    d_mean = (d @ a) * a
+    J_com = J_mean - mass * (d_mean @ d_mean * np.eye(3) - np.outer(d_mean, d_mean))
+    return mass, point + d_mean, 0.5 * (J_com + J_com.T)
+
+
+def _rotors_averaged(system):
+    """``system`` itself, or a copy whose rotors (rigid bodies without children on revolute hinges) have their
+    spin-averaged inertia (:func:`spin_averaged_inertia`)."""
+    bodies = system.definitions[0]
+    has_children = {p for p in system.parents if p >= 0}
+    rotors = [i for i, b in enumerate(bodies)
+              if b.flexible is None and b.hinge == "revolute" and i not in has_children]
+    if not rotors:
+        return system
+    averaged = system.copy(mass_properties=True)
+    for i in rotors:
+        b = bodies[i]
+        axis = b.outboard_rotation @ b.axes[0]  # hinge axis in the body frame (outboard frame M -> body)
+        averaged.set_mass_properties(b.name, *spin_averaged_inertia(b.mass, b.com, b.inertia, b.outboard_position,
+                                                                    axis))
+    return averaged
+
+
 def modal_linear_part(system, q):
     """``(indices, L)``: the linear part of ``d/dt [q; u]`` over ``indices`` into ``[q; u]`` (module docstring).
 
@@ -91,7 +128,7 @@ def modal_linear_part(system, q):
     position_in_free = np.full(system.nu, -1, dtype=np.int64)
     position_in_free[free] = np.arange(n_free)
     eta_in_free = position_in_free[eta_u]
-    M_ff = system.mass_matrix(q)[np.ix_(free, free)]
+    M_ff = _rotors_averaged(system).mass_matrix(q)[np.ix_(free, free)]
     K_aug = system.stiffness_matrix()
     D_aug = system.damping_matrix()
     try:

@@ -44,6 +44,7 @@ from numba import njit
 from dynamics import engine as E
 from dynamics import kernels as K
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
+from dynamics.modal_order import resolve_modal_orders
 
 from shell.model import InputPort, Model, ModelError, OutputPort, State
 from shell.registry import register_model
@@ -83,7 +84,8 @@ BODY_KEYS = {
     "modes": "indices of the body file's modes to keep (default all)",
     "max_frequency": "keep the body file's modes at or below this frequency, e.g. 100 Hz (with modes: the listed "
                      "modes below it)",
-    "modal_integrals_order": "0, 1 or 2: order of the deformation-dependent modal integrals (default 2)",
+    "modal_integrals_order": "0, 1, 2 or auto: order of the deformation-dependent modal integrals (default auto: "
+                             "the order the scene needs at its initial state, dynamics.modal_order)",
     "damping_ratio": "modal damping ratio overriding the body file's",
     "integrals": "general or point_mass modal integrals (default general)",
     "child_grid": "grid of this flexible body that the hinge holds (its deforming interface grid)",
@@ -580,6 +582,7 @@ class MultibodyModel(Model):
         except ModelDefinitionError as exc:
             raise where.error(str(exc)) from None
         q0, u0 = initial_state(system, [(spec, here, body) for _, spec, here, body in initial])
+        system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto, and the stiffening warning
         return cls(name, system, initial_q=q0, initial_u=u0)
 
 
@@ -628,11 +631,10 @@ def _flexible_options(body, where) -> dict:
         options["modes"] = list(modes)
     if "max_frequency" in body:
         options.update(_max_frequency_options(body, where, path, options.get("modes")))
-    if "modal_integrals_order" in body:
-        order = body["modal_integrals_order"]
-        if order not in (0, 1, 2):
-            raise where.child(body, "modal_integrals_order").error(f"expected 0, 1 or 2, given {order!r}")
-        options["order"] = order
+    order = body.get("modal_integrals_order", "auto")
+    if isinstance(order, bool) or order not in (0, 1, 2, "auto"):
+        raise where.child(body, "modal_integrals_order").error(f"expected 0, 1, 2 or auto, given {order!r}")
+    options["order"] = order
     if "damping_ratio" in body:
         options["damping_ratio"] = float(_vector(body, "damping_ratio", "", (), where))
     if "integrals" in body:
