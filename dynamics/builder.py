@@ -65,13 +65,15 @@ class Multibody:
         if name in self._body_index:
             raise ModelDefinitionError(f"{where}: duplicate body name (already defined as body "
                                        f"#{self._body_index[name]})")
+        if parent is not GROUND and not isinstance(parent, str):
+            raise ModelDefinitionError(f"{where}: parent must be a body name (text) or None, got {parent!r}")
         if parent is not GROUND and parent not in self._body_index:
             known = list(self._body_index)
             raise ModelDefinitionError(
                 f"{where}: unknown parent '{parent}'; parents must be added before their children "
                 f"(bodies defined so far: {known or 'none'}; use parent=None for the ground)."
                 + suggest(parent, known))
-        if hinge not in HINGE_TYPES:
+        if not isinstance(hinge, str) or hinge not in HINGE_TYPES:
             raise ModelDefinitionError(f"{where}: unknown hinge type {hinge!r}; expected one of "
                                        f"{sorted(HINGE_TYPES)}" + suggest(hinge, HINGE_TYPES))
         mass = checked_mass(mass, where)
@@ -194,7 +196,7 @@ class Multibody:
             raise ModelDefinitionError(f"node name must be a non-empty string, got {name!r}")
         if name in self._node_names:
             raise ModelDefinitionError(f"node '{name}': duplicate node name")
-        if body not in self._body_index:
+        if not isinstance(body, str) or body not in self._body_index:
             raise ModelDefinitionError(f"node '{name}': unknown body '{body}' (bodies: "
                                        f"{list(self._body_index) or 'none'})" + suggest(body, self._body_index))
         flexible = self.bodies[self._body_index[body]].flexible

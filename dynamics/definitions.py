@@ -9,7 +9,6 @@ it; the builder, run-time reconfiguration (:mod:`dynamics.reconfigure`) and in-p
 from __future__ import annotations
 
 import difflib
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -150,9 +149,12 @@ def checked_inertia(inertia, where, code=FREE, hinge_axes=None, prescribed=None,
                 f"CONM2 I11-I33, PARAM COUPMASS 1 or CBEAM elements), or use a hinge that does not turn "
                 f"about that axis")
         return J
-    if eig[0] + eig[1] < eig[2] * (1.0 - 1e-9):
-        warnings.warn(f"{where}: principal moments {eig.tolist()} violate the triangle inequality "
-                      f"(I1 + I2 >= I3) that every physical mass distribution satisfies", stacklevel=3)
+    if eig[0] + eig[1] < eig[2] * (1.0 - 1e-9):  # refused, not warned: shell/diagnostics.py says why
+        raise ModelDefinitionError(
+            f"{where}: principal moments {eig.tolist()} kg m^2 violate the triangle inequality I1 + I2 >= I3 "
+            "that every mass distribution satisfies (I1 + I2 - I3 is twice the integral of z^2 dm): no body "
+            "has this inertia. Check the values and their axes (a wheel or disk of spin inertia Is has "
+            "transverse inertia of at least Is/2)")
     return J
 
 def checked_axes(code, axis, axes, where):

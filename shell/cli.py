@@ -13,6 +13,7 @@ import pkgutil
 import sys
 
 from shell import __version__, commands
+from shell.diagnostics import printed
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,7 +36,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        with printed(f"flexshell {args.verb}"):  # warnings as flexshell messages (shell/diagnostics.py)
+            return int(args.func(args) or 0)
     except RecursionError:  # each verb reports its input's errors; these two are the input's size
         print(f"flexshell {args.verb}: the input is nested too deeply to process", file=sys.stderr)
         return 1

@@ -116,10 +116,29 @@ def check_named_offsets(model) -> None:
                              f"their offsets from the order {compiled}; {advice}")
 
 
+#: most elements of one declaration (parameter, port, state): 80 MB of float64; a larger one is a slip (a size
+#: of 3e9 for 3), refused before any allocation
+MAX_ELEMENTS = 10**7
+#: most members of a count that makes ports or objects (actuators, sensors, inputs, plates): far above any
+#: scene's, far below what takes minutes to build (3,000,000 actuators did)
+MAX_COUNT = 10_000
+
+
+def count_option(model: str, key: str, value, what: str, maximum: int = MAX_COUNT) -> int:
+    """A config count: a whole number from 1 to ``maximum`` (not 2.5 read as 2, not 3e6)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= maximum:
+        raise ModelError(f"model {model}: config {key}: expected a whole number of {what} from 1 to {maximum}, "
+                         f"given {value!r}")
+    return int(value)
+
+
 def _shape(shape) -> tuple[int, ...]:
-    if isinstance(shape, int):
-        return (shape,)
-    return tuple(int(n) for n in shape)
+    dims = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
+    if not all(isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 0 for n in dims):
+        raise ModelError(f"a shape is a list of whole numbers >= 0, given {list(dims)!r}")
+    if np.prod([float(n) for n in dims]) > MAX_ELEMENTS:
+        raise ModelError(f"shape {list(dims)}: more than {MAX_ELEMENTS:.0e} elements")
+    return tuple(int(n) for n in dims)
 
 
 def _size(shape: tuple[int, ...]) -> int:

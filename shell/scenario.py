@@ -823,6 +823,8 @@ def build_member(container: Assembly, name: str, entry: dict, here: _Where, clas
     """One model or assembly of a models: section, constructed from its entry (type, config, parameters,
     rate/period/offset, initial); ``container`` gives parent assembly parameters. Monte Carlo runs call it
     again with an entry carrying a run's dispersed values."""
+    from shell.diagnostics import located
+
     cls = classes.get(entry["type"]) or lookup(entry["type"])
     kwargs = dict(entry.get("config", {}) or {})
     kwargs.update(entry.get("parameters", {}) or {})
@@ -833,7 +835,8 @@ def build_member(container: Assembly, name: str, entry: dict, here: _Where, clas
     if "offset" in entry:
         kwargs["offset"] = entry["offset"]
     try:
-        member = cls(name, **kwargs)
+        with located(here):  # a constructor's warnings, with the model's file, line and key
+            member = cls(name, **kwargs)
     except ScenarioError as exc:  # inside an assembly type: also say where it is used
         raise ScenarioError(f"{exc}\n  in {entry['type']} {name!r} used at {here.file}:{here.line}") from None
     except (ModelError, UnitError) as exc:
@@ -887,13 +890,16 @@ def build_simulation(scenario: Scenario):
     """The :class:`shell.simulation.Simulation` of a validated scenario, with its log configured."""
     from shell.simulation import Simulation
 
+    from shell.diagnostics import located
+
     root = build_root(scenario)
     where = _Where(scenario.file, 1, "")
     try:
-        simulation = Simulation(root, integrator=scenario.integrator, step=scenario.step,
-                                integrator_options=scenario.integrator_options, seed=scenario.seed,
-                                stop_events=scenario.stop_events, event_tol=scenario.event_tolerance,
-                                event_detection=scenario.event_detection)
+        with located(lambda text: _model_location(scenario, text)):  # configure()'s warnings, located
+            simulation = Simulation(root, integrator=scenario.integrator, step=scenario.step,
+                                    integrator_options=scenario.integrator_options, seed=scenario.seed,
+                                    stop_events=scenario.stop_events, event_tol=scenario.event_tolerance,
+                                    event_detection=scenario.event_detection)
     except (ModelError, UnitError) as exc:
         message = str(exc)
         raise ScenarioError(message if message.startswith(scenario.file) else f"{scenario.file}: {message}") from None
@@ -904,6 +910,15 @@ def build_simulation(scenario: Scenario):
             raise here.error(str(exc)) from None
     _check_initial_state(simulation, scenario)
     return simulation
+
+
+def _model_location(scenario: Scenario, message: str) -> str:
+    """Where the model a message names (``model controller.kp: ...``) is in the scenario: its entry under
+    models:, else the file."""
+    path = message[len("model "):].split(":", 1)[0] if message.startswith("model ") else ""
+    models = scenario.document.get("models")
+    top = path.split(".", 1)[0]
+    return scenario.location("models", top) if isinstance(models, dict) and top in models else scenario.file
 
 
 def _check_initial_state(simulation, scenario: Scenario) -> None:

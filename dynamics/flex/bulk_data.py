@@ -144,22 +144,34 @@ def _has_case_control(path: str) -> bool:
     return False
 
 
+def _no_dump(*args, **kwargs) -> None:
+    """Stands in for pyNastran's crash dump (see read_bulk_data)."""
+
+
 def read_bulk_data(path: str | os.PathLike, allow_unsupported: bool = False) -> BulkData:
     """Parse ``path`` and resolve grid geometry. Raises :class:`BulkDataError` on bad decks."""
+    from unittest import mock
+
     from pyNastran.bdf.bdf import BDF
+    from pyNastran.bdf.bdf_interface.pybdf import BDFInputPy
 
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise BulkDataError(f"bulk data file not found: {path}")
     log = logging.getLogger("pyNastran.flexshell")
     log.setLevel(logging.ERROR)
+    if not log.handlers:  # pyNastran's errors reach the user in BulkDataError, not also as raw log lines
+        log.addHandler(logging.NullHandler())
+        log.propagate = False
     model = BDF(debug=None, log=log)
     model.set_error_storage(nparse_errors=100000, stop_on_parsing_error=False,
                             nxref_errors=0, stop_on_xref_error=True)
     punch = not _has_case_control(path)
     stdout = io.StringIO()
     try:
-        with contextlib.redirect_stdout(stdout):
+        # pyNastran dumps the lines read so far to pyNastran_crash.bdf in the working directory when an INCLUDE
+        # is missing, replacing a user's file of that name: not here
+        with contextlib.redirect_stdout(stdout), mock.patch.object(BDFInputPy, "_dump_file", _no_dump):
             model.read_bdf(path, xref=False, punch=punch, validate=False)
     except Exception as exc:  # pyNastran raises a variety of types; name the file and pass it on
         raise BulkDataError(f"{path}: pyNastran could not read the deck: {exc}") from exc

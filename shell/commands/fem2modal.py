@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-import warnings
+
+from shell.outputs import OVERWRITE_HELP
 
 
 def register(subparsers) -> None:
@@ -56,6 +57,7 @@ def register(subparsers) -> None:
                         "not modelled")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.add_argument("-o", "--output", required=True, metavar="BODY.h5", help="body file to write")
+    p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=run)
 
 
@@ -66,12 +68,15 @@ def run(args: argparse.Namespace) -> int:
     from dynamics.flex.geometric_stiffness import parse_preload
     from dynamics.flex.modes import EigenSolutionError
     from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal, parse_grid_dofs
+    from shell.outputs import BODY_FILE, guard_output
 
     def progress(msg):
         if not args.quiet:
             print(msg, file=sys.stderr, flush=True)
 
     try:
+        guard_output(args.output, BODY_FILE, inputs=((args.deck, "the deck itself"), (args.op4, "the OP4 file")),
+                     overwrite=args.overwrite)
         options = Fem2ModalOptions(
             n_modes=args.modes, cutoff_hz=args.cutoff,
             aset=[parse_grid_dofs(s) for s in args.aset],
@@ -83,10 +88,7 @@ def run(args: argparse.Namespace) -> int:
             allow_unsupported=args.allow_unsupported, op4=args.op4,
             geometric_stiffness=args.geometric_stiffness,
             preloads=[parse_preload(s) for s in args.preload])
-        with warnings.catch_warnings():
-            warnings.simplefilter("always")
-            warnings.showwarning = lambda m, *a, **k: progress(f"warning: {m}")
-            body = fem2modal(args.deck, options, progress=progress)
+        body = fem2modal(args.deck, options, progress=progress)  # its warnings: flexshell messages (shell.cli)
         write_body_file(args.output, body)
     except (BulkDataError, CraigBamptonError, EigenSolutionError, ValueError,
             FileNotFoundError) as exc:

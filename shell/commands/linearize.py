@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import math
 import sys
-from pathlib import Path
+
+from shell.outputs import OVERWRITE_HELP
 
 
 def _names(values):
@@ -50,15 +51,15 @@ def register(subparsers) -> None:
     parser.add_argument("--no-richardson", action="store_true", help="no Richardson extrapolation")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario value (as for run)")
+    parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.set_defaults(func=linearize_command)
 
 
 def linearize_command(args) -> int:
     from datetime import datetime, timezone
 
-    from shell.analysis.linear_model_file import FORMAT as LINEAR_FORMAT
     from shell.analysis.linear_model_file import write_linear_model, write_mat
-    from shell.log_file import LogError, check_log_target, check_output_place
+    from shell.outputs import LINEAR_MODEL, MAT, guard_output
     from shell.analysis.linearize import linearize
     from shell.analysis.trim import trim
     from shell.model import ModelError
@@ -66,15 +67,10 @@ def linearize_command(args) -> int:
     from shell.units import UnitError
 
     try:  # outputs first: a refused output costs nothing, a linearization may take minutes
-        for output, kind in ((args.output, LINEAR_FORMAT), (args.mat, None)):
-            if output is None:
-                continue
-            if Path(output).resolve() == Path(args.scenario).resolve():
-                raise LogError(f"{output}: is the scenario itself; choose another output")
-            if kind is None:
-                check_output_place(output)
-            else:
-                check_log_target(output, kind)
+        for output, kind, other in ((args.output, LINEAR_MODEL, args.mat), (args.mat, MAT, args.output)):
+            if output is not None:
+                guard_output(output, kind, inputs=((args.scenario, "the scenario itself"),),
+                             overwrite=args.overwrite, others=(other,))
         if args.at is not None and not (math.isfinite(args.at) and args.at >= 0):
             raise ValueError(f"--at {args.at}: expected a finite time >= 0 (s)")
         scenario = load_scenario(args.scenario, args.overrides)

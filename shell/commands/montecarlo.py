@@ -8,6 +8,8 @@ import threading
 import time
 from pathlib import Path
 
+from shell.outputs import OVERWRITE
+
 
 def _import_quietly(name: str) -> None:
     try:
@@ -29,7 +31,9 @@ def register(subparsers) -> None:
     parser.add_argument("--workers", type=int, help="pool / LocalCluster worker processes (default: cores)")
     parser.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://host:8786")
     parser.add_argument("--resume", action="store_true", help="finish a partial campaign in OUT.h5")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing OUT.h5")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing OUT.h5: a campaign's results (instead of finishing them with "
+                             "--resume), a file of another kind, or the campaign file itself")
     parser.add_argument("--rerun", type=int, metavar="I",
                         help="run only run I again, write its full log to -o, print its draws and metrics")
     parser.add_argument("--print-overrides", type=int, metavar="I",
@@ -68,10 +72,10 @@ class CampaignProgress:
 
 
 def run(args) -> int:
-    from shell.log_file import LogError, check_log_target
     from shell.montecarlo.campaign import load_campaign
     from shell.montecarlo.executors import SchedulerUnreachable, check_scheduler, run_campaign
-    from shell.montecarlo.results import FORMAT, ResultsError
+    from shell.montecarlo.results import ResultsError
+    from shell.outputs import CAMPAIGN, LOG, clear_for_writing
     from shell.scenario import ScenarioError
     from shell.units import UnitError
 
@@ -84,13 +88,8 @@ def run(args) -> int:
             if args.executor != "dask":
                 raise ValueError("--scheduler needs --executor dask")
             check_scheduler(args.scheduler)
-        if args.output and not (args.resume or args.rerun is not None):
-            if Path(args.output).exists() and not args.overwrite:
-                raise ValueError(f"{args.output} exists; pass --resume to finish that campaign or choose "
-                                 "another output")
-            check_log_target(args.output, FORMAT)
-        elif args.output and args.rerun is not None:
-            check_log_target(args.output)
+        if args.output:
+            _guard(args, args.output)
     except (ValueError, SchedulerUnreachable) as exc:
         print(f"flexshell montecarlo: {exc}", file=sys.stderr)
         return 1
@@ -112,14 +111,17 @@ def run(args) -> int:
         for item in campaign.overrides(args.print_overrides):
             print(f"--set \"{item}\"")
         return 0
-    output = args.output or f"{campaign.name}.h5"
+    output = args.output or (f"{campaign.name}_run{args.rerun}.h5" if args.rerun is not None else
+                             f"{campaign.name}.h5")
+    try:
+        _guard(args, output)
+    except ValueError as exc:
+        print(f"flexshell montecarlo: {exc}", file=sys.stderr)
+        return 1
+    if args.overwrite and not args.resume:  # the results and log writers replace only their own kind
+        clear_for_writing(output, LOG if args.rerun is not None else CAMPAIGN)
     if args.rerun is not None:
-        try:
-            check_log_target(args.output or f"{campaign.name}_run{args.rerun}.h5")
-        except LogError as exc:
-            print(f"flexshell montecarlo: {exc}", file=sys.stderr)
-            return 1
-        return _rerun(campaign, args.rerun, args.output or f"{campaign.name}_run{args.rerun}.h5")
+        return _rerun(campaign, args.rerun, output)
     progress = CampaignProgress(enabled=not args.quiet and sys.stderr.isatty())
     start = time.perf_counter()
     try:
@@ -142,6 +144,19 @@ def run(args) -> int:
     _print_metric_summary(output)
     print(f"results: {output}")
     return 0 if counts.get("pending", 0) == 0 else 1
+
+
+def _guard(args, output) -> None:
+    """The output guard (shell.outputs): a results file, or with --rerun a log; --resume reads the output."""
+    from shell.outputs import CAMPAIGN, LOG, guard_output
+
+    if args.resume or args.print_overrides is not None:
+        return
+    guard_output(output, LOG if args.rerun is not None else CAMPAIGN,
+                 inputs=((args.campaign, "the campaign file itself"),), overwrite=args.overwrite)
+    if args.rerun is None and Path(output).exists() and not args.overwrite:
+        raise ValueError(f"{output} exists; pass --resume to finish that campaign, {OVERWRITE} to replace it, "
+                         "or choose another output")
 
 
 def _print_metric_summary(output) -> None:

@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from shell.outputs import OVERWRITE_HELP
+
 PER_PAGE = 6
 PANEL_HEIGHT = 1.9   # inches per panel
 FIGURE_WIDTH = 9.0   # inches
@@ -57,6 +59,7 @@ def register(subparsers) -> None:
                         help="commanded attitude of the attitude-error panel (default: the attitude_command "
                              "of the controller attached to the same node, else identity)")
     parser.add_argument("--no-derived", action="store_true", help="no attitude-error or Euler-angle panels")
+    parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.set_defaults(func=plot)
 
 
@@ -393,15 +396,18 @@ def plot(args) -> int:
         matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from shell.log_file import LogIncompleteWarning, check_output_place, log_info, read_log
+    from shell.log_file import LogIncompleteWarning, log_info, read_log
+    from shell.outputs import figure_kind, guard_output
 
     output = args.output or str(Path(args.log).with_suffix(".png"))
+    inputs = ((args.log, "the log itself"),)
     try:
         if args.per_page < 1:
             raise ValueError(f"--per-page: expected a positive number of panels, given {args.per_page}")
         reference = _reference(args.attitude_reference)
         if not args.show:
-            check_output_place(output)
+            kind = figure_kind(output)  # the format, from the suffix: refused before the log is read
+            guard_output(output, kind, inputs=inputs, overwrite=args.overwrite)
         info = log_info(args.log)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", LogIncompleteWarning)
@@ -420,6 +426,14 @@ def plot(args) -> int:
         plt.show()
         return 0
     paths = page_paths(output, len(figures))
+    try:  # the pages of a multi-page PNG (fig-1.png, ...) are outputs too
+        for path in paths:
+            guard_output(path, kind, inputs=inputs, overwrite=args.overwrite)
+    except ValueError as exc:
+        for figure in figures:
+            plt.close(figure)
+        print(f"flexshell plot: {exc}", file=sys.stderr)
+        return 1
     if len(paths) == 1 and len(figures) > 1:
         from matplotlib.backends.backend_pdf import PdfPages
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 
 def register(subparsers) -> None:
@@ -12,18 +11,22 @@ def register(subparsers) -> None:
                                                "scatter plots and kept-signal overlays of a campaign results file.")
     parser.add_argument("results", help="campaign results file written by flexshell montecarlo")
     parser.add_argument("-o", "--output", default="report", help="output directory (default: report)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace files of the report's names (percentiles.md, hist_*.png, ...) in the output "
+                             "directory even when the report did not write them (without it they are refused)")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
     from shell.montecarlo.report import write_report
     from shell.montecarlo.results import ResultsError
+    from shell.outputs import OutputError, guard_report_directory
 
     try:
-        if Path(args.output).exists() and not Path(args.output).is_dir():
-            raise ResultsError(f"{args.output}: exists and is not a directory; give a directory for the report")
+        guard_report_directory(args.output, inputs=((args.results, "the campaign results itself"),),
+                               overwrite=args.overwrite)
         written = write_report(args.results, args.output)
-    except (ResultsError, OSError) as exc:
+    except (ResultsError, OutputError, OSError) as exc:
         print(f"flexshell report: {exc}", file=sys.stderr)
         return 1
     print((args.output.rstrip("/") + "/percentiles.md"))

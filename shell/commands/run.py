@@ -12,6 +12,8 @@ import sys
 import threading
 from pathlib import Path
 
+from shell.outputs import OVERWRITE_HELP
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser("run", help="run a YAML scenario and log it to HDF5",
@@ -25,6 +27,7 @@ def register(subparsers) -> None:
     parser.add_argument("--t-final", help="stop time (overrides stop.time), e.g. 30 or '30 s'")
     parser.add_argument("--restore", metavar="RESTART.h5", help="continue from a saved state")
     parser.add_argument("--save-state", metavar="RESTART.h5", help="save the final state for a restart")
+    parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
 
@@ -188,7 +191,7 @@ def stop_time(value: str, scenario_file: str) -> float:
 
 
 def run(args) -> int:
-    from shell.log_file import LogError, check_log_target
+    from shell.outputs import LOG, RESTART, OutputError, guard_output
     from shell.scenario import ScenarioError, check_sample_counts, load_scenario
     from shell.units import UnitError
 
@@ -203,17 +206,16 @@ def run(args) -> int:
         output = args.output or scenario.log_file or f"{Path(args.scenario).stem}.h5"
         if not scenario.log_signals:
             output = None
+        inputs = ((args.scenario, "the scenario itself"), (args.restore, "the restart file of --restore"))
         if output is not None:
             try:
-                if Path(output).resolve() == Path(args.scenario).resolve():
-                    raise LogError(f"{output}: is the scenario itself; choose another log file")
-                check_log_target(output)
-            except LogError as exc:
+                guard_output(output, LOG, inputs=inputs, overwrite=args.overwrite, others=(args.save_state,))
+            except OutputError as exc:
                 if args.output:
                     raise
-                raise LogError(f"{scenario.location('log', 'file')}: {exc}") from None
+                raise OutputError(f"{scenario.location('log', 'file')}: {exc}") from None
         if args.save_state:
-            check_log_target(args.save_state, "flexshell-restart")
+            guard_output(args.save_state, RESTART, inputs=inputs, overwrite=args.overwrite)
     except (ScenarioError, UnitError, ValueError, OSError) as exc:
         print(f"flexshell run: {exc}", file=sys.stderr)
         return 1
@@ -223,6 +225,7 @@ def run(args) -> int:
 
 def _build_and_run(args, scenario, t_final, output, notice: CompileNotice) -> int:
     from shell.log_file import LogError
+    from shell.outputs import LOG, clear_for_writing
     from shell.scenario import ScenarioError, build_simulation
     from shell.simulation import SimulationError
     from shell.units import UnitError
@@ -245,6 +248,8 @@ def _build_and_run(args, scenario, t_final, output, notice: CompileNotice) -> in
         notice.stop()
         bar.close()
 
+    if output and args.overwrite:  # the log writer replaces only a log: the foreign file approved goes now
+        clear_for_writing(output, LOG)
     in_main_thread = threading.current_thread() is threading.main_thread()  # signal handlers live there
     _SIGTERMS.clear()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None

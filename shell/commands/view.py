@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import sys
 import time
-import warnings
 from pathlib import Path
+
+from shell.outputs import OVERWRITE_HELP
 
 
 def register(subparsers) -> None:
@@ -49,6 +50,7 @@ def register(subparsers) -> None:
                                        "else 10 Hz)")
     parser.add_argument("--max-frames", type=int, default=6000,
                         help="most frames kept from a log (evenly decimated; default 6000)")
+    parser.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     parser.set_defaults(func=view)
 
 
@@ -97,23 +99,10 @@ def _scale(value: str):
     return scale
 
 
-def _check_output(output: Path, source: Path) -> None:
-    from shell.log_file import check_output_place
-
-    check_output_place(output)
-    if output.exists() and output.resolve() == source.resolve():
-        raise ValueError(f"{output}: is the input itself; choose another output")
-    if output.exists() and output.stat().st_size:
-        with open(output, "rb") as f:
-            head = f.read(64).lstrip().lower()
-        if not head.startswith((b"<!doctype html", b"<html")):
-            raise ValueError(f"{output}: exists and is not an HTML page; refusing to overwrite it (remove it or "
-                             "choose another output)")
-
-
 def view(args) -> int:
     from shell.log_file import LogError
     from shell.model import ModelError
+    from shell.outputs import HTML, guard_output
     from shell.scenario import ScenarioError
     from shell.units import UnitError
     from shell.view.page import write_html
@@ -126,7 +115,9 @@ def view(args) -> int:
         if not source.is_file():
             raise ValueError(f"{source}: no such file")
         kind = _kind(source)
-        _check_output(output, source)
+        guard_output(output, HTML, inputs=((source, "the input itself"), (args.scenario, "the scenario of --scenario"),
+                                           *((item.partition("=")[2], "a mesh of --mesh") for item in args.mesh)),
+                     overwrite=args.overwrite)
         scale, meshes = _scale(args.scale), _meshes(args.mesh)
         if args.max_frames < 2:
             raise ValueError(f"--max-frames: expected at least 2, given {args.max_frames}")
@@ -135,29 +126,24 @@ def view(args) -> int:
                              "(flexshell linearize)")
         if args.t_final is not None and kind != "scenario":
             raise ValueError(f"--t-final: {source} is a {kind}; --t-final runs a scenario")
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            if kind == "log":
-                scene = from_log(source, signals=args.signals, scenario=args.scenario, overrides=args.overrides,
-                                 meshes=meshes, scale=scale, max_frames=args.max_frames)
-            elif kind == "linear":
-                if args.mode is None:
-                    raise ValueError(f"{source}: a linear model; say which system mode to animate with --mode K "
-                                     "(1 = lowest frequency)")
-                scene = from_linear_model(source, args.mode, scenario=args.scenario,
-                                          overrides=args.overrides or None, meshes=meshes, scale=scale)
-            else:
-                t_final = None
-                if args.t_final is not None:
-                    from shell.commands.run import stop_time
+        if kind == "log":
+            scene = from_log(source, signals=args.signals, scenario=args.scenario, overrides=args.overrides,
+                             meshes=meshes, scale=scale, max_frames=args.max_frames)
+        elif kind == "linear":
+            if args.mode is None:
+                raise ValueError(f"{source}: a linear model; say which system mode to animate with --mode K "
+                                 "(1 = lowest frequency)")
+            scene = from_linear_model(source, args.mode, scenario=args.scenario,
+                                      overrides=args.overrides or None, meshes=meshes, scale=scale)
+        else:
+            t_final = None
+            if args.t_final is not None:
+                from shell.commands.run import stop_time
 
-                    t_final = stop_time(args.t_final, str(source))
-                scene = from_scenario(source, overrides=args.overrides, meshes=meshes, scale=scale, t_final=t_final,
-                                      rate=args.rate, signals=args.signals, max_frames=args.max_frames,
-                                      say=lambda text: print(f"flexshell view: {text}", flush=True))
-        for warning in caught:
-            if not issubclass(warning.category, (DeprecationWarning, PendingDeprecationWarning)):
-                print(f"flexshell view: warning: {warning.message}", file=sys.stderr)
+                t_final = stop_time(args.t_final, str(source))
+            scene = from_scenario(source, overrides=args.overrides, meshes=meshes, scale=scale, t_final=t_final,
+                                  rate=args.rate, signals=args.signals, max_frames=args.max_frames,
+                                  say=lambda text: print(f"flexshell view: {text}", flush=True))
         size = write_html(scene, output)
     except (ViewError, ScenarioError, LogError, ModelError, UnitError, ValueError, KeyError, OSError) as exc:
         print(f"flexshell view: {exc.args[0] if isinstance(exc, KeyError) else exc}", file=sys.stderr)

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets
+from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, count_option, named_offsets
 from shell.registry import register_model
 
 
@@ -79,7 +79,8 @@ class PseudoInverseAllocator(Model):
                  command_unit: str = "N*m", **kwargs):
         if "pseudo_inverse" in kwargs:
             raise ModelError(f"model {name}: pseudo_inverse is computed from effectiveness; do not give it")
-        self.n_demand, self.n_actuators = int(demand), int(actuators)
+        self.n_demand = count_option(name, "demand", demand, "demanded components")
+        self.n_actuators = count_option(name, "actuators", actuators, "actuators")
         self.demand_unit, self.command_unit = demand_unit, command_unit
         super().__init__(name, **kwargs)
 
@@ -136,7 +137,7 @@ class NodeLoadSum(Model):
     feedthrough_outputs = staticmethod(_sum_loads)
 
     def __init__(self, name: str, *, count: int = 2, **kwargs):
-        self.count = int(count)
+        self.count = count_option(name, "count", count, "loads")
         super().__init__(name, **kwargs)
 
     outputs = LOAD_SUM_OUTPUTS

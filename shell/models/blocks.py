@@ -32,7 +32,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State
+from shell.model import MAX_COUNT, MAX_ELEMENTS, InputPort, Model, ModelError, OutputPort, Parameter, State
 from shell.registry import register_model
 
 
@@ -195,8 +195,9 @@ class Sum(_Block):
     feedthrough_outputs = staticmethod(_sum)
 
     def __init__(self, name: str, *, count: int = 2, unit: str = "", shape=(), **kwargs):
-        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
-            raise ModelError(f"model {name}: config count: expected an integer >= 1 (the number of inputs), "
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= MAX_COUNT:
+            raise ModelError(f"model {name}: config count: expected an integer >= 1 (the number of inputs, at most "
+                             f"{MAX_COUNT}), "
                              f"given {count!r}")
         self.count = int(count)
         super().__init__(name, unit=unit, shape=shape, **kwargs)
@@ -276,8 +277,10 @@ class Profile(_Block):
     offsets = {"p": P_PROFILE, "y": Y_PROFILE}
 
     def __init__(self, name: str, *, unit: str = "", shape=(), segments: int = 1, **kwargs):
-        if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)) or segments < 1:
-            raise ModelError(f"model {name}: Profile config segments must be a whole number >= 1, got {segments!r}")
+        if (isinstance(segments, bool) or not isinstance(segments, (int, np.integer))
+                or not 1 <= segments <= MAX_ELEMENTS):
+            raise ModelError(f"model {name}: Profile config segments must be a whole number >= 1 (at most "
+                             f"{MAX_ELEMENTS:.0e}), got {segments!r}")
         self.segments = int(segments)
         super().__init__(name, unit=unit, shape=shape, **kwargs)
 

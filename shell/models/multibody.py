@@ -498,6 +498,7 @@ class MultibodyModel(Model):
         """Build from the scenario's ``multibody:`` mapping; ``where`` locates errors (file, line, key)."""
         from dynamics import ModelDefinitionError, Multibody
 
+        from shell.diagnostics import located
         from shell.scenario import _expect_list, _expect_mapping, _expect_name
 
         _expect_mapping(description, where, {"name": "engine model name (default multibody)",
@@ -547,6 +548,8 @@ class MultibodyModel(Model):
                         "the body file gives the mass properties of a flexible body" if flexible else
                         f"{key!r} applies to flexible bodies (with body_file:)")
             parent = body.get("parent", "world")
+            if parent is not None:
+                parent = _expect_name(parent, here.child(body, "parent"), "a body name or world")
             kwargs = dict(
                 hinge=_expect_name(body["hinge"], here.child(body, "hinge"), "a hinge type"),
                 inboard_position=_vector(body, "inboard_position", "m", (3,), here, (0, 0, 0)),
@@ -564,11 +567,12 @@ class MultibodyModel(Model):
                 kwargs["parent_node"] = _expect_name(body["parent_node"], here.child(body, "parent_node"), "a node")
             parent = None if parent in (None, "world") else parent
             try:
-                if flexible:
-                    builder.add_flexible_body(body_name, parent, **_flexible_options(body, here), **kwargs)
-                else:
-                    mass, com, inertia = rigid_mass_properties(body, here)
-                    builder.add_body(body_name, parent, mass=mass, inertia=inertia, com=com, **kwargs)
+                with located(here):  # the engine's warnings about this body, with its file, line and key
+                    if flexible:
+                        builder.add_flexible_body(body_name, parent, **_flexible_options(body, here), **kwargs)
+                    else:
+                        mass, com, inertia = rigid_mass_properties(body, here)
+                        builder.add_body(body_name, parent, mass=mass, inertia=inertia, com=com, **kwargs)
             except (ModelDefinitionError, OSError, KeyError) as exc:
                 raise here.error(str(exc.args[0] if isinstance(exc, KeyError) else exc)) from None
             for add in pending_nodes.pop(body_name, []):

@@ -33,7 +33,7 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, named_offsets
+from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, count_option, named_offsets
 from shell.registry import register_model
 
 #: unit of each declaration by kind of hinge
@@ -77,7 +77,7 @@ class SloshSpringDamper(Model):
     def __init__(self, name: str, *, dofs: int = 2, kind: str = "rotational", **kwargs):
         if kind not in UNITS:
             raise ModelError(f"model {name}: config kind: expected one of {sorted(UNITS)}, given {kind!r}")
-        self.dofs, self.kind = int(dofs), kind
+        self.dofs, self.kind = count_option(name, "dofs", dofs, "hinge degrees of freedom", 3), kind
         super().__init__(name, **kwargs)
 
     def declare(self):

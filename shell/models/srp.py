@@ -28,7 +28,7 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, named_offsets
+from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, count_option, named_offsets
 from shell.models.ephemeris import ASTRONOMICAL_UNIT
 from shell.registry import register_model
 
@@ -119,10 +119,7 @@ class SolarRadiationPressure(Model):
     feedthrough_outputs = staticmethod(_srp_loads)
 
     def __init__(self, name: str, *, plates: int = 1, **kwargs):
-        if isinstance(plates, bool) or not isinstance(plates, (int, np.integer)) or plates < 1:
-            raise ModelError(f"model {name}: config plates: expected a positive whole number of plates, "
-                             f"given {plates!r}")
-        self.plate_count = int(plates)
+        self.plate_count = count_option(name, "plates", plates, "plates")
         super().__init__(name, **kwargs)
 
     def declare(self):

@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets
+from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, count_option, named_offsets
 from shell.models.ephemeris import ASTRONOMICAL_UNIT
 from shell.models.gravity import EARTH_RADIUS
 from shell.registry import register_model
@@ -133,10 +133,7 @@ class CoarseSunSensors(Model):
     update = staticmethod(_css_sample)
 
     def __init__(self, name: str, *, sensors: int = 1, **kwargs):
-        if isinstance(sensors, bool) or not isinstance(sensors, (int, np.integer)) or sensors < 1:
-            raise ModelError(f"model {name}: config sensors: expected a positive whole number of cells, "
-                             f"given {sensors!r}")
-        self.sensor_count = int(sensors)
+        self.sensor_count = count_option(name, "sensors", sensors, "cells")
         super().__init__(name, **kwargs)
 
     def declare(self):
@@ -246,10 +243,7 @@ class SunDirectionEstimate(Model):
     feedthrough_outputs = staticmethod(_sun_direction_estimate)
 
     def __init__(self, name: str, *, sensors: int = 3, **kwargs):
-        if isinstance(sensors, bool) or not isinstance(sensors, (int, np.integer)) or sensors < 1:
-            raise ModelError(f"model {name}: config sensors: expected a positive whole number of cells, "
-                             f"given {sensors!r}")
-        self.sensor_count = int(sensors)
+        self.sensor_count = count_option(name, "sensors", sensors, "cells")
         super().__init__(name, **kwargs)
 
     def declare(self):

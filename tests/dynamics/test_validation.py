@@ -56,10 +56,18 @@ def test_duplicate_names_are_refused():
         mb.add_node("imu", "bsae")
 
 
-def test_triangle_inequality_violation_warns():
+def test_triangle_inequality_violation_is_refused():
+    """Warned until issue 34, refused since: no mass distribution has such moments (shell/diagnostics.py)."""
     mb = Multibody()
-    with pytest.warns(UserWarning, match="body 'rod'.*triangle inequality"):
+    with pytest.raises(ModelDefinitionError, match="body 'rod'.*triangle inequality"):
         mb.add_body("rod", None, mass=1.0, inertia=[0.1, 0.1, 1.0], hinge="revolute", axis=(1, 0, 0))
+    mb.add_body("disk", None, mass=1.0, inertia=[0.5, 0.5, 1.0], hinge="revolute", axis=(1, 0, 0))  # equality
+    with pytest.raises(ModelDefinitionError, match="parent must be a body name"):
+        mb.add_body("wheel", ["disk"], mass=1.0, inertia=[1, 1, 1], hinge="locked")
+    with pytest.raises(ModelDefinitionError, match="unknown hinge type"):
+        mb.add_body("wheel", None, mass=1.0, inertia=[1, 1, 1], hinge={"type": "locked"})
+    with pytest.raises(ModelDefinitionError, match="unknown body"):
+        mb.add_node("n", {"body": "disk"})
 
 
 def test_wrong_state_shapes_are_refused():

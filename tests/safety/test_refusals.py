@@ -513,13 +513,15 @@ def test_montecarlo_refuses_a_run_it_does_not_have(put, cli, tmp_path):
     assert "--print-overrides 99" in err and "0..3" in err, err
 
 
-def test_montecarlo_overwrite_refuses_a_file_that_is_not_a_campaign(put, cli, tmp_path):
+def test_montecarlo_refuses_a_file_that_is_not_a_campaign(put, cli, tmp_path):
+    """Until issue 34, --overwrite refused it too; it now replaces it, as --overwrite does for every verb
+    (tests/safety/test_outputs.py)."""
     put("scene.yaml", RAMP)
     campaign = put("campaign.yaml", CAMPAIGN)
     output = put("precious.h5", "not a campaign")
-    code, _, err = cli("montecarlo", campaign, "-o", output, "--overwrite", "--quiet")
+    code, _, err = cli("montecarlo", campaign, "-o", output, "--quiet")
     assert code == 1 and "Traceback" not in err
-    assert str(output) in err and "refusing to overwrite" in err
+    assert str(output) in err and "refusing to overwrite" in err and "--overwrite" in err
     assert output.read_text() == "not a campaign"
 
 
