@@ -141,6 +141,13 @@ class FlexibleBodyData:
     node_inertia: NodeInertia | None = None
     geometric_stiffening: bool = False  # the terms of add_geometric_stiffening are in
     stiffness_available: bool = False  # the body file holds geometric stiffness (used or not)
+    first_frequency_hz: float | None = None  # the body's lowest elastic frequency mounted (None: its lowest mode's)
+
+    @property
+    def lowest_frequency_hz(self):
+        """The lowest elastic frequency to compare the scene's rates with: ``first_frequency_hz`` (a component
+        mode set's fixed-interface frequency: the body held at its interface), else the lowest of its modes."""
+        return float(self.first_frequency_hz if self.first_frequency_hz is not None else np.min(self.frequencies_hz))
 
     @property
     def mass(self):
@@ -433,8 +440,19 @@ def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=No
                             frequencies_hz=np.asarray(body.frequencies_hz)[keep], source=body.source,
                             terms=terms, node_inertia=nodes,
                             geometric_stiffening=gs is not None and geometric_stiffening is not False,
-                            stiffness_available=gs is not None)
+                            stiffness_available=gs is not None, first_frequency_hz=_first_frequency(body, keep))
     return data.without(omit_terms)
+
+
+def _first_frequency(body, keep):
+    """The lowest elastic frequency of the body file's kept modes, or of its fixed-interface modes when it has
+    them (normalized component modes list the frequencies of the free body: 6.4 times the first of a cantilever
+    held at its interface)."""
+    f = float(np.min(np.asarray(body.frequencies_hz)[keep]))
+    cb = getattr(body, "craig_bampton", None)
+    if cb is not None and len(cb.frequencies_hz):
+        f = min(f, float(np.min(cb.frequencies_hz)))
+    return f
 
 
 def _select_modes(mi, keep, skip=()):

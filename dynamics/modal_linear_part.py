@@ -23,7 +23,14 @@ with ``E`` the selection ``eta_dot = u[modal]`` (a 0/1 matrix) and the remainder
 
 ``L`` is the Jacobian of the dynamics with respect to ``(eta, u_f)`` at rest (``u = 0``, where the velocity
 products are quadratic and contribute nothing, and without gravity; with gravity the load-dependent
-geometric stiffness of order-1/2 modal integrals is left in ``N``, it is small against ``K``). Its
+geometric stiffness of order-1/2 modal integrals is left in ``N``, it is small against ``K``), except for
+spinning rotors on deforming nodes: a rotor's spin momentum ``h`` couples the node's rotation rates to its
+torque ``(lambda eta_dot) x h``, and through the node's rotational mode shapes ``lambda`` (whose sum of squares
+grows with every mode that rotates the node) that coupling is as stiff as the modes themselves (a 5 N m s
+wheel on the middle grid of the 196-mode tube of benchmarks/flexible_observatory.py: ``h rho(N) = 136`` at
+1 ms, against a stability limit of 2.8). ``L`` therefore takes the gyroscopic term at the rotors' current
+spin rates in the columns of the carrier's modal rates (:func:`rotor_gyroscopic_coupling`),
+and ``N`` keeps the slow rest (the coupling with the rigid rates, the change of the spin). Its
 eigenvalues are the system modes of the assembled structure at ``q0`` (the generalized eigenproblem
 ``K_aug phi = omega^2 M phi`` of :mod:`dynamics.modal_analysis`, with damping), plus zeros for the rigid DOFs.
 All the stiffness of the problem (frequencies up to the top retained mode) is in ``L``; ``N`` carries
@@ -106,8 +113,46 @@ def _rotors_averaged(system):
     return averaged
 
 
-def modal_linear_part(system, q):
-    """``(indices, L)``: the linear part of ``d/dt [q; u]`` over ``indices`` into ``[q; u]`` (module docstring).
+def rotor_gyroscopic_coupling(system, u):
+    """``C`` (nu x nu): ``d(bias)/d(eta_dot)`` of the spin momentum of every rotor hinged on a node of a flexible
+    body, ``-J' [h x] lambda`` in the carrier's rows and its modal-rate columns, with ``J = [S_rot, lambda]`` the
+    node's angular velocity per unit rate of the carrier's hinge (its motion subspace's rotational rows, body axes:
+    left in the workspace by the last kinematics pass of ``system`` at the configuration) and of its modes
+    (``lambda``, the node's rotational mode shapes), and ``h = J_a s a`` the rotor's spin momentum (axial moment
+    about its hinge point, spin rate, axis in the carrier's axes): the gyroscopic coupling of the node's elastic
+    rotation rates.
+    (The coupling of the rigid rates, of the carrier and its ancestors, is slow, as the rigid motion, and stays in
+    ``N``; in ``L`` it would also couple the rigid velocities' zero eigenvalues into a defective matrix.)"""
+    from dynamics.layout import MAT_S
+
+    bodies, nodes, _ = system.definitions
+    has_children = {p for p in system.parents if p >= 0}
+    node_index = {nd.name: k for k, nd in enumerate(nodes)}
+    C = np.zeros((system.nu, system.nu))
+    for i, b in enumerate(bodies):
+        carrier = system.parents[i]
+        if (b.flexible is not None or b.hinge != "revolute" or i in has_children or carrier < 0
+                or bodies[carrier].flexible is None or b.parent_node is None):
+            continue
+        node = nodes[node_index[b.parent_node]]
+        span = system.u_slices[carrier]
+        n = system.n_modes[carrier]
+        nh = span.stop - span.start - n
+        J = np.concatenate([system.ws_mat[carrier, MAT_S, :3, :nh], np.asarray(node.shape, dtype=float)[:3]], axis=1)
+        a_rotor = b.outboard_rotation @ b.axes[0]
+        d = b.com - b.outboard_position
+        J_point = b.inertia + b.mass * (d @ d * np.eye(3) - np.outer(d, d))
+        spin = u[system.u_slices[i].start]
+        h = (a_rotor @ J_point @ a_rotor) * spin * (node.rotation @ b.inboard_rotation @ b.axes[0])
+        skew = np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
+        modal = slice(span.stop - n, span.stop)
+        C[span, modal] -= J.T @ skew @ J[:, nh:]
+    return C
+
+
+def modal_linear_part(system, q, u=None):
+    """``(indices, L)``: the linear part of ``d/dt [q; u]`` over ``indices`` into ``[q; u]`` (module docstring);
+    ``u`` gives the rotors' spin rates (none when omitted).
 
     ``indices`` lists the modal coordinates (positions in ``q``) followed by every free velocity
     (positions ``system.nq + k`` in ``[q; u]``); ``L`` is square over them. A system without flexible bodies
@@ -128,7 +173,8 @@ def modal_linear_part(system, q):
     position_in_free = np.full(system.nu, -1, dtype=np.int64)
     position_in_free[free] = np.arange(n_free)
     eta_in_free = position_in_free[eta_u]
-    M_ff = _rotors_averaged(system).mass_matrix(q)[np.ix_(free, free)]
+    averaged = _rotors_averaged(system)
+    M_ff = averaged.mass_matrix(q)[np.ix_(free, free)]
     K_aug = system.stiffness_matrix()
     D_aug = system.damping_matrix()
     try:
@@ -136,6 +182,8 @@ def modal_linear_part(system, q):
     except np.linalg.LinAlgError:
         raise ValueError("modal_linear_part: the mass matrix of the free DOFs is not positive definite at this "
                          "configuration (a massless subtree or aligned hinge axes)") from None
+    if u is not None:
+        D_aug = D_aug + rotor_gyroscopic_coupling(averaged, np.asarray(u, dtype=np.float64))
     rhs = np.concatenate([K_aug[np.ix_(free, eta_u)], D_aug[np.ix_(free, free)]], axis=1)
     solved = scipy.linalg.cho_solve(factor, rhs)
     L = np.zeros((n_eta + n_free, n_eta + n_free))

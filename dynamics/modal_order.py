@@ -5,7 +5,8 @@ A flexible body's mass matrix ``M(eta)`` (:mod:`dynamics.flexible_body`) couples
 its reference frame at order 0 only through the constant participation factors (for free-free modes: not
 at all); the rotation of the frame enters the modes through the first-order terms (Coriolis and
 centrifugal coupling, relative size ``Omega / omega_1`` against the modes' own dynamics, Omega the body's
-angular rate, omega_1 its lowest kept frequency) and the second-order ones (spin softening and the changes of
+angular rate, omega_1 its lowest elastic frequency: of its modes, or held at its interface for a component mode
+set, ``FlexibleBodyData.lowest_frequency_hz``) and the second-order ones (spin softening and the changes of
 the rotational inertia, relative size ``(Omega / omega_1)^2``). The terms of nodes with rotary inertia that
 turn with the nodes' elastic rotations (G1, F2, G2) are relative corrections of the size of those rotations.
 For a body with ``order="auto"`` :func:`resolve_modal_orders` estimates these sizes from the scene at its
@@ -100,7 +101,7 @@ def _node_rotation_estimate(data, omega):
 
 
 def _choose(name, data, omega, prescribed, turns, tolerance):
-    omega1 = 2.0 * np.pi * float(np.min(data.frequencies_hz))
+    omega1 = 2.0 * np.pi * data.lowest_frequency_hz
     nodal = ("G1", "F2", "G2")
     if not turns:
         return ModalOrderChoice(name, 0, (), "modal integrals order 0 (auto): no hinge between it and the ground "
@@ -125,21 +126,20 @@ def _choose(name, data, omega, prescribed, turns, tolerance):
 
 
 def stiffening_warnings(system, q, u, ratio=STIFFENING_RATIO):
-    """One message per flexible body modelled without geometric stiffness whose angular rate Omega at ``q``, ``u``
-    gives ``(Omega / omega_1)^2`` above ``ratio``: the body, the ratio and the flag (module docstring)."""
+    """One message per flexible body whose file has no geometric stiffness and whose angular rate Omega at ``q``,
+    ``u`` gives ``(Omega / omega_1)^2`` above ``ratio``: the body, the ratio and the flag (module docstring). A
+    body whose file has it but whose scene switches it off (``geometric_stiffening: false``) chose so."""
     messages = []
     for i, (omega, _, _) in enumerate(_rates(system, q, u)):
         data = system.definitions[0][i].flexible
-        if data is None or data.n_modes == 0 or data.geometric_stiffening:
+        if data is None or data.n_modes == 0 or data.stiffness_available:  # with it, or switched off on purpose
             continue
-        r = (omega / (2.0 * np.pi * float(np.min(data.frequencies_hz)))) ** 2
+        r = (omega / (2.0 * np.pi * data.lowest_frequency_hz)) ** 2
         if r > ratio:
-            how = ("its body file has geometric stiffness but geometric_stiffening is off" if data.stiffness_available
-                   else "its body file has no geometric stiffness: regenerate it with `flexshell fem2modal ... "
-                   "--geometric-stiffness`")
             messages.append(f"body '{system.body_names[i]}' spins at {omega:.3g} rad/s, (Omega/omega_1)^2 = {r:.3g} "
-                            f"above {ratio:g}, without the centrifugal stiffening ({how}): its frequencies are off "
-                            f"by about that ratio")
+                            f"above {ratio:g}, without the centrifugal stiffening (its body file has no geometric "
+                            f"stiffness: regenerate it with `flexshell fem2modal ... --geometric-stiffness`): its "
+                            f"frequencies are off by about that ratio")
     return messages
 
 

@@ -13,7 +13,8 @@ O(n^2)), and the system ``(K0 + dK) udot = f`` is solved by the iteration ``K0 u
 (Richardson, converging as ``rho^k`` with ``rho`` the spectral radius of ``K0^-1 dK``, of the order of the
 nodes' elastic rotation angles: three to five passes to round-off for deformations of 1e-4..1e-3 rad),
 each pass one product with ``dG`` over the nodes (O(N_r n)) and the bias and acceleration passes. The
-iteration stops when the modal accelerations change by less than 4 eps of their size, or stagnate at round-off;
+iteration stops when the next change of the modal accelerations would be below 1e-14 of their size (the
+round-off of the sums that form them), or stagnates at round-off;
 when the passes it still needs (predicted from its contraction rate) would cost more than forming ``G(eta)``
 and factoring it (the body's budget, ``dynamics.system.refinement_budget``: node rotations of a tenth of a
 radian and more on a body of a few tens of modes), the forward dynamics is solved again with ``G(eta)``
@@ -41,6 +42,9 @@ from dynamics.spatial import force_to_parent_add, inertia_to_parent_add, mat6_ve
 
 NOT_CONVERGED = -1
 """Status of a pass whose refinement of the modal mass would cost more than factoring it (solved again so)."""
+REFINED = 1e-14
+"""The refinement stops when its next correction would be below this fraction of the largest modal acceleration:
+the round-off of the sums over modes and nodes that form them."""
 
 
 @njit(cache=True, inline="always")
@@ -250,12 +254,8 @@ def _bias_pass(topology, nodes, params, tau, factored, ws_rot, ws_vec, ws_mat, p
 
 
 @njit(cache=True)
-def _refinement_products(topology, params, udot, first, pool):
-    """``(G(eta) - G0) etaddot`` of every refined body into its ``PV_DG`` vector, the modal accelerations kept in
-    ``PV_PREV``; returns (largest change of a modal acceleration since the last call, largest modal acceleration)
-    (the change is not measured when ``first``)."""
-    change = 0.0
-    scale = 0.0
+def _refinement_products(topology, params, udot, pool):
+    """``(G(eta) - G0) etaddot`` of every refined body into its ``PV_DG`` vector."""
     for i in range(topology.shape[0]):
         if not topology[i, FLEXIBLE] or not topology[i, FLEX + FX_REFINE]:
             continue
@@ -264,18 +264,30 @@ def _refinement_products(topology, params, udot, first, pool):
         pv = fx[FX_P_VEC]
         ue = topology[i, U_START] + topology[i, NU_HINGE]
         dg = pool[pv + PV_DG * n:pv + (PV_DG + 1) * n]
-        prev = pool[pv + PV_PREV * n:pv + (PV_PREV + 1) * n]
         for s in range(n):
             dg[s] = 0.0
         count = fx[FX_NODE_COUNT]
         node_inertia_times(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS],
                            pool[fx[FX_P_NODES]:fx[FX_P_NODES] + 6 * count], udot[ue:ue + n], dg)
+
+
+@njit(cache=True)
+def _refinement_change(topology, udot, pool):
+    """(largest change of a refined body's modal acceleration since the last call, largest modal acceleration),
+    keeping the accelerations in ``PV_PREV``."""
+    change = 0.0
+    scale = 0.0
+    for i in range(topology.shape[0]):
+        if not topology[i, FLEXIBLE] or not topology[i, FLEX + FX_REFINE]:
+            continue
+        n = topology[i, N_MODES]
+        pv = topology[i, FLEX + FX_P_VEC]
+        ue = topology[i, U_START] + topology[i, NU_HINGE]
         for s in range(n):
             a = udot[ue + s]
-            if not first:
-                change = max(change, abs(a - prev[s]))
+            change = max(change, abs(a - pool[pv + PV_PREV * n + s]))
             scale = max(scale, abs(a))
-            prev[s] = a
+            pool[pv + PV_PREV * n + s] = a
     return change, scale
 
 
@@ -349,22 +361,27 @@ def _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, 
     pool[P_REFINEMENTS] = 0.0
     if not refine:
         return 0
+    _refinement_products(topology, params, udot, pool)
+    _refinement_change(topology, udot, pool)
     previous = 0.0
-    for it in range(budget + 1):
-        change, scale = _refinement_products(topology, params, udot, it == 0, pool)
-        pool[P_REFINEMENTS] = it
-        if it > 0:
-            if change <= 4.4e-16 * scale:
-                return 0
-            if it > 1:
-                # contraction rate from the last two changes; stop where the iterations still needed to reach
-                # round-off exceed the budget (or it no longer contracts: at round-off already, or rho >= 1)
-                rate = change / previous
-                if rate >= 1.0 or it + np.log(4.4e-16 * scale / change) / np.log(rate) > budget:
-                    return 0 if change <= 1e-13 * scale else NOT_CONVERGED
-        previous = change
+    for it in range(1, budget + 1):
         _bias_pass(topology, nodes, params, tau, factored, ws_rot, ws_vec, ws_mat, pool)
         _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool)
+        pool[P_REFINEMENTS] = it
+        change, scale = _refinement_change(topology, udot, pool)
+        if change <= REFINED * scale:
+            return 0
+        if it > 1:
+            # contraction rate from the last two changes: done when the next change would be below round-off;
+            # given up where the passes still needed exceed the budget (or it no longer contracts: at round-off
+            # already, or rho >= 1)
+            rate = change / previous
+            if rate < 1.0 and rate * change <= REFINED * scale:
+                return 0
+            if rate >= 1.0 or it + np.log(REFINED * scale / change) / np.log(rate) > budget:
+                return 0 if change <= 10.0 * REFINED * scale else NOT_CONVERGED
+        previous = change
+        _refinement_products(topology, params, udot, pool)
     return NOT_CONVERGED
 
 

@@ -486,7 +486,7 @@ class MultibodyModel(Model):
         from dynamics.modal_linear_part import modal_linear_part
 
         system = self.system if system is None else system
-        return modal_linear_part(system, x[:system.nq])
+        return modal_linear_part(system, x[:system.nq], x[system.nq:])
 
     def quaternion_w_indices(self) -> list[int]:
         """Positions in this model's state of each hinge quaternion's w (for the integrator's error norm)."""
@@ -586,7 +586,9 @@ class MultibodyModel(Model):
         except ModelDefinitionError as exc:
             raise where.error(str(exc)) from None
         q0, u0 = initial_state(system, [(spec, here, body) for _, spec, here, body in initial])
-        system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto, and the stiffening warning
+        places = {body_name: here for body_name, _, here, _ in initial}  # the stiffening warning names its body
+        with located(lambda text: next((h for b, h in places.items() if f"body '{b}'" in text), where)):
+            system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto
         return cls(name, system, initial_q=q0, initial_u=u0)
 
 

@@ -111,6 +111,34 @@ def test_an_unbalanced_rotor_does_not_move_the_linear_part(structure):
     assert np.abs(modal_linear_part(averaged, q)[1] - L).max() <= 1e-13 * np.abs(L).max()
 
 
+def test_a_spinning_rotor_on_a_deforming_node_is_in_the_linear_part(structure):
+    """With the wheel spinning (u = its spin rate only), L's columns for the modal rates are the engine's
+    Jacobian there: the wheel's gyroscopic coupling with the node's rotation rates (central differences are
+    exact for the quadratic velocity terms; the coupling with the structure's rigid rates stays in N)."""
+    mb = Multibody()
+    mb.add_flexible_body("structure", None, modal=structure, hinge="free", modes=range(12), order=2)
+    mb.add_node("tip", "structure", grid=101, rotation=[np.cos(0.3), 0.0, 0.0, np.sin(0.3)])
+    mb.add_body("wheel", "structure", mass=5.0, inertia=np.diag([0.3, 0.2, 0.2]), com=(0.05, 0.0, 0.0),
+                hinge="revolute", axis=(1.0, 0.0, 0.0), inboard_position=(0.2, 0.1, 0.0), parent_node="tip",
+                inboard_rotation=[np.cos(0.2), np.sin(0.2), 0.0, 0.0])
+    system = mb.compile()
+    q, u = system.neutral_configuration(), np.zeros(system.nu)
+    u[system.u_slices[1].start] = 300.0
+    indices, L = modal_linear_part(system, q, u)
+    _, rest = modal_linear_part(system, q)
+    eta_q, eta_u = modal_indices(system)
+    n_eta, free = eta_q.size, np.flatnonzero(~system.prescribed_dofs)
+    columns = n_eta + np.searchsorted(free, eta_u)
+    J = np.empty((free.size, eta_u.size))
+    for k, i in enumerate(eta_u):
+        plus, minus = u.copy(), u.copy()
+        plus[i] += 1e-2
+        minus[i] -= 1e-2
+        J[:, k] = (system.forward_dynamics(q, plus) - system.forward_dynamics(q, minus))[free] / 2e-2
+    assert np.abs(L[n_eta:, columns] - rest[n_eta:, columns]).max() > 1e-3 * np.abs(L[n_eta:, columns]).max()
+    np.testing.assert_allclose(L[n_eta:, columns], J, rtol=0, atol=1e-9 * np.abs(J).max())
+
+
 def test_eigenvalues_are_the_system_modes(structure):
     system = articulated(structure, modes=range(20), prescribed=False)  # system_modes has no prescribed DOFs
     q0 = system.neutral_configuration()
