@@ -251,7 +251,7 @@ class Run:
 
 
 # ------------------------------------------------------------------------------------------------
-def flexshell_scene(model: Model, order) -> str:
+def flexshell_scene(model: Model, order, omit=()) -> str:
     if model.case == "beam":
         return f"""
 name: beam_hub_{model.n_modes}
@@ -262,6 +262,7 @@ multibody:
       hinge: free
       body_file: {model.body_file.name}
       modal_integrals_order: {order}
+      omit_terms: {list(omit)}
   nodes:
     - {{name: hub, body: boom, grid: {int(model.body.grid_ids[model.hub_nodes[0]])}}}
 models:
@@ -294,12 +295,12 @@ log:
 """
 
 
-def run_flexshell(model: Model, duration: float, order: int) -> Run:
+def run_flexshell(model: Model, duration: float, order: int, omit=()) -> Run:
     from shell.log_file import read_log
     from shell.scenario import build_simulation, parse_scenario
 
     scene = model.body_file.parent / "boom_scene.yaml"
-    simulation = build_simulation(parse_scenario(flexshell_scene(model, order), str(scene)))
+    simulation = build_simulation(parse_scenario(flexshell_scene(model, order, omit), str(scene)))
     log_path = model.body_file.parent / "boom_log.h5"
     summary = simulation.run(duration, log_path=log_path)
     log = read_log(log_path)
@@ -426,6 +427,8 @@ def main(argv=None) -> int:
                         help="flexshell's modal-integral order (2 is exact for point masses, as Exudyn)")
     parser.add_argument("--case", nargs="+", default=["truss", "beam"], choices=("truss", "beam"),
                         help="truss: point masses (agreement to round-off); beam: the general-mass case")
+    parser.add_argument("--omit-terms", nargs="*", default=[], choices=("G1", "F2", "G2"),
+                        help="beam: leave these terms of the nodes' rotary inertia out (Exudyn's nodes have none)")
     args = parser.parse_args(argv)
     if len(args.durations) != len(args.modes) or args.pairs < 1 or min(args.durations) <= 0.0:
         parser.error(f"expected one positive duration per mode count and --pairs >= 1, given --modes "
@@ -444,19 +447,21 @@ def main(argv=None) -> int:
                      "general mass: tube (CBEAM, rotary inertia on every grid) + arm + 200 kg hub, spun up")
             print(f"\n== {title}, {n_modes} free-free modes ({model.body.frequencies_hz[0]:.2f}.."
                   f"{model.body.frequencies_hz[-1]:.1f} Hz), {model.body.mass:.1f} kg, RK4 {model.step * 1e3:g} ms, "
-                  f"{duration:g} s, flexshell modal integrals order {args.order}")
+                  f"{duration:g} s, flexshell modal integrals order {args.order}"
+                  + (f" without {', '.join(args.omit_terms)}" if case == "beam" and args.omit_terms else ""))
             for name, value, tolerance in input_checks(model):
                 ok = value <= tolerance
                 failed |= not ok
                 print(f"  {name:48s} {value:10.2e}  (tolerance {tolerance:.0e}) {'ok' if ok else 'FAILED'}")
-            run_flexshell(model, 10 * model.step, args.order)         # load the numba cache before timing
+            omit = args.omit_terms if case == "beam" else ()
+            run_flexshell(model, 10 * model.step, args.order, omit)   # load the numba cache before timing
             run_exudyn(model, 10 * model.step)
             pairs = []
             ours = theirs = None
             for pair in range(args.pairs):
                 for who in (("flexshell", "exudyn") if pair % 2 == 0 else ("exudyn", "flexshell")):
                     if who == "flexshell":
-                        ours = run_flexshell(model, duration, args.order)
+                        ours = run_flexshell(model, duration, args.order, omit)
                     else:
                         theirs = run_exudyn(model, duration)
                 if ours.steps != theirs.steps:

@@ -23,9 +23,9 @@ Omega / omega_1 <= tol                                0
 above, or driven by a prescribed hinge                2
 ====================================================  ==========================================
 
-and leaves G1, F2, G2 out when the node rotations of the static centrifugal deflection at Omega,
-``|lambda_j eta|`` with ``eta_r = Omega^2 |J1_r| / k_r``, stay below the tolerance (never under a prescribed
-hinge). Each choice is said in ``system.notes`` (the run summary and ``flexshell check`` print them) with the
+and leaves G1, F2, G2 out when their estimated relative size, the node rotations of the static centrifugal
+deflection at Omega (``|lambda_j eta|`` with ``eta_r = Omega^2 |J1_r| / k_r``) times the share of the nodes'
+rotary inertia in that deflection's modal mass, stays below the tolerance (never under a prescribed hinge). Each choice is said in ``system.notes`` (the run summary and ``flexshell check`` print them) with the
 figures it rests on; the assumption it cannot check (a scene that spins the body faster later, e.g. by its
 actuators) is named there, and an explicit order overrides it.
 
@@ -87,17 +87,26 @@ def _rates(system, q, u):
     return out
 
 
-def _node_rotation_estimate(data, omega):
-    """Node rotations (rad) of the static centrifugal deflection at the rate ``omega``: ``eta_r = omega^2
-    |J1_r| / k_r`` (first-order centrifugal modal load over the modal stiffness), ``max_j sum_r |lambda_jr| |eta_r|``
-    over the grids."""
+def _node_term_size(data, omega):
+    """``(theta, share)``: the node rotations (rad) of the static centrifugal deflection at the rate ``omega``
+    (``eta_r = omega^2 |J1_r| / k_r``, the first-order centrifugal modal load over the modal stiffness;
+    ``max_j sum_r |lambda_jr| |eta_r|`` over the grids), and the share of the nodes' rotary inertia in the
+    modal mass of that deflection (``sum_r w_r lambda_r' J lambda_r / G0_rr``, ``w`` the deflection's modal
+    weights; 1 when the body has no per-node data). The terms G1, F2, G2 change the modal inertia by about
+    ``theta`` times ``share``."""
     terms = data.mass_terms()
     if terms.R1 is None:
-        return 0.0
+        return 0.0, 1.0
     load = 0.5 * np.linalg.norm(terms.R1[:, :3, :3], ord=2, axis=(1, 2)) * omega ** 2
     eta = load / np.abs(np.diag(np.asarray(data.stiffness)))
     lam = np.linalg.norm(np.asarray(data.grid_shapes)[:, :3, :], axis=1)  # (grids, n)
-    return float((lam @ eta).max(initial=0.0))
+    theta = float((lam @ eta).max(initial=0.0))
+    nodes = data.node_inertia
+    if nodes is None or not np.any(eta):
+        return theta, 1.0
+    rotary = np.einsum("jar,jab,jbr->r", nodes.shapes[:, :3], nodes.inertia, nodes.shapes[:, :3])
+    share = rotary / np.abs(np.diag(np.asarray(data.M0)[6:, 6:]))
+    return theta, float(np.abs(eta) @ share / np.abs(eta).sum())
 
 
 def _choose(name, data, omega, prescribed, turns, tolerance):
@@ -117,11 +126,11 @@ def _choose(name, data, omega, prescribed, turns, tolerance):
                                 f"{tolerance:g}; a scene that turns it faster later should set "
                                 f"modal_integrals_order)")
     order = 1 if ratio ** 2 <= tolerance else 2
-    theta = _node_rotation_estimate(data, omega)
+    theta, share = _node_term_size(data, omega)
     present = set(data.node_inertia.terms if data.node_inertia is not None else ()) | set(data.mass_terms().present())
-    omit = tuple(t for t in nodal[:1 if order == 1 else 3] if t in present) if theta <= tolerance else ()
-    left = (f"; node rotations of about {theta:.2g} rad under that spin: terms {', '.join(omit)} of its rotary "
-            f"inertia left out" if omit else "")
+    omit = tuple(t for t in nodal[:1 if order == 1 else 3] if t in present) if theta * share <= tolerance else ()
+    left = (f"; node rotations of about {theta:.2g} rad under that spin, rotary inertia {share:.2g} of the modal "
+            f"mass: terms {', '.join(omit)} left out" if omit else "")
     return ModalOrderChoice(name, order, omit, f"modal integrals order {order} (auto): {figures}{left}")
 
 

@@ -86,6 +86,7 @@ BODY_KEYS = {
                      "modes below it)",
     "modal_integrals_order": "0, 1, 2 or auto: order of the deformation-dependent modal integrals (default auto: "
                              "the order the scene needs at its initial state, dynamics.modal_order)",
+    "omit_terms": "terms of the nodes' rotary inertia to leave out: a list of G1, F2, G2 (auto chooses otherwise)",
     "damping_ratio": "modal damping ratio overriding the body file's",
     "integrals": "general or point_mass modal integrals (default general)",
     "child_grid": "grid of this flexible body that the hinge holds (its deforming interface grid)",
@@ -93,8 +94,8 @@ BODY_KEYS = {
                             "file has them, fem2modal --geometric-stiffness)",
     "preload": "mapping preload name -> scale of the body file's named preloads (fem2modal --preload)",
 }
-FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "damping_ratio", "integrals", "child_grid",
-                 "geometric_stiffening", "preload")
+FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "omit_terms", "damping_ratio", "integrals",
+                 "child_grid", "geometric_stiffening", "preload")
 INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
     "q": ("", "all"), "u": ("", "all"),
     "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
@@ -641,6 +642,11 @@ def _flexible_options(body, where) -> dict:
     if isinstance(order, bool) or order not in (0, 1, 2, "auto"):
         raise where.child(body, "modal_integrals_order").error(f"expected 0, 1, 2 or auto, given {order!r}")
     options["order"] = order
+    if "omit_terms" in body:
+        omit = body["omit_terms"]
+        if not isinstance(omit, list) or not set(omit) <= {"G1", "F2", "G2"}:
+            raise where.child(body, "omit_terms").error(f"expected a list of G1, F2, G2, given {omit!r}")
+        options["omit_terms"] = tuple(omit)
     if "damping_ratio" in body:
         options["damping_ratio"] = float(_vector(body, "damping_ratio", "", (), where))
     if "integrals" in body:
