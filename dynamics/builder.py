@@ -4,7 +4,7 @@
 (names, parents, masses, inertias, axes, frames, prescribed flags) and returns an immutable
 :class:`dynamics.system.MultibodySystem` of numpy arrays (model/data separation as in Pinocchio's
 ``Model``/``Data``). Bodies are numbered in the order they are added, which must put every parent before
-its children; that is also the coordinate order of ``q`` and ``u`` (CONVENTIONS.md).
+its children; that is also the coordinate order of ``q`` and ``u`` (docs/conventions.md).
 """
 
 from __future__ import annotations

@@ -12,8 +12,9 @@ dispatchers (``@njit(cache=True)``, ``@cfunc(cache=True)``) install a :class:`De
   numba compiles, not what the files say): the function itself and, transitively, every numba function (plain or
   ``inline="always"``), ``@overload`` implementation, ``@intrinsic`` definition and plain Python function of a
   non-library module that it reads from its globals (attribute chains such as ``K.forward_dynamics`` followed through
-  modules and classes), its closure cells and default arguments, plus the ``@overload_method`` / ``@overload_attribute``
-  implementations of non-library modules (typed on numba types, reachable from any function); each function by its
+  modules and classes), its closure cells and default arguments, plus the ``@overload_method``,
+  ``@overload_attribute`` and library-function ``@overload`` implementations of non-library modules (reachable from
+  any function: typed on numba types or numpy's functions); each function by its
   bytecode, constants, names, options (``fastmath``, ``inline``, ...) and ``locals``, not its line numbers, so an edit
   elsewhere in its file leaves it cached;
 * the *values* it reads at compile time: numba freezes a global int, float, tuple, array, enum member or numba type
@@ -439,10 +440,8 @@ class _Node:
         for dotted, (holder, name, value) in sorted(_references(function, closure).items()):
             self.bindings.append((holder, name, value))
             parts.append(f"{dotted}=" + _token(value, self.edges))
-        function_overloads, method_overloads = _overloads()
-        implementations = tuple(function_overloads.get(id(obj), ()))
-        if isinstance(obj, Dispatcher):
-            implementations += tuple(method_overloads)
+        function_overloads, other_overloads = _overloads()
+        implementations = tuple(function_overloads.get(id(obj), ())) + tuple(other_overloads)
         self.bindings.append((_OVERLOADS_OF, obj, implementations))
         for implementation, options in implementations:
             parts.append(f"overload {options}=" + _token(implementation, self.edges))
@@ -459,11 +458,8 @@ def _bound(holder, name):
     if isinstance(holder, dict):
         return holder.get(name, _MISSING)
     if holder is _OVERLOADS_OF:
-        function_overloads, method_overloads = _overloads()
-        from numba.core.dispatcher import Dispatcher
-
-        implementations = tuple(function_overloads.get(id(name), ()))
-        return implementations + (tuple(method_overloads) if isinstance(name, Dispatcher) else ())
+        function_overloads, other_overloads = _overloads()
+        return tuple(function_overloads.get(id(name), ())) + tuple(other_overloads)
     if isinstance(holder, pytypes.CellType):
         try:
             return holder.cell_contents
@@ -656,9 +652,9 @@ def _class_token(cls, edges, depth) -> str:
 
 
 def _overloads():
-    """(id(function) -> its ``@overload`` implementations, ``@overload_method``/``@overload_attribute``
-    implementations) of followed modules, each as (implementation, its options as text), from numba's typing
-    registry (rescanned when it grows)."""
+    """(id(function) -> its ``@overload`` implementations, the other implementations: ``@overload_method``,
+    ``@overload_attribute``, ``@overload`` of a library function) of followed modules, each as (implementation, its
+    options as text), from numba's typing registry (rescanned when it grows)."""
     from numba.core.typing.templates import builtin_registry
 
     size = len(builtin_registry.functions) + len(builtin_registry.attributes)
@@ -674,9 +670,9 @@ def _overloads():
                            f":{getattr(getattr(template, '_inline', None), 'value', None)!r}"
                            f":{getattr(template, 'prefer_literal', None)!r}:{getattr(template, '_attr', None)!r}")
                 key = getattr(template, "key", None)
-                if on_functions and callable(key) and not inspect.isclass(key):
+                if on_functions and callable(key) and not inspect.isclass(key) and not _is_library(key):
                     by_function.setdefault(id(key), []).append((implementation, options))
-                else:
+                else:  # typed on a numba type, or overloading a library function (numpy's): read by any function
                     methods.append((implementation, options))
         _OVERLOADS[:] = [size, by_function, methods]
     return _OVERLOADS[1], _OVERLOADS[2]
@@ -768,6 +764,11 @@ class CompileClock:
     @property
     def running(self) -> bool:
         return self._listener is not None
+
+    @property
+    def depth(self) -> int:
+        """Compilations under way (1 inside ``on_start`` of an outer one: numba compiles callees nested)."""
+        return self._depth
 
     def start(self) -> "CompileClock":
         from numba.core import event

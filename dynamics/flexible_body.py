@@ -433,6 +433,7 @@ def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=No
     else:
         zeta = np.broadcast_to(np.asarray(damping_ratio, dtype=float), keep.shape)
         omega = 2.0 * np.pi * np.asarray(body.frequencies_hz)[keep]
+        omega[np.isinf(omega)] = 0.0          # quasi-static modes: no mass, nothing to damp
         C = np.diag(2.0 * zeta * omega)
     data = FlexibleBodyData(n_modes=int(keep.size), order=order, M0=rigid_mass_block(sub), M1=None, M2=None,
                             stiffness=K, damping=C, grid_ids=np.asarray(body.grid_ids),

@@ -5,7 +5,7 @@ fixed on the child body. The hinge coordinates ``q`` give the pose of M relative
 coordinates ``u`` the relative spatial velocity of M with respect to F, expressed in M:
 
 =========  ==  ==  ================================================================================
-type       nq  nu  coordinates (CONVENTIONS.md)
+type       nq  nu  coordinates (docs/conventions.md)
 =========  ==  ==  ================================================================================
 locked      0   0  none
 revolute    1   1  angle about the unit axis a1 (same in F and M)

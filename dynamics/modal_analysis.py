@@ -38,7 +38,9 @@ def system_modes(system, q0, constrained=None, rigid_threshold_hz=DEFAULT_RIGID_
     """Flexible system modes at rest: ``K phi = omega^2 M(q0) phi`` on the admissible velocities.
 
     ``constrained``: a :class:`dynamics.constraints.ConstrainedSystem` over ``system`` (closure
-    constraints), or None. Refuses gravity (the linearization would need its geometric stiffness).
+    constraints), or None. Refuses gravity (the linearization would need its geometric stiffness). A mass
+    matrix singular in some directions (quasi-static modes that nothing with inertia is attached to) is
+    solved by the inverted problem, which condenses those directions statically.
     """
     if np.any(system.gravity):
         raise ValueError(f"system_modes linearizes at rest without gravity; the system has gravity "
@@ -51,7 +53,17 @@ def system_modes(system, q0, constrained=None, rigid_threshold_hz=DEFAULT_RIGID_
         K = Z.T @ K @ Z
     else:
         Z = np.eye(system.nu)
-    w2, X = sla.eigh(0.5 * (K + K.T), 0.5 * (M + M.T))
+    M, K = 0.5 * (M + M.T), 0.5 * (K + K.T)
+    mass_range = np.linalg.eigvalsh(M)
+    if mass_range[0] <= 1e-12 * mass_range[-1]:
+        # directions without inertia: a quasi-static mode of a body whose interface drives only massless
+        # motion in the scene (a lumped-mass frame's joint rotation about the next beam's axis). The structure
+        # responds there statically, as a FE model's massless DOFs do: the inverted problem drops them.
+        from dynamics.flex.modes import solve_dense
+        sol = solve_dense(K, M)
+        w2, X = sol.eigenvalues, sol.vectors
+    else:
+        w2, X = sla.eigh(K, M)
     freq = np.sqrt(np.abs(w2)) / (2.0 * np.pi)
     flexible = freq > rigid_threshold_hz
     return SystemModes(freq[flexible], Z @ X[:, flexible], int(np.count_nonzero(~flexible)))

@@ -25,8 +25,8 @@ above, or driven by a prescribed hinge                2
 
 and leaves G1, F2, G2 out when their estimated relative size, the node rotations of the static centrifugal
 deflection at Omega (``|lambda_j eta|`` with ``eta_r = Omega^2 |J1_r| / k_r``) times the share of the nodes'
-rotary inertia in that deflection's modal mass, stays below the tolerance (never under a prescribed hinge). Each choice is said in ``system.notes`` (the run summary and ``flexshell check`` print them) with the
-figures it rests on; the assumption it cannot check (a scene that spins the body faster later, e.g. by its
+rotary inertia in that deflection's modal mass, stays below the tolerance (never under a prescribed hinge). Each
+choice is said in ``system.notes`` (the run summary and ``flexshell check`` print them) with the figures it rests on; the assumption it cannot check (a scene that spins the body faster later, e.g. by its
 actuators) is named there, and an explicit order overrides it.
 
 Geometric stiffening (item 4): a body whose file has no geometric stiffness (``fem2modal`` without
@@ -105,7 +105,8 @@ def _node_term_size(data, omega):
     if nodes is None or not np.any(eta):
         return theta, 1.0
     rotary = np.einsum("jar,jab,jbr->r", nodes.shapes[:, :3], nodes.inertia, nodes.shapes[:, :3])
-    share = rotary / np.abs(np.diag(np.asarray(data.M0)[6:, 6:]))
+    mass = np.abs(np.diag(np.asarray(data.M0)[6:, 6:]))  # zero for quasi-static modes: no inertia to share
+    share = np.divide(rotary, mass, out=np.zeros_like(rotary), where=mass > 0.0)
     return theta, float(np.abs(eta) @ share / np.abs(eta).sum())
 
 

@@ -15,6 +15,8 @@ Rules (the scenario key ``max_frequency:`` of a flexible body and the ``max_freq
   assembled scene.
 * ``modes`` and ``max_frequency`` together keep the listed modes that are below the cutoff, in the listed
   order; listed modes that the cutoff removes are named in a warning.
+* Quasi-static modes (infinite frequency: massless interface DOFs of normalized component modes,
+  :mod:`dynamics.flex.component_modes`) are static flexibility, not dynamics: a cutoff keeps them.
 * A cutoff that removes every mode is refused (a flexible body needs at least one mode; make it a rigid
   body instead); so are a non-positive cutoff, repeated indices and indices outside the file.
 """
@@ -56,7 +58,7 @@ def select_modes(frequencies_hz, modes=None, max_frequency=None):
     if not (f_max > 0.0) or not np.isfinite(f_max):
         raise ValueError(f"select_modes: max_frequency must be a positive, finite frequency in Hz, got "
                          f"{max_frequency!r}")
-    below = frequencies[keep] <= f_max
+    below = (frequencies[keep] <= f_max) | np.isposinf(frequencies[keep])
     if not np.any(below):
         which = "of the listed modes " if modes is not None else ""
         raise ValueError(f"select_modes: max_frequency = {f_max:.6g} Hz removes every mode {which}(the lowest "

@@ -15,8 +15,17 @@ previous one's definitions and maps the state across (Dshell's run-time reconfig
 * **detach** a body: the subtree it roots separates from its parent (a separation event). The body is
   re-attached to the ground by a free hinge placed at its current world pose and moving with its
   current spatial velocity; every node keeps its pose and velocity, so nothing jumps.
+* **attach** (a latch, a docking) a body floating free (a root on a free hinge) to a node of another body: the
+  body becomes the node's child through a locked hinge whose outboard frame is its mating node, at the relative
+  pose where the latch caught it (nothing moves, so nothing jumps). The two mating frames must already move
+  together: the latch's perfectly plastic impact (the velocity projection of a weld between them, momentum
+  conserved, misalignment checked) is :meth:`dynamics.constraints.ConstrainedSystem.reconfigure`'s; here a
+  relative velocity left between them is refused. Bodies are renumbered so that parents come first.
 * **mass properties** of rigid bodies, via a new system or in place with
   :meth:`dynamics.MultibodySystem.set_mass_properties` (cheap enough for per-step mass depletion).
+
+With closure constraints and force elements, :meth:`dynamics.constraints.ConstrainedSystem.reconfigure`
+applies these changes with the constraints' impacts included and carries the constraints and elements over.
 """
 
 from __future__ import annotations
@@ -25,7 +34,7 @@ import dataclasses
 
 import numpy as np
 
-from dynamics.definitions import hinge_definition, rigid_mass_properties
+from dynamics.definitions import hinge_definition, rigid_mass_properties, suggest
 from dynamics.errors import ModelDefinitionError
 from dynamics.hinges import HINGE_TYPES, hinge_transform, neutral_hinge_coordinates
 from dynamics.spatial import rotation_to_quaternion
@@ -41,9 +50,12 @@ def _hinge_pose(system, body, q):
     return R, p
 
 
-def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), mass_properties=None):
+def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), attach=None, mass_properties=None):
     """Return ``(new_system, q_new, u_new)`` after the requested changes (applied in the order
-    mass properties, detach, unlock, lock)."""
+    mass properties, detach, unlock, attach, lock).
+
+    ``attach``: ``{body: (body_node, target_node)}``: body (a root on a free hinge) latched with its node
+    ``body_node`` onto ``target_node`` of another body, the two frames moving together already."""
     bodies, nodes, gravity = system.definitions
     bodies = [dataclasses.replace(b) for b in bodies]
     by_name = {b.name: b for b in bodies}
@@ -120,6 +132,11 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), mass_properties=
         q_parts[body.name] = np.concatenate([q_hinge, modal_q])
         u_parts[body.name] = np.concatenate([np.zeros(nu), modal_u])
 
+    if attach:
+        q_parts, u_parts = _attach(type(system), bodies, nodes, gravity, q_parts, u_parts, attach, find)
+        bodies = _parents_first(bodies)
+        by_name = {b.name: b for b in bodies}
+
     locked_names = [find(name, "lock").name for name in lock]
     for name in locked_names:
         body = by_name[name]
@@ -163,6 +180,106 @@ def reconfigure(system, q, u, *, lock=(), unlock=(), detach=(), mass_properties=
     q_new = np.concatenate([q_parts[b.name] for b in bodies])
     u_new = np.concatenate([u_parts[b.name] for b in bodies])
     return new, q_new, u_new
+
+
+def attach_moves(bodies, nodes, attach, find):
+    """Check the ``attach`` entries against the body and node definitions; returns ``(body, body_node,
+    target_node)`` per entry."""
+    node_by_name = {nd.name: nd for nd in nodes}
+    children = {}
+    for b in bodies:
+        children.setdefault(b.parent, []).append(b.name)
+    moves = []
+    for name, spec in attach.items():
+        body = find(name, "attach")
+        where = f"attach: body '{body.name}'"
+        try:
+            body_node, target = spec
+        except (TypeError, ValueError):
+            raise ModelDefinitionError(f"{where}: give (body_node, target_node), got {spec!r}") from None
+        if body.parent is not None or body.hinge != "free" or np.any(body.prescribed):
+            raise ModelDefinitionError(f"{where}: only a body floating free (a root on a free hinge, nothing "
+                                       f"prescribed) can be attached; it has a {body.hinge} hinge to "
+                                       f"{body.parent or 'the ground'}")
+        if body.outboard_node is not None:
+            raise ModelDefinitionError(f"{where}: its free hinge sits on its node '{body.outboard_node}'; attach "
+                                       f"needs the hinge on the body frame")
+        for role, nd in (("its node", body_node), ("the target node", target)):
+            if nd not in node_by_name:
+                raise ModelDefinitionError(f"{where}: unknown node '{nd}' ({role}); nodes: {list(node_by_name)}"
+                                           + suggest(nd, node_by_name))
+        if node_by_name[body_node].body != body.name:
+            raise ModelDefinitionError(f"{where}: node '{body_node}' is on body '{node_by_name[body_node].body}', "
+                                       f"not on '{body.name}'")
+        subtree, stack = set(), [body.name]
+        while stack:
+            b = stack.pop()
+            subtree.add(b)
+            stack.extend(children.get(b, []))
+        if node_by_name[target].body in subtree:
+            raise ModelDefinitionError(f"{where}: target node '{target}' is on body '{node_by_name[target].body}', "
+                                       f"which moves with '{body.name}' (a loop: use a closure constraint)")
+        moves.append((body, body_node, target))
+    return moves
+
+
+LATCH_VELOCITY_TOLERANCE = 1e-9
+"""Largest relative speed (rad/s, m/s, relative to the fastest node) two frames may have to be attached."""
+
+
+def _attach(system_class, bodies, nodes, gravity, q_parts, u_parts, attach, find):
+    """Each ``attach`` entry (module docstring): the body's hinge made a locked hinge on the target node at the
+    relative pose of the latch. Returns the new coordinates."""
+    node_by_name = {nd.name: nd for nd in nodes}
+    moves = attach_moves(bodies, nodes, attach, find)
+    mid = _compile(system_class, bodies, nodes, gravity)
+    q_mid = np.concatenate([q_parts[b.name] for b in bodies])
+    u_mid = np.concatenate([u_parts[b.name] for b in bodies])
+    kin = mid.node_kinematics(q_mid, u_mid)
+    w = np.einsum("nab,nb->na", kin.rotation, kin.angular_velocity)
+    v = np.einsum("nab,nb->na", kin.rotation, kin.linear_velocity)
+    scale = max(1.0, float(np.abs(w).max(initial=0.0)), float(np.abs(v).max(initial=0.0)))
+    for body, body_node, target in moves:
+        a, b = mid.node_index(body_node), mid.node_index(target)
+        arm = kin.position[a] - kin.position[b]
+        slip = max(np.abs(w[a] - w[b]).max(), np.abs(v[a] - v[b] - np.cross(w[b], arm)).max())
+        if slip > LATCH_VELOCITY_TOLERANCE * scale:
+            raise ModelDefinitionError(
+                f"attach: body '{body.name}': its node '{body_node}' moves at {slip:.3g} (rad/s or m/s) relative to "
+                f"'{target}'; a latch is a plastic impact first: use ConstrainedSystem.reconfigure(attach=...) "
+                f"(dynamics.constraints)")
+    for body, body_node, target in moves:
+        node = node_by_name[body_node]
+        n = 0 if body.flexible is None else body.flexible.n_modes
+        if body.flexible is None:
+            body.outboard_rotation, body.outboard_position = node.rotation.copy(), node.position.copy()
+        else:
+            body.outboard_node = body_node
+            body.outboard_rotation, body.outboard_position = np.eye(3), np.zeros(3)
+        # the locked hinge holds the body's node where the latch found it relative to the (deformed) target node
+        R_N, p_N = kin.rotation[mid.node_index(target)], kin.position[mid.node_index(target)]
+        R_C, p_C = kin.rotation[mid.node_index(body_node)], kin.position[mid.node_index(body_node)]
+        body.parent, body.parent_node, body.hinge = node_by_name[target].body, target, "locked"
+        body.axes = np.zeros((2, 3))
+        body.prescribed = np.zeros(0, dtype=bool)
+        body.inboard_rotation, body.inboard_position = R_N.T @ R_C, R_N.T @ (p_C - p_N)
+        body.locked_from = None
+        q_parts[body.name] = q_parts[body.name][len(q_parts[body.name]) - n:]
+        u_parts[body.name] = u_parts[body.name][len(u_parts[body.name]) - n:]
+    return q_parts, u_parts
+
+
+def _parents_first(bodies):
+    """The bodies reordered so that every parent precedes its children, keeping the given order otherwise."""
+    placed, order = set(), []
+    pending = list(bodies)
+    while pending:
+        for k, b in enumerate(pending):
+            if b.parent is None or b.parent in placed:
+                order.append(pending.pop(k))
+                placed.add(b.name)
+                break
+    return order
 
 
 def _compile(system_class, bodies, nodes, gravity):

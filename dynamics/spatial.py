@@ -1,6 +1,6 @@
 """Spatial-algebra primitives shared by every engine kernel (numba, float64, no allocation).
 
-Conventions (``shared/design/CONVENTIONS.md``; TM-2020-5008164 Appendix E; Featherstone, *Rigid Body
+Conventions (docs/conventions.md; TM-2020-5008164 Appendix E; Featherstone, *Rigid Body
 Dynamics Algorithms*, 2008, ch. 2):
 
 * spatial velocity/acceleration ``[omega; v]`` (angular first), spatial force ``[torque; force]``;
@@ -227,7 +227,7 @@ def spatial_inertia(mass, com, inertia_com):
     """6x6 spatial inertia about the frame origin from mass, center of mass and inertia about the COM.
 
     ``M = [[J_o, m skew(c)], [-m skew(c), m I]]`` with ``J_o = J_c + m (|c|^2 I - c c^T)``
-    (parallel-axis theorem; CONVENTIONS.md).
+    (parallel-axis theorem; docs/conventions.md).
     """
     c = np.asarray(com, dtype=np.float64)
     Jc = np.asarray(inertia_com, dtype=np.float64)

@@ -1,6 +1,6 @@
 """The compiled multibody system: immutable arrays, a private workspace, and the user-facing algorithms.
 
-Coordinates (CONVENTIONS.md): ``q`` and ``u`` concatenate, in body order, each body's hinge coordinates
+Coordinates (docs/conventions.md): ``q`` and ``u`` concatenate, in body order, each body's hinge coordinates
 (see :mod:`dynamics.hinges`) followed by its modal coordinates (none for rigid bodies). Generalized
 forces ``tau`` are conjugate to ``u``: a torque for a revolute DOF, a force for a prismatic one, the
 hinge's ``[torque; force]`` in the outboard frame for spherical/free hinges.
@@ -83,6 +83,12 @@ def _is_diagonal(a):
     d = np.sqrt(np.abs(np.diag(a)))
     off = np.abs(a - np.diag(np.diag(a)))
     return bool(np.all(off <= 1e-13 * np.outer(d, d)))
+
+
+def has_quasi_static_modes(data) -> bool:
+    """True when a flexible body has quasi-static modes (infinite frequency, no modal mass: the massless
+    interface DOFs of normalized component modes, dynamics/flex/component_modes.py)."""
+    return bool(np.any(np.isposinf(np.asarray(data.frequencies_hz, dtype=float))))
 
 
 def _modal_mass_inverse(G0, where):
@@ -319,7 +325,14 @@ class MultibodySystem:
                                  f"more per evaluation at {t[L.N_MODES]} modes (no per-node data to sum them over); "
                                  f"omit_terms={tuple(cubic)!r} leaves them out (see dynamics/flexible_body.py)")
         requested = solver
-        if solver is None:
+        quasi = [b.name for b in bodies if b.flexible is not None and has_quasi_static_modes(b.flexible)]
+        if quasi and solver == "aba":
+            raise ModelDefinitionError(f"bodies {quasi} have quasi-static modes (no modal mass): the articulated-body "
+                                       "recursion needs the inverse modal mass; use the dense solver")
+        if solver is None and quasi:
+            solver, reason = "dense", (f"dense M udot = tau - h (bodies {quasi} have quasi-static modes without "
+                                       "modal mass: the articulated-body recursion cannot invert their modal mass)")
+        elif solver is None:
             solver, reason = choose_solver(topology)
         elif solver in ("aba", "dense"):
             reason = f"{solver} (requested)"
@@ -398,9 +411,11 @@ class MultibodySystem:
             fx[L.FX_NODES] = params.push(records)
             fx[L.FX_P_NODES] = pool.reserve(6 * nodes.count)
         varying = terms.G1 is not None or terms.G2 is not None
+        quasi_static = has_quasi_static_modes(data)
         budget = refinement_budget(n, nodes.count) if node_terms & (L.NODE_G1 | L.NODE_G2) else 0
-        refine = not varying and budget >= MIN_REFINEMENT_BUDGET
-        if varying or (node_terms & (L.NODE_G1 | L.NODE_G2) and not refine):
+        refine = not varying and not quasi_static and budget >= MIN_REFINEMENT_BUDGET
+        if varying or quasi_static or (node_terms & (L.NODE_G1 | L.NODE_G2) and not refine):
+            # quasi-static modes make G singular: no inverse (the dense solver factors the whole mass matrix)
             kind, inverse = L.GINV_FACTORED, None
         else:
             kind, inverse = _modal_mass_inverse(M0[6:, 6:], where)
@@ -460,10 +475,11 @@ class MultibodySystem:
         except ValueError:
             raise KeyError(f"unknown node '{name}'; nodes: {list(self.node_names)}") from None
 
-    def reconfigure(self, q, u, *, lock=(), unlock=(), detach=(), mass_properties=None):
-        """A new system after locking/unlocking hinges, detaching subtrees or changing mass properties,
-        with the state mapped across: returns ``(system, q, u)``. See :mod:`dynamics.reconfigure`."""
-        return reconfigure(self, q, u, lock=lock, unlock=unlock, detach=detach, mass_properties=mass_properties)
+    def reconfigure(self, q, u, *, lock=(), unlock=(), detach=(), attach=None, mass_properties=None):
+        """A new system after locking/unlocking hinges, detaching subtrees, attaching free bodies or changing
+        mass properties, with the state mapped across: returns ``(system, q, u)``. See :mod:`dynamics.reconfigure`."""
+        return reconfigure(self, q, u, lock=lock, unlock=unlock, detach=detach, attach=attach,
+                           mass_properties=mass_properties)
 
     def set_mass_properties(self, body, mass, com, inertia):
         """Change a rigid body's mass, center of mass and inertia (about the COM) in place, O(1): for

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from shell.attitude import axis_angle_quaternion
 from shell.model import ModelError
 from shell.units import UnitError, to_magnitude
 
@@ -81,7 +82,7 @@ def parse_attitude_target(value, where: str) -> np.ndarray:
             _keys(value, where, {"axis", "angle"})
             axis = _vector(value["axis"], where, "axis")
             angle = _angle(value["angle"], f"{where}: angle")
-            q = np.r_[np.cos(0.5 * angle), np.sin(0.5 * angle) * axis]
+            q = np.array(axis_angle_quaternion.py_func(axis, angle))
         elif "euler" in value:
             _keys(value, where, {"euler", "sequence"})
             sequence = value["sequence"]

@@ -1,6 +1,6 @@
 """A scene's immutable evaluation plan (:class:`Diagram`) and the state of one run of it (:class:`Context`).
 
-Drake's ``Diagram`` / ``Context`` split (STYLE.md) applied to flexshell's flat buffers:
+Drake's ``Diagram`` / ``Context`` split (docs/architecture.md) applied to flexshell's flat buffers:
 
 * The **diagram** is built once from an assembly: the model tree is flattened
   (:func:`shell.assembly.flatten`); every output and input port gets a slice of one signal buffer, every
@@ -20,8 +20,9 @@ The diagram's public methods evaluate a context: :meth:`Diagram.evaluate` (every
 :meth:`Diagram.derivatives` (the integrator's right-hand side: only the output stages the derivatives
 need, then every derivative kernel), :meth:`Diagram.zero_crossings`, :meth:`Diagram.update` (one sampled
 model), and :meth:`Diagram.opened` (the same plan with some inputs cut from their drivers, for
-linearization). This interpreted path calls each model kernel from Python; :mod:`shell.codegen` writes
-the same sequence as one compiled function and must give the same numbers.
+linearization). This interpreted path calls each model kernel from Python; the compiled loop
+(:mod:`shell.compiled_plan`, :mod:`shell.compiled_loop`) runs the same sequence as one compiled function and
+must give the same numbers.
 
 Kernel signatures (:mod:`shell.model`): ``kernel(t, x, z, u, p, out)``; a model with per-run data
 (``Model.uses_data``) receives it after ``p``: ``kernel(t, x, z, u, p, d, out)``.
@@ -374,7 +375,7 @@ class Diagram:
         return OpenedDiagram(self, destination_elements)
 
     # ------------------------------------------------------------------------------------------------
-    # interpreted evaluation (the reference for shell.codegen)
+    # interpreted evaluation (the reference for the compiled loop)
     def evaluate(self, context: "Context", t: float | None = None, stages=None) -> None:
         """Compute every output (or those of ``stages``) and then every input at ``context``'s state."""
         t = context.t if t is None else t

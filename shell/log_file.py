@@ -1,6 +1,6 @@
 """Simulation logs in HDF5: writer (chunked, flushed as the run goes) and reader (dict of arrays).
 
-Layout (a stable contract, ARCHITECTURE.md)::
+Layout (a stable contract, docs/architecture.md)::
 
     /                         attrs: format="flexshell-log", format_version=1, status ("running",
                               "completed", "stopped", "failed", "interrupted"), message, seed,

@@ -26,26 +26,38 @@ so the simulation can call them without Python-level indirection and fuse them i
 loop. Output kernels write the whole output block; the ones not written by ``state_outputs`` are
 written by ``feedthrough_outputs``.
 
-Kernels read their arrays by name, never by hand-counted position: :func:`named_offsets` turns a
-tuple of declarations into a named tuple of start offsets (``P = named_offsets(PARAMETERS)``, then
-``p[P.kp + i]`` in the kernel), which numba folds to constants at compile time. Define ``P`` in the
-same module as the kernels that use it: numba's on-disk cache is invalidated when that file changes,
-so reordering a declaration recompiles the kernels with the new offsets.
+Kernels read their arrays by name, never by hand-counted position. A model's declarations are written
+once, at module level, as one :class:`Declarations`; it yields the named tuples of start offsets the kernels
+read (``P``, ``U``, ``Y``, ``X``, ``Z`` for parameters, inputs, outputs, continuous and discrete states: ``p[P.kp
++ i]`` in a kernel, folded to a constant by numba) and, set as the class attribute ``declarations``, the
+model's ``parameters``, ``inputs``, ``outputs``, ``continuous_states``, ``discrete_states``, ``zero_crossings``
+and ``offsets``::
+
+    PD = Declarations(parameters=(Parameter("kp", "N*m/rad", 1.0, (3,)), ...), inputs=MEASURED_ATTITUDE_AND_RATE,
+                      outputs=(OutputPort("torque", "N*m", (3,)),), discrete=(State("torque", "N*m", (3,)),))
+    P, U, Y, Z = PD.P, PD.U, PD.Y, PD.Z
+
+    class PdAttitudeController(Model):
+        declarations = PD
+
+Define it in the same module as the kernels that use its offsets: numba's on-disk cache is invalidated when
+that file changes, so reordering a declaration recompiles the kernels with the new offsets. Ports that many
+models share (a node's attitude and rate in, a torque out) are declared once in :mod:`shell.ports`, and every
+quaternion, rotation-vector and MRP formula is in :mod:`shell.attitude`.
 
 Writing a model's kernels (the conventions every built-in model follows):
 
-* Declare at module level ``PARAMETERS``, ``INPUTS``, ``OUTPUTS``, ``CONTINUOUS``, ``DISCRETE`` (tuples
-  of declarations), then ``P = named_offsets(PARAMETERS)``, ``U``, ``Y``, ``X``, ``Z`` likewise; the class
-  sets ``parameters = PARAMETERS`` etc. and lists the tuples its kernels read in the class attribute
-  ``offsets = {"p": P, "u": U, "y": Y, "x": X, "z": Z}``. Construction checks each against the instance's
-  actual declarations (:func:`check_named_offsets`): a subclass, or a ``configure``, that reorders,
-  renames, adds or resizes a declaration without new kernels is refused with the model, the
-  declaration and both offsets. A declaration's initial value that depends on configuration is set
-  with ``dataclasses.replace`` on the module-level declaration, which keeps the layout.
-* Declarations whose shapes depend on parameters or configuration (n wheels, a gain file's K) cannot
-  have compile-time offsets: the named tuple holds the fixed leading offsets and ``None`` for each
-  declaration whose offset the kernel derives from array sizes (``y.shape[0]``, ``u.shape[0]``);
-  the check still refuses any change of the names or their order. The module says how it derives them.
+* Construction checks the kernels' offsets (the class attribute ``offsets``) against the instance's actual
+  declarations (:func:`check_named_offsets`): a subclass, or a ``configure``, that reorders, renames, adds or
+  resizes a declaration without new kernels is refused with the model, the declaration and both offsets. A
+  declaration's initial value that depends on configuration is set with ``dataclasses.replace`` on the
+  module-level declaration, which keeps the layout.
+* Declarations whose shapes depend on configuration (n wheels, a gain file's K, a block's port shape) cannot
+  have compile-time offsets: list them in ``Declarations(..., sized=(...))``. Their own offsets stay constants
+  while the ones after them in the same array are ``None``, derived by the kernel from array sizes
+  (``y.shape[0]``, ``u.shape[0]``; the module says how); the check still refuses any change of the names or
+  their order. The instance's declarations of one configuration are ``declare()``'s
+  ``self.use_declarations(TEMPLATE.replace(name={"shape": ..., "unit": ...}))``.
 * Kernels allocate nothing: scratch goes in the model's discrete states or in scalars.
 * A sampled model that needs Gaussian noise sets ``noise_size``; the framework fills the update
   kernel's ``noise`` argument from the model's random stream before each call.
@@ -58,7 +70,8 @@ Writing a model's kernels (the conventions every built-in model follows):
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from collections import namedtuple
+from dataclasses import dataclass, field, fields, replace
 from fractions import Fraction
 
 import numpy as np
@@ -66,18 +79,18 @@ import numpy as np
 from shell.units import UnitError, format_unit, parse_unit, to_magnitude, ureg
 
 
-def named_offsets(declarations, name: str = "Offsets"):
+def named_offsets(declarations, name: str = "Offsets", sized=()):
     """Start offset of each declaration in the flat array that packs them in declaration order, as a
     named tuple (``named_offsets((Parameter("kp", shape=(3,)), Parameter("kd", shape=(3,)))).kd == 3``).
 
-    Works for parameters, ports and states alike; the names must be Python identifiers."""
-    from collections import namedtuple
-
+    Works for parameters, ports and states alike; the names must be Python identifiers. After a declaration
+    named in ``sized`` (its size a configuration), the offsets are ``None``: the kernel derives them."""
     names, offsets, offset = [], [], 0
     for d in declarations:
         names.append(d.name)
         offsets.append(offset)
-        offset += _size(_shape(d.shape))
+        if offset is not None:
+            offset = None if d.name in sized else offset + _size(_shape(d.shape))
     return namedtuple(name, names)(*offsets)
 
 
@@ -222,6 +235,64 @@ class ZeroCrossing:
     description: str = ""
 
 
+#: the class attribute of each declaration tuple, by the argument name of :class:`Declarations`
+_DECLARED = {"parameters": "parameters", "inputs": "inputs", "outputs": "outputs", "continuous": "continuous_states",
+             "discrete": "discrete_states", "zero_crossings": "zero_crossings"}
+
+
+class Declarations:
+    """A model's declarations, written once: parameters, input and output ports, continuous and discrete
+    states, zero crossings; and the named offsets its kernels read (``P``, ``U``, ``Y``, ``X``, ``Z``).
+
+    ``sized``: names of declarations whose shape is set per instance (the module docstring); offsets after
+    them in the same array are ``None``. A model class sets ``declarations = <this>``; a model whose shapes
+    depend on its configuration builds its instance's declarations with :meth:`replace` in ``declare()``.
+    """
+
+    def __init__(self, *, parameters=(), inputs=(), outputs=(), continuous=(), discrete=(), zero_crossings=(),
+                 sized=()):
+        self.parameters, self.inputs, self.outputs = tuple(parameters), tuple(inputs), tuple(outputs)
+        self.continuous, self.discrete = tuple(continuous), tuple(discrete)
+        self.zero_crossings = tuple(zero_crossings)
+        self.sized = frozenset(sized)
+        arrays = {"p": self.parameters, "u": self.inputs, "y": self.outputs, "x": self.continuous, "z": self.discrete}
+        unknown = sorted(self.sized - {d.name for array in arrays.values() for d in array})
+        if unknown:
+            raise ModelError(f"Declarations: sized names {unknown} are not declared")
+        kinds = {"p": "Parameters", "u": "Inputs", "y": "Outputs", "x": "ContinuousStates", "z": "DiscreteStates"}
+        #: array letter -> named offsets of its declarations (the class attribute ``offsets`` of a model)
+        self.offsets = {key: named_offsets(array, kinds[key], self.sized) for key, array in arrays.items()}
+        self.P, self.U, self.Y, self.X, self.Z = (self.offsets[key] for key in "puyxz")
+
+    def class_attributes(self) -> dict:
+        """The model class attributes these declarations stand for."""
+        return {attribute: getattr(self, name) for name, attribute in _DECLARED.items()} | {"offsets": self.offsets}
+
+    def replace(self, **changes) -> "Declarations":
+        """The same declarations (names and order) with fields changed per declaration name, e.g.
+        ``replace(u={"unit": "rad/s", "shape": (3,)})``; a name declared in several arrays (an output and the
+        state that holds it) changes in each, with the fields its kind has (``default`` of a parameter,
+        ``initial`` of a state)."""
+        unknown = sorted(set(changes) - {d.name for name in _DECLARED for d in getattr(self, name)})
+        if unknown:
+            raise ModelError(f"Declarations.replace: no declarations named {unknown}")
+
+        def changed(declaration):
+            wanted = changes.get(declaration.name)
+            if not wanted:
+                return declaration
+            own = {f.name for f in fields(declaration)}
+            return replace(declaration, **{k: v for k, v in wanted.items() if k in own})
+
+        for name, wanted in changes.items():
+            kinds = [d for array in _DECLARED for d in getattr(self, array) if d.name == name]
+            ignored = set(wanted) - {f.name for d in kinds for f in fields(d)}
+            if ignored:
+                raise ModelError(f"Declarations.replace: {name} has no field(s) {sorted(ignored)}")
+        return Declarations(**{name: tuple(changed(d) for d in getattr(self, name)) for name in _DECLARED},
+                            sized=self.sized)
+
+
 @dataclass
 class Layout:
     """Offsets of named blocks inside one flat array (parameters, ports or states of a model)."""
@@ -339,6 +410,8 @@ class Model:
     continuous_states: tuple[State, ...] = ()
     discrete_states: tuple[State, ...] = ()
     zero_crossings: tuple[ZeroCrossing, ...] = ()
+    #: the model's :class:`Declarations`: a class that sets it gets the six declaration tuples and ``offsets``
+    declarations: Declarations | None = None
     default_period: object = None
     #: standard normals the framework draws from the model's stream before each ``update`` call (the
     #: kernel's sixth argument); 0: the update kernel takes the five-argument form
@@ -363,6 +436,13 @@ class Model:
     #: the model keeps per-run data (arrays its kernels read and write besides x, z, u, p): its kernels
     #: take it as an extra argument after ``p``, and :meth:`create_data` makes it for each run's context
     uses_data = False
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        declarations = cls.__dict__.get("declarations")
+        if declarations is not None:
+            for attribute, value in declarations.class_attributes().items():
+                setattr(cls, attribute, value)
 
     def __init__(self, name: str, *, period=None, offset=0.0, **parameter_values):
         if not name or "." in name or not name.replace("_", "a").isalnum():
@@ -409,8 +489,24 @@ class Model:
         """The value of parameter ``name`` in its declared unit (a view into ``self.p``)."""
         return self.parameter_values[name]
 
+    def require_unit_norm(self, name: str, tolerance: float = 1e-9) -> float:
+        """Refuse parameter ``name`` (a quaternion [w, x, y, z] or a direction) unless its norm is 1 within
+        ``tolerance``; returns the norm."""
+        value = np.asarray(self.parameter(name), float).reshape(-1)
+        norm = float(np.sqrt(value @ value))
+        if abs(norm - 1.0) > tolerance:
+            kind = "quaternion [w, x, y, z]" if value.size == 4 else "vector"
+            raise ModelError(f"model {self.path}: parameter {name}: expected a unit {kind}, given norm {norm:.12g}")
+        return norm
+
     def declare(self) -> None:
         """Hook run first: instance-level declarations that depend on construction options."""
+
+    def use_declarations(self, declarations: Declarations) -> None:
+        """This instance's declarations (from ``declare`` or ``configure``: shapes and units of its configuration);
+        the kernels' offsets stay the class's, checked against them."""
+        for name, attribute in _DECLARED.items():
+            setattr(self, attribute, getattr(declarations, name))
 
     def configure(self) -> None:
         """Hook run after parameters are set: declarations or data that depend on parameter values."""

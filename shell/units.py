@@ -3,7 +3,7 @@
 Values enter flexshell with units (YAML strings such as ``"5 deg/s"``, ``"20 kg*m^2"``, Python
 ``Quantity`` objects, or bare numbers meaning "in the declared unit"). They are converted once, at
 build time, into the unit a parameter or port declares; kernels only ever see float64 magnitudes
-(CONVENTIONS.md: SI inside every kernel). Wiring two ports computes one multiplicative conversion
+(docs/conventions.md: SI inside every kernel). Wiring two ports computes one multiplicative conversion
 factor here; nothing in this module is called inside the integration loop.
 """
 

@@ -37,7 +37,9 @@ from numba import njit
 from dynamics.flex import elements as el
 from dynamics.flex import solids
 from dynamics.flex.laminates import mat8_moduli, pcomp_section
+from dynamics.flex.sections import section_properties
 from dynamics.flex.shells import property_row as shell_props
+from dynamics.flex.quadratic_shells import cquad8_batch, tria6_parts
 from dynamics.flex.shells import shell_batch
 from dynamics.flex.bulk_data import (BulkData, BulkDataError, displacement_frame_rotation,
                                       vector_to_basic)
@@ -302,7 +304,7 @@ def _csr_from_blocks(n, dof_ptr, dofs, val_ptr, vals):
     return indptr, indices[:nnz].copy(), data[:nnz].copy()
 
 
-def _material(model, mid: int, context: str):
+def material_card(model, mid: int, context: str):
     mat = model.materials.get(mid)
     if mat is None:
         raise BulkDataError(f"{context}: material {mid} is not defined")
@@ -314,7 +316,7 @@ def _material(model, mid: int, context: str):
     return E, G, rho
 
 
-def _property(model, pid: int, kinds: tuple, context: str):
+def property_card(model, pid: int, kinds: tuple, context: str):
     prop = model.properties.get(pid)
     if prop is None:
         raise BulkDataError(f"{context}: property {pid} is not defined")
@@ -324,34 +326,21 @@ def _property(model, pid: int, kinds: tuple, context: str):
     return prop
 
 
-def _round_section(prop, context: str):
-    """A, I1, I2, J of a PBARL/PBEAML ROD (DIM1 = radius): the closed forms of a circle.
-
-    NASTRAN gives these sections transverse shear flexibility with a shear area factor; 0.9
-    for ROD reproduces MSC Nastran's eigenvalues of the pyNastran beam_modes model to its
-    printed 7 digits (tests/flex/test_nastran_reference.py). Other shapes are refused until
-    their factor is verified the same way.
-    """
-    kind = str(prop.Type).strip().upper()
+def _shape_section(prop, context: str):
+    """:class:`~dynamics.flex.sections.Section` of a PBARL, or of a prismatic PBEAML (every station the same)."""
     dims = np.asarray(prop.dim, dtype=float)
     if dims.ndim > 1:                     # PBEAML: one row per station
         if np.ptp(dims, axis=0).max() > 1e-12 * np.abs(dims).max():
             raise BulkDataError(f"{context}: tapered PBEAML is not supported")
         dims = dims[0]
-    if kind != "ROD":
-        raise BulkDataError(f"{context}: {prop.type} section {kind} is not supported (ROD)")
-    r = dims[0]
-    if not r > 0.0:
-        raise BulkDataError(f"{context}: ROD radius {r} must be > 0")
-    I = np.pi / 4.0 * r**4
-    return np.pi * r * r, I, I, 2.0 * I
+    return section_properties(prop.Type, dims, context)
 
 
 def _beam_section(prop, context: str):
     if prop.type in ("PBARL", "PBEAML"):
-        A, I1, I2, J = _round_section(prop, context)
+        sec = _shape_section(prop, context)
         nsm = float(np.atleast_1d(np.asarray(prop.nsm, dtype=float))[0] or 0.0)
-        return A, I1, I2, J, nsm, 0.9, 0.9, None
+        return sec.A, sec.I1, sec.I2, sec.J, nsm, sec.k1, sec.k2, None
     if prop.type == "PBAR":
         A, I1, I2, I12, J, nsm = (float(prop.A), float(prop.i1), float(prop.i2),
                                   float(prop.i12), float(prop.j), float(prop.nsm))
@@ -431,42 +420,29 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
         if elem.type in bulk.report.unsupported:
             continue    # reported by read_bulk_data and accepted with allow_unsupported
         if elem.type in ("CBAR", "CBEAM"):
-            beams.append(_beam_data(bulk, elem, ctx, wt, idx, sections))
-        elif elem.type in ("CQUAD4", "CTRIA3"):
-            shells.append(_shell_data(bulk, elem, ctx, wt, idx, sections))
+            beams.append(beam_data(bulk, elem, ctx, wt, idx, sections))
+        elif elem.type in ("CQUAD4", "CTRIA3", "CQUAD8", "CTRIA6"):
+            shells.append(shell_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
-            solid_elems.append(_solid_data(bulk, elem, ctx, wt, idx, sections))
+            solid_elems.append(solid_data(bulk, elem, ctx, wt, idx, sections))
         elif elem.type == "CBUSH":
             _add_bush(bulk, elem, ctx, K_b, M_b, ML_b, idx)
         elif elem.type == "CROD":
             _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx)
         elif elem.type in ("CELAS1", "CELAS2"):
             if elem.type == "CELAS1":
-                prop = _property(model, int(elem.pid), ("PELAS",), ctx)
+                prop = property_card(model, int(elem.pid), ("PELAS",), ctx)
                 k = float(prop.k)
             else:
                 k = float(elem.k)
-            ends = []
-            for gid, comp in zip(elem.nodes, (elem.c1, elem.c2)):
-                if gid is None or gid == 0:
-                    continue
-                c = int(comp or 0)
-                if c < 1 or c > 6:
-                    raise BulkDataError(f"{ctx}: component {comp} of grid {gid} is not in 1..6")
-                ends.append(6 * idx(gid, ctx) + c - 1)
-            if len(ends) == 2:
-                k_cd.add(np.array(ends), k * np.array([[1.0, -1.0], [-1.0, 1.0]]))
-            elif len(ends) == 1:
-                k_cd.add(np.array(ends), np.array([[k]]))
-            else:
-                raise BulkDataError(f"{ctx}: no grid connected")
+            _add_scalar(k_cd, k, elem, ctx, idx)
         else:
             raise BulkDataError(f"{ctx}: element type not supported")
 
     if beams:
         if progress is not None:
             progress(f"element matrices for {len(beams)} beams")
-        dofs, props, frames, wa, wb, torsion = _beam_batch(bulk, beams)
+        dofs, props, frames, wa, wb, torsion = beam_batch(bulk, beams)
         Kg, Mg, MLg = el.beam_element_batch(props, frames, wa, wb, bulk.coupled_mass, torsion)
         for e, beam in enumerate(beams):
             if beam[9] is None:
@@ -488,17 +464,24 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
         M_b.add_batch(dofs, Mg)
         ML_b.add_batch(dofs, MLg)
 
-    for nn in (3, 4):
+    for nn in (3, 4, 6, 8):
         group = [sh for sh in shells if len(sh[0]) == nn]
         if not group:
             continue
         if progress is not None:
-            progress(f"element matrices for {len(group)} {'CQUAD4' if nn == 4 else 'CTRIA3'}")
+            progress(f"element matrices for {len(group)} {SHELL_NAMES[nn]}")
         rows = np.array([sh[0] for sh in group], dtype=np.int64)
         xyz = pos[rows]
         props = np.array([sh[1] for sh in group], dtype=float)
-        Kg, Mg, MLg = shell_batch(xyz, props, bulk.coupled_mass)
-        dofs = (6 * rows[:, :, None] + np.arange(6)).reshape(len(group), 6 * nn)
+        if nn == 8:
+            Kg, Mg, MLg = cquad8_batch(xyz, props, bulk.coupled_mass)
+        elif nn == 6:
+            xyz, props, local = tria6_parts(xyz, props)
+            rows = np.take_along_axis(np.repeat(rows, 4, axis=0), local, axis=1)
+            Kg, Mg, MLg = shell_batch(xyz, props, bulk.coupled_mass)
+        else:
+            Kg, Mg, MLg = shell_batch(xyz, props, bulk.coupled_mass)
+        dofs = (6 * rows[:, :, None] + np.arange(6)).reshape(len(rows), 6 * rows.shape[1])
         K_b.add_batch(dofs, Kg)
         M_b.add_batch(dofs, Mg)
         ML_b.add_batch(dofs, MLg)
@@ -517,9 +500,20 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
         ML_b.add_batch(dofs, MLg)
 
     lumped: list[LumpedMass] = []
+    m_cd = _Triplets()
     for eid, mass in sorted(model.masses.items()):
         ctx = f"{mass.type} {eid}"
         if mass.type in bulk.report.unsupported:
+            continue
+        if mass.type in ("CMASS1", "CMASS2"):
+            if mass.type == "CMASS1":
+                prop = model.properties_mass.get(int(mass.pid))
+                if prop is None or prop.type != "PMASS":
+                    raise BulkDataError(f"{ctx}: PMASS {mass.pid} is not defined")
+                m = float(prop.mass)
+            else:
+                m = float(mass.mass)
+            _add_scalar(m_cd, m * wt, mass, ctx, idx)
             continue
         gid = int(mass.nid)
         i = idx(gid, ctx)
@@ -551,6 +545,7 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
 
     K_g = K_b.matrix(ng)
     M_g = M_b.matrix(ng)
+    K_dmig, M_dmig = direct_input_matrices(bulk, "K2GG"), direct_input_matrices(bulk, "M2GG")
     if not np.array_equal(Rcd, np.broadcast_to(np.eye(3), Rcd.shape)):
         R = block_rotation(Rcd)
         K_g = (R.T @ K_g @ R).tocsr()
@@ -558,6 +553,17 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
     if k_cd.batches:
         K_g = (K_g + k_cd.matrix(ng)).tocsr()
     ML_basic = ML_b.matrix(ng)
+    if K_dmig is not None:
+        K_g = (K_g + K_dmig).tocsr()
+    if M_dmig is not None:
+        M_g = (M_g + M_dmig).tocsr()
+        R = block_rotation(Rcd)
+        ML_basic = ML_basic + R @ M_dmig @ R.T
+    if m_cd.batches:
+        M_scalar = m_cd.matrix(ng)
+        M_g = (M_g + M_scalar).tocsr()
+        R = block_rotation(Rcd)
+        ML_basic = ML_basic + R @ M_scalar @ R.T
     if M_g.nnz == 0 or not np.any(M_g.diagonal() > 0.0):
         raise BulkDataError(f"{bulk.path}: zero-mass model (no element density, CONM1/CONM2 "
                             "or non-structural mass); modes and mass properties need mass")
@@ -570,16 +576,115 @@ def assemble(bulk: BulkData, separate_lumped: bool = False, progress=None,
     return structural
 
 
-def _shell_data(bulk, elem, ctx, wt, idx, sections):
-    """(grid rows, property row of :func:`shells.shell_batch`) of one CQUAD4/CTRIA3 with a
+def _dmig_selection(bulk: BulkData, kind: str):
+    """[(scale, DMIG name)] that case control's ``kind`` (K2GG, M2GG) selects: ``K2GG = KX``,
+    ``K2GG = 1.5*KX``, ``K2GG = KX, KY`` (the first subcase that has it, or the global case control)."""
+    cc = getattr(bulk.model, "case_control_deck", None)
+    if cc is None:
+        return []
+    for isub in sorted(cc.subcases):
+        try:
+            value = cc.subcases[isub].get_parameter(kind)[0]
+        except KeyError:
+            continue
+        out = []
+        for term in str(value).replace(" ", "").split(","):
+            scale, _, name = term.rpartition("*")
+            try:
+                out.append((float(scale) if scale else 1.0, name.upper()))
+            except ValueError:
+                raise BulkDataError(f"{bulk.path}: case control {kind} = {value}: expected NAME or SCALE*NAME "
+                                    "terms") from None
+        return out
+    return []
+
+
+def direct_input_matrices(bulk: BulkData, kind: str):
+    """The g-set matrix (CD frames) of the DMIG entries case control selects with ``kind`` (K2GG or M2GG),
+    scaled by PARAM CK2 / CM2, or None (MSC Nastran QRG K2GG, M2GG, DMIG, PARAM CM2: the terms are added to
+    the structural matrices before constraints; M2GG is not scaled by WTMASS). The matrices must be real and
+    symmetric (IFO = 6); a term given in both triangles is refused, as is a DMIG on a scalar point."""
+    model = bulk.model
+    selection = _dmig_selection(bulk, kind)
+    unused = sorted(set(getattr(model, "dmig", {})) - {name for _, name in
+                                                       _dmig_selection(bulk, "K2GG") + _dmig_selection(bulk, "M2GG")})
+    if unused and kind == "K2GG":
+        warnings.warn(f"{bulk.path}: DMIG {', '.join(unused)} not selected by case control K2GG/M2GG: not used "
+                      "(NASTRAN ignores an unselected DMIG too)", stacklevel=4)
+    if not selection:
+        return None
+    ng = 6 * len(bulk.grid_ids)
+    factor = float(model.params["C" + kind[0] + "2"].values[0]) if "C" + kind[0] + "2" in model.params else 1.0
+    total = sp.csr_matrix((ng, ng))
+    for scale, name in selection:
+        dmig = getattr(model, "dmig", {}).get(name)
+        where = f"{bulk.path}: DMIG {name} ({kind})"
+        if dmig is None:
+            raise BulkDataError(f"{where}: case control selects it, but no DMIG of that name is in the deck")
+        if int(dmig.matrix_form) != 6:
+            raise BulkDataError(f"{where}: IFO = {dmig.matrix_form}; {kind} takes symmetric matrices (IFO = 6)")
+        if int(dmig.tin) not in (1, 2):
+            raise BulkDataError(f"{where}: TIN = {dmig.tin}: complex matrices are not supported")
+        entries = {}
+        for (gj, cj), (gi, ci), value in zip(dmig.GCj, dmig.GCi, dmig.Real):
+            for g, c in ((gj, cj), (gi, ci)):
+                if not 1 <= int(c) <= 6:
+                    raise BulkDataError(f"{where}: component {c} of point {g}: grids with components 1-6 only")
+            j = 6 * bulk.grid_index(int(gj), where) + int(cj) - 1
+            i = 6 * bulk.grid_index(int(gi), where) + int(ci) - 1
+            key = (min(i, j), max(i, j))
+            if key in entries:
+                raise BulkDataError(f"{where}: the term ({gi}, {ci}) x ({gj}, {cj}) is given twice (both triangles "
+                                    "of a symmetric matrix, or repeated)")
+            entries[key] = float(value)
+        rows = np.array([k[0] for k in entries] + [k[1] for k in entries if k[0] != k[1]], dtype=np.int64)
+        cols = np.array([k[1] for k in entries] + [k[0] for k in entries if k[0] != k[1]], dtype=np.int64)
+        vals = np.array(list(entries.values()) + [v for k, v in entries.items() if k[0] != k[1]])
+        total = total + scale * sp.csr_matrix((vals, (rows, cols)), shape=(ng, ng))
+    return (factor * total).tocsr()
+
+
+def _add_scalar(triplets, value, elem, ctx, idx):
+    """A scalar spring or mass (CELAS1/2, CMASS1/2) of ``value`` between the CD components C1 of G1 and C2
+    of G2, or from one of them to ground (QRG CELAS1, CMASS1: ``value (u1 - u2)^2 / 2``)."""
+    ends = []
+    for gid, comp in zip(elem.nodes, (elem.c1, elem.c2)):
+        if gid is None or gid == 0:
+            continue
+        c = int(comp or 0)
+        if c < 1 or c > 6:
+            raise BulkDataError(f"{ctx}: component {comp} of grid {gid} is not in 1..6 (scalar points are not "
+                                "supported)")
+        ends.append(6 * idx(gid, ctx) + c - 1)
+    if len(ends) == 2:
+        if ends[0] == ends[1]:
+            raise BulkDataError(f"{ctx}: both ends are the same DOF")
+        triplets.add(np.array(ends), value * np.array([[1.0, -1.0], [-1.0, 1.0]]))
+    elif len(ends) == 1:
+        triplets.add(np.array(ends), np.array([[value]]))
+    else:
+        raise BulkDataError(f"{ctx}: no grid connected")
+
+
+SHELL_NAMES = {3: "CTRIA3", 4: "CQUAD4", 6: "CTRIA6", 8: "CQUAD8"}
+
+
+def shell_data(bulk, elem, ctx, wt, idx, sections):
+    """(grid rows, property row of :func:`shells.shell_batch`) of one CQUAD4/CTRIA3/CQUAD8/CTRIA6 with a
     PSHELL or a PCOMP (its equivalent PSHELL, :mod:`dynamics.flex.laminates`)."""
     model = bulk.model
+    if elem.type in ("CQUAD8", "CTRIA6"):
+        if any(g is None or int(g) == 0 for g in elem.nodes):
+            raise BulkDataError(f"{bulk.path}: {ctx}: a mid-side grid is blank; {elem.type} is modelled with all "
+                                f"{len(elem.nodes)} grids (a straight edge: put its mid-side grid at the midpoint)")
+        if float(elem.zoffset or 0.0) != 0.0:
+            raise BulkDataError(f"{bulk.path}: {ctx}: ZOFFS = {elem.zoffset} is not supported on {elem.type}")
     rows = [idx(int(g), ctx) for g in elem.nodes]
     if len(set(rows)) != len(rows):
         raise BulkDataError(f"{ctx}: repeated grid (degenerate element)")
     key = ("SHELL", int(elem.pid))
     if key not in sections:
-        prop = _property(model, int(elem.pid), ("PSHELL", "PCOMP"), ctx)
+        prop = property_card(model, int(elem.pid), ("PSHELL", "PCOMP"), ctx)
         sections[key] = (pcomp_section(model, int(elem.pid), ctx) if prop.type == "PCOMP"
                          else _pshell_moduli(model, int(elem.pid), ctx))
     Gm, Gb, Gs, rho, t, nsm, bend, ts, rigid, Gc = sections[key]
@@ -616,7 +721,7 @@ def _plane_modulus(model, mid: int, context: str):
     if mat is None:
         raise BulkDataError(f"{context}: material {mid} is not defined")
     if mat.type == "MAT1":
-        E, G, rho = _material(model, mid, context)
+        E, G, rho = material_card(model, mid, context)
         nu = _poisson(model, mid)
         c = E / (1.0 - nu * nu)
         Q = np.array([[c, nu * c, 0.0], [nu * c, c, 0.0], [0.0, 0.0, G]])
@@ -635,7 +740,7 @@ def _plane_modulus(model, mid: int, context: str):
 def _pshell_moduli(model, pid: int, ctx: str):
     """Membrane, bending and shear moduli, the scalars and the membrane-bending coupling modulus
     (-G4 of MID4, :mod:`dynamics.flex.laminates`) of a PSHELL (NASTRAN QRG PSHELL)."""
-    prop = _property(model, pid, ("PSHELL",), ctx)
+    prop = property_card(model, pid, ("PSHELL",), ctx)
     pctx = f"{ctx} -> PSHELL {prop.pid}"
     if not prop.mid1:
         raise BulkDataError(f"{pctx}: MID1 blank (no membrane stiffness) is not supported")
@@ -684,10 +789,10 @@ def _pshell_moduli(model, pid: int, ctx: str):
 
 _SOLID_KINDS = {("CHEXA", 8): solids.HEXA8, ("CHEXA", 20): solids.HEXA20,
                 ("CTETRA", 4): solids.TETRA4, ("CTETRA", 10): solids.TETRA10,
-                ("CPENTA", 6): solids.PENTA6}
+                ("CPENTA", 6): solids.PENTA6, ("CPENTA", 15): solids.PENTA15}
 
 
-def _solid_data(bulk, elem, ctx, wt, idx, sections):
+def solid_data(bulk, elem, ctx, wt, idx, sections):
     """(kind, grid rows, (E, nu, rho)) of one CHEXA/CTETRA/CPENTA with PSOLID and MAT1."""
     model = bulk.model
     nodes = list(elem.nodes)
@@ -695,17 +800,17 @@ def _solid_data(bulk, elem, ctx, wt, idx, sections):
     if kind is None or any(g is None or int(g) == 0 for g in nodes):
         given = sum(1 for g in nodes if g)
         raise BulkDataError(f"{ctx}: {elem.type} with {given} grids is not supported (CHEXA 8 "
-                            "or 20, CTETRA 4 or 10, CPENTA 6, all mid-edge grids present)")
+                            "or 20, CTETRA 4 or 10, CPENTA 6 or 15, all mid-edge grids present)")
     rows = [idx(int(g), ctx) for g in nodes]
     key = ("PSOLID", int(elem.pid))
     if key not in sections:
-        prop = _property(model, int(elem.pid), ("PSOLID",), ctx)
+        prop = property_card(model, int(elem.pid), ("PSOLID",), ctx)
         pctx = f"{ctx} -> PSOLID {prop.pid}"
         if str(getattr(prop, "fctn", "SMECH") or "SMECH").strip() not in ("SMECH", "PFLUID"):
             raise BulkDataError(f"{pctx}: FCTN = {prop.fctn} is not supported")
         if str(getattr(prop, "fctn", "SMECH") or "SMECH").strip() == "PFLUID":
             raise BulkDataError(f"{pctx}: FCTN = PFLUID (fluid element) is not supported")
-        E, G, rho = _material(model, int(prop.mid), pctx)
+        E, G, rho = material_card(model, int(prop.mid), pctx)
         sections[key] = (E, _poisson(model, int(prop.mid)), rho * wt)
     return kind, rows, sections[key]
 
@@ -718,7 +823,7 @@ def _poisson(model, mid: int) -> float:
     return float(E) / (2.0 * float(G)) - 1.0
 
 
-def _beam_data(bulk, elem, ctx, wt, idx, sections):
+def beam_data(bulk, elem, ctx, wt, idx, sections):
     """Raw fields of one CBAR/CBEAM: (eid, ia, ib, x, i_g0, wa, wb, section, is_cbeam, taper);
     taper None or (stations, (ns, 5) A I1 I2 J NSM*WTMASS, rho*WTMASS) of a tapered PBEAM."""
     model = bulk.model
@@ -740,11 +845,15 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
         i0, x = -1, elem.x
     key = (elem.type, int(elem.pid))
     if key not in sections:
-        prop = _property(model, int(elem.pid), ("PBAR", "PBARL") if elem.type == "CBAR"
+        prop = property_card(model, int(elem.pid), ("PBAR", "PBARL") if elem.type == "CBAR"
                          else ("PBEAM", "PBEAML"), ctx)
         A, I1, I2, J, nsm, k1, k2, taper = _beam_section(prop,
                                                          f"{ctx} -> {prop.type} {prop.pid}")
-        E, G, rho = _material(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
+        if prop.type in ("PBARL", "PBEAML"):
+            note = _shape_section(prop, f"{prop.type} {prop.pid}").note
+            if note:
+                bulk.report.notes.append(f"{prop.type} {prop.pid} {note}")
+        E, G, rho = material_card(model, int(prop.mid), f"{ctx} -> {prop.type} {prop.pid}")
         if taper is not None:
             # mass per length rho A + NSM, both scaled by WTMASS
             taper = (taper[0], taper[1] * np.array([1.0, 1.0, 1.0, 1.0, wt]), rho * wt)
@@ -759,7 +868,7 @@ def _beam_data(bulk, elem, ctx, wt, idx, sections):
 _ZERO3 = np.zeros(3)
 
 
-def _beam_batch(bulk, beams):
+def beam_batch(bulk, beams):
     """Vectorized geometry of all beams: dofs, props, frames, offsets (basic), CBEAM flags."""
     eids = np.array([b[0] for b in beams])
     ia = np.array([b[1] for b in beams])
@@ -812,7 +921,7 @@ def _add_bush(bulk, elem, ctx, K_b, M_b, ML_b, idx):
     used (the body's damping is modal).
     """
     model = bulk.model
-    prop = _property(model, int(elem.pid), ("PBUSH",), ctx)
+    prop = property_card(model, int(elem.pid), ("PBUSH",), ctx)
     pctx = f"{bulk.path}: {ctx} -> PBUSH {prop.pid}"
     k = np.array([float(v or 0.0) for v in (list(prop.Ki) + [0.0] * 6)[:6]])
     mass = float(getattr(prop, "mass", None) or 0.0)
@@ -897,8 +1006,8 @@ def _add_rod(bulk, elem, ctx, K_b, M_b, ML_b, wt, idx):
     trial = np.eye(3)[np.argmin(np.abs(axis))]
     Lam = el.beam_frame(axis, trial, ctx)
     L = float(np.linalg.norm(axis))
-    prop = _property(model, int(elem.pid), ("PROD",), ctx)
-    E, G, rho = _material(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
+    prop = property_card(model, int(elem.pid), ("PROD",), ctx)
+    E, G, rho = material_card(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
     A, J, nsm = float(prop.A), float(prop.j or 0.0), float(prop.nsm or 0.0)
     mu = (rho * A + nsm) * wt
     Kl, Ml = el.rod_local_matrices(L, E, G, A, J, mu, bulk.coupled_mass)
@@ -923,33 +1032,37 @@ def _selected_set(model, kind: str):
     return None
 
 
-def _spc_sets(bulk, sid):
-    """SPC/SPC1 set ids that case control's SPC = sid selects: sid itself, or the union an SPCADD
-    sid names (NASTRAN: an SPCADD may not reference another SPCADD); None = all sets. A selected
-    id that is neither selects nothing, with a warning (it used to, silently: an SPCADD was
-    never applied)."""
+def _constraint_sets(bulk, sid, kind: str = "SPC"):
+    """SPC/SPC1 (``kind`` "SPC") or MPC (``kind`` "MPC") set ids that case control's SPC = sid or MPC = sid
+    selects: sid itself, or the union an SPCADD / MPCADD sid names (NASTRAN: an SPCADD may not reference
+    another SPCADD, nor an MPCADD another MPCADD); None = all sets. A selected id that is neither selects
+    nothing, with a warning (it used to, silently: an SPCADD was never applied)."""
     if sid is None:
         return None
     model = bulk.model
-    adds = getattr(model, "spcadds", {}) or {}
+    adds = getattr(model, kind.lower() + "adds", {}) or {}
+    defined = model.spcs if kind == "SPC" else model.mpcs
+    cards = "SPC or SPC1" if kind == "SPC" else "MPC"
     if sid in adds:
         out = set()
         for card in adds[sid]:
             for s in card.sets:
                 s = int(s)
                 if s in adds:
-                    raise BulkDataError(f"{bulk.path}: SPCADD {sid} references SPCADD {s}; "
-                                        "NASTRAN does not allow nested SPCADDs")
-                if s not in model.spcs:
-                    raise BulkDataError(f"{bulk.path}: SPCADD {sid} references SPC set {s}, "
-                                        "which no SPC or SPC1 card defines")
+                    raise BulkDataError(f"{bulk.path}: {kind}ADD {sid} references {kind}ADD {s}; "
+                                        f"NASTRAN does not allow nested {kind}ADDs")
+                if s not in defined:
+                    raise BulkDataError(f"{bulk.path}: {kind}ADD {sid} references {kind} set {s}, "
+                                        f"which no {cards} card defines")
                 out.add(s)
         return out
-    if sid in model.spcs:
+    if sid in defined:
         return {sid}
-    warnings.warn(f"{bulk.path}: case control selects SPC = {sid}, but no SPC, SPC1 or SPCADD "
-                  f"card has that set id (defined: SPC/SPC1 sets {sorted(model.spcs)}, SPCADD "
-                  f"sets {sorted(adds)}); no SPC set is applied (GRID PS still is)", stacklevel=4)
+    listing = "SPC/SPC1" if kind == "SPC" else "MPC"
+    warnings.warn(f"{bulk.path}: case control selects {kind} = {sid}, but no {cards.replace(' or ', ', ')} or "
+                  f"{kind}ADD card has that set id (defined: {listing} sets {sorted(defined)}, {kind}ADD "
+                  f"sets {sorted(adds)}); no {kind} set is applied"
+                  + (" (GRID PS still is)" if kind == "SPC" else ""), stacklevel=4)
     return set()
 
 
@@ -960,25 +1073,33 @@ def apply_constraints(sm: StructuralModel, interface: list = ()) -> None:
     pos = bulk.positions
     Rcd = bulk.displacement_rotation
 
-    # RBE2: dependent rows of S (g x g) expressed on all g DOFs; chains resolved by S @ S.
+    # RBE2, RBE3, RBAR, RBE1, MPC: dependent rows of S (g x g) expressed on all g DOFs; chains resolved by S @ S.
     dependent: dict[int, str] = {}
     rows, cols, vals = [], [], []
+
+    def depend(g, dofs, coeffs, ctx):
+        if g in dependent:
+            raise BulkDataError(f"{ctx}: DOF {g % 6 + 1} of grid {bulk.grid_ids[g // 6]} "
+                                f"is already dependent in {dependent[g]}")
+        dependent[g] = ctx
+        rows.extend([g] * len(dofs))
+        cols.extend(dofs)
+        vals.extend(coeffs)
+
     for eid, rig in sorted(model.rigid_elements.items()):
         ctx = f"{rig.type} {eid}"
         if rig.type in bulk.report.unsupported:
             continue
         if rig.type == "RBE3":
             for g, dofs, coeffs in rbe3_rows(bulk, rig, ctx):
-                if g in dependent:
-                    raise BulkDataError(f"{ctx}: DOF {g % 6 + 1} of grid {bulk.grid_ids[g // 6]} "
-                                        f"is already dependent in {dependent[g]}")
-                dependent[g] = ctx
-                rows.extend([g] * len(dofs))
-                cols.extend(dofs)
-                vals.extend(coeffs)
+                depend(g, dofs, coeffs, ctx)
+            continue
+        if rig.type in ("RBAR", "RBE1"):
+            for g, dofs, coeffs in rigid_link_rows(bulk, *_rigid_link_dofs(bulk, rig, ctx), ctx):
+                depend(g, dofs, coeffs, ctx)
             continue
         if rig.type != "RBE2":
-            raise BulkDataError(f"{ctx}: rigid element type not supported (RBE2, RBE3)")
+            raise BulkDataError(f"{ctx}: rigid element type not supported (RBE2, RBE3, RBAR, RBE1)")
         ni = bulk.grid_index(int(rig.gn), ctx)
         comps = _components(rig.cm)
         for gm in rig.Gmi:
@@ -990,32 +1111,38 @@ def apply_constraints(sm: StructuralModel, interface: list = ()) -> None:
             Rn6 = np.kron(np.eye(2), Rcd[ni])
             C = Rm6.T @ rigid @ Rn6
             for c in comps:
-                g = 6 * mi + c - 1
-                if g in dependent:
-                    raise BulkDataError(f"{ctx}: DOF {c} of grid {gm} is already dependent "
-                                        f"in {dependent[g]}")
-                dependent[g] = ctx
-                rows.extend([g] * 6)
-                cols.extend(6 * ni + np.arange(6))
-                vals.extend(C[c - 1])
+                depend(6 * mi + c - 1, 6 * ni + np.arange(6), C[c - 1], ctx)
+    n_mpc = 0
+    selected_mpc = _constraint_sets(bulk, _selected_set(model, "MPC"), "MPC")
+    for set_id, cards in sorted(model.mpcs.items()):
+        if selected_mpc is not None and set_id not in selected_mpc:
+            continue
+        for card in cards:
+            n_mpc += 1
+            ctx = f"{card.type} set {set_id}"
+            g, dofs, coeffs = mpc_row(bulk, card, ctx)
+            depend(g, dofs, coeffs, ctx)
+    if selected_mpc is None and len(model.mpcs) > 1:
+        warnings.warn(f"{bulk.path}: no MPC selected in case control; applying all MPC sets "
+                      f"{sorted(model.mpcs)}", stacklevel=3)
     dep = np.array(sorted(dependent), dtype=np.int64)
     T = sp.identity(ng, format="csr")
     if len(dep):
         keep_rows = np.setdiff1d(np.arange(ng), dep)
         S = sp.csr_matrix((np.ones(len(keep_rows)), (keep_rows, keep_rows)), shape=(ng, ng)) + \
             sp.csr_matrix((vals, (rows, cols)), shape=(ng, ng))
-        for _ in range(len(model.rigid_elements) + 1):
+        for _ in range(len(model.rigid_elements) + n_mpc + 1):
             if not np.any(S[:, dep].getnnz(axis=0)):
                 break
             S = (S @ S).tocsr()
         else:
-            raise BulkDataError(f"{bulk.path}: RBE2 elements form a closed loop of dependencies")
+            raise BulkDataError(f"{bulk.path}: rigid elements and MPCs form a closed loop of dependencies")
         T = S
     sm.rbe2_dependent_count = len(dep)
 
     # SPC / SPC1 (zero enforced values only)
     sid = _selected_set(model, "SPC")
-    selected = _spc_sets(bulk, sid)
+    selected = _constraint_sets(bulk, sid, "SPC")
     spc_dofs = set()
     for set_id, cards in sorted(model.spcs.items()):
         if selected is not None and set_id not in selected:
@@ -1131,11 +1258,105 @@ def massless_mechanism_dofs(K, M, avoid: np.ndarray | None = None) -> np.ndarray
             raise BulkDataError("24 or more massless mechanisms (motions with neither mass nor "
                                 "stiffness): give the rotations mass (PARAM COUPMASS 1, CBEAM, "
                                 "CONM2 inertia) or constrain them")
+    if avoid is not None and np.any(avoid[o]) and Z.shape[1]:
+        # a mechanism that moves interface DOFs is restrained by them in the Craig-Bampton reduction (K_ee);
+        # holding another DOF would add a stiffness the structure does not have (the spin of a lumped CBAR
+        # line held at its tip twisting against its interface). Hold only the motions off the interface.
+        Z = Z @ sla.null_space(Z[avoid[o]], rcond=1e-10)
     if Z.shape[1] == 0:
         return np.zeros(0, dtype=np.int64)
-    weight = np.ones(len(o)) if avoid is None else np.where(avoid[o], 1e-6, 1.0)
-    _, _, piv = sla.qr(Z.T * weight, pivoting=True, mode="economic")
+    _, _, piv = sla.qr(Z.T, pivoting=True, mode="economic")
     return np.sort(o[piv[:Z.shape[1]]])
+
+
+def _dof_list(bulk, pairs, ctx):
+    """[(grid row, component)] of (grid id, component string) pairs, in order."""
+    out = []
+    for gid, comps in pairs:
+        i = bulk.grid_index(int(gid), ctx)
+        out.extend((i, c) for c in _components(comps))
+    return out
+
+
+def _rigid_link_dofs(bulk: BulkData, rig, ctx: str):
+    """(independent, dependent) [(grid row, component)] of an RBAR (CNA/CNB independent, CMA/CMB
+    dependent, all the others when both are blank: QRG RBAR remarks) or an RBE1 (GNi/CNi, GMi/CMi)."""
+    if rig.type == "RBAR":
+        ga, gb = int(rig.ga), int(rig.gb)
+        independent = _dof_list(bulk, [(ga, rig.cna), (gb, rig.cnb)], ctx)
+        if not _components(rig.cma) and not _components(rig.cmb):
+            rows = {bulk.grid_index(ga, ctx), bulk.grid_index(gb, ctx)}
+            dependent = [(i, c) for i in sorted(rows) for c in range(1, 7) if (i, c) not in independent]
+        else:
+            dependent = _dof_list(bulk, [(ga, rig.cma), (gb, rig.cmb)], ctx)
+    else:
+        independent = _dof_list(bulk, zip(rig.Gni, rig.Cni), ctx)
+        dependent = _dof_list(bulk, zip(rig.Gmi, rig.Cmi), ctx)
+    both = set(independent) & set(dependent)
+    if both:
+        i, c = sorted(both)[0]
+        raise BulkDataError(f"{bulk.path}: {ctx}: DOF {c} of grid {bulk.grid_ids[i]} is listed as independent "
+                            "and dependent")
+    return independent, dependent
+
+
+def rigid_link_rows(bulk: BulkData, independent, dependent, ctx: str):
+    """Dependent rows of a rigid element whose six independent DOFs fix its rigid-body motion (RBAR, RBE1):
+    [(dependent g-set DOF, independent g-set DOFs, coefficients)].
+
+    Every listed DOF is a component, in its grid's CD frame, of the rigid motion (t, theta) of the element
+    about its first independent grid: S_i = R_i' [[I, -skew(x_i - x_1)], [0, I]] (translation rows,
+    rotation rows). The six independent DOFs give S_n (t, theta) = u_n; when S_n is regular (QRG RBAR, RBE1:
+    the independent DOFs "must jointly be capable of representing any general rigid body motion") the
+    dependent DOFs follow as u_m = S_m S_n^-1 u_n. Checked with the rotation columns scaled by the element's
+    size, so the test does not depend on units."""
+    pos, Rcd = bulk.positions, bulk.displacement_rotation
+    where = f"{bulk.path}: {ctx}"
+    if len(independent) != 6:
+        raise BulkDataError(f"{where}: {len(independent)} independent DOFs; a rigid element needs exactly six "
+                            "that fix its rigid-body motion (QRG RBAR / RBE1)")
+    ref = pos[independent[0][0]]
+
+    def rows(pairs):
+        S = np.zeros((len(pairs), 6))
+        for k, (i, c) in enumerate(pairs):
+            rigid = np.eye(6)
+            rigid[:3, 3:] = -el.skew(pos[i] - ref)
+            S[k] = (np.kron(np.eye(2), Rcd[i]).T @ rigid)[c - 1]
+        return S
+
+    Sn, Sm = rows(independent), rows(dependent)
+    grids = {i for i, _ in independent + dependent}
+    size = max(max(np.linalg.norm(pos[i] - ref) for i in grids), 1e-300)
+    scale = np.r_[np.ones(3), np.full(3, 1.0 / size)]
+    sv = np.linalg.svd(Sn / scale, compute_uv=False)
+    if sv[-1] <= 1e-10 * sv[0]:
+        names = ", ".join(f"grid {bulk.grid_ids[i]} DOF {c}" for i, c in independent)
+        raise BulkDataError(f"{where}: the independent DOFs ({names}) cannot represent every rigid-body motion "
+                            "of the element (e.g. translations along its axis only, or no rotation about it): "
+                            "choose six that do (QRG RBAR remark 3)")
+    X = Sm @ np.linalg.inv(Sn)
+    ind = np.array([6 * i + c - 1 for i, c in independent], dtype=np.int64)
+    return [(6 * i + c - 1, ind, X[k]) for k, (i, c) in enumerate(dependent)]
+
+
+def mpc_row(bulk: BulkData, card, ctx: str):
+    """(dependent g-set DOF, independent g-set DOFs, coefficients) of an MPC: A1 u1 + sum_k A_k u_k = 0 with
+    the first (grid, component) dependent, u1 = -sum_k (A_k / A1) u_k (QRG MPC; components in CD frames)."""
+    where = f"{bulk.path}: {ctx}"
+    dofs, coeffs = [], []
+    for gid, comp, a in zip(card.nodes, card.components, card.coefficients):
+        c = int(comp or 0)
+        if c < 1 or c > 6:
+            raise BulkDataError(f"{where}: component {comp!r} of point {gid} is not in 1..6 (scalar points are not "
+                                "supported)")
+        dofs.append(6 * bulk.grid_index(int(gid), ctx) + c - 1)
+        coeffs.append(float(a or 0.0))
+    if not coeffs or coeffs[0] == 0.0:
+        raise BulkDataError(f"{where}: the first coefficient A1 must be non-zero (its DOF is the dependent one)")
+    if len(set(dofs)) != len(dofs):
+        raise BulkDataError(f"{where}: a DOF appears twice in one MPC equation")
+    return dofs[0], np.asarray(dofs[1:], dtype=np.int64), -np.asarray(coeffs[1:]) / coeffs[0]
 
 
 def rbe3_rows(bulk: BulkData, rig, ctx: str):

@@ -23,9 +23,11 @@ import scipy.sparse as sp
 from dynamics.flex.geometric_stiffness import GeometricStiffness
 from dynamics.flex.modal_integrals import ModalIntegrals
 
-FORMAT_VERSION = "1.1"
-"""Layout version. 1.1 (issue 15) adds the optional ``GeometricStiffness`` group; 1.0 files (without it)
-read unchanged, with ``geometric_stiffness = None``."""
+FORMAT_VERSION = "1.2"
+"""Layout version. 1.1 (issue 15) adds the optional ``GeometricStiffness`` group; 1.2 (issue 33) the
+optional ``Units`` (the deck's unit system and its factors to SI), ``OutputFrame`` (CSID axes) and
+``LoadsRecovery`` groups.
+Older files read unchanged, without them."""
 
 
 @dataclass
@@ -73,7 +75,7 @@ class ModalBody:
 
     Body frame: origin at the reference point (GRDPNT grid, or the basic origin), axes of the
     basic frame. Mode shapes per grid: ``mode_shape(grid)`` = [rotation (3); translation (3)]
-    x n_modes, i.e. Pi(j) = [lambda; gamma] of TM eq. E.1.19 and CONVENTIONS.md.
+    x n_modes, i.e. Pi(j) = [lambda; gamma] of TM eq. E.1.19 and docs/conventions.md.
     """
 
     source: str
@@ -83,7 +85,7 @@ class ModalBody:
     mass: float                            # [kg]
     cm_offset: np.ndarray                  # (3,) from the reference point [m]
     inertia: np.ndarray                    # (3,3) about the reference point [kg m^2]
-    frequencies_hz: np.ndarray             # (n,)
+    frequencies_hz: np.ndarray             # (n,); inf for the quasi-static modes
     n_rigid_modes_removed: int
     n_residual_vectors: int
     grid_ids: np.ndarray                   # (N,) int64
@@ -112,6 +114,19 @@ class ModalBody:
     # element; empty when unknown (files written before it was kept)
     element_types: list = field(default_factory=list)
     element_grids: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=np.int64))
+    # the deck's units and the factors that brought the body to SI (``--units``): keys spec, length, mass,
+    # time, force (SI per deck unit), wtmass; None when the deck was taken as SI
+    deck_units: dict | None = None
+    # output coordinate system (``--csid``): its id and axes in basic (columns); the body frame has these
+    # axes. 0 and the identity: basic axes
+    output_csid: int = 0
+    output_axes: np.ndarray = field(default_factory=lambda: np.eye(3))
+    # element forces / stresses and interface forces from the modal coordinates (dynamics.flex.loads_recovery)
+    loads_recovery: object = None
+    # the last n_quasi_static modes have stiffness and no mass (massless interface DOFs of normalized component
+    # modes, dynamics.flex.component_modes): frequency inf, modal mass 0, modal stiffness the largest flexible
+    # eigenvalue each
+    n_quasi_static: int = 0
     version: str = FORMAT_VERSION
     time_stamp: str = ""
 
@@ -234,6 +249,8 @@ def write_body_file(path, body: ModalBody) -> None:
         ms.create_dataset("N_FLEX_MODES", data=body.n_modes)
         ms.create_dataset("N_RIGID_MODES", data=int(body.n_rigid_modes_removed))
         ms.create_dataset("N_RESIDUAL_VECTORS", data=int(body.n_residual_vectors))
+        if body.n_quasi_static:
+            ms.create_dataset("N_QUASI_STATIC_MODES", data=int(body.n_quasi_static))
         ms.create_dataset("ModalMassMatrix", data=body.modal_mass)
         ms.create_dataset("ModalStiffnessMatrix", data=body.modal_stiffness)
         ms.create_dataset("ModalDampingMatrix", data=body.modal_damping)
@@ -280,6 +297,18 @@ def write_body_file(path, body: ModalBody) -> None:
             geometry.create_dataset("ElementType", data=np.array(body.element_types, dtype=object),
                                     dtype=h5py.string_dtype())
             geometry.create_dataset("ElementGrids", data=np.asarray(body.element_grids, dtype=np.int64))
+        if body.deck_units is not None:
+            units = h5.create_group("Units")
+            units.attrs["spec"] = body.deck_units["spec"]
+            units.create_dataset("DECK_UNITS", data=body.deck_units["spec"])
+            for key in UNIT_FACTORS:
+                units.create_dataset(key.upper(), data=float(body.deck_units[key]))
+        if body.loads_recovery is not None:
+            _write_loads_recovery(h5.create_group("LoadsRecovery"), body.loads_recovery)
+        if body.output_csid:
+            frame = h5.create_group("OutputFrame")
+            frame.create_dataset("CSID", data=int(body.output_csid))
+            frame.create_dataset("Axes", data=np.asarray(body.output_axes, dtype=np.float64))
         cbs = h5.create_group("ChildBodies")
         for k, child in enumerate(body.child_bodies):
             g = cbs.create_group(f"{k:04d}")
@@ -288,6 +317,34 @@ def write_body_file(path, body: ModalBody) -> None:
             g.create_dataset("mass", data=float(child.mass))
             g.create_dataset("cmoffset", data=child.cm_offset)
             g.create_dataset("inertia", data=child.inertia)
+
+
+def _write_loads_recovery(g: h5py.Group, lr) -> None:
+    g.attrs["reaction"] = lr.reaction
+    g.create_dataset("REACTION", data=lr.reaction)
+    g.create_dataset("REFERENCE_GRID", data=int(lr.reference_grid))
+    g.create_dataset("Names", data=np.array(lr.names, dtype=object), dtype=h5py.string_dtype())
+    g.create_dataset("Kinds", data=np.array(lr.kinds, dtype=object), dtype=h5py.string_dtype())
+    for name, value in (("ModeDisplacement", lr.mode_displacement),
+                        ("ReferenceAcceleration", lr.reference_acceleration), ("Loads", lr.loads)):
+        g.create_dataset(name, data=np.asarray(value, dtype=np.float64))
+    g.create_dataset("LoadDofs", data=np.asarray(lr.load_dofs, dtype=np.int64).reshape(-1, 2))
+
+
+def _read_loads_recovery(g: h5py.Group):
+    from dynamics.flex.loads_recovery import LoadsRecovery
+
+    def strings(ds):
+        return [s.decode() if isinstance(s, bytes) else str(s) for s in ds[()]]
+    return LoadsRecovery(names=strings(g["Names"]), kinds=strings(g["Kinds"]),
+                         mode_displacement=g["ModeDisplacement"][()],
+                         reference_acceleration=g["ReferenceAcceleration"][()], reaction=_str(g["REACTION"]),
+                         reference_grid=int(g["REFERENCE_GRID"][()]),
+                         load_dofs=g["LoadDofs"][()], loads=g["Loads"][()])
+
+
+# datasets of the ``Units`` group: SI per deck unit of length, mass, time and force, and PARAM WTMASS
+UNIT_FACTORS = ("length", "mass", "time", "force", "wtmass")
 
 
 def _str(ds) -> str:
@@ -362,6 +419,17 @@ def read_body_file(path) -> ModalBody:
             time_stamp=_str(h5["TIME_STAMP"]),
         )
         body.element_types, body.element_grids = _read_geometry(h5)
+        if "Units" in h5:
+            units = h5["Units"]
+            body.deck_units = {"spec": _str(units["DECK_UNITS"]),
+                               **{key: float(units[key.upper()][()]) for key in UNIT_FACTORS}}
+        if "N_QUASI_STATIC_MODES" in ms:
+            body.n_quasi_static = int(ms["N_QUASI_STATIC_MODES"][()])
+        if "LoadsRecovery" in h5:
+            body.loads_recovery = _read_loads_recovery(h5["LoadsRecovery"])
+        if "OutputFrame" in h5:
+            body.output_csid = int(h5["OutputFrame/CSID"][()])
+            body.output_axes = h5["OutputFrame/Axes"][()]
     return body
 
 

@@ -5,9 +5,10 @@ is parsed with pyNastran's BDF reader. Every card type is then sorted into one o
 reported by name and count, so nothing is silently dropped:
 
 * supported: modelled by :mod:`dynamics.flex.elements` / :mod:`dynamics.flex.assembly`
-  (GRID, GRDSET, CORD2R, CORD2C, CORD2S, CORD1R, CORD1C, CORD1S, RBE3, CBUSH/PBUSH, CBAR/PBAR, CBEAM/PBEAM, CROD/PROD, CELAS1/PELAS, CELAS2,
-  CQUAD4/CTRIA3/PSHELL/PCOMP, CHEXA/CTETRA/CPENTA/PSOLID,
-  CONM1, CONM2, MAT1, MAT2, MAT8, RBE2, SPC, SPC1, ASET, ASET1, PARAM WTMASS/COUPMASS/GRDPNT);
+  (GRID, GRDSET, CORD2R, CORD2C, CORD2S, CORD1R, CORD1C, CORD1S, RBE3, CBUSH/PBUSH, CBAR/PBAR/PBARL,
+  CBEAM/PBEAM/PBEAML, CROD/PROD, CELAS1/PELAS, CELAS2, CQUAD4/CTRIA3/CQUAD8/CTRIA6 with PSHELL/PCOMP,
+  CHEXA/CTETRA/CPENTA (6 and 15 grids)/PSOLID, CONM1, CONM2, CMASS1/PMASS, CMASS2, MAT1, MAT2, MAT8, RBE2,
+  RBAR, RBE1, MPC, MPCADD, SPC, SPC1, SPCADD, ASET, ASET1, DMIG (K2GG/M2GG), PARAM WTMASS/COUPMASS/GRDPNT/CK2/CM2);
 * ignored: cards that carry no mass, stiffness or constraint (solution controls, output and
   load cards, SPOINTs without elements, other PARAMs): reported as a warning;
 * unsupported structural cards (other elements, properties, materials, rigid elements, MPCs,
@@ -39,13 +40,13 @@ import numpy as np
 SUPPORTED_CARDS = frozenset({
     "GRID", "GRDSET", "CORD2R", "CORD2C", "CORD1R",
     "CBAR", "PBAR", "PBARL", "CBEAM", "PBEAM", "PBEAML", "CROD", "PROD",
-    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "MAT1", "MAT2", "MAT8",
-    "CQUAD4", "CTRIA3", "PSHELL", "PCOMP", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
-    "RBE2", "RBE3", "CBUSH", "PBUSH", "CORD2S", "CORD1C", "CORD1S",
-    "SPC", "SPC1", "SPCADD", "ASET", "ASET1", "PARAM", "ENDDATA",
+    "CELAS1", "CELAS2", "PELAS", "CONM1", "CONM2", "CMASS1", "CMASS2", "PMASS", "MAT1", "MAT2", "MAT8",
+    "CQUAD4", "CTRIA3", "CQUAD8", "CTRIA6", "PSHELL", "PCOMP", "CHEXA", "CTETRA", "CPENTA", "PSOLID",
+    "RBE2", "RBE3", "RBAR", "RBE1", "MPC", "MPCADD", "CBUSH", "PBUSH", "CORD2S", "CORD1C", "CORD1S",
+    "SPC", "SPC1", "SPCADD", "ASET", "ASET1", "PARAM", "ENDDATA", "DMIG",
 })
 # PARAMs that change the structural matrices or the products; all others are reported as ignored.
-USED_PARAMS = frozenset({"WTMASS", "COUPMASS", "GRDPNT"})
+USED_PARAMS = frozenset({"WTMASS", "COUPMASS", "GRDPNT", "CK2", "CM2"})
 # Containers of the pyNastran model whose unsupported members would change M or K.
 STRUCTURAL_CONTAINERS = ("elements", "properties", "materials", "masses", "rigid_elements",
                          "coords", "mpcs", "plotels", "properties_mass", "dmig", "dmiji", "dmik")

@@ -22,7 +22,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from dynamics.flex.modes import (EigenSolution, default_shift, lowest_modes,
+from dynamics.flex.modes import (MASSLESS_RATIO, EigenSolution, default_shift, lowest_modes,
                                  separate_rigid_body_modes, shifted_solver, solve_dense)
 
 
@@ -106,21 +106,91 @@ def craig_bampton(K, M, boundary: np.ndarray, n_modes: int | None = None,
                              basis=basis, mass=0.5 * (Mn + Mn.T), stiffness=0.5 * (Kn + Kn.T))
 
 
-def normalized_component_modes(cb: CraigBamptonModel, rigid_vectors: np.ndarray):
-    """(rigid, flexible, RigidSplit) normalized component modes over the f-set (A.2.9-A.2.15).
+@dataclass
+class ComponentModes:
+    """Normalized component modes (:func:`normalized_component_modes`), each set over the f-set.
 
-    ``rigid_vectors`` (n_f, r): the f-set rigid-body vectors; in Craig-Bampton coordinates they
-    are [0; R_b] (no fixed-interface participation, the boundary values).
-    """
-    sol = solve_dense(cb.stiffness, cb.mass)
+    rigid: the rigid-body (and zero-energy) modes removed; flexible: mass-normalized, K-diagonal;
+    quasi_static: directions of the Craig-Bampton basis without mass but with stiffness (the constraint mode
+    of a massless interface DOF, e.g. the relative twist of a lumped-mass CBAR line between its interface
+    grids), K-orthogonal to each other and to the flexible modes, modal stiffness ``omega_ref^2`` each (the
+    largest flexible eigenvalue), modal mass zero; split: the rigid/flexible report; n_massless_rigid: massless
+    directions without stiffness (the spin of a lumped CBAR line, which its interface carries), removed."""
+
+    rigid: EigenSolution
+    flexible: EigenSolution
+    quasi_static: EigenSolution
+    split: object
+    n_massless_rigid: int
+
+
+def normalized_component_modes(cb: CraigBamptonModel, rigid_vectors: np.ndarray) -> ComponentModes:
+    """:class:`ComponentModes` of a Craig-Bampton model (A.2.9-A.2.15), massless directions kept.
+
+    ``rigid_vectors`` (n_f, r): the f-set rigid-body vectors; in Craig-Bampton coordinates they are
+    [0; R_b] (no fixed-interface participation, the boundary values).
+
+    The Craig-Bampton mass M_n is singular when a constraint mode of a massless interface DOF moves no mass
+    (lumped-mass beams: a twist, or a bending rotation once the fixed-interface modes span the interior
+    translations). With Z_q such directions of positive stiffness and Z_m those of none (M_n Z = 0, and
+    K_n Z_m = 0 since K_n is positive semi-definite), the finite modes follow by static condensation of Z_q
+    (exact for the eigen-problem: its rows read K_qw w + K_qq z = 0 for every eigenvalue) and are K- and
+    M-orthogonal to Z_q (K x = lambda M x, M Z_q = 0); Z_q are kept as quasi-static modes: in an assembly the
+    bodies attached at the interface give them inertia (the whole structure's massless DOFs are there too).
+    Z_m are rigid motions without mass (the interface's hinge carries them) and are removed."""
+    Mn, Kn = cb.mass, cb.stiffness
+    n = Mn.shape[0]
+    # unit M-norm columns (directions of different units compared), a massless column left at the scale of
+    # the heaviest one
+    d = np.maximum(np.diag(Mn), 0.0)
+    scale = 1.0 / np.sqrt(np.where(d > 1e-12 * d.max(initial=0.0), d, max(d.max(initial=0.0), 1e-300)))
+    Ms = scale[:, None] * Mn * scale
+    w, V = np.linalg.eigh(0.5 * (Ms + Ms.T))
+    massless = w <= MASSLESS_RATIO * w.max()
+    Vw, Vz = V[:, ~massless], V[:, massless]
+    quasi = np.zeros((n, 0))
+    n_mech = 0
+    if Vz.shape[1]:
+        Z = scale[:, None] * Vz
+        Kz = Z.T @ Kn @ Z
+        s, U = np.linalg.eigh(0.5 * (Kz + Kz.T))
+        stiff = s > 1e-10 * max(float(np.abs(np.diag(Kn) * scale * scale).max(initial=0.0)), 1e-300)
+        n_mech = int(np.sum(~stiff))
+        quasi = Z @ U[:, stiff]
+    W = scale[:, None] * Vw
+    Kw, Mw = W.T @ Kn @ W, W.T @ Mn @ W
+    if quasi.shape[1]:
+        Kwq = W.T @ Kn @ quasi
+        Kqq = quasi.T @ Kn @ quasi
+        X = -np.linalg.solve(0.5 * (Kqq + Kqq.T), Kwq.T)        # z_q = X w
+        Kc = Kw + Kwq @ X
+        expand = W + quasi @ X
+    else:
+        Kc, expand = Kw, W
     nm = cb.n_modes
-    c_rigid = np.zeros((cb.mass.shape[0], rigid_vectors.shape[1]))
+    c_rigid = np.zeros((n, rigid_vectors.shape[1]))
     c_rigid[nm:] = rigid_vectors[cb.boundary]
-    solve = shifted_solver(cb.stiffness, cb.mass, default_shift(cb.stiffness, cb.mass, 1e-3))
-    rigid, flex, split = separate_rigid_body_modes(cb.stiffness, cb.mass, sol.vectors,
-                                                   sol.eigenvalues, c_rigid, solve)
-    return (EigenSolution(rigid.eigenvalues, cb.basis @ rigid.vectors),
-            EigenSolution(flex.eigenvalues, cb.basis @ flex.vectors), split)
+    # rigid vectors in the condensed coordinates (their massless parts drop out: M_n-orthogonal to Z)
+    c_rigid_w = np.linalg.lstsq(expand, c_rigid, rcond=None)[0]
+    Kc, Mw = 0.5 * (Kc + Kc.T), 0.5 * (Mw + Mw.T)
+    sol = solve_dense(Kc, Mw)
+    solve = shifted_solver(Kc, Mw, default_shift(Kc, Mw, 1e-3))
+    rigid, flex, split = separate_rigid_body_modes(Kc, Mw, sol.vectors, sol.eigenvalues, c_rigid_w, solve)
+    flex_cb = expand @ flex.vectors
+    if quasi.shape[1]:
+        # K-orthogonal among themselves; scaled to the largest flexible eigenvalue, so that their coordinates
+        # are commensurate with the mass-normalized ones (and convert between unit systems the same way)
+        Kq = quasi.T @ Kn @ quasi
+        kq, Uq = np.linalg.eigh(0.5 * (Kq + Kq.T))
+        target = flex.eigenvalues.max(initial=0.0) if len(flex.eigenvalues) else kq.max()
+        quasi = quasi @ (Uq * np.sqrt(target / kq))
+        quasi *= np.sign(quasi[np.argmax(np.abs(quasi), axis=0), np.arange(quasi.shape[1])])
+        q_lam = np.full(quasi.shape[1], np.inf)
+    else:
+        q_lam = np.zeros(0)
+    return ComponentModes(rigid=EigenSolution(rigid.eigenvalues, cb.basis @ (expand @ rigid.vectors)),
+                          flexible=EigenSolution(flex.eigenvalues, cb.basis @ flex_cb),
+                          quasi_static=EigenSolution(q_lam, cb.basis @ quasi), split=split, n_massless_rigid=n_mech)
 
 
 def constrained_modes(modes: np.ndarray, stiffness: np.ndarray, mass: np.ndarray,

@@ -55,10 +55,11 @@ Theory of Matrix Structural Analysis, 1968, sec. 15.2, eq. 15.53, I_p = I1 + I2 
 centroid (a tapered PBEAM: its end-A section); element offsets through the same rigid links as the
 stiffness) and CROD (a string: N / L on the transverse translations). The geometry,
 properties and offsets are read through :mod:`dynamics.flex.assembly`'s own beam functions. Shells
-(CQUAD4, CTRIA3: membrane resultants on u, v, w) and solids (CHEXA8/20, CTETRA4/10, CPENTA6: the full
+(CQUAD4, CTRIA3: membrane resultants on u, v, w) and solids (CHEXA8/20, CTETRA4/10, CPENTA6/15: the full
 stress) through :mod:`dynamics.flex.geometric_stiffness_continuum` (initial-stress matrix int G' S G dV from
 the elements' own Gauss-point stresses). Springs
-(CBUSH, CELAS) contribute no geometric stiffness: the pipeline warns naming them.
+(CBUSH, CELAS) and the shells with mid-side grids (CQUAD8, CTRIA6) contribute no geometric stiffness: the
+pipeline warns naming them.
 Limits: the shear-flexible beam (PBEAM K) uses the Euler-Bernoulli geometric stiffness; the geometric
 stiffness of node rotary inertia loads is left out (second order for slender beams).
 """
@@ -201,7 +202,7 @@ def _line_elements(sm):
         if elem.type in bulk.report.unsupported:
             continue
         if elem.type in ("CBAR", "CBEAM"):
-            beams.append(asm._beam_data(bulk, elem, f"{elem.type} {eid}", bulk.wtmass, idx, sections))
+            beams.append(asm.beam_data(bulk, elem, f"{elem.type} {eid}", bulk.wtmass, idx, sections))
         elif elem.type == "CROD":
             rods.append((eid, elem))
         elif elem.type in CONTINUUM_ELEMENTS:
@@ -211,7 +212,7 @@ def _line_elements(sm):
     ia, ib, T, ea_l, axes, KG = [], [], [], [], [], []
     counts = {}
     if beams:
-        dofs, props, frames, wa, wb, is_cbeam = asm._beam_batch(bulk, beams)
+        dofs, props, frames, wa, wb, is_cbeam = asm.beam_batch(bulk, beams)
         for e in range(len(beams)):
             L, E, A = props[e, 0], props[e, 1], props[e, 3]  # props: L, E, G, A, I1, I2, J, mu, k1, k2
             I1, I2 = props[e, 4], props[e, 5]
@@ -228,8 +229,8 @@ def _line_elements(sm):
         axis = bulk.positions[b] - bulk.positions[a]
         Lam = el.beam_frame(axis, np.eye(3)[np.argmin(np.abs(axis))], ctx)
         L = float(np.linalg.norm(axis))
-        prop = asm._property(model, int(elem.pid), ("PROD",), ctx)
-        E, _, _ = asm._material(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
+        prop = asm.property_card(model, int(elem.pid), ("PROD",), ctx)
+        E, _, _ = asm.material_card(model, int(prop.mid), f"{ctx} -> PROD {prop.pid}")
         ia.append(a)
         ib.append(b)
         T.append(el.local_to_grids(Lam, np.zeros(3), np.zeros(3)))
@@ -263,14 +264,14 @@ def _continuum_elements(sm, counts):
             continue
         ctx = f"{elem.type} {eid}"
         if elem.type in ("CQUAD4", "CTRIA3"):
-            shells.append(asm._shell_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
+            shells.append(asm.shell_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
             if np.any(shells[-1][1][33:42]):
                 # the membrane resultants of gsc leave out B kappa
                 raise BulkDataError(f"{ctx}: the geometric stiffness of a shell with membrane-"
                                     f"bending coupling (property {elem.pid}: PSHELL MID4 or an "
                                     "unsymmetric PCOMP) is not modelled")
         elif elem.type in ("CHEXA", "CTETRA", "CPENTA"):
-            solid_elems.append(asm._solid_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
+            solid_elems.append(asm.solid_data(bulk, elem, ctx, bulk.wtmass, idx, sections))
         else:
             continue
         counts[elem.type] = counts.get(elem.type, 0) + 1
@@ -327,7 +328,7 @@ def rigid_motion_loads(blocks: np.ndarray, l0: np.ndarray) -> np.ndarray:
     return np.einsum("nij,njc->nic", blocks, field_)
 
 
-def _static_displacements(sm, K, M, loads_f, held, rigid_vectors):
+def static_displacements(sm, K, M, loads_f, held, rigid_vectors):
     """f-set displacements for the f-set loads (n_f, c): ``held`` DOFs fixed (a-set) or, without them,
     inertia relief with the rigid-body vectors."""
     from dynamics.flex.modes import factorize  # supernodal Cholesky (SPD: held or SPC'd), else SuperLU
@@ -391,7 +392,7 @@ def geometric_stiffness(sm, K, M, blocks, l0, rot, trans, held=None, rigid_vecto
     g[:, :3] = np.einsum("nba,nbc->nac", Rcd, loads_basic[:, :3])
     g[:, 3:] = np.einsum("nba,nbc->nac", Rcd, loads_basic[:, 3:])
     loads_f = np.asarray(sm.T_gf.T @ g.reshape(6 * N, -1))
-    u_f = _static_displacements(sm, K, M, loads_f, held, rigid_vectors)
+    u_f = static_displacements(sm, K, M, loads_f, held, rigid_vectors)
     ug = np.asarray(sm.T_gf @ u_f).reshape(N, 6, -1)
     ub = np.empty_like(ug)
     ub[:, :3] = np.einsum("nab,nbc->nac", Rcd, ug[:, :3])

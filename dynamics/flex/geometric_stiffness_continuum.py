@@ -14,7 +14,7 @@ Element Method, vol. 2, 6th ed., 2005, sec. 6.2 and 10.6 for plates)::
 three displacement components). These kernels return H per element and load case; the caller applies it to
 the element's translations.
 
-* Solids (CHEXA8/20, CTETRA4/10, CPENTA6, :mod:`dynamics.flex.solids`): sigma = C (B u + B_a alpha) at every
+* Solids (CHEXA8/20, CTETRA4/10, CPENTA6/15, :mod:`dynamics.flex.solids`): sigma = C (B u + B_a alpha) at every
   Gauss point of the element's own rule; for CHEXA8 the nine incompatible-mode amplitudes are recovered from
   the static condensation, ``alpha = -K_aa^-1 K_ua' u`` (the same B_a as the element: centre Jacobian scaled
   by det J0 / det J), so the stress is the element's own (its nodal forces int B' sigma dV equal K u, tested).
@@ -37,7 +37,7 @@ import numpy as np
 from numba import njit
 
 from dynamics.flex import solids
-from dynamics.flex.shells import _G2, _materials, _membrane_bending_B, _quad_shape, shell_frame_transform
+from dynamics.flex.shells import GAUSS2_POINT, membrane_bending_B, quad_shape, shell_frame_transform, shell_materials
 
 
 @njit(cache=True)
@@ -55,7 +55,7 @@ def _shell_points(loc):
         dNx = np.empty((1, 2, 3))
         dNx[0] = np.linalg.inv(J) @ dN
         return dNx, np.array([0.5 * det]), np.zeros((1, 3, 4))
-    _, dN0 = _quad_shape(0.0, 0.0)
+    _, dN0 = quad_shape(0.0, 0.0)
     J0 = np.array([[dN0[0] @ x, dN0[0] @ y], [dN0[1] @ x, dN0[1] @ y]])
     J0i = np.linalg.inv(J0)
     det0 = np.linalg.det(J0)
@@ -63,9 +63,9 @@ def _shell_points(loc):
     wts = np.empty(4)
     Ba = np.zeros((4, 3, 4))
     q = 0
-    for r in (-_G2, _G2):
-        for s_ in (-_G2, _G2):
-            _, dN = _quad_shape(r, s_)
+    for r in (-GAUSS2_POINT, GAUSS2_POINT):
+        for s_ in (-GAUSS2_POINT, GAUSS2_POINT):
+            _, dN = quad_shape(r, s_)
             J = np.array([[dN[0] @ x, dN[0] @ y], [dN[1] @ x, dN[1] @ y]])
             det = np.linalg.det(J)
             if det <= 0.0:
@@ -86,7 +86,7 @@ def shell_membrane_resultants(xyz, props, u):
     CQUAD4 (4 points) or CTRIA3 (1 point) for the grid displacements ``u`` (6 nn, c) in basic [T; R]:
     (np, 3, c), with the shape gradients (np, 2, nn) and weights (np,) of the points."""
     T, loc, Lam = shell_frame_transform(xyz, props[32])
-    A = _materials(props, Lam)[0]
+    A = shell_materials(props, Lam)[0]
     ul = T @ u
     dNx, wts, Ba = _shell_points(loc)
     npt, nn = wts.shape[0], xyz.shape[0]
@@ -94,7 +94,7 @@ def shell_membrane_resultants(xyz, props, u):
     Kua = np.zeros((6 * nn, 4))
     Kaa = np.zeros((4, 4))
     for q in range(npt):
-        Bm, _ = _membrane_bending_B(dNx[q], nn)
+        Bm, _ = membrane_bending_B(dNx[q], nn)
         strains[q] = Bm @ ul
         Kua += Bm.T @ A @ Ba[q] * wts[q]
         Kaa += Ba[q].T @ A @ Ba[q] * wts[q]
@@ -156,7 +156,7 @@ def solid_stresses(kind, xyz, E, nu, pts, wts, u):
             raise ValueError("solid element: inverted or badly ordered grids (det J <= 0)")
         grads[q] = np.linalg.solve(J, dN)
         w[q] = wts[q] * det
-        B = solids._strain_matrix(grads[q], n)
+        B = solids.strain_matrix(grads[q], n)
         strain[q] = B @ u
         if incompatible:
             Bas[q] = solids.incompatible_rows(pts[q], J0i, det0, det)

@@ -98,12 +98,12 @@ def _mass_normalize(vectors: np.ndarray, M) -> np.ndarray:
 
 def _sign_convention(vectors: np.ndarray) -> np.ndarray:
     """Largest-magnitude entry of each vector positive (makes results reproducible)."""
-    signs = _largest_entry_signs(np.ascontiguousarray(vectors, dtype=float))
+    signs = largest_entry_signs(np.ascontiguousarray(vectors, dtype=float))
     return vectors * signs
 
 
 @njit(cache=True)
-def _largest_entry_signs(X):
+def largest_entry_signs(X):
     """Sign of the first largest-magnitude entry of every column (+1 for a zero column); one
     pass over the rows of a C-ordered block (numpy's argmax along axis 0 strides through it)."""
     n, m = X.shape
@@ -297,7 +297,7 @@ def rayleigh_ritz(K, M, W: np.ndarray, drop: float = 1e-10) -> EigenSolution:
     order = np.argsort(lam)
     if np.any(order != np.arange(len(order))):
         vec, mass, lam = vec[:, order], mass[order], lam[order]
-    vec *= _largest_entry_signs(vec) / np.sqrt(mass)
+    vec *= largest_entry_signs(vec) / np.sqrt(mass)
     return EigenSolution(lam, vec)
 
 

@@ -27,12 +27,15 @@ import scipy.sparse as sp
 from dynamics.flex.assembly import (StructuralModel, apply_constraints, assemble,
                                      block_rotation, deck_aset)
 from dynamics.flex.body_file import (ChildRigidBody, CraigBamptonData, ModalBody, SparseModel, elements_of_deck)
-from dynamics.flex.bulk_data import BulkData, BulkDataError, read_bulk_data
+from dynamics.flex.bulk_data import BulkData, BulkDataError, coordinate_axes, read_bulk_data
 from dynamics.flex.component_modes import craig_bampton, normalized_component_modes
 from dynamics.flex.mass_properties import rigid_body_mass_properties
 from dynamics.flex.modal_integrals import modal_integrals, point_mass_integrals
-from dynamics.flex.modes import RigidSplit, massless_dofs, free_free_modes
+from dynamics.flex.modes import (EigenSolution, RigidSplit, free_free_modes, largest_entry_signs,
+                                 massless_dofs)
 from dynamics.flex.residual_vectors import append_residual_vectors, residual_vectors
+from dynamics.flex.transform import express_body
+from dynamics.flex.units import SI, DeckUnits, parse_units
 
 
 @dataclass
@@ -52,6 +55,19 @@ class Fem2ModalOptions:
         (:mod:`dynamics.flex.geometric_stiffness`; reacted at the a-set, or by inertia relief).
     preloads: (name, grid, component 1..6, value) named static loads (basic axes) whose modal
         geometric stiffness is stored too (implies geometric_stiffness).
+    units: the deck's unit system, ``LENGTH,FORCE,TIME`` or ``LENGTH,MASS,TIME`` (``"in,lbf,s"``,
+        :mod:`dynamics.flex.units`); the body is expressed in SI and the conversion recorded. None: the
+        deck is taken as SI (its densities are checked for plausibility). ``--preload`` values are SI.
+    csid: output coordinate system (rectangular): the body frame takes its axes (origin still at the
+        reference point); mass properties, grid positions, mode shapes and modal integrals are in them.
+    recover_elements, recover_grids: loads recovery (:mod:`dynamics.flex.loads_recovery`): element forces
+        and stresses of these CBAR/CBEAM/CROD elements and interface forces at these grids, by mode
+        displacement and mode acceleration, stored for the LoadsRecovery model; the residual-vector DOFs
+        are its load DOFs.
+    op2: a NASTRAN OP2 file: its SOL 103 eigenvalues and eigenvectors replace our eigen-solution (the deck
+        supplies geometry and the mass for normalization, mass properties and modal integrals; our own
+        modes are computed too and compared), or, without eigenvectors, its KGG and MGG replace the
+        assembled matrices (as ``op4``) (:mod:`dynamics.flex.op2`).
     blas_threads: BLAS threads while the pipeline runs (threadpoolctl; None = unchanged). Its
         dense products are small or memory-bound: more threads than cores thrash on a shared
         machine (a 606-DOF Craig-Bampton reduction took 20 s instead of 0.1 s).
@@ -74,6 +90,11 @@ class Fem2ModalOptions:
     blas_threads: int | None = 1
     geometric_stiffness: bool = False
     preloads: list = field(default_factory=list)
+    units: str | None = None
+    csid: int | None = None
+    op2: str | None = None
+    recover_elements: list = field(default_factory=list)
+    recover_grids: list = field(default_factory=list)
 
 
 def validate_options(options: Fem2ModalOptions) -> None:
@@ -101,6 +122,15 @@ def validate_options(options: Fem2ModalOptions) -> None:
     if t is not None and (not np.isfinite(t) or t <= 0.0):
         raise ValueError(f"--rigid-threshold (rigid_threshold_hz) must be a finite frequency "
                          f"> 0 Hz, got {t}")
+    if options.units is not None:
+        parse_units(options.units)
+    if options.op2 is not None and options.op4 is not None:
+        raise ValueError("give one of --op2 and --op4, not both")
+    if (options.recover_elements or options.recover_grids) and options.op4 is not None:
+        raise ValueError("loads recovery (--recover-elements, --recover-grids) needs the deck's elements; "
+                         "--op4 matrices carry none")
+    if options.csid is not None and (int(options.csid) != options.csid or options.csid < 0):
+        raise ValueError(f"--csid (csid) must be a coordinate system id >= 0, got {options.csid}")
     if options.n_modes == 0 and not has_aset:
         raise ValueError("--modes 0 (n_modes = 0) without an a-set leaves a free-free body with "
                          "no flexible mode: ask for at least one mode, or use a rigid body "
@@ -117,6 +147,26 @@ def parse_grid_dofs(text: str) -> tuple[int, list[int]]:
     if not comps or any(c < 1 or c > 6 for c in comps):
         raise ValueError(f"{text!r}: components must be digits 1..6")
     return gid, comps
+
+
+def energy_signs(vectors: np.ndarray, stiffness_diagonal: np.ndarray) -> np.ndarray:
+    """+-1 per column, so that every mode's sign is the same in any unit system.
+
+    The eigen-solvers make the largest entry of each vector positive, which compares metres with radians,
+    so the sign changed with the deck's length unit. Here the sign is that of sum_i w_i sqrt(K_ii) phi_i:
+    sqrt(K_ii) phi_i has the units of sqrt(energy) on every DOF, and the fixed weights w_i = 1 + frac(0.618 i)
+    (golden-ratio sequence) keep the sum from vanishing for the symmetric and antisymmetric modes of
+    symmetric structures, where the largest entries tie (a plain sum would cancel, the largest entry would
+    be chosen by round-off). A sum that still cancels (below 1e-8 of sum_i w_i sqrt(K_ii) |phi_i|) falls
+    back to the largest weighted entry."""
+    scaled = np.sqrt(np.abs(np.asarray(stiffness_diagonal, dtype=float)))[:, None] * vectors
+    weights = 1.0 + np.modf(0.6180339887498949 * np.arange(len(scaled)))[0]
+    total = weights @ scaled
+    signs = np.where(total < 0.0, -1.0, 1.0)
+    tied = np.abs(total) <= 1e-8 * (weights @ np.abs(scaled))
+    if np.any(tied):
+        signs[tied] = largest_entry_signs(np.ascontiguousarray(scaled[:, tied]))
+    return signs
 
 
 def _grid_blocks(M: sp.csr_matrix, n: int) -> tuple[np.ndarray, float]:
@@ -285,17 +335,33 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
     say.step("read", f"reading {deck}")
     bulk = read_bulk_data(deck, allow_unsupported=options.allow_unsupported)
     say(f"{len(bulk.grid_ids)} grids; " + "; ".join(bulk.report.lines()))
-    if options.op4:
-        from dynamics.flex.op4 import read_op4_matrices
-        mats = read_op4_matrices(options.op4)
+    units = parse_units(options.units) if options.units is not None else SI
+    _check_densities(bulk, units, options.units is not None)
+    op2 = None
+    if options.op2:
+        from dynamics.flex.op2 import read_op2_results
+        op2 = read_op2_results(options.op2)
+        if op2.has_modes:
+            for flag, given in (("--aset (and the deck's ASET)", options.aset or deck_aset(bulk)),
+                                ("--residual", options.residual), ("--separate-lumped", options.separate_lumped)):
+                if given:
+                    raise ValueError(f"{options.op2}: NASTRAN's modes (--op2 with eigenvectors) are the deck's normal "
+                                     f"modes; {flag} needs our own eigen-solution: leave out --op2 or {flag}")
+    if options.op4 or (op2 is not None and not op2.has_modes):
+        source = options.op4 or options.op2
+        if options.op4:
+            from dynamics.flex.op4 import read_op4_matrices
+            mats = read_op4_matrices(options.op4)
+        else:
+            mats = op2.matrices
         missing = [n for n in ("KGG", "MGG") if n not in mats]
         if missing:
-            raise BulkDataError(f"{options.op4}: matrices {missing} not found (has "
+            raise BulkDataError(f"{source}: matrices {missing} not found (has "
                                 f"{sorted(mats)})")
         if options.separate_lumped:
-            raise ValueError("separate_lumped needs the deck's CONM2 cards, not OP4 matrices")
+            raise ValueError("separate_lumped needs the deck's CONM2 cards, not OP2/OP4 matrices")
         sm = structural_model_from_matrices(bulk, mats["KGG"], mats["MGG"], options.aset)
-        say(f"OP4 matrices KGG, MGG from {options.op4}")
+        say(f"matrices KGG, MGG from {source}")
     else:
         say.step("assembly", "assembling the structural matrices")
         sm = assemble(bulk, separate_lumped=options.separate_lumped, progress=say,
@@ -316,6 +382,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
 
     aset_pairs = list(sm.deck_aset) + list(options.aset)
     cb_data = None
+    quasi_static = EigenSolution(np.zeros(0), np.zeros((K.shape[0], 0)))
     n_rigid = 0
     rigid_vectors = None
     if aset_pairs:
@@ -327,18 +394,23 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
         say.step("eigen-solution", f"Craig-Bampton reduction, a-set {len(b_idx)} DOFs")
         cb = craig_bampton(K, M, b_idx, n_modes=options.n_modes, cutoff_hz=options.cutoff_hz,
                            describe=describe, groups=sm.f_dofs // 6)
+        signs = np.ones(cb.mass.shape[0])
+        signs[:cb.n_modes] = energy_signs(cb.fixed_interface.vectors, K.diagonal()[cb.interior])
         cb_data = CraigBamptonData(frequencies_hz=cb.fixed_interface.frequencies_hz,
-                                   mass=cb.mass, stiffness=cb.stiffness, uset=b_uset)
-        rigid, flex, split = normalized_component_modes(cb, rigid_geometry)
-        massless = cb.mass.shape[0] - len(rigid.eigenvalues) - len(flex.eigenvalues)
-        if massless:
-            warnings.warn(
-                f"{deck}: {massless} direction(s) of the Craig-Bampton basis carry no mass and were "
-                f"dropped (the {cb.n_modes} fixed-interface modes span the interior motion of a "
-                "constraint mode of a massless a-set DOF, e.g. a beam-end rotation with lumped mass); "
-                f"the body has {len(flex.eigenvalues)} flexible modes instead of "
-                f"{len(flex.eigenvalues) + massless}. Ask fewer "
-                "fixed-interface modes, or use PARAM COUPMASS 1 so every DOF has mass", stacklevel=2)
+                                   mass=signs[:, None] * cb.mass * signs,
+                                   stiffness=signs[:, None] * cb.stiffness * signs,
+                                   uset=b_uset)
+        component = normalized_component_modes(cb, rigid_geometry)
+        rigid, flex, split = component.rigid, component.flexible, component.split
+        quasi_static = component.quasi_static
+        if component.n_massless_rigid:
+            say(f"{component.n_massless_rigid} massless rigid motion(s) of the Craig-Bampton basis removed (no mass "
+                "and no stiffness: e.g. a lumped-mass CBAR line spinning about its axis, which the interface carries)")
+        if len(quasi_static.eigenvalues):
+            say(f"{len(quasi_static.eigenvalues)} quasi-static mode(s) kept: directions of the Craig-Bampton basis "
+                "with stiffness and no mass (the constraint mode of a massless interface DOF, e.g. a beam-end "
+                "rotation with lumped mass); the bodies attached at the interface give them inertia. They are the "
+                "last modes of the body (infinite frequency, zero modal mass) and need the engine's dense solver")
         mode_set = "normalized-component"
         grids = sorted({int(g) for g in b_uset[:, 0]})
         say("normalized component modes: their frequencies below are those of the free, "
@@ -347,6 +419,26 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
                 f"{f:.6g}" for f in cb.fixed_interface.frequencies_hz[:6]) + " Hz. Mount the "
             f"body with child_grid = one of the interface grids {grids} on a hinge that holds "
             "it (not a free hinge)")
+    elif op2 is not None and op2.has_modes:
+        from dynamics.flex.op2 import modes_on_fset
+        say.step("eigen-solution", f"NASTRAN's modes from {options.op2}")
+        b_uset = np.zeros((0, 2), dtype=np.int64)
+        nastran = modes_on_fset(op2, sm, K, M, rigid_geometry, options.n_modes, options.cutoff_hz)
+        for line in nastran.report:
+            say(line)
+            bulk.report.notes.append(line)
+        rigid = EigenSolution(np.zeros(nastran.n_rigid), np.zeros((K.shape[0], nastran.n_rigid)))
+        flex = EigenSolution(nastran.eigenvalues, nastran.vectors)
+        mode_set = "free-free"
+        say.step("our own modes", "our own modes of the deck, for comparison")
+        # four more of ours than NASTRAN's: a degenerate pair split at the end of NASTRAN's set stays in our span
+        _, own, _ = free_free_modes(K, M, n_modes=len(flex.eigenvalues) + 4, rigid_vectors=rigid_geometry,
+                                    groups=sm.f_dofs // 6)
+        line = _compare_with_own_modes(flex, own, M)
+        say(line)
+        bulk.report.notes.append(line)
+        if "WARNING" in line:
+            warnings.warn(f"{deck}: {line}", stacklevel=3)
     else:
         say.step("eigen-solution", "free-free normal modes (block shift-invert Lanczos)")
         b_uset = np.zeros((0, 2), dtype=np.int64)
@@ -357,12 +449,17 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
         mode_set = "free-free"
     n_rigid = len(rigid.eigenvalues)
     rigid_vectors = rigid.vectors if n_rigid else None
-    say(f"{len(flex.eigenvalues)} flexible modes, {n_rigid} rigid-body and mechanism modes "
-        "removed: " + split.line())
-    _check_split(deck, split, flex, options.rigid_threshold_hz)
+    if op2 is None or not op2.has_modes:
+        say(f"{len(flex.eigenvalues)} flexible modes, {n_rigid} rigid-body and mechanism modes "
+            "removed: " + split.line())
+        _check_split(deck, split, flex, options.rigid_threshold_hz)
 
     n_residual = 0
     res_uset = np.zeros((0, 2), dtype=np.int64)
+    if options.residual and len(quasi_static.eigenvalues):
+        raise ValueError(f"{deck}: residual vectors with quasi-static modes (massless interface DOFs) are not "
+                         "supported: give the interface DOFs mass (PARAM COUPMASS 1, CONM2 inertia) or leave out "
+                         "--residual")
     if options.residual:
         r_idx, res_uset = _f_indices(sm, options.residual, "residual-vector grid")
         say.step("residual vectors", f"residual vectors for {len(r_idx)} load DOFs")
@@ -370,12 +467,18 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
         n_residual = len(res.eigenvalues)
         flex = append_residual_vectors(K, M, flex, res)
 
+    if len(quasi_static.eigenvalues):
+        flex = EigenSolution(np.concatenate([flex.eigenvalues, quasi_static.eigenvalues]),
+                             np.hstack([flex.vectors, quasi_static.vectors]))
+    if op2 is None or not op2.has_modes:       # NASTRAN's modes keep NASTRAN's signs
+        flex.vectors *= energy_signs(flex.vectors, K.diagonal())
     n = len(flex.eigenvalues)
     damping = np.broadcast_to(np.asarray(options.damping, dtype=float), (n,)).copy() \
         if np.ndim(options.damping) == 0 else np.asarray(options.damping, dtype=float)
     if damping.shape != (n,):
         raise ValueError(f"damping: {len(damping)} ratios given for {n} modes")
     omega = np.sqrt(np.maximum(flex.eigenvalues, 0.0))
+    omega[np.isinf(omega)] = 0.0           # quasi-static modes: no mass, no modal damping
 
     # physical shapes: f -> g (CD frames) -> basic, rows [rotation; translation] per grid
     say.step("mode shapes", "mode shapes per grid")
@@ -393,7 +496,6 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
         grdpnt, ref_point = 0, np.zeros(3)
     say.step("mass properties", "rigid-body mass properties")
     rbp = rigid_body_mass_properties(sm.mass_g, bulk.positions, Rcd, ref_point, grdpnt)
-    _check_central_inertia(deck, rbp.mass, rbp.cm_offset, rbp.inertia)
     nm, npos, nJ = node_masses(sm.mass_lumped_basic, N, bulk.path)
     l0 = bulk.positions - ref_point
 
@@ -404,15 +506,9 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
             + (f" and preloads {sorted({p[0] for p in options.preloads})}" if options.preloads else ""))
         gs = geometric_stiffness(sm, K, M, _grid_blocks(sm.mass_lumped_basic, N)[0], l0, rot, trans,
                                  held=b_idx if aset_pairs else None, rigid_vectors=rigid_geometry,
-                                 preloads=options.preloads, context=str(deck),
+                                 preloads=_preloads_in_deck_units(options.preloads, units), context=str(deck),
                                  interface_row=_interface_row(bulk, aset_pairs))
         say(f"geometric stiffness: {gs.elements}, reaction {gs.reaction}")
-
-    mi = pmi = None
-    if options.modal_integrals:
-        say.step("modal integrals", "modal integrals (TM App. E)")
-        mi = modal_integrals(nm, npos, nJ, l0, rot, trans)
-        pmi = point_mass_integrals(nm, l0, trans)
 
     say.step("modal matrices", "modal mass and stiffness, body record")
     Mr = flex.vectors.T @ (M @ flex.vectors)
@@ -425,7 +521,7 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
         rotation_shapes=rot, translation_shapes=trans, node_mass=nm, node_cm_offset=npos,
         node_inertia=nJ, modal_mass=0.5 * (Mr + Mr.T), modal_stiffness=0.5 * (Kr + Kr.T),
         modal_damping=np.diag(2.0 * damping * omega), damping_ratios=damping,
-        modal_integrals=mi, point_mass_integrals=pmi, craig_bampton=cb_data, geometric_stiffness=gs,
+        craig_bampton=cb_data, geometric_stiffness=gs, n_quasi_static=len(quasi_static.eigenvalues),
         gset=SparseModel(sm.mass_g, sm.stiffness_g, _uset(sm, np.arange(6 * N)))
         if options.write_gset else None,
         fset=SparseModel(M, K, _uset(sm, sm.f_dofs)) if options.write_fset else None,
@@ -437,5 +533,101 @@ def _fem2modal(deck: str, options: Fem2ModalOptions, say: _Progress) -> ModalBod
                                      lm.inertia_cg) for lm in sm.lumped_masses],
         card_report=bulk.report.lines())
     body.element_types, body.element_grids = elements_of_deck(bulk.model)
+    if options.recover_elements or options.recover_grids:
+        from dynamics.flex.loads_recovery import loads_recovery
+        say.step("loads recovery", f"loads recovery of elements {list(options.recover_elements)} and grids "
+                 f"{list(options.recover_grids)}")
+        reference_row = None
+        if aset_pairs:
+            reference_row = _interface_row(bulk, aset_pairs)
+            if reference_row is None or len({int(g) for g, _ in aset_pairs}) != 1:
+                raise ValueError(f"{deck}: loads recovery by mode acceleration needs the body held at one interface "
+                                 f"grid in all six components (the a-set is {sorted({int(g) for g, _ in aset_pairs})})")
+        body.loads_recovery = loads_recovery(
+            sm, K, M, flex.vectors, options.recover_elements, options.recover_grids,
+            held=b_idx if aset_pairs else None, rigid_vectors=rigid_geometry, reference_row=reference_row,
+            reference_point=ref_point, load_dofs=[tuple(int(v) for v in row) for row in res_uset])
+        say(f"loads recovery: {body.loads_recovery.n_outputs} outputs, reaction {body.loads_recovery.reaction}")
+    if options.units is not None or options.csid:
+        axes = _output_axes(bulk, options.csid)
+        say.step("units and axes", f"body expressed in SI from {units.describe()}"
+                 + (f", in the axes of CSID {options.csid}" if options.csid else ""))
+        body = express_body(body, units, axes)
+        body.output_csid, body.output_axes = int(options.csid or 0), axes
+        if options.units is not None:
+            body.deck_units = {"spec": units.spec, "length": units.length, "mass": units.mass,
+                               "time": units.time, "force": units.force, "wtmass": bulk.wtmass}
+    _check_central_inertia(deck, body.mass, body.cm_offset, body.inertia)
+    if options.modal_integrals:
+        say.step("modal integrals", "modal integrals (TM App. E)")
+        body.modal_integrals = modal_integrals(body.node_mass, body.node_cm_offset, body.node_inertia,
+                                               body.grid_positions, body.rotation_shapes, body.translation_shapes)
+        body.point_mass_integrals = point_mass_integrals(body.node_mass, body.grid_positions,
+                                                         body.translation_shapes)
     say("done; " + say.summary())
     return body
+
+
+# NASTRAN's modes against ours: frequencies within this relative difference and MAC above this value, else a
+# warning (single-precision OP2 vectors and NASTRAN's own elements, e.g. a different drilling stiffness, move
+# frequencies by far less on the decks whose elements we share with NASTRAN: tests/flex/test_op2.py)
+OWN_MODES_RTOL, OWN_MODES_MAC = 1e-2, 0.99
+
+
+def _compare_with_own_modes(nastran: EigenSolution, own: EigenSolution, M) -> str:
+    """One line comparing NASTRAN's modes with ours: frequency differences, and the part of each NASTRAN mode in
+    the span of our modes (the sum of its M-weighted modal assurance criteria with each of ours: 1 when our
+    modes contain it; a sum rather than the largest single MAC, since degenerate pairs come out in any basis)."""
+    n = min(len(nastran.eigenvalues), len(own.eigenvalues))
+    fn, fo = nastran.frequencies_hz[:n], own.frequencies_hz[:n]
+    C = nastran.vectors[:, :n].T @ (M @ own.vectors)
+    mac = np.sum(C ** 2, axis=1)
+    worst = float(np.max(np.abs(fn / fo - 1.0)))
+    line = (f"check against our own FE of the deck: {n} frequencies within {worst:.2e} (relative), every NASTRAN "
+            f"mode in the span of our modes to {mac.min():.6f} (sum of modal assurance criteria)")
+    if worst > OWN_MODES_RTOL or mac.min() < OWN_MODES_MAC:
+        line = "WARNING: " + line + (f"; outside {OWN_MODES_RTOL:g} / {OWN_MODES_MAC:g}: NASTRAN's model and ours "
+                                     "differ (elements, constraints, mass)")
+    return line
+
+
+def _output_axes(bulk: BulkData, csid) -> np.ndarray:
+    """Axes (columns, basic) of the output coordinate system ``csid`` (0 / None: basic); a cylindrical or
+    spherical system, whose axes depend on the point, is refused."""
+    if not csid:
+        return np.eye(3)
+    _, axes, kind = coordinate_axes(bulk.model, int(csid), f"{bulk.path}: --csid {csid}")
+    if kind != "R":
+        raise BulkDataError(f"{bulk.path}: --csid {csid} is a {'cylindrical' if kind == 'C' else 'spherical'} "
+                            "system; the body frame needs fixed axes: give a rectangular system (CORD1R/CORD2R)")
+    return np.asarray(axes, dtype=float)
+
+
+def _preloads_in_deck_units(preloads, units: DeckUnits) -> list:
+    """``--preload`` entries (SI: N for components 1-3, N m for 4-6) in the deck's force and moment units."""
+    return [(name, grid, comp, value / (units.force if comp <= 3 else units.force * units.length))
+            for name, grid, comp, value in preloads]
+
+
+# A MAT density (times WTMASS) outside this range in kg/m^3 is no engineering material (osmium, the densest
+# element, is 22,590 kg/m^3; rigid foams start near 10): the deck's units are probably not the ones assumed.
+PLAUSIBLE_DENSITY = (1.0, 3.0e4)
+
+
+def _check_densities(bulk: BulkData, units: DeckUnits, declared: bool) -> None:
+    """Warn about material densities that are implausible in SI once WTMASS and the deck's units are
+    applied: an inch-pound deck read as SI (0.283, 7.3e-4), a mm-tonne deck (7.8e-9), WTMASS missing."""
+    odd = []
+    for mid, mat in sorted(bulk.model.materials.items()):
+        rho = float(getattr(mat, "rho", 0.0) or 0.0)
+        if rho > 0.0:
+            si = units.density(rho * bulk.wtmass)
+            if not PLAUSIBLE_DENSITY[0] <= si <= PLAUSIBLE_DENSITY[1]:
+                odd.append(f"{mat.type} {mid} rho = {rho:g} -> {si:.4g} kg/m^3")
+    if not odd:
+        return
+    system = (f"the deck's units {units.spec} (--units)" if declared else "SI (no --units given)")
+    warnings.warn(f"{bulk.path}: material densities taken with PARAM WTMASS = {bulk.wtmass:g} in {system} are "
+                  f"not those of an engineering material ({', '.join(odd[:4])}{' ...' if len(odd) > 4 else ''}; "
+                  f"plausible {PLAUSIBLE_DENSITY[0]:g} - {PLAUSIBLE_DENSITY[1]:g} kg/m^3): check --units (e.g. "
+                  "in,lbf,s; mm,N,s) and PARAM WTMASS (1/386.0886 for densities in lbm/in^3)", stacklevel=3)

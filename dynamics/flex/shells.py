@@ -101,7 +101,7 @@ DRILL = 1.0
 DRILL_MIN = 1e-4
 DRILL_MAX = 0.1
 NO_SHEAR_FLEXIBILITY = 1e3
-_G2 = 1.0 / np.sqrt(3.0)
+GAUSS2_POINT = 1.0 / np.sqrt(3.0)
 _QUAD_NODES = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 _TRI_DN = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])     # d/dr, d/ds of [1 - r - s, r, s]
 # MITC3+ tying points (r, s): A, B, C on the lines from the centroid to the corners 3, 2, 1; D, E, F at
@@ -193,7 +193,7 @@ def shell_frame_transform(xyz, zoff):
 
 
 @njit(cache=True)
-def _quad_shape(r, s):
+def quad_shape(r, s):
     N = np.empty(4)
     dN = np.empty((2, 4))
     for i in range(4):
@@ -213,7 +213,7 @@ def rotate_plane(C, c, s):
 
 
 @njit(cache=True)
-def _materials(p, Lam):
+def shell_materials(p, Lam):
     """A (membrane), D (bending), S (2x2 transverse shear), drilling modulus, B (membrane-bending
     coupling), in element axes.
 
@@ -265,7 +265,7 @@ def _covariant_shear_row(dN_r, N, xr, yr, nn):
 
 
 @njit(cache=True)
-def _membrane_bending_B(dNx, n):
+def membrane_bending_B(dNx, n):
     """Membrane and bending strain-displacement rows (3 x 6n each) of an n-node plate element from the shape
     function derivatives ``dNx`` (rows d/dx, d/dy): e = [u_x, v_y, u_y + v_x], kappa = [theta_y,x, -theta_x,y,
     theta_y,y - theta_x,x] with the DOFs (u, v, w, theta_x, theta_y, theta_z) per node."""
@@ -293,12 +293,12 @@ def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
     tie_r = np.zeros((2, 24))
     tie_s = np.zeros((2, 24))
     for k in range(2):
-        N, dN = _quad_shape(0.0, 2.0 * k - 1.0)
+        N, dN = quad_shape(0.0, 2.0 * k - 1.0)
         tie_r[k] = _covariant_shear_row(dN[0], N, dN[0] @ x, dN[0] @ y, 4)
-        N, dN = _quad_shape(2.0 * k - 1.0, 0.0)
+        N, dN = quad_shape(2.0 * k - 1.0, 0.0)
         tie_s[k] = _covariant_shear_row(dN[1], N, dN[1] @ x, dN[1] @ y, 4)
     # incompatible membrane modes (1 - r^2), (1 - s^2) in u and v, with J at the centre
-    N0, dN0 = _quad_shape(0.0, 0.0)
+    N0, dN0 = quad_shape(0.0, 0.0)
     J0 = np.array([[dN0[0] @ x, dN0[0] @ y], [dN0[1] @ x, dN0[1] @ y]])
     J0i = np.linalg.inv(J0)
     det0 = np.linalg.det(J0)
@@ -309,9 +309,9 @@ def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
     area = 0.0
     mu = rho * t + nsm
     I_rot = rho * t ** 3 / 12.0
-    for r in (-_G2, _G2):
-        for s_ in (-_G2, _G2):
-            N, dN = _quad_shape(r, s_)
+    for r in (-GAUSS2_POINT, GAUSS2_POINT):
+        for s_ in (-GAUSS2_POINT, GAUSS2_POINT):
+            N, dN = quad_shape(r, s_)
             J = np.array([[dN[0] @ x, dN[0] @ y], [dN[1] @ x, dN[1] @ y]])
             det = np.linalg.det(J)
             if det <= 0.0:
@@ -319,7 +319,7 @@ def quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
             Ji = np.linalg.inv(J)
             dNx = Ji @ dN                      # rows: d/dx, d/dy
             area += det
-            Bm, Bb = _membrane_bending_B(dNx, 4)
+            Bm, Bb = membrane_bending_B(dNx, 4)
             # incompatible modes: d(1-r^2)/d(x,y) = J0^-1 (-2r, 0) * det0/det (Taylor's correction)
             g1 = J0i @ np.array([-2.0 * r, 0.0]) * (det0 / det)
             g2 = J0i @ np.array([0.0, -2.0 * s_]) * (det0 / det)
@@ -406,7 +406,7 @@ def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
     # 18 grid DOFs, then the bubble's theta_x, theta_y (condensed statically below)
     Ke = np.zeros((20, 20))
     Bm = np.zeros((3, 20))
-    Bm_grid, Bb_linear = _membrane_bending_B(dNx, 3)
+    Bm_grid, Bb_linear = membrane_bending_B(dNx, 3)
     Bm[:, :18] = Bm_grid
     Ke += Bm.T @ A @ Bm * area
     Ke[:18, :18] += (Bm_grid.T @ Bc @ Bb_linear + Bb_linear.T @ Bc @ Bm_grid) * area
@@ -415,7 +415,7 @@ def tria3_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc):
         _, df = _mitc3p_rotation_shapes(_TRI7[q, 0], _TRI7[q, 1])
         dfx = Ji @ df
         Bb = np.zeros((3, 20))
-        Bb[:, :18] = _membrane_bending_B(dfx[:, :3].copy(), 3)[1]
+        Bb[:, :18] = membrane_bending_B(dfx[:, :3].copy(), 3)[1]
         Bb[0, 19] = dfx[0, 3]
         Bb[1, 18] = -dfx[1, 3]
         Bb[2, 19] = dfx[1, 3]
@@ -509,7 +509,7 @@ def shell_batch(xyz, props, coupled):
         p = props[e]
         rho, t, nsm = p[22], p[23], p[24]
         T, loc, Lam = shell_frame_transform(xyz[e], p[32])
-        A, D, S, gt, Bc = _materials(p, Lam)
+        A, D, S, gt, Bc = shell_materials(p, Lam)
         if nn == 4:
             K, M = quad4_local(loc, A, D, S, gt, rho, t, nsm, coupled, Bc)
         else:

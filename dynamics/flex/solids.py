@@ -1,4 +1,4 @@
-"""Solid elements for CHEXA (8 and 20 grids), CTETRA (4 and 10), CPENTA (6) with PSOLID and MAT1.
+"""Solid elements for CHEXA (8 and 20 grids), CTETRA (4 and 10), CPENTA (6 and 15) with PSOLID and MAT1.
 
 Isoparametric displacement elements (Zienkiewicz, Taylor & Zhu, The Finite Element Method,
 7th ed., 2013, ch. 6), three translations per grid, grids in NASTRAN's order (QRG: CHEXA,
@@ -11,10 +11,15 @@ CTETRA, CPENTA: corners first, then the mid-edge grids). Isotropic elasticity in
   patch test, condensed statically: without them the 2 x 2 x 2 element locks in bending.
   NASTRAN's default CHEXA uses bubble functions to the same end, so frequencies agree to
   discretization error, not round-off.
-* CHEXA20 (serendipity), CTETRA10, CTETRA4, CPENTA6: plain displacement elements.
+* CHEXA20 (serendipity), CTETRA10, CTETRA4, CPENTA6, CPENTA15: plain displacement elements. CPENTA15 is the
+  quadratic serendipity wedge (triangle area coordinates L_i times zeta in [-1, 1]): corners
+  L_i (2 L_i - 1)(1 +- zeta)/2 - L_i (1 - zeta^2)/2, mid-edge grids of the triangles 2 L_a L_b (1 +- zeta),
+  of the vertical edges L_i (1 - zeta^2); grids G7-G9 on the edges 1-2, 2-3, 3-1, G10-G12 on 1-4, 2-5,
+  3-6, G13-G15 on 4-5, 5-6, 6-4 (QRG CPENTA remark 2: G1, G10 and G4 on one edge).
 * Quadrature: Gauss 2^3 (CHEXA8), 3^3 (CHEXA20); tetrahedra by the collapsed (Duffy) product of
   4^3 Gauss points, exact for the degree-4 integrand of the CTETRA10 mass; CPENTA6 a collapsed
-  3^2 triangle rule times 2 Gauss points in zeta.
+  3^2 triangle rule times 2 Gauss points in zeta; CPENTA15 4^2 times 3 (exact for its degree-4 mass
+  integrand on an undistorted wedge).
 * Mass: consistent ``rho int N' N dV`` or lumped: the element mass shared equally by the corner
   grids (CHEXA8, CTETRA4, CPENTA6); for the mid-edge elements by HRZ diagonal scaling (Hinton,
   Rock & Zienkiewicz, Earthquake Eng. Struct. Dyn. 4, 1976), which keeps every grid's mass
@@ -26,10 +31,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-HEXA8, HEXA20, TETRA4, TETRA10, PENTA6 = 0, 1, 2, 3, 4
-GRIDS = {HEXA8: 8, HEXA20: 20, TETRA4: 4, TETRA10: 10, PENTA6: 6}
+HEXA8, HEXA20, TETRA4, TETRA10, PENTA6, PENTA15 = 0, 1, 2, 3, 4, 5
+GRIDS = {HEXA8: 8, HEXA20: 20, TETRA4: 4, TETRA10: 10, PENTA6: 6, PENTA15: 15}
 NAMES = {HEXA8: "CHEXA8", HEXA20: "CHEXA20", TETRA4: "CTETRA4", TETRA10: "CTETRA10",
-         PENTA6: "CPENTA6"}
+         PENTA6: "CPENTA6", PENTA15: "CPENTA15"}
 
 _HEX_CORNERS = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
                          [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=np.float64)
@@ -38,6 +43,8 @@ _HEX_EDGES = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [0, 4], [1, 5], [2, 6], [
                        [4, 5], [5, 6], [6, 7], [7, 4]], dtype=np.int64)
 # CTETRA10 mid-edge grids 5-10: edges 1-2, 2-3, 3-1, 1-4, 2-4, 3-4
 _TET_EDGES = np.array([[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]], dtype=np.int64)
+# CPENTA15 mid-edge grids 7-9 and 13-15: the triangle edges 1-2, 2-3, 3-1 at zeta = -1 and +1
+_TRI_EDGES = np.array([[0, 1], [1, 2], [2, 0]], dtype=np.int64)
 
 
 def _gauss(n):
@@ -79,7 +86,7 @@ def _penta_rule(n_tri, n_z):
 
 
 RULES = {HEXA8: _hex_rule(2), HEXA20: _hex_rule(3), TETRA4: _tet_rule(4),
-         TETRA10: _tet_rule(4), PENTA6: _penta_rule(3, 2)}
+         TETRA10: _tet_rule(4), PENTA6: _penta_rule(3, 2), PENTA15: _penta_rule(4, 3)}
 
 
 @njit(cache=True)
@@ -136,9 +143,38 @@ def shape(kind, p):
             N[4 + k] = 4 * L[a] * L[b]
             dN[:, 4 + k] = 4 * (dL[:, a] * L[b] + L[a] * dL[:, b])
         return N, dN
-    # PENTA6: triangle (r, s) x linear zeta
     L = np.array([1 - p[0] - p[1], p[0], p[1]])
     dL = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])
+    if kind == PENTA15:
+        z = p[2]
+        N = np.zeros(15)
+        dN = np.zeros((3, 15))
+        bubble, dbubble = 1.0 - z * z, -2.0 * z
+        for i in range(3):
+            quad = L[i] * (2.0 * L[i] - 1.0)
+            dquad = 4.0 * L[i] - 1.0
+            for k, sgn in enumerate((-1.0, 1.0)):
+                fz = 0.5 * (1.0 + sgn * z)
+                c = 3 * k + i
+                N[c] = quad * fz - 0.5 * L[i] * bubble
+                dN[0, c] = dL[0, i] * (dquad * fz - 0.5 * bubble)
+                dN[1, c] = dL[1, i] * (dquad * fz - 0.5 * bubble)
+                dN[2, c] = quad * 0.5 * sgn - 0.5 * L[i] * dbubble
+            N[9 + i] = L[i] * bubble
+            dN[0, 9 + i] = dL[0, i] * bubble
+            dN[1, 9 + i] = dL[1, i] * bubble
+            dN[2, 9 + i] = L[i] * dbubble
+        for e in range(3):
+            a, b = _TRI_EDGES[e]
+            for k, sgn in enumerate((-1.0, 1.0)):
+                fz = 1.0 + sgn * z
+                c = 6 + e if k == 0 else 12 + e
+                N[c] = 2.0 * L[a] * L[b] * fz
+                dN[0, c] = 2.0 * (dL[0, a] * L[b] + L[a] * dL[0, b]) * fz
+                dN[1, c] = 2.0 * (dL[1, a] * L[b] + L[a] * dL[1, b]) * fz
+                dN[2, c] = 2.0 * L[a] * L[b] * sgn
+        return N, dN
+    # PENTA6: triangle (r, s) x linear zeta
     N = np.zeros(6)
     dN = np.zeros((3, 6))
     for i in range(3):
@@ -165,7 +201,7 @@ def elasticity(E, nu):
 
 
 @njit(cache=True)
-def _strain_matrix(dNx, n):
+def strain_matrix(dNx, n):
     B = np.zeros((6, 3 * n))
     for i in range(n):
         x, y, z = dNx[0, i], dNx[1, i], dNx[2, i]
@@ -225,7 +261,7 @@ def solid_matrices(kind, xyz, E, nu, rho, pts, wts, coupled):
         if det <= 0.0:
             raise ValueError("solid element: inverted or badly ordered grids (det J <= 0)")
         dNx = np.linalg.solve(J, dN)
-        B = _strain_matrix(dNx, n)
+        B = strain_matrix(dNx, n)
         w = wts[q] * det
         K += B.T @ C @ B * w
         volume += w

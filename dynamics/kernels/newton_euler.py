@@ -64,6 +64,16 @@ def inverse_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, udot, 
             for a in range(6):
                 f[a] -= body_forces[i, a]
     apply_node_forces(topology, nodes, params, q, node_forces, ws_vec, pool, -1.0)
+    transmit_forces(topology, nodes, tau, ws_rot, ws_vec, ws_mat, pool)
+
+
+@njit(cache=True)
+def transmit_forces(topology, nodes, tau, ws_rot, ws_vec, ws_mat, pool):
+    """The backward pass of :func:`inverse_dynamics`: each body's force ``ws_vec[i, VEC_P]`` (and a flexible
+    body's modal force in the pool) carried to its parent, ``F_parent += P_i' F_i``, and projected on its
+    hinge and modes, ``tau_i = H_i' F_i``. On exit ``ws_vec[i, VEC_P]`` is the spatial force the parent
+    transmits to body i through its hinge (body axes, about the body origin)."""
+    nb = topology.shape[0]
     for i in range(nb - 1, -1, -1):
         S = ws_mat[i, MAT_S]
         f = ws_vec[i, VEC_P]

@@ -48,6 +48,22 @@ def register(subparsers) -> None:
     p.add_argument("--op4", metavar="FILE",
                    help="take KGG and MGG from this OP4 file; the deck supplies grids and "
                         "constraints")
+    p.add_argument("--units", metavar="LENGTH,FORCE,TIME",
+                   help="the deck's unit system, e.g. in,lbf,s; mm,N,s; mm,kg,s (LENGTH,MASS,TIME); the body "
+                        "file is written in SI and records the conversion; PARAM WTMASS still applies "
+                        "(default: the deck is SI; --preload values are SI either way)")
+    p.add_argument("--csid", type=int, metavar="CID",
+                   help="output coordinate system (rectangular): the body frame takes its axes, origin at "
+                        "the reference grid (default 0: basic axes)")
+    p.add_argument("--op2", metavar="FILE",
+                   help="NASTRAN OP2 results: its SOL 103 eigenvalues and eigenvectors (OUGV1/BOUGV1) are the "
+                        "body's modes, normalized with the deck's mass and checked against our own; without "
+                        "eigenvectors, its KGG and MGG replace the assembled matrices")
+    p.add_argument("--recover-elements", action="append", default=[], metavar="EID[,EID...]",
+                   help="loads recovery: element forces and stresses of these CBAR/CBEAM/CROD elements by mode "
+                        "displacement and mode acceleration, for the LoadsRecovery model; repeatable")
+    p.add_argument("--recover-grids", action="append", default=[], metavar="GRID[,GRID...]",
+                   help="loads recovery: interface forces at these grids; repeatable")
     p.add_argument("--gset", action="store_true", help="store the G-set sparse K and M")
     p.add_argument("--fset", action="store_true", help="store the F-set sparse K and M")
     p.add_argument("--modal-matrix", action="store_true",
@@ -59,6 +75,18 @@ def register(subparsers) -> None:
     p.add_argument("-o", "--output", required=True, metavar="BODY.h5", help="body file to write")
     p.add_argument("--overwrite", action="store_true", help=OVERWRITE_HELP)
     p.set_defaults(func=run)
+
+
+def _ids(items, flag):
+    """[int] of repeatable comma-separated ids; ValueError naming the flag."""
+    out = []
+    for item in items:
+        for text in str(item).split(","):
+            try:
+                out.append(int(text))
+            except ValueError:
+                raise ValueError(f"{flag}: expected integer ids separated by commas, got {item!r}") from None
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,7 +103,8 @@ def run(args: argparse.Namespace) -> int:
             print(msg, file=sys.stderr, flush=True)
 
     try:
-        guard_output(args.output, BODY_FILE, inputs=((args.deck, "the deck itself"), (args.op4, "the OP4 file")),
+        guard_output(args.output, BODY_FILE, inputs=((args.deck, "the deck itself"), (args.op4, "the OP4 file"),
+                                                     (args.op2, "the OP2 file")),
                      overwrite=args.overwrite)
         options = Fem2ModalOptions(
             n_modes=args.modes, cutoff_hz=args.cutoff,
@@ -87,7 +116,9 @@ def run(args: argparse.Namespace) -> int:
             write_fset=args.fset, write_modal_matrix=args.modal_matrix,
             allow_unsupported=args.allow_unsupported, op4=args.op4,
             geometric_stiffness=args.geometric_stiffness,
-            preloads=[parse_preload(s) for s in args.preload])
+            preloads=[parse_preload(s) for s in args.preload], units=args.units, csid=args.csid,
+            op2=args.op2, recover_elements=_ids(args.recover_elements, "--recover-elements"),
+            recover_grids=_ids(args.recover_grids, "--recover-grids"))
         body = fem2modal(args.deck, options, progress=progress)  # its warnings: flexshell messages (shell.cli)
         write_body_file(args.output, body)
     except (BulkDataError, CraigBamptonError, EigenSolutionError, ValueError,
@@ -95,14 +126,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"flexshell fem2modal: error: {exc}", file=sys.stderr)
         return 1
     first = ", ".join(f"{f:.6g}" for f in body.frequencies_hz[:6])
+    mass = f"{body.mass:.6g} kg"
+    if body.deck_units is not None:
+        from dynamics.flex.units import parse_units
+        units = parse_units(body.deck_units["spec"])
+        mass += f" ({body.mass / units.mass:.6g} {units.mass_name} in the deck's units {units.spec})"
     if body.mode_set == "normalized-component":
         fixed = ", ".join(f"{f:.6g}" for f in body.craig_bampton.frequencies_hz[:6])
         progress(f"wrote {args.output}: {body.n_modes} normalized component modes, mass "
-                 f"{body.mass:.6g} kg; fixed-interface frequencies (interface grids "
+                 f"{mass}; fixed-interface frequencies (interface grids "
                  f"{body.interface_grids()} held) [Hz]: {fixed}; free-free frequencies of the "
                  f"unmounted component [Hz]: {first} (neither is the mounted body's spectrum, "
                  "which depends on the hinge: mount with child_grid on an interface grid)")
     else:
-        progress(f"wrote {args.output}: {body.n_modes} free-free modes, mass {body.mass:.6g} "
-                 f"kg, first flexible frequencies [Hz]: {first}")
+        progress(f"wrote {args.output}: {body.n_modes} free-free modes, mass {mass}, "
+                 f"first flexible frequencies [Hz]: {first}")
     return 0

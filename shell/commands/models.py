@@ -35,6 +35,11 @@ def describe(name: str, cls) -> str:
     lines = [f"{name}: {cls.summary or (cls.__doc__ or '').strip().splitlines()[0]}"]
     example = _example(cls)
     source = example if example is not None else cls
+    # a class's declarations whose shapes its configuration sets (Declarations(sized=...)) show no shape
+    sized = getattr(source.declarations, "sized", ()) if example is None and hasattr(source, "declarations") else ()
+
+    def shape(declaration) -> str:
+        return "set by the configuration" if declaration.name in sized else str(declaration.shape)
     period = getattr(example, "period", None)
     if period is not None:
         lines.append("  sampled: set rate: or period:"
@@ -43,7 +48,7 @@ def describe(name: str, cls) -> str:
         if items:
             lines.append(f"  {title}:")
             for p in items:
-                lines.append(f"    {p.name:28s} [{_unit(p.unit)}] shape {p.shape} default {p.default!r}"
+                lines.append(f"    {p.name:28s} [{_unit(p.unit)}] shape {shape(p)} default {p.default!r}"
                              f"{' bounds ' + str(p.bounds) if p.bounds else ''}  {p.description}")
     if isinstance(source, Model) or (isinstance(source, type) and issubclass(source, Model)):
         for title, items in (("inputs", source.inputs), ("outputs", source.outputs)):
@@ -52,12 +57,12 @@ def describe(name: str, cls) -> str:
                 for port in items:
                     flags = " feedthrough" if port.feedthrough else ""
                     flags += " optional" if title == "inputs" and not port.required else ""
-                    lines.append(f"    {port.name:28s} [{_unit(port.unit)}] shape {port.shape}{flags}  "
+                    lines.append(f"    {port.name:28s} [{_unit(port.unit)}] shape {shape(port)}{flags}  "
                                  f"{port.description}")
         for title, items in (("continuous states", source.continuous_states),
                              ("discrete states", source.discrete_states)):
             if items:
-                lines.append(f"  {title}: " + ", ".join(f"{s.name} [{_unit(s.unit)}] {s.shape}" for s in items))
+                lines.append(f"  {title}: " + ", ".join(f"{s.name} [{_unit(s.unit)}] {shape(s)}" for s in items))
         if source.zero_crossings:
             lines.append("  zero crossings: " + ", ".join(z.name for z in source.zero_crossings))
     else:

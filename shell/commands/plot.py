@@ -8,7 +8,7 @@ What an engineer reads, not the raw arrays:
   with that element (``rw1`` ... ``rw4``) as legend;
 * units print as an engineer writes them (``N m``, ``kg m²``, ``rad/s²``), and dimensionless signals
   carry none (never ``1``);
-* an attitude quaternion (scalar first, node -> world, CONVENTIONS.md) adds two derived panels: the
+* an attitude quaternion (scalar first, node -> world, docs/conventions.md) adds two derived panels: the
   attitude error ``2 atan2(|v_e|, |w_e|)`` of ``e = r^* (x) q`` against the commanded attitude ``r``
   (the controller attached to the same node, or ``--attitude-reference``, else identity), and the 3-2-1
   (yaw, pitch, roll) Euler angles of the rotation matrix R(q) (Diebel 2006, "Representing attitude",
@@ -19,8 +19,8 @@ What an engineer reads, not the raw arrays:
 * figures keep a readable size: at most ``--per-page`` panels (default 6) per figure, further panels on
   further pages (``fig-2.png``, ... or pages of one PDF).
 
-The helpers (:func:`pretty_unit`, :func:`component_labels`, :func:`euler_321`, :func:`attitude_error`)
-are shared with the campaign report (shell/montecarlo/report.py).
+Labels, units and signal lookup are :mod:`shell.charts` (shared with the campaign report and the 3-D view); the
+attitude error and the Euler angles are :mod:`shell.attitude`'s.
 """
 
 from __future__ import annotations
@@ -33,14 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
+from shell.attitude import attitude_error, euler_321
+from shell.charts import FIGURE_WIDTH, PANEL_HEIGHT, PER_PAGE, component_labels, is_quaternion, pretty_unit, resolve_signal
 from shell.outputs import OVERWRITE_HELP
-
-PER_PAGE = 6
-PANEL_HEIGHT = 1.9   # inches per panel
-FIGURE_WIDTH = 9.0   # inches
-SUPERSCRIPTS = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
-#: symbols listed first in a product, in this order (an engineer writes N m, kg m², N m s/rad)
-UNIT_ORDER = ("N", "kg", "m", "rad", "deg", "s")
 
 
 def register(subparsers) -> None:
@@ -64,96 +59,7 @@ def register(subparsers) -> None:
 
 
 # ----------------------------------------------------------------------------------------------------
-# units and labels
-def pretty_unit(unit) -> str:
-    """``N m`` for ``m*N``, ``kg m²`` for ``kg*m^2``, ``N m s/rad``; "" for a dimensionless unit."""
-    from shell.units import UnitError, parse_unit, ureg
-
-    try:
-        u = parse_unit(unit if unit is not None else "")
-    except UnitError:
-        return str(unit)  # a label that is not a unit (a choice draw's "index") prints as written
-    if u == ureg.dimensionless:
-        return ""
-    symbols = {ureg.get_symbol(name): power for name, power in u._units.items()}
-    if all(p < 0 for p in symbols.values()) and len(symbols) == 1:
-        (name, power), = symbols.items()
-        return f"1/{name}{_power(-power)}"
-
-    def ordered(items):
-        return sorted(items, key=lambda kv: (UNIT_ORDER.index(kv[0]) if kv[0] in UNIT_ORDER else len(UNIT_ORDER),
-                                             kv[0]))
-
-    top = " ".join(f"{n}{_power(p)}" for n, p in ordered((n, p) for n, p in symbols.items() if p > 0))
-    bottom = [f"{n}{_power(-p)}" for n, p in ordered((n, p) for n, p in symbols.items() if p < 0)]
-    if not bottom:
-        return top
-    return f"{top}/{bottom[0]}" if len(bottom) == 1 else f"{top}/({' '.join(bottom)})"
-
-
-def _power(p) -> str:
-    if p == 1:
-        return ""
-    if float(p).is_integer():
-        return str(int(p)).translate(SUPERSCRIPTS)
-    return f"^{p:g}"
-
-
-def unit_label(unit) -> str:
-    """`` [N m]`` or "" (dimensionless) to append to an axis label."""
-    text = pretty_unit(unit)
-    return f" [{text}]" if text else ""
-
-
-def is_quaternion(name: str, shape: tuple, description: str = "") -> bool:
-    return tuple(shape) == (4,) and (name.endswith("attitude") or "quaternion" in description.lower())
-
-
-def component_labels(name: str, shape: tuple, description: str = "") -> list[str]:
-    """Legend texts of the components of a logged signal (one per element, row-major)."""
-    shape = tuple(int(n) for n in shape)
-    size = int(np.prod(shape, dtype=int))
-    leaf = name.rsplit(".", 1)[-1]
-    if size == 1:
-        return [leaf]
-    if is_quaternion(name, shape, description):
-        return ["w", "x", "y", "z"]
-    if leaf.startswith("modal_"):
-        return [f"η{k + 1}" + {"modal_u": "'", "modal_u_dot": "''"}.get(leaf, "") for k in range(size)]
-    if shape == (3,):
-        return ["x", "y", "z"]
-    if shape == (3, 3):
-        return [f"R{i}{j}" for i in range(1, 4) for j in range(1, 4)]
-    return [f"{leaf}[{k}]" for k in range(size)]
-
-
-# ----------------------------------------------------------------------------------------------------
-# derived attitude signals
-def quaternion_error(q: np.ndarray, reference) -> np.ndarray:
-    """Error quaternions ``e = r^* (x) q`` (Hamilton, scalar first) of samples ``q`` (N, 4)."""
-    q = np.asarray(q, float).reshape(-1, 4)
-    r = np.asarray(reference, float)
-    rw, rv = r[0], r[1:]
-    w = rw * q[:, 0] + q[:, 1:] @ rv
-    v = rw * q[:, 1:] - q[:, :1] * rv - np.cross(rv, q[:, 1:])
-    return np.column_stack([w, v])
-
-
-def attitude_error(q: np.ndarray, reference=(1.0, 0.0, 0.0, 0.0)) -> np.ndarray:
-    """Rotation angle (rad, in [0, pi]) from ``reference`` to each attitude sample, the short way round."""
-    e = quaternion_error(q, reference)
-    return 2.0 * np.arctan2(np.linalg.norm(e[:, 1:], axis=1), np.abs(e[:, 0]))
-
-
-def euler_321(q: np.ndarray) -> np.ndarray:
-    """(N, 3) yaw, pitch, roll (rad) of the 3-2-1 sequence of unit quaternions ``q`` (N, 4), scalar first."""
-    q = np.asarray(q, float).reshape(-1, 4)
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    yaw = np.arctan2(2.0 * (x * y + w * z), w * w + x * x - y * y - z * z)
-    pitch = -np.arcsin(np.clip(2.0 * (x * z - w * y), -1.0, 1.0))
-    roll = np.arctan2(2.0 * (y * z + w * x), w * w - x * x - y * y + z * z)
-    return np.column_stack([yaw, pitch, roll])
+# the reference of the attitude-error panel
 
 
 def commanded_attitude(scenario_text: str, signal: str):
@@ -363,17 +269,6 @@ def page_paths(output: str, pages: int) -> list[str]:
     return [str(path.with_name(f"{path.stem}-{k}{path.suffix}")) for k in range(1, pages + 1)]
 
 
-def _resolve(requested: str, available: list[str]) -> str:
-    if requested in available:
-        return requested
-    matches = [name for name in available if name.endswith("." + requested)]
-    if len(matches) == 1:
-        return matches[0]
-    if not matches:
-        raise KeyError(f"no signal {requested!r} in the log; signals: {available}")
-    raise KeyError(f"{requested!r} is ambiguous: {matches}")
-
-
 def _reference(text):
     if text is None:
         return None
@@ -415,7 +310,7 @@ def plot(args) -> int:
         for warning in caught:
             print(f"flexshell plot: note: {warning.message}", file=sys.stderr)
         available = list(info["signals"])
-        names = [_resolve(s, available) for s in args.signals] if args.signals else available
+        names = [resolve_signal(s, available) for s in args.signals] if args.signals else available
     except (KeyError, OSError, ValueError) as exc:
         print(f"flexshell plot: {exc.args[0] if isinstance(exc, KeyError) else exc}", file=sys.stderr)
         return 1

@@ -77,7 +77,8 @@ class CompileNotice:
         from dynamics.compile_cache import CompileClock
 
         self.quiet, self.announced, self._line = quiet, False, None
-        self._clock = CompileClock(on_start=lambda dispatcher: self._announce())
+        self.parts: list[str] = []  # what was compiled: the engine, the loop, model kernels (in that order of start)
+        self._clock = CompileClock(on_start=self._compiling)
 
     @property
     def seconds(self) -> float:
@@ -88,16 +89,31 @@ class CompileNotice:
         self._clock.start()
         return self
 
-    def _announce(self) -> None:
-        if self.announced or not self._clock.running:
+    def _compiling(self, dispatcher) -> None:
+        """An outer compilation starts: the first says that the run compiles, each new part what and how long."""
+        if not self._clock.running or self._clock.depth != 1:
             return
+        from shell.commands.compile import describe
+
+        part, seconds = describe(dispatcher)
+        if part in self.parts:
+            return
+        self.parts.append(part)
+        first = not self.announced
         self.announced = True
         if self.quiet:
             return
-        print("flexshell: compiling the scene's kernels (numba; first run after installing or updating flexshell, "
-              "or a kernel no earlier scene needed; cached for every later run)...", file=sys.stderr, flush=True)
-        if sys.stderr.isatty():
-            self._line = TickingLine("flexshell: compiling (numba)")
+        if first:
+            print("flexshell: compiling the scene's kernels (numba; first run after installing or updating flexshell, "
+                  "or a kernel no earlier scene needed; cached for every later run; `flexshell compile` compiles the "
+                  "common set ahead)...", file=sys.stderr, flush=True)
+        label = f"flexshell: compiling {part} (up to ~{seconds:.0f} s)"
+        if not sys.stderr.isatty():
+            print(label, file=sys.stderr, flush=True)
+        elif self._line is None:
+            self._line = TickingLine(label)
+        else:
+            self._line.relabel(label)
 
     def stop(self) -> None:
         """Stop listening; print the compile time if anything was compiled. Idempotent."""
@@ -125,6 +141,9 @@ class TickingLine:
         self._finished = threading.Event()
         self._ticker = threading.Thread(target=self._tick, daemon=True)
         self._ticker.start()
+
+    def relabel(self, label: str) -> None:
+        self._line.set_description_str(label, refresh=True)
 
     def _tick(self) -> None:
         while not self._finished.wait(0.5):

@@ -441,7 +441,7 @@ class ExponentialRK4(Integrator):
         if linear_part is None:
             raise ValueError(f"{self.name} needs linear_part=(indices, L) or a callable linear_part(t, y) -> "
                              f"(indices, L): the stiff linear dynamics it propagates exactly (a flexible scene's "
-                             f"shell.Simulation supplies it from dynamics.modal_linear_part)")
+                             f"shell.simulation.Simulation supplies it from dynamics.modal_linear_part)")
         if not callable(linear_part):
             if not isinstance(linear_part, (tuple, list)) or len(linear_part) != 2:
                 raise ValueError(f"{self.name}: linear_part must be (indices, L) or a callable, got "

@@ -37,9 +37,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, named_offsets
+from shell.model import Declarations, Model, ModelError, OutputPort, Parameter
 from shell.models.atmosphere import msis_log_density_profile
 from shell.models.ephemeris import EPOCH_PARAMETERS, julian_date
+from shell.ports import node_inputs, node_load_outputs
 from shell.registry import register_model
 
 ATMOSPHERES = ("exponential", "nrlmsis")
@@ -74,20 +75,18 @@ NRLMSIS_PARAMETERS = (
 )
 PARAMETERS = AIRFRAME_PARAMETERS + EXPONENTIAL_PARAMETERS + WORLD_PARAMETERS
 MSIS_PARAMETERS = AIRFRAME_PARAMETERS + WORLD_PARAMETERS + NRLMSIS_PARAMETERS
-INPUTS = (
-    InputPort("position", "m", (3,), "node position, world", feedthrough=True),
-    InputPort("linear_velocity", "m/s", (3,), "node velocity, node axes", feedthrough=True),
-    InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
-)
+INPUTS = node_inputs("position", "linear_velocity", "rotation", feedthrough=True, position="node position, world",
+                     linear_velocity="node velocity, node axes", rotation="rotation node -> world")
 OUTPUTS = (
-    OutputPort("force", "N", (3,), "aerodynamic force, node axes", feedthrough=True),
-    OutputPort("torque", "N*m", (3,), "aerodynamic torque about the node, node axes", feedthrough=True),
+    *node_load_outputs("force", "torque", force="aerodynamic force, node axes",
+                       torque="aerodynamic torque about the node, node axes"),
     OutputPort("dynamic_pressure", "Pa", (), "q = rho |v_a|^2 / 2", feedthrough=True),
     OutputPort("angle_of_attack", "rad", (), "total angle of attack", feedthrough=True),
     OutputPort("density", "kg/m^3", (), "air density rho(h)", feedthrough=True),
 )
-P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
-P_MSIS = named_offsets(MSIS_PARAMETERS)
+AERO = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS)
+AERO_MSIS = Declarations(parameters=MSIS_PARAMETERS, inputs=INPUTS, outputs=OUTPUTS)
+P, U, Y, P_MSIS = AERO.P, AERO.U, AERO.Y, AERO_MSIS.P
 
 
 @njit(cache=True)
@@ -162,10 +161,7 @@ class Aerodynamics(Model):
     summary = ("launch-vehicle aerodynamics at a node: C_N_alpha, C_A, center of pressure; exponential or "
                "NRLMSIS 2.1 atmosphere (config: atmosphere: nrlmsis, epoch; then parameters latitude, longitude, "
                "f107, f107_average, ap instead of sea_level_density, scale_height)")
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    offsets = {"p": P, "u": U, "y": Y}
+    declarations = AERO
     feedthrough_outputs = staticmethod(_aero_loads)
 
     def __init__(self, name: str, *, atmosphere: str = "exponential", epoch=None, **kwargs):
@@ -198,14 +194,12 @@ class Aerodynamics(Model):
 
     def declare(self):
         if self.atmosphere == "nrlmsis":
-            self.parameters = MSIS_PARAMETERS
+            self.use_declarations(AERO_MSIS)
             self.feedthrough_outputs = _aero_loads_msis
-            self.offsets = {"p": P_MSIS, "u": U, "y": Y}
+            self.offsets = AERO_MSIS.offsets
 
     def configure(self):
-        axis = self.parameter("axis")
-        if abs(float(np.sqrt(axis @ axis)) - 1.0) > 1e-9:
-            raise ModelError(f"model {self.path}: parameter axis: expected a unit vector, given {axis.tolist()}")
+        self.require_unit_norm("axis")
         if self.atmosphere == "nrlmsis":
             table = self.parameter("log_density")
             if not table.any():

@@ -33,19 +33,45 @@ import numpy as np
 from numba import njit
 
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, count_option, named_offsets
+from shell.model import (Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, count_option,
+                         named_offsets)
+from shell.ports import node_load_inputs, node_load_outputs
 from shell.registry import register_model
 
 
-P_PINV = namedtuple("PseudoInverseParameters", "effectiveness pseudo_inverse max_command")(0, None, None)
-U_PINV = namedtuple("PseudoInverseInputs", "demand")(0)
-P_NONNEGATIVE = namedtuple("NonnegativeParameters", "effectiveness max_command")(0, None)
-Z_NONNEGATIVE = namedtuple("NonnegativeDiscrete", "command")(0)
+#: demand and actuator counts and units are configurations: the shapes and units below are set per instance,
+#: the outputs are command_1 .. command_n (:func:`_command_offsets`)
+PSEUDO_INVERSE = Declarations(
+    parameters=(Parameter("effectiveness", "", None, (1, 1), None,
+                          "A: column k is the demand produced by a unit command of actuator k"),
+                Parameter("pseudo_inverse", "", 0.0, (1, 1), None, "computed from A at build time (do not give)"),
+                Parameter("max_command", "", 0.0, (), (0.0, None),
+                          "largest single command; a larger solution is scaled down as a whole, keeping the "
+                          "direction of the produced vector (0: no limit)")),
+    inputs=(InputPort("demand", "", (1,), "demanded vector d", feedthrough=True),),
+    sized=("effectiveness", "pseudo_inverse", "demand"),
+)
+NONNEGATIVE = Declarations(
+    parameters=(PSEUDO_INVERSE.parameters[0],
+                Parameter("max_command", "", 0.0, (), (0.0, None),
+                          "largest single command; a solution above it is scaled down along the demand (0: no limit)")),
+    inputs=(InputPort("demand", "", (1,), "demanded vector d"),),
+    discrete=(State("command", "", (1,), None, "held commands"),),
+    sized=("effectiveness", "demand", "command"),
+)
+P_PINV, U_PINV = PSEUDO_INVERSE.P, PSEUDO_INVERSE.U
+P_NONNEGATIVE, Z_NONNEGATIVE = NONNEGATIVE.P, NONNEGATIVE.Z
 
 
 def _command_offsets(n: int):
     """Named offsets of the n scalar outputs command_1..command_n (actuator order)."""
     return namedtuple("CommandOutputs", [f"command_{k + 1}" for k in range(n)])(*range(n))
+
+
+def _commands(n: int, unit: str, feedthrough: bool):
+    """The n scalar outputs command_1..command_n."""
+    return tuple(OutputPort(f"command_{k + 1}", unit, (), f"command of actuator {k + 1}", feedthrough=feedthrough)
+                 for k in range(n))
 
 
 @njit(cache=True)
@@ -73,6 +99,7 @@ class PseudoInverseAllocator(Model):
     """c = pinv(A) d, outputs command_1..command_n; config: demand (size of d), actuators, units."""
 
     summary = "minimum-norm allocation c = pinv(A) d (config: demand, actuators, demand_unit, command_unit)"
+    declarations = PSEUDO_INVERSE
     feedthrough_outputs = staticmethod(_allocate)
 
     def __init__(self, name: str, *, demand: int = 3, actuators: int = 4, demand_unit: str = "N*m",
@@ -86,19 +113,13 @@ class PseudoInverseAllocator(Model):
 
     def declare(self):
         m, n = self.n_demand, self.n_actuators
-        self.parameters = (
-            Parameter("effectiveness", f"({self.demand_unit})/({self.command_unit})", None, (m, n), None,
-                      "A: column k is the demand produced by a unit command of actuator k"),
-            Parameter("pseudo_inverse", f"({self.command_unit})/({self.demand_unit})", np.zeros((n, m)), (n, m),
-                      None, "computed from A at build time (do not give)"),
-            Parameter("max_command", self.command_unit, 0.0, (), (0.0, None),
-                      "largest single command; a larger solution is scaled down as a whole, keeping the "
-                      "direction of the produced vector (0: no limit)"),
-        )
-        self.inputs = (InputPort("demand", self.demand_unit, (m,), "demanded vector d", feedthrough=True),)
-        self.outputs = tuple(OutputPort(f"command_{k + 1}", self.command_unit, (), f"command of actuator {k + 1}",
-                                        feedthrough=True) for k in range(n))
-        self.offsets = {"p": P_PINV, "u": U_PINV, "y": _command_offsets(n)}
+        self.use_declarations(PSEUDO_INVERSE.replace(
+            effectiveness={"unit": f"({self.demand_unit})/({self.command_unit})", "shape": (m, n)},
+            pseudo_inverse={"unit": f"({self.command_unit})/({self.demand_unit})", "default": np.zeros((n, m)),
+                            "shape": (n, m)},
+            max_command={"unit": self.command_unit}, demand={"unit": self.demand_unit, "shape": (m,)}))
+        self.outputs = _commands(n, self.command_unit, feedthrough=True)
+        self.offsets = {**PSEUDO_INVERSE.offsets, "y": _command_offsets(n)}
 
     def configure(self):
         a = self.parameter("effectiveness")
@@ -109,12 +130,12 @@ class PseudoInverseAllocator(Model):
 
 
 #: the inputs of one load; NodeLoadSum declares them once per load (torque_k, force_k)
-LOAD_INPUTS = (InputPort("torque", "N*m", (3,), "torque (zero if unconnected)", feedthrough=True, required=False),
-               InputPort("force", "N", (3,), "force (zero if unconnected)", feedthrough=True, required=False))
+LOAD_INPUTS = node_load_inputs("torque", "force", torque="torque (zero if unconnected)",
+                               force="force (zero if unconnected)")
 LOAD, LOAD_SIZE = named_offsets(LOAD_INPUTS), Layout.of(LOAD_INPUTS).size
-LOAD_SUM_OUTPUTS = (OutputPort("torque", "N*m", (3,), "total torque", feedthrough=True),
-                    OutputPort("force", "N", (3,), "total force", feedthrough=True))
-Y_LOAD_SUM = named_offsets(LOAD_SUM_OUTPUTS)
+#: the inputs torque_k, force_k are declared per instance (config: count), their offsets k LOAD_SIZE + LOAD
+LOAD_SUM = Declarations(outputs=node_load_outputs("torque", "force", torque="total torque", force="total force"))
+Y_LOAD_SUM = LOAD_SUM.Y
 
 
 @njit(cache=True)
@@ -134,13 +155,12 @@ class NodeLoadSum(Model):
     """torque = sum of torque_k, force = sum of force_k (config: count)."""
 
     summary = "sum of several torques and forces acting at one node (config: count)"
+    declarations = LOAD_SUM
     feedthrough_outputs = staticmethod(_sum_loads)
 
     def __init__(self, name: str, *, count: int = 2, **kwargs):
         self.count = count_option(name, "count", count, "loads")
         super().__init__(name, **kwargs)
-
-    outputs = LOAD_SUM_OUTPUTS
 
     def declare(self):
         self.inputs = tuple(replace(d, name=f"{d.name}_{k}", description=f"{d.name} {k} (zero if unconnected)")
@@ -164,20 +184,19 @@ class NonnegativeAllocator(PseudoInverseAllocator):
     summary = "sampled push-only minimum-fuel allocation for thrusters (linear program; config: demand, actuators)"
     #: the minimum-fuel linear program is scipy's HiGHS (linprog), called from Python at each sample
     python_update = True
+    declarations = NONNEGATIVE
     feedthrough_outputs = None
     state_outputs = staticmethod(_held_commands)
     default_period = "0.1 s"
 
     def declare(self):
-        super().declare()
-        effectiveness = next(d for d in self.parameters if d.name == "effectiveness")
-        self.parameters = (effectiveness, Parameter(
-            "max_command", self.command_unit, 0.0, (), (0.0, None),
-            "largest single command; a solution above it is scaled down along the demand (0: no limit)"))
-        self.inputs = (InputPort("demand", self.demand_unit, (self.n_demand,), "demanded vector d"),)
-        self.outputs = tuple(OutputPort(o.name, o.unit, o.shape, o.description) for o in self.outputs)
-        self.discrete_states = (State("command", self.command_unit, (self.n_actuators,), None, "held commands"),)
-        self.offsets = {"p": P_NONNEGATIVE, "u": U_PINV, "y": _command_offsets(self.n_actuators), "z": Z_NONNEGATIVE}
+        m, n = self.n_demand, self.n_actuators
+        self.use_declarations(NONNEGATIVE.replace(
+            effectiveness={"unit": f"({self.demand_unit})/({self.command_unit})", "shape": (m, n)},
+            max_command={"unit": self.command_unit}, demand={"unit": self.demand_unit, "shape": (m,)},
+            command={"unit": self.command_unit, "shape": (n,)}))
+        self.outputs = _commands(n, self.command_unit, feedthrough=False)
+        self.offsets = {**NONNEGATIVE.offsets, "y": _command_offsets(n)}
 
     def configure(self):
         a = self.parameter("effectiveness")

@@ -32,9 +32,10 @@ import datetime as _datetime
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, OutputPort, Parameter, named_offsets
+from shell.model import Declarations, InputPort, OutputPort, Parameter
 from shell.models.ephemeris import J2000, EpochModel, EPOCH_PARAMETERS
 from shell.models.gravity import EARTH_RADIUS
+from shell.ports import node_inputs, node_load_outputs
 from shell.registry import register_model
 
 ALTITUDES = np.arange(100.0, 1000.0 + 1e-9, 5.0) * 1e3      # m
@@ -56,18 +57,19 @@ PARAMETERS = EPOCH_PARAMETERS + (
               "ln(rho / (kg/m^3)) on the grid (all zero: NRLMSIS 2.1 at the epoch)"),
 )
 INPUTS = (
-    InputPort("position", "m", (3,), "node position from the Earth's center, world", feedthrough=True),
-    InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
-    InputPort("linear_velocity", "m/s", (3,), "node velocity, node axes", feedthrough=True),
+    *node_inputs("position", "rotation", "linear_velocity", feedthrough=True,
+                 position="node position from the Earth's center, world", rotation="rotation node -> world",
+                 linear_velocity="node velocity, node axes"),
     InputPort("sun_position", "m", (3,), "Earth -> Sun, world axes", feedthrough=True),
 )
 OUTPUTS = (
-    OutputPort("force", "N", (3,), "drag force, node axes", feedthrough=True),
-    OutputPort("torque", "N*m", (3,), "drag torque about the node, node axes", feedthrough=True),
+    *node_load_outputs("force", "torque", force="drag force, node axes",
+                       torque="drag torque about the node, node axes"),
     OutputPort("density", "kg/m^3", (), "NRLMSIS total mass density", feedthrough=True),
     OutputPort("altitude", "m", (), "altitude above the ellipsoid", feedthrough=True),
 )
-P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
+DRAG = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS)
+P, U, Y = DRAG.P, DRAG.U, DRAG.Y
 ALT0, DALT = float(ALTITUDES[0]), float(ALTITUDES[1] - ALTITUDES[0])
 LAT0, DLAT = float(LATITUDES[0]), float(LATITUDES[1] - LATITUDES[0])
 DLST = float(LOCAL_TIMES[1] - LOCAL_TIMES[0])
@@ -166,10 +168,7 @@ class AtmosphericDrag(EpochModel):
     """Cannonball drag with NRLMSIS 2.1 density (pymsis table at the epoch); see the module docstring."""
 
     summary = "orbital drag at a node with NRLMSIS 2.1 density (pymsis, at the epoch; F10.7, Ap given)"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    offsets = {"p": P, "u": U, "y": Y}
+    declarations = DRAG
     feedthrough_outputs = staticmethod(_drag_loads)
 
     def configure(self):

@@ -19,42 +19,59 @@ breakpoint on. Ramps, steps, cubic blends and the one-minus-cosine spin-up law o
 ``c0 = Omega / T``, ``cosine = -Omega / T``, ``cycles = 1``) are written without expressions.
 
 Array layouts: a block's port shape is a construction option, so its offsets are not compile-time
-constants beyond the first declaration of each array: the named tuples below hold those (always 0)
-and ``None`` where the kernel derives the offset from array sizes (SampleHold's sample counter follows
-the held sample: at ``Z_HOLD.held + u.shape[0]``; Sum's input k starts at ``(k - 1) y.shape[0]``). The
-construction check refuses any other order.
+constants beyond the first declaration of each array: each block's :class:`Declarations` lists its
+port-shaped declarations as ``sized`` (their offsets are always 0) and has ``None`` where the kernel derives
+the offset from array sizes (SampleHold's sample counter follows the held sample: at ``Z_HOLD.held +
+u.shape[0]``; Sum's input k starts at ``(k - 1) y.shape[0]``). The construction check refuses any other
+order.
 """
 
 from __future__ import annotations
 
-from collections import namedtuple
-
 import numpy as np
 from numba import njit
 
-from shell.model import MAX_COUNT, MAX_ELEMENTS, InputPort, Model, ModelError, OutputPort, Parameter, State
+from shell.model import MAX_COUNT, MAX_ELEMENTS, Declarations, InputPort, Model, ModelError, OutputPort, Parameter, State
 from shell.registry import register_model
 
 
-def _offsets(typename, **offsets):
-    return namedtuple(typename, list(offsets))(*offsets.values())
-
-
-P_CONSTANT, Y_CONSTANT = _offsets("ConstantParameters", value=0), _offsets("ConstantOutputs", y=0)
-P_GAIN, U_GAIN, Y_GAIN = _offsets("GainParameters", k=0), _offsets("GainInputs", u=0), _offsets("GainOutputs", y=0)
-Y_SUM = _offsets("SumOutputs", y=0)
-U_INTEGRATOR, Y_INTEGRATOR = _offsets("IntegratorInputs", u=0), _offsets("IntegratorOutputs", y=0)
-X_INTEGRATOR = _offsets("IntegratorStates", x=0)
-U_HOLD, Y_HOLD = _offsets("SampleHoldInputs", u=0), _offsets("SampleHoldOutputs", y=0)
-Z_HOLD = _offsets("SampleHoldDiscrete", held=0, samples=None)
-P_NOISY, U_NOISY, Y_NOISY = (_offsets("NoisySamplerParameters", sigma=0), _offsets("NoisySamplerInputs", u=0),
-                             _offsets("NoisySamplerOutputs", y=0))
-Z_NOISY = _offsets("NoisySamplerDiscrete", held=0)
+#: each block's declarations at a scalar port without unit; ``declare`` gives them the block's unit and shape
+CONSTANT = Declarations(parameters=(Parameter("value", "", 0.0, (), description="the output value"),),
+                        outputs=(OutputPort("y", "", (), "the constant"),), sized=("value", "y"))
+GAIN = Declarations(parameters=(Parameter("k", "", 1.0, description="gain"),),
+                    inputs=(InputPort("u", "", (), "input", feedthrough=True),),
+                    outputs=(OutputPort("y", "", (), "k u", feedthrough=True),), sized=("u", "y"))
+SUM = Declarations(outputs=(OutputPort("y", "", (), "sum of the inputs", feedthrough=True),), sized=("y",))
+INTEGRATOR = Declarations(inputs=(InputPort("u", "", (), "rate"),), outputs=(OutputPort("y", "", (), "integral"),),
+                          continuous=(State("x", "", (), None, "integral of u"),), sized=("u", "y", "x"))
+SAMPLE_HOLD = Declarations(inputs=(InputPort("u", "", (), "sampled signal"),),
+                           outputs=(OutputPort("y", "", (), "held sample"),),
+                           discrete=(State("held", "", (), None, "last sample"),
+                                     State("samples", "", (), 0.0, "number of samples taken")),
+                           sized=("u", "y", "held"))
+NOISY_SAMPLER = Declarations(parameters=(Parameter("sigma", "", 0.0, (), (0.0, None), "noise standard deviation"),),
+                             inputs=(InputPort("u", "", (), "sampled signal"),),
+                             outputs=(OutputPort("y", "", (), "noisy held sample"),),
+                             discrete=(State("held", "", (), None, "last noisy sample"),), sized=("u", "y", "held"))
 # Profile: the segment count is a construction option, so only the first offset is a constant; the kernel
 # derives m from the sizes: len(p) = (m + 1) + 6 m k + m + k with k the output size (docstring order)
-P_PROFILE = _offsets("ProfileParameters", times=0, c0=None, c1=None, c2=None, c3=None, cosine=None, sine=None,
-                     cycles=None, after=None)
-Y_PROFILE = _offsets("ProfileOutputs", y=0)
+PROFILE = Declarations(
+    parameters=(Parameter("times", "s", None, (2,), description="segment breakpoints, ascending"),
+                *(Parameter(f"c{j}", "", 0.0, (1,), description=f"coefficient of s^{j} per segment "
+                            "(s: local time 0..1 in the segment)") for j in range(4)),
+                Parameter("cosine", "", 0.0, (1,), description="amplitude of cos(2 pi cycles s) per segment"),
+                Parameter("sine", "", 0.0, (1,), description="amplitude of sin(2 pi cycles s) per segment"),
+                Parameter("cycles", "", 1.0, (1,), description="harmonic cycles per segment"),
+                Parameter("after", "", 0.0, (), description="output from the last breakpoint on")),
+    outputs=(OutputPort("y", "", (), "the profile value"),),
+    sized=("times", "y"))
+P_CONSTANT, Y_CONSTANT = CONSTANT.P, CONSTANT.Y
+P_GAIN, U_GAIN, Y_GAIN = GAIN.P, GAIN.U, GAIN.Y
+Y_SUM = SUM.Y
+U_INTEGRATOR, Y_INTEGRATOR, X_INTEGRATOR = INTEGRATOR.U, INTEGRATOR.Y, INTEGRATOR.X
+U_HOLD, Y_HOLD, Z_HOLD = SAMPLE_HOLD.U, SAMPLE_HOLD.Y, SAMPLE_HOLD.Z
+P_NOISY, U_NOISY, Y_NOISY, Z_NOISY = NOISY_SAMPLER.P, NOISY_SAMPLER.U, NOISY_SAMPLER.Y, NOISY_SAMPLER.Z
+P_PROFILE, Y_PROFILE = PROFILE.P, PROFILE.Y
 
 
 @njit(cache=True)
@@ -152,6 +169,8 @@ class _Block(Model):
         self.unit = unit
         self.shape = (int(shape),) if isinstance(shape, int) else tuple(int(n) for n in shape)
         self.size = int(np.prod(self.shape, dtype=np.int64)) if self.shape else 1
+        #: the unit and shape of the block's port-shaped declarations (Declarations.replace)
+        self.port = {"unit": unit, "shape": self.shape}
         super().__init__(name, **kwargs)
 
 
@@ -160,12 +179,11 @@ class Constant(_Block):
     """y = value."""
 
     summary = "constant output (unit and shape under config:)"
+    declarations = CONSTANT
     state_outputs = staticmethod(_constant)
-    offsets = {"p": P_CONSTANT, "y": Y_CONSTANT}
 
     def declare(self):
-        self.parameters = (Parameter("value", self.unit, 0.0, self.shape, description="the output value"),)
-        self.outputs = (OutputPort("y", self.unit, self.shape, "the constant"),)
+        self.use_declarations(CONSTANT.replace(value=self.port, y=self.port))
 
 
 @register_model
@@ -173,18 +191,16 @@ class Gain(_Block):
     """y = k u, direct feedthrough; k has the unit output_unit / unit."""
 
     summary = "static gain y = k u (direct feedthrough; config: unit, output_unit, shape)"
+    declarations = GAIN
     feedthrough_outputs = staticmethod(_gain)
-    offsets = {"p": P_GAIN, "u": U_GAIN, "y": Y_GAIN}
 
     def __init__(self, name: str, *, unit: str = "", output_unit: str | None = None, shape=(), **kwargs):
         self.output_unit = unit if output_unit is None else output_unit
         super().__init__(name, unit=unit, shape=shape, **kwargs)
 
     def declare(self):
-        gain_unit = f"({self.output_unit or '1'})/({self.unit or '1'})"
-        self.parameters = (Parameter("k", gain_unit, 1.0, description="gain"),)
-        self.inputs = (InputPort("u", self.unit, self.shape, "input", feedthrough=True),)
-        self.outputs = (OutputPort("y", self.output_unit, self.shape, "k u", feedthrough=True),)
+        self.use_declarations(GAIN.replace(k={"unit": f"({self.output_unit or '1'})/({self.unit or '1'})"}, u=self.port,
+                                           y={"unit": self.output_unit, "shape": self.shape}))
 
 
 @register_model
@@ -192,6 +208,7 @@ class Sum(_Block):
     """y = u_1 + ... + u_count, direct feedthrough (config: count, unit, shape)."""
 
     summary = "sum of count inputs u_1 .. u_count of one unit and shape (config: count, unit, shape)"
+    declarations = SUM
     feedthrough_outputs = staticmethod(_sum)
 
     def __init__(self, name: str, *, count: int = 2, unit: str = "", shape=(), **kwargs):
@@ -203,11 +220,11 @@ class Sum(_Block):
         super().__init__(name, unit=unit, shape=shape, **kwargs)
 
     def declare(self):
-        self.inputs = tuple(InputPort(f"u_{k}", self.unit, self.shape, f"term {k}", feedthrough=True)
-                            for k in range(1, self.count + 1))
-        self.outputs = (OutputPort("y", self.unit, self.shape, "sum of the inputs", feedthrough=True),)
-        self.offsets = {"u": _offsets("SumInputs", **{f"u_{k}": 0 if k == 1 else None
-                                                    for k in range(1, self.count + 1)}), "y": Y_SUM}
+        terms = tuple(InputPort(f"u_{k}", self.unit, self.shape, f"term {k}", feedthrough=True)
+                      for k in range(1, self.count + 1))
+        declarations = Declarations(inputs=terms, outputs=SUM.replace(y=self.port).outputs, sized=("u_1",))
+        self.use_declarations(declarations)
+        self.offsets = {"u": declarations.U, "y": Y_SUM}
 
 
 @register_model
@@ -215,14 +232,13 @@ class Integrator(_Block):
     """x' = u, y = x (u in the unit of y per second)."""
 
     summary = "continuous integrator x' = u, y = x"
+    declarations = INTEGRATOR
     state_outputs = staticmethod(_integral)
     derivatives = staticmethod(_integrand)
-    offsets = {"u": U_INTEGRATOR, "y": Y_INTEGRATOR, "x": X_INTEGRATOR}
 
     def declare(self):
-        self.inputs = (InputPort("u", f"({self.unit or '1'})/s", self.shape, "rate"),)
-        self.outputs = (OutputPort("y", self.unit, self.shape, "integral"),)
-        self.continuous_states = (State("x", self.unit, self.shape, None, "integral of u"),)
+        self.use_declarations(INTEGRATOR.replace(u={"unit": f"({self.unit or '1'})/s", "shape": self.shape},
+                                                 y=self.port, x=self.port))
 
 
 @register_model
@@ -230,15 +246,12 @@ class SampleHold(_Block):
     """Zero-order hold: samples u every period, holds it; counts its samples."""
 
     summary = "zero-order hold at its own period, with a sample counter"
+    declarations = SAMPLE_HOLD
     state_outputs = staticmethod(_held_sample)
     update = staticmethod(_sample)
-    offsets = {"u": U_HOLD, "y": Y_HOLD, "z": Z_HOLD}
 
     def declare(self):
-        self.inputs = (InputPort("u", self.unit, self.shape, "sampled signal"),)
-        self.outputs = (OutputPort("y", self.unit, self.shape, "held sample"),)
-        self.discrete_states = (State("held", self.unit, self.shape, None, "last sample"),
-                                State("samples", "", (), 0.0, "number of samples taken"))
+        self.use_declarations(SAMPLE_HOLD.replace(u=self.port, y=self.port, held=self.port))
 
 
 @register_model
@@ -246,15 +259,13 @@ class NoisySampler(_Block):
     """Samples u every period and adds white noise of standard deviation sigma (held between samples)."""
 
     summary = "sampled signal plus Gaussian white noise from the model's random stream"
+    declarations = NOISY_SAMPLER
     state_outputs = staticmethod(_held_noisy_sample)
     update = staticmethod(_noisy_sample)
-    offsets = {"p": P_NOISY, "u": U_NOISY, "y": Y_NOISY, "z": Z_NOISY}
 
     def declare(self):
-        self.parameters = (Parameter("sigma", self.unit, 0.0, (), (0.0, None), "noise standard deviation"),)
-        self.inputs = (InputPort("u", self.unit, self.shape, "sampled signal"),)
-        self.outputs = (OutputPort("y", self.unit, self.shape, "noisy held sample"),)
-        self.discrete_states = (State("held", self.unit, self.shape, None, "last noisy sample"),)
+        self.use_declarations(NOISY_SAMPLER.replace(sigma={"unit": self.unit}, u=self.port, y=self.port,
+                                                    held=self.port))
         self.noise_size = self.size
 
 
@@ -273,8 +284,8 @@ class Profile(_Block):
     """
 
     summary = "time profile: piecewise cubic plus harmonic segments (ramps, steps, 1 - cos spin-up)"
+    declarations = PROFILE
     state_outputs = staticmethod(_profile)
-    offsets = {"p": P_PROFILE, "y": Y_PROFILE}
 
     def __init__(self, name: str, *, unit: str = "", shape=(), segments: int = 1, **kwargs):
         if (isinstance(segments, bool) or not isinstance(segments, (int, np.integer))
@@ -287,17 +298,12 @@ class Profile(_Block):
     def declare(self):
         m = self.segments
         rows = (m,) + self.shape
-        breakpoints = np.arange(m + 1, dtype=float)
-        self.parameters = (
-            Parameter("times", "s", breakpoints, (m + 1,), description="segment breakpoints, ascending"),
-            *(Parameter(f"c{j}", self.unit, np.zeros(rows), rows, description=f"coefficient of s^{j} per segment "
-                        "(s: local time 0..1 in the segment)") for j in range(4)),
-            Parameter("cosine", self.unit, np.zeros(rows), rows, description="amplitude of cos(2 pi cycles s) per segment"),
-            Parameter("sine", self.unit, np.zeros(rows), rows, description="amplitude of sin(2 pi cycles s) per segment"),
-            Parameter("cycles", "", np.ones(m), (m,), description="harmonic cycles per segment"),
-            Parameter("after", self.unit, np.zeros(self.shape), self.shape, description="output from the last breakpoint on"),
-        )
-        self.outputs = (OutputPort("y", self.unit, self.shape, "the profile value"),)
+        per_segment = {"unit": self.unit, "default": np.zeros(rows), "shape": rows}
+        self.use_declarations(PROFILE.replace(
+            times={"default": np.arange(m + 1, dtype=float), "shape": (m + 1,)},
+            **{name: per_segment for name in ("c0", "c1", "c2", "c3", "cosine", "sine")},
+            cycles={"default": np.ones(m), "shape": (m,)},
+            after={"unit": self.unit, "default": np.zeros(self.shape), "shape": self.shape}, y=self.port))
 
     def configure(self):
         times = self.parameter("times")

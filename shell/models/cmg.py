@@ -31,8 +31,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, OutputPort, Parameter, State, named_offsets
-from shell.models.attitude_kinematics import cross
+from shell.model import Declarations, InputPort, Model, OutputPort, Parameter, State
+from shell.attitude import cross
+from shell.ports import node_inputs
 from shell.registry import register_model
 
 GEOMETRY = (
@@ -42,8 +43,8 @@ GEOMETRY = (
 )
 CLUSTER_INPUTS = (
     InputPort("gimbal_rate_command", "rad/s", (4,), "commanded gimbal rates", feedthrough=True),
-    InputPort("angular_velocity", "rad/s", (3,), "inertial angular velocity of the node, node axes",
-              feedthrough=True),
+    *node_inputs("angular_velocity", feedthrough=True,
+                 angular_velocity="inertial angular velocity of the node, node axes"),
 )
 CLUSTER_OUTPUTS = (
     OutputPort("torque", "N*m", (3,), "torque on the node: -h0 A d' - omega x H", feedthrough=True),
@@ -52,8 +53,9 @@ CLUSTER_OUTPUTS = (
     OutputPort("gimbal_rates", "rad/s", (4,), "gimbal rates after the limit", feedthrough=True),
 )
 CLUSTER_CONTINUOUS = (State("gimbal_angles", "rad", (4,), None, "gimbal angles d_i"),)
-P_CMG, U_CMG, Y_CMG, X_CMG = (named_offsets(d) for d in (GEOMETRY, CLUSTER_INPUTS, CLUSTER_OUTPUTS,
-                                                          CLUSTER_CONTINUOUS))
+CLUSTER = Declarations(parameters=GEOMETRY, inputs=CLUSTER_INPUTS, outputs=CLUSTER_OUTPUTS,
+                       continuous=CLUSTER_CONTINUOUS)
+P_CMG, U_CMG, Y_CMG, X_CMG = CLUSTER.P, CLUSTER.U, CLUSTER.Y, CLUSTER.X
 
 
 @njit(cache=True)
@@ -120,11 +122,7 @@ class CmgCluster(Model):
     """Four single-gimbal CMGs in the standard pyramid at a node; see the module docstring."""
 
     summary = "single-gimbal CMG pyramid (4) at a node: gimbal-rate commands in; torque, momentum, angles out"
-    parameters = GEOMETRY
-    inputs = CLUSTER_INPUTS
-    outputs = CLUSTER_OUTPUTS
-    continuous_states = CLUSTER_CONTINUOUS
-    offsets = {"p": P_CMG, "u": U_CMG, "y": Y_CMG, "x": X_CMG}
+    declarations = CLUSTER
     feedthrough_outputs = staticmethod(_cluster_outputs)
     derivatives = staticmethod(_cluster_derivatives)
 
@@ -136,7 +134,8 @@ STEERING_PARAMETERS = GEOMETRY + (
 STEERING_INPUTS = (
     InputPort("torque_command", "N*m", (3,), "torque demanded on the spacecraft, node axes"),
     InputPort("gimbal_angles", "rad", (4,), "measured gimbal angles"),
-    InputPort("angular_velocity", "rad/s", (3,), "body rate, node axes (omega x H compensated)", required=False),
+    *node_inputs("angular_velocity", required=False,
+                 angular_velocity="body rate, node axes (omega x H compensated)"),
 )
 STEERING_OUTPUTS = (
     OutputPort("gimbal_rate_command", "rad/s", (4,), "gimbal rate command (held)"),
@@ -146,8 +145,9 @@ STEERING_DISCRETE = (
     State("gimbal_rate_command", "rad/s", (4,), None, "held command"),
     State("singularity_measure", "", (), None, "det(A A^T)"),
 )
-P_STEER, U_STEER, Y_STEER, Z_STEER = (named_offsets(d) for d in (STEERING_PARAMETERS, STEERING_INPUTS,
-                                                                  STEERING_OUTPUTS, STEERING_DISCRETE))
+STEERING = Declarations(parameters=STEERING_PARAMETERS, inputs=STEERING_INPUTS, outputs=STEERING_OUTPUTS,
+                        discrete=STEERING_DISCRETE)
+P_STEER, U_STEER, Y_STEER, Z_STEER = STEERING.P, STEERING.U, STEERING.Y, STEERING.Z
 
 
 @njit(cache=True)
@@ -203,11 +203,7 @@ class CmgSteering(Model):
     """Singularity-robust steering of the CMG pyramid; see the module docstring."""
 
     summary = "singularity-robust CMG steering (Bedrossian): torque command in, gimbal-rate command out (held)"
-    parameters = STEERING_PARAMETERS
-    inputs = STEERING_INPUTS
-    outputs = STEERING_OUTPUTS
-    discrete_states = STEERING_DISCRETE
-    offsets = {"p": P_STEER, "u": U_STEER, "y": Y_STEER, "z": Z_STEER}
+    declarations = STEERING
     default_period = "0.1 s"
     state_outputs = staticmethod(_steering_held)
     update = staticmethod(_steering_update)

@@ -22,14 +22,15 @@ after it, at ``P_LQR.gain + m n`` (its offset is ``None`` in ``P_LQR``: derived,
 
 from __future__ import annotations
 
-from collections import namedtuple
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets, parse_period
+from shell.model import Declarations, InputPort, Model, ModelError, OutputPort, Parameter, State, parse_period
+from shell.attitude import error_rotation_vector
+from shell.ports import COMMANDED_TORQUE, HELD_TORQUE, MEASURED_ATTITUDE_AND_RATE
 from shell.registry import register_model
 
 
@@ -42,15 +43,12 @@ PID_PARAMETERS = (
               "commanded quaternion [w, x, y, z], command frame -> world"),
     Parameter("angular_velocity_command", "rad/s", (0.0, 0.0, 0.0), (3,), None, "commanded rate, node axes"),
 )
-PID_INPUTS = (
-    InputPort("attitude", "", (4,), "measured quaternion [w, x, y, z], node -> world"),
-    InputPort("angular_velocity", "rad/s", (3,), "measured angular velocity, node axes"),
-)
-PID_OUTPUTS = (OutputPort("torque", "N*m", (3,), "commanded torque, node axes (held between samples)"),)
-PID_DISCRETE = (State("torque", "N*m", (3,), None, "held torque command"),
+PID_DISCRETE = (HELD_TORQUE,
                 State("integral", "rad*s", (3,), None, "integral of the attitude error"),
                 State("period", "s", (), None, "sample period (from the rate)"))
-P_PID, U_PID, Y_PID, Z_PID = (named_offsets(d) for d in (PID_PARAMETERS, PID_INPUTS, PID_OUTPUTS, PID_DISCRETE))
+PID = Declarations(parameters=PID_PARAMETERS, inputs=MEASURED_ATTITUDE_AND_RATE, outputs=COMMANDED_TORQUE,
+                   discrete=PID_DISCRETE)
+P_PID, U_PID, Y_PID, Z_PID = PID.P, PID.U, PID.Y, PID.Z
 
 
 @njit(cache=True)
@@ -63,14 +61,7 @@ def _held_pid_torque(t, x, z, u, p, y):
 def _pid_update(t, x, z, u, p):
     P, U, Z = P_PID, U_PID, Z_PID
     q, c = U.attitude, P.attitude_command
-    qw, qx, qy, qz = u[q], u[q + 1], u[q + 2], u[q + 3]
-    cw, cx, cy, cz = p[c], -p[c + 1], -p[c + 2], -p[c + 3]
-    ew = cw * qw - cx * qx - cy * qy - cz * qz
-    ex = cw * qx + cx * qw + cy * qz - cz * qy
-    ey = cw * qy - cx * qz + cy * qw + cz * qx
-    ez = cw * qz + cx * qy - cy * qx + cz * qw
-    sign = 1.0 if ew >= 0.0 else -1.0
-    error = (2.0 * sign * ex, 2.0 * sign * ey, 2.0 * sign * ez)
+    error = error_rotation_vector((p[c], p[c + 1], p[c + 2], p[c + 3]), (u[q], u[q + 1], u[q + 2], u[q + 3]))
     period = z[Z.period]
     for i in range(3):
         integral = z[Z.integral + i] + error[i] * period
@@ -85,11 +76,7 @@ class PidAttitudeController(Model):
     """Sampled quaternion-feedback PID attitude controller with an anti-windup clamp."""
 
     summary = "sampled PID attitude controller: attitude, angular_velocity in, torque out (held)"
-    parameters = PID_PARAMETERS
-    inputs = PID_INPUTS
-    outputs = PID_OUTPUTS
-    discrete_states = PID_DISCRETE
-    offsets = {"p": P_PID, "u": U_PID, "y": Y_PID, "z": Z_PID}
+    declarations = PID
     default_period = "0.1 s"
     state_outputs = staticmethod(_held_pid_torque)
     update = staticmethod(_pid_update)
@@ -99,11 +86,7 @@ class PidAttitudeController(Model):
         super().__init__(name, period=period, **kwargs)
 
     def configure(self):
-        command = self.parameter("attitude_command")
-        norm = float(np.sqrt(command @ command))
-        if abs(norm - 1.0) > 1e-9:
-            raise ModelError(f"model {self.path}: parameter attitude_command: expected a unit quaternion "
-                             f"[w, x, y, z], given norm {norm:.12g}")
+        self.require_unit_norm("attitude_command")
         period = float(parse_period(self._given_period if self._given_period is not None else self.default_period,
                                     f"model {self.path}: period"))
         self.discrete_states = tuple(replace(s, initial=period) if s.name == "period" else s
@@ -141,11 +124,16 @@ def read_gain_matrix(path, dataset: str = "K") -> np.ndarray:
     return gain
 
 
-#: gain at the start, state_reference after it at gain + m n (derived in the kernel); command, state alone
-P_LQR = namedtuple("LqrParameters", "gain state_reference")(0, None)
-U_LQR = namedtuple("LqrInputs", "state")(0)
-Y_LQR = namedtuple("LqrOutputs", "command")(0)
-Z_LQR = namedtuple("LqrDiscrete", "command")(0)
+#: the shapes follow K (m x n): gain at the start, state_reference after it at gain + m n (derived in the kernel)
+LQR = Declarations(
+    parameters=(Parameter("gain", "", None, (1, 1), None, "K (default: the gain file's matrix)"),
+                Parameter("state_reference", "", 0.0, (1,), None, "x_ref")),
+    inputs=(InputPort("state", "", (1,), "state vector x (SI, the gain file's order)"),),
+    outputs=(OutputPort("command", "", (1,), "u = -K (x - x_ref), held"),),
+    discrete=(State("command", "", (1,), None, "held command"),),
+    sized=("gain", "state_reference", "state", "command"),
+)
+P_LQR, U_LQR, Y_LQR, Z_LQR = LQR.P, LQR.U, LQR.Y, LQR.Z
 
 
 @njit(cache=True)
@@ -173,7 +161,7 @@ class LqrStateFeedback(Model):
     summary = "sampled state feedback u = -K (x - x_ref) with K read from a file (config: gain_file)"
     state_outputs = staticmethod(_held_lqr_command)
     update = staticmethod(_lqr_update)
-    offsets = {"p": P_LQR, "u": U_LQR, "y": Y_LQR, "z": Z_LQR}
+    declarations = LQR
     default_period = "0.1 s"
 
     def __init__(self, name: str, *, gain_file: str | None = None, gain_dataset: str = "K", state_unit: str = "",
@@ -189,11 +177,8 @@ class LqrStateFeedback(Model):
 
     def declare(self):
         m, n = self.gain.shape
-        self.parameters = (
-            Parameter("gain", f"({self.command_unit or '1'})/({self.state_unit or '1'})", self.gain, (m, n), None,
-                      "K (default: the gain file's matrix)"),
-            Parameter("state_reference", self.state_unit, np.zeros(n), (n,), None, "x_ref"),
-        )
-        self.inputs = (InputPort("state", self.state_unit, (n,), "state vector x (SI, the gain file's order)"),)
-        self.outputs = (OutputPort("command", self.command_unit, (m,), "u = -K (x - x_ref), held"),)
-        self.discrete_states = (State("command", self.command_unit, (m,), None, "held command"),)
+        self.use_declarations(LQR.replace(
+            gain={"unit": f"({self.command_unit or '1'})/({self.state_unit or '1'})", "default": self.gain,
+                  "shape": (m, n)},
+            state_reference={"unit": self.state_unit, "default": np.zeros(n), "shape": (n,)},
+            state={"unit": self.state_unit, "shape": (n,)}, command={"unit": self.command_unit, "shape": (m,)}))

@@ -27,9 +27,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, named_offsets
+from shell.model import Declarations, InputPort, Model, ModelError, OutputPort, Parameter
 from shell.models.ephemeris import SUN_RADIUS
 from shell.models.gravity import EARTH_RADIUS
+from shell.ports import node_inputs
 from shell.registry import register_model
 
 SHADOWS = {"cylindrical": 0.0, "conical": 1.0}
@@ -41,12 +42,13 @@ PARAMETERS = (
     Parameter("shadow_model", "", 1.0, (), (0.0, 1.0), "0 cylindrical, 1 conical (set by config shadow)"),
 )
 INPUTS = (
-    InputPort("position", "m", (3,), "node position from the body's center, world axes", feedthrough=True),
+    *node_inputs("position", feedthrough=True, position="node position from the body's center, world axes"),
     InputPort("sun_position", "m", (3,), "body center -> Sun, world axes", feedthrough=True),
 )
 OUTPUTS = (OutputPort("shadow_factor", "", (), "visible fraction of the solar disc: 1 lit .. 0 umbra",
                       feedthrough=True),)
-P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
+ECLIPSE = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS)
+P, U, Y = ECLIPSE.P, ECLIPSE.U, ECLIPSE.Y
 
 
 @njit(cache=True)
@@ -103,10 +105,7 @@ class Eclipse(Model):
     """Shadow of the central body at a node, conical (penumbra) or cylindrical; see the module docstring."""
 
     summary = "eclipse by the central body at a node: shadow_factor 1 lit .. 0 umbra (conical or cylindrical)"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    offsets = {"p": P, "u": U, "y": Y}
+    declarations = ECLIPSE
     feedthrough_outputs = staticmethod(_eclipse_outputs)
 
     def __init__(self, name: str, *, shadow: str = "conical", **kwargs):

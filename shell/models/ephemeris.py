@@ -45,7 +45,7 @@ import datetime as _datetime
 import numpy as np
 from numba import njit
 
-from shell.model import Model, ModelError, OutputPort, Parameter, named_offsets
+from shell.model import Declarations, Model, ModelError, OutputPort, Parameter
 from shell.registry import register_model
 
 J2000 = 2451545.0                        # Julian date of 2000-01-01 12:00 TT
@@ -193,7 +193,8 @@ OUTPUTS = (
     OutputPort("moon_position", "m", (3,), "central body -> Moon, world axes"),
     OutputPort("moon_direction", "", (3,), "unit vector central body -> Moon, world axes"),
 )
-P, Y = named_offsets(PARAMETERS), named_offsets(OUTPUTS)
+EPHEMERIS = Declarations(parameters=PARAMETERS, outputs=OUTPUTS)
+P, Y = EPHEMERIS.P, EPHEMERIS.Y
 
 
 @njit(cache=True)
@@ -212,7 +213,5 @@ class SunMoonEphemeris(EpochModel):
     """Analytic geocentric Sun and Moon positions (Montenbruck & Gill 3.3.2); see the module docstring."""
 
     summary = "analytic Sun and Moon positions (M&G 3.3.2) in the world (EME2000) frame from the scene epoch"
-    parameters = PARAMETERS
-    outputs = OUTPUTS
-    offsets = {"p": P, "y": Y}
+    declarations = EPHEMERIS
     state_outputs = staticmethod(_ephemeris_outputs)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets
+from shell.model import Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets
 from shell.registry import register_model
 
 PARAMETERS = (
@@ -47,9 +47,12 @@ REFERENCE_PARTS = (State("angle", "rad", (2,), None, "servo reference angles"),
                    State("rate", "rad/s", (2,), None, "servo reference rates"))
 PRESCRIBED_CONTINUOUS = (State("reference", "", (Layout.of(REFERENCE_PARTS).size,), None,
                                "servo reference: angles, rates"),)
-P, U = named_offsets(PARAMETERS), named_offsets(INPUTS)
-Y_PRESCRIBED, Y_TORQUE = named_offsets(PRESCRIBED_OUTPUTS), named_offsets(TORQUE_OUTPUTS)
-X, REFERENCE = named_offsets(PRESCRIBED_CONTINUOUS), named_offsets(REFERENCE_PARTS)
+#: the two modes (config: mode): a servo reference the hinge follows, or a servo torque on the hinge
+PRESCRIBED = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=PRESCRIBED_OUTPUTS,
+                          continuous=PRESCRIBED_CONTINUOUS)
+TORQUE = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=TORQUE_OUTPUTS)
+P, U, Y_PRESCRIBED, X, Y_TORQUE = PRESCRIBED.P, PRESCRIBED.U, PRESCRIBED.Y, PRESCRIBED.X, TORQUE.Y
+REFERENCE = named_offsets(REFERENCE_PARTS)
 ANGLE, RATE = X.reference + REFERENCE.angle, X.reference + REFERENCE.rate
 
 
@@ -90,8 +93,7 @@ class GimbalActuator(Model):
     """Two-axis engine gimbal: prescribed servo reference or servo torque (config: mode)."""
 
     summary = "engine gimbal actuator on a ujoint hinge: prescribed (K_LT = 0) or torque (K_LT = 1) mode"
-    parameters = PARAMETERS
-    inputs = INPUTS
+    declarations = PRESCRIBED
 
     def __init__(self, name: str, *, mode: str = "prescribed", **kwargs):
         if mode not in ("prescribed", "torque"):
@@ -101,12 +103,9 @@ class GimbalActuator(Model):
 
     def declare(self):
         if self.mode == "prescribed":
-            self.outputs = PRESCRIBED_OUTPUTS
-            self.continuous_states = PRESCRIBED_CONTINUOUS
             self.feedthrough_outputs = _prescribed_outputs
             self.derivatives = _reference_derivatives
-            self.offsets = {"p": P, "u": U, "y": Y_PRESCRIBED, "x": X}
         else:
-            self.outputs = TORQUE_OUTPUTS
+            self.use_declarations(TORQUE)
             self.feedthrough_outputs = _servo_torque
-            self.offsets = {"p": P, "u": U, "y": Y_TORQUE}
+            self.offsets = TORQUE.offsets

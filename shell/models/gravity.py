@@ -30,7 +30,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, OutputPort, Parameter, named_offsets
+from shell.model import Declarations, Model, OutputPort, Parameter
+from shell.ports import node_inputs, node_load_outputs
 from shell.registry import register_model
 
 EARTH_MU = 3.986004418e14        # m^3/s^2, WGS 84 / EGM 2008
@@ -96,18 +97,17 @@ PARAMETERS = (
     Parameter("j3", "", 0.0, (), None, f"third zonal harmonic (Earth {EARTH_J3:g})"),
     Parameter("j4", "", 0.0, (), None, f"fourth zonal harmonic (Earth {EARTH_J4:g})"),
 )
-INPUTS = (
-    InputPort("position", "m", (3,), "node origin (the center of mass) from the planet center, world",
-              feedthrough=True),
-    InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
-)
+INPUTS = node_inputs("position", "rotation", feedthrough=True,
+                     position="node origin (the center of mass) from the planet center, world",
+                     rotation="rotation node -> world")
 OUTPUTS = (
-    OutputPort("force", "N", (3,), "gravitational force, node axes", feedthrough=True),
-    OutputPort("torque", "N*m", (3,), "gravity-gradient torque about the node, node axes", feedthrough=True),
+    *node_load_outputs("force", "torque", force="gravitational force, node axes",
+                       torque="gravity-gradient torque about the node, node axes"),
     OutputPort("gravitational_acceleration", "m/s^2", (3,), "gravitational acceleration, node axes",
                feedthrough=True),
 )
-P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
+GRAVITY = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS)
+P, U, Y = GRAVITY.P, GRAVITY.U, GRAVITY.Y
 
 
 @njit(cache=True)
@@ -135,8 +135,5 @@ class CentralBodyGravity(Model):
     """Point-mass + J2 gravity force and gravity-gradient torque at a body's center-of-mass node."""
 
     summary = "central-body gravity (mu, J2) force and gravity-gradient torque at a center-of-mass node"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    offsets = {"p": P, "u": U, "y": Y}
+    declarations = GRAVITY
     feedthrough_outputs = staticmethod(_gravity_outputs)

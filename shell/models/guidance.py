@@ -57,23 +57,17 @@ states name the captured start and the profile's numbers.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from numba import njit
 
 from shell.attitude_target import parse_attitude_target
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
-from shell.models.attitude_kinematics import (axis_angle_quaternion, cross, dot, quaternion_conjugate,
-                                              quaternion_multiply, quaternion_to_axis_angle, rotate,
-                                              two_axis_frame_quaternion, unit)
+from shell.model import Declarations, InputPort, Model, ModelError, OutputPort, Parameter, State
+from shell.attitude import (axis_angle_quaternion, cross, dot, quaternion_conjugate, quaternion_multiply,
+                            quaternion_to_axis_angle, rotate, two_axis_frame_quaternion, unit)
+from shell.ports import attitude_reference_outputs, node_inputs
 from shell.registry import register_model
 
-REFERENCE_OUTPUTS = (
-    OutputPort("reference_attitude", "", (4,), "reference quaternion [w, x, y, z], reference -> world"),
-    OutputPort("reference_angular_velocity", "rad/s", (3,), "reference angular velocity, world axes"),
-    OutputPort("reference_angular_acceleration", "rad/s^2", (3,), "reference angular acceleration, world axes"),
-)
+REFERENCE_OUTPUTS = attitude_reference_outputs()
 TARGET = Parameter("target_attitude", "", (1.0, 0.0, 0.0, 0.0), (4,), (-1.0, 1.0),
                    "target quaternion, target -> world (give `target:` in any form of shell.attitude_target)")
 AXES = (Parameter("boresight", "", (0.0, 0.0, 1.0), (3,), None, "body axis pointed at the target direction"),
@@ -109,7 +103,8 @@ def _check_axes(model: Model) -> None:
 
 
 # ------------------------------------------------------------------------------------------------
-P_INERTIAL, Y_REF = named_offsets((TARGET,)), named_offsets(REFERENCE_OUTPUTS)
+INERTIAL = Declarations(parameters=(TARGET,), outputs=REFERENCE_OUTPUTS)
+P_INERTIAL, Y_REF = INERTIAL.P, INERTIAL.Y
 
 
 @njit(cache=True)
@@ -126,20 +121,17 @@ class InertialPointing(_TargetModel):
     """Fixed inertial attitude reference; see the module docstring."""
 
     summary = "inertial pointing reference: target as quaternion, axis-angle, Euler angles or pointing"
-    parameters = (TARGET,)
-    outputs = REFERENCE_OUTPUTS
-    offsets = {"p": P_INERTIAL, "y": Y_REF}
+    declarations = INERTIAL
     state_outputs = staticmethod(_inertial_reference)
 
 
 # ------------------------------------------------------------------------------------------------
-NADIR_INPUTS = (
-    InputPort("position", "m", (3,), "spacecraft position from the central body, world axes", feedthrough=True),
-    InputPort("linear_velocity", "m/s", (3,), "inertial velocity, node axes", feedthrough=True),
-    InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
-)
-NADIR_OUTPUTS = tuple(replace(o, feedthrough=True) for o in REFERENCE_OUTPUTS)
-P_AXES, U_NADIR = named_offsets(AXES), named_offsets(NADIR_INPUTS)
+NADIR_INPUTS = node_inputs("position", "linear_velocity", "rotation", feedthrough=True,
+                           position="spacecraft position from the central body, world axes",
+                           linear_velocity="inertial velocity, node axes", rotation="rotation node -> world")
+NADIR_OUTPUTS = attitude_reference_outputs(feedthrough=True)
+NADIR = Declarations(parameters=AXES, inputs=NADIR_INPUTS, outputs=NADIR_OUTPUTS)
+P_AXES, U_NADIR = NADIR.P, NADIR.U
 
 
 @njit(cache=True)
@@ -167,10 +159,7 @@ class NadirPointing(Model):
     """Nadir-pointing reference from the node's orbit state; see the module docstring."""
 
     summary = "nadir pointing reference (attach to the spacecraft node): boresight at -r, secondary along v"
-    parameters = AXES
-    inputs = NADIR_INPUTS
-    outputs = NADIR_OUTPUTS
-    offsets = {"p": P_AXES, "u": U_NADIR, "y": Y_REF}
+    declarations = NADIR
     feedthrough_outputs = staticmethod(_nadir_reference)
 
     def configure(self):
@@ -181,7 +170,8 @@ class NadirPointing(Model):
 SUN_PARAMETERS = AXES + (Parameter("secondary_direction", "", (0.0, 0.0, 1.0), (3,), None,
                                    "world direction the secondary axis turns towards"),)
 SUN_INPUTS = (InputPort("sun_direction", "", (3,), "unit vector to the Sun, world axes", feedthrough=True),)
-P_SUN, U_SUN = named_offsets(SUN_PARAMETERS), named_offsets(SUN_INPUTS)
+SUN = Declarations(parameters=SUN_PARAMETERS, inputs=SUN_INPUTS, outputs=NADIR_OUTPUTS)
+P_SUN, U_SUN = SUN.P, SUN.U
 #: the secondary direction is replaced when within 10 deg of the Sun line
 _SIN_MIN_SEPARATION = np.sin(np.radians(10.0))
 
@@ -211,10 +201,7 @@ class SunPointing(Model):
     """Sun-pointing reference from a Sun direction input; see the module docstring."""
 
     summary = "Sun pointing reference: boresight at sun_direction (unit, world), secondary towards a direction"
-    parameters = SUN_PARAMETERS
-    inputs = SUN_INPUTS
-    outputs = NADIR_OUTPUTS
-    offsets = {"p": P_SUN, "u": U_SUN, "y": Y_REF}
+    declarations = SUN
     feedthrough_outputs = staticmethod(_sun_reference)
 
     def configure(self):
@@ -241,7 +228,7 @@ SLEW_INPUTS = (
     InputPort("hold_angular_acceleration", "rad/s^2", (3,), "its angular acceleration, world axes",
               feedthrough=True, required=False),
 )
-SLEW_OUTPUTS = tuple(replace(o, feedthrough=True) for o in REFERENCE_OUTPUTS) + (
+SLEW_OUTPUTS = attitude_reference_outputs(feedthrough=True) + (
     OutputPort("slew_angle", "rad", (), "profile angle theta(t) (0 before the start)", feedthrough=True),
     OutputPort("complete", "", (), "1 once the profile has ended, else 0", feedthrough=True),
 )
@@ -255,8 +242,8 @@ SLEW_DISCRETE = (
     State("peak_rate", "rad/s", (), 0.0, "coast rate"),
     State("held", "", (), 0.0, "1 once the attitude to hold has been captured"),
 )
-P_SLEW, U_SLEW, Y_SLEW, Z_SLEW = (named_offsets(d) for d in (SLEW_PARAMETERS, SLEW_INPUTS, SLEW_OUTPUTS,
-                                                              SLEW_DISCRETE))
+SLEW = Declarations(parameters=SLEW_PARAMETERS, inputs=SLEW_INPUTS, outputs=SLEW_OUTPUTS, discrete=SLEW_DISCRETE)
+P_SLEW, U_SLEW, Y_SLEW, Z_SLEW = SLEW.P, SLEW.U, SLEW.Y, SLEW.Z
 
 
 @njit(cache=True)
@@ -346,11 +333,7 @@ class EigenaxisSlew(_TargetModel):
     """Eigenaxis slew with rate and acceleration limits (bang-coast-bang); see the module docstring."""
 
     summary = "eigenaxis slew reference, bang-coast-bang with rate and acceleration limits (target in any form)"
-    parameters = SLEW_PARAMETERS
-    inputs = SLEW_INPUTS
-    outputs = SLEW_OUTPUTS
-    discrete_states = SLEW_DISCRETE
-    offsets = {"p": P_SLEW, "u": U_SLEW, "y": Y_SLEW, "z": Z_SLEW}
+    declarations = SLEW
     default_period = "0.1 s"
     feedthrough_outputs = staticmethod(_slew_outputs)
     update = staticmethod(_slew_update)
@@ -374,7 +357,8 @@ SAFE_OUTPUTS = (
     OutputPort("pointing_error", "rad", (), "angle between the boresight and the measured Sun direction",
                feedthrough=True),
 )
-P_SAFE, U_SAFE, Y_SAFE = named_offsets(SAFE_PARAMETERS), named_offsets(SAFE_INPUTS), named_offsets(SAFE_OUTPUTS)
+SAFE = Declarations(parameters=SAFE_PARAMETERS, inputs=SAFE_INPUTS, outputs=SAFE_OUTPUTS)
+P_SAFE, U_SAFE, Y_SAFE = SAFE.P, SAFE.U, SAFE.Y
 
 
 @njit(cache=True)
@@ -404,10 +388,7 @@ class SunSafePointing(Model):
     """Sun pointing from a measured Sun direction (node axes), no attitude estimate; see the module docstring."""
 
     summary = "Sun-safe pointing from a measured Sun direction (node axes): q_BR for MrpFeedback, no attitude estimate"
-    parameters = SAFE_PARAMETERS
-    inputs = SAFE_INPUTS
-    outputs = SAFE_OUTPUTS
-    offsets = {"p": P_SAFE, "u": U_SAFE, "y": Y_SAFE}
+    declarations = SAFE
     feedthrough_outputs = staticmethod(_sun_safe_attitude)
 
     def configure(self):

@@ -49,7 +49,9 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets, parse_period
+from shell.model import (Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State,
+                         named_offsets, parse_period)
+from shell.ports import node_inputs
 from shell.registry import register_model
 
 #: ratio of the Gauss-Markov sigma to the datasheet bias instability B: 0.664 B (the 1/f Allan floor,
@@ -103,9 +105,9 @@ PARAMETERS = (
     Parameter("latency", "s", 0.0, (), (0.0, None), "output latency, a whole number of sample periods"),
 )
 INPUTS = (
-    InputPort("angular_velocity", "rad/s", (3,), "inertial angular velocity of the node, node axes"),
-    InputPort("linear_acceleration", "m/s^2", (3,), "classical acceleration of the node, node axes"),
-    InputPort("rotation", "", (3, 3), "rotation node -> world"),
+    *node_inputs("angular_velocity", "linear_acceleration", "rotation",
+                 angular_velocity="inertial angular velocity of the node, node axes",
+                 linear_acceleration="classical acceleration of the node, node axes"),
     InputPort("gravitational_acceleration", "m/s^2", (3,), "gravity not in the engine, node axes",
               required=False),
 )
@@ -145,8 +147,9 @@ DISCRETE = (
 #: the output shift register, appended after DISCRETE with (latency samples + 1) records
 RECORDS = State("records", "", (RECORD_SIZE,), None, "output shift register (latency)")
 
-P, U, Y, X = (named_offsets(d) for d in (PARAMETERS, INPUTS, OUTPUTS, CONTINUOUS))
-Z = named_offsets(DISCRETE + (RECORDS,))
+IMU = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS, continuous=CONTINUOUS,
+                   discrete=DISCRETE + (RECORDS,), sized=("records",))
+P, U, Y, X, Z = IMU.P, IMU.U, IMU.Y, IMU.X, IMU.Z
 S, N, R = named_offsets(CHANNEL_STATE_PARTS), named_offsets(NOISE_PARTS), named_offsets(RECORD_PARTS)
 LAST = named_offsets(LAST_INTEGRAL_PARTS)
 X_SIZE, U_SIZE = Layout.of(CONTINUOUS).size, Layout.of(INPUTS).size
@@ -254,11 +257,7 @@ class Imu(Model):
     """Gyro + accelerometer triad at a node with the IEEE 952 error model; see the module docstring."""
 
     summary = "IMU at a node: ARW, bias instability, RRW, ramp, white angle noise, quantization, SF, misalignment"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    continuous_states = CONTINUOUS
-    offsets = {"p": P, "u": U, "y": Y, "x": X, "z": Z}
+    declarations = IMU
     noise_size = 2 * CHANNEL_NOISE_SIZE
     default_period = "0.01 s"
     state_outputs = staticmethod(_held_outputs)

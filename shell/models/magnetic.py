@@ -43,8 +43,10 @@ import datetime as _datetime
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
+from shell.attitude import quaternion_to_matrix
+from shell.model import Declarations, InputPort, Model, ModelError, OutputPort, Parameter, State
 from shell.models.ephemeris import EARTH_MAGNETIC_RADIUS, EPOCH_PARAMETERS, J2000, EpochModel, earth_fixed_rotation
+from shell.ports import node_inputs, node_load_outputs
 from shell.registry import register_model
 
 MAX_DEGREE = 13
@@ -130,14 +132,15 @@ FIELD_PARAMETERS = EPOCH_PARAMETERS + (
               "Gauss coefficients h[n, m] (all zero: IGRF at the epoch)"),
 )
 FIELD_INPUTS = (
-    InputPort("position", "m", (3,), "node position from the Earth's center, world axes", feedthrough=True),
-    InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
+    *node_inputs("position", "rotation", feedthrough=True,
+                 position="node position from the Earth's center, world axes", rotation="rotation node -> world"),
 )
 FIELD_OUTPUTS = (
     OutputPort("field_inertial", "T", (3,), "geomagnetic field, world axes", feedthrough=True),
     OutputPort("field", "T", (3,), "geomagnetic field, node axes", feedthrough=True),
 )
-PF, UF, YF = named_offsets(FIELD_PARAMETERS), named_offsets(FIELD_INPUTS), named_offsets(FIELD_OUTPUTS)
+FIELD = Declarations(parameters=FIELD_PARAMETERS, inputs=FIELD_INPUTS, outputs=FIELD_OUTPUTS)
+PF, UF, YF = FIELD.P, FIELD.U, FIELD.Y
 
 
 @njit(cache=True)
@@ -165,10 +168,7 @@ class MagneticField(EpochModel):
     """IGRF (degree 1..13, 1 = tilted dipole) at a node, world and node axes; see the module docstring."""
 
     summary = "geomagnetic field at a node: IGRF-14 (ppigrf coefficients) or tilted dipole (degree: 1)"
-    parameters = FIELD_PARAMETERS
-    inputs = FIELD_INPUTS
-    outputs = FIELD_OUTPUTS
-    offsets = {"p": PF, "u": UF, "y": YF}
+    declarations = FIELD
     feedthrough_outputs = staticmethod(_field_outputs)
 
     def configure(self):
@@ -204,17 +204,9 @@ MAGNETOMETER_PARAMETERS = (
 MAGNETOMETER_INPUTS = (InputPort("true_field", "T", (3,), "geomagnetic field, node axes"),)
 MAGNETOMETER_OUTPUTS = (OutputPort("field", "T", (3,), "measured field, sensor axes (held)"),)
 MAGNETOMETER_DISCRETE = (State("field", "T", (3,), None, "held measurement"),)
-PM, UM, YM, ZM = (named_offsets(d) for d in (MAGNETOMETER_PARAMETERS, MAGNETOMETER_INPUTS,
-                                             MAGNETOMETER_OUTPUTS, MAGNETOMETER_DISCRETE))
-
-
-@njit(cache=True)
-def quaternion_rotation(p, q):
-    """Row-major rotation matrix (9-tuple) of the unit quaternion p[q:q + 4] = [w, x, y, z]."""
-    w, x, y, z = p[q], p[q + 1], p[q + 2], p[q + 3]
-    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
-            2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
-            2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
+MAGNETOMETER = Declarations(parameters=MAGNETOMETER_PARAMETERS, inputs=MAGNETOMETER_INPUTS,
+                            outputs=MAGNETOMETER_OUTPUTS, discrete=MAGNETOMETER_DISCRETE)
+PM, UM, YM, ZM = MAGNETOMETER.P, MAGNETOMETER.U, MAGNETOMETER.Y, MAGNETOMETER.Z
 
 
 @njit(cache=True)
@@ -225,7 +217,8 @@ def _magnetometer_outputs(t, x, z, u, p, y):
 
 @njit(cache=True)
 def _magnetometer_sample(t, x, z, u, p, noise):
-    c = quaternion_rotation(p, PM.mounting)
+    m = PM.mounting
+    c = quaternion_to_matrix(p[m], p[m + 1], p[m + 2], p[m + 3])
     b = UM.true_field
     s0 = c[0] * u[b] + c[3] * u[b + 1] + c[6] * u[b + 2]  # C^T b: node -> sensor axes
     s1 = c[1] * u[b] + c[4] * u[b + 1] + c[7] * u[b + 2]
@@ -244,13 +237,6 @@ def _magnetometer_sample(t, x, z, u, p, noise):
         z[ZM.field + i] = value
 
 
-def _check_unit_quaternion(model, name):
-    q = model.parameter(name)
-    if abs(float(np.sqrt(q @ q)) - 1.0) > 1e-9:
-        raise ModelError(f"model {model.path}: parameter {name}: expected a unit quaternion [w, x, y, z], "
-                         f"given norm {float(np.sqrt(q @ q)):.12g}")
-
-
 def _check_misalignment(model, name="misalignment"):
     m = model.parameter(name)
     if np.any(np.diag(m) != 0.0):
@@ -263,18 +249,14 @@ class Magnetometer(Model):
     """Three-axis magnetometer: mounting, misalignment, scale factor, bias, noise, quantization, range."""
 
     summary = "three-axis magnetometer: true_field (node axes) in, field (sensor axes) out; noise, bias, lsb"
-    parameters = MAGNETOMETER_PARAMETERS
-    inputs = MAGNETOMETER_INPUTS
-    outputs = MAGNETOMETER_OUTPUTS
-    discrete_states = MAGNETOMETER_DISCRETE
-    offsets = {"p": PM, "u": UM, "y": YM, "z": ZM}
+    declarations = MAGNETOMETER
     noise_size = 3
     default_period = "0.1 s"
     state_outputs = staticmethod(_magnetometer_outputs)
     update = staticmethod(_magnetometer_sample)
 
     def configure(self):
-        _check_unit_quaternion(self, "mounting")
+        self.require_unit_norm("mounting")
         _check_misalignment(self)
 
 
@@ -289,10 +271,11 @@ TORQUER_INPUTS = (
     InputPort("field", "T", (3,), "geomagnetic field, node axes (MagneticField.field)", feedthrough=True),
 )
 TORQUER_OUTPUTS = (
-    OutputPort("torque", "N*m", (3,), "magnetic torque m x B on the node, node axes", feedthrough=True),
+    *node_load_outputs("torque", torque="magnetic torque m x B on the node, node axes"),
     OutputPort("dipole", "A*m^2", (3,), "dipole produced (clipped, quantized)", feedthrough=True),
 )
-PT, UT, YT = named_offsets(TORQUER_PARAMETERS), named_offsets(TORQUER_INPUTS), named_offsets(TORQUER_OUTPUTS)
+TORQUER = Declarations(parameters=TORQUER_PARAMETERS, inputs=TORQUER_INPUTS, outputs=TORQUER_OUTPUTS)
+PT, UT, YT = TORQUER.P, TORQUER.U, TORQUER.Y
 
 
 @njit(cache=True)
@@ -318,8 +301,5 @@ class Magnetorquer(Model):
     """Three magnetic torque rods along the node axes: dipole limits, quantization, torque m x B."""
 
     summary = "three torque rods: dipole_command (A m^2) and field in, torque m x B on the node (clipped, quantized)"
-    parameters = TORQUER_PARAMETERS
-    inputs = TORQUER_INPUTS
-    outputs = TORQUER_OUTPUTS
-    offsets = {"p": PT, "u": UT, "y": YT}
+    declarations = TORQUER
     feedthrough_outputs = staticmethod(_torquer_outputs)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from shell.model import InputPort, Model, OutputPort, Parameter, State, named_offsets
+from shell.model import Declarations, InputPort, Model, OutputPort, Parameter, State
 from shell.registry import register_model
 
 
@@ -48,7 +48,8 @@ BDOT_DISCRETE = (
     State("previous_field", "T", (3,), None, "field at the previous sample"),
     State("previous_time", "s", (), -1.0, "time of the previous sample (< 0: none yet)"),
 )
-PB, UB, YB, ZB = (named_offsets(d) for d in (BDOT_PARAMETERS, FIELD_INPUT, COMMAND_OUTPUT, BDOT_DISCRETE))
+BDOT = Declarations(parameters=BDOT_PARAMETERS, inputs=FIELD_INPUT, outputs=COMMAND_OUTPUT, discrete=BDOT_DISCRETE)
+PB, UB, YB, ZB = BDOT.P, BDOT.U, BDOT.Y, BDOT.Z
 
 
 @njit(cache=True)
@@ -77,11 +78,7 @@ class BDot(Model):
     dipole limits; see the module docstring."""
 
     summary = "B-dot detumbling: field (node axes) in, dipole_command = -k dB/dt out (held, limited)"
-    parameters = BDOT_PARAMETERS
-    inputs = FIELD_INPUT
-    outputs = COMMAND_OUTPUT
-    discrete_states = BDOT_DISCRETE
-    offsets = {"p": PB, "u": UB, "y": YB, "z": ZB}
+    declarations = BDOT
     default_period = "1 s"
     state_outputs = staticmethod(_bdot_command)
     update = staticmethod(_bdot_update)
@@ -93,7 +90,8 @@ DUMP_PARAMETERS = (
 )
 DUMP_INPUTS = FIELD_INPUT + (InputPort("wheel_momentum", "N*m*s", (3,), "stored wheel momentum, node axes"),)
 DUMP_DISCRETE = (State("dipole_command", "A*m^2", (3,), None, "held command"),)
-PD, UD, YD, ZD = (named_offsets(d) for d in (DUMP_PARAMETERS, DUMP_INPUTS, COMMAND_OUTPUT, DUMP_DISCRETE))
+DUMPING = Declarations(parameters=DUMP_PARAMETERS, inputs=DUMP_INPUTS, outputs=COMMAND_OUTPUT, discrete=DUMP_DISCRETE)
+PD, UD, YD, ZD = DUMPING.P, DUMPING.U, DUMPING.Y, DUMPING.Z
 
 
 @njit(cache=True)
@@ -121,11 +119,7 @@ class MomentumDumping(Model):
     """Magnetic momentum dumping ``m = k (h x B) / |B|^2``, direction-preserving dipole limits."""
 
     summary = "magnetic momentum dumping: field and wheel_momentum in, dipole_command = k h x B / |B|^2 out"
-    parameters = DUMP_PARAMETERS
-    inputs = DUMP_INPUTS
-    outputs = COMMAND_OUTPUT
-    discrete_states = DUMP_DISCRETE
-    offsets = {"p": PD, "u": UD, "y": YD, "z": ZD}
+    declarations = DUMPING
     default_period = "1 s"
     state_outputs = staticmethod(_dump_command)
     update = staticmethod(_dump_update)

@@ -27,7 +27,7 @@ from dataclasses import replace
 
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
+from shell.model import Declarations, InputPort, Model, ModelError, OutputPort, Parameter, State
 from shell.registry import register_model
 
 
@@ -46,7 +46,8 @@ DISCRETE = (State("mass", "kg", (), None, "current body mass"),
             State("propellant_remaining", "kg", (), None, "propellant left"),
             State("propellant_used", "kg", (), 0.0, "propellant used at the last sample "
                   "(kept exactly, so a restore re-applies the same mass properties)"))
-P, U, Y, Z = (named_offsets(d) for d in (PARAMETERS, INPUTS, OUTPUTS, DISCRETE))
+DEPLETION = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS, discrete=DISCRETE)
+P, U, Y, Z = DEPLETION.P, DEPLETION.U, DEPLETION.Y, DEPLETION.Z
 
 
 @njit(cache=True)
@@ -60,11 +61,7 @@ class MassDepletion(Model):
     """Sets a body's mass, center of mass and inertia from the propellant used (config: body, engine)."""
 
     summary = "propellant consumption -> body mass properties in the engine (config: body, engine)"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    discrete_states = DISCRETE
-    offsets = {"p": P, "u": U, "y": Y, "z": Z}
+    declarations = DEPLETION
     python_update = True
     default_period = "0.1 s"
     state_outputs = staticmethod(_held)

@@ -32,9 +32,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
-from shell.models.attitude_kinematics import (axis_angle_quaternion, quaternion_conjugate, quaternion_multiply,
-                                              quaternion_normalized, rotate)
+from shell.model import Declarations, InputPort, Model, OutputPort, Parameter, State
+from shell.attitude import (axis_angle_quaternion, error_rotation_vector, quaternion_conjugate, quaternion_multiply,
+                            quaternion_normalized, rotate)
 from shell.registry import register_model
 
 PARAMETERS = (
@@ -69,7 +69,8 @@ DISCRETE = (
     State("initialized", "", (), 0.0, "1 after the first valid star-tracker measurement"),
     State("last_time", "s", (), -1.0, "time of the previous sample (-1: none)"),
 )
-P, U, Y, Z = (named_offsets(d) for d in (PARAMETERS, INPUTS, OUTPUTS, DISCRETE))
+MEKF = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS, discrete=DISCRETE)
+P, U, Y, Z = MEKF.P, MEKF.U, MEKF.Y, MEKF.Z
 
 
 @njit(cache=True)
@@ -175,9 +176,7 @@ def _measurement_covariance_into(z, p):
 def _update(z, p, q_m):
     """Star-tracker update (module docstring), Joseph form."""
     q = (z[Z.attitude], z[Z.attitude + 1], z[Z.attitude + 2], z[Z.attitude + 3])
-    qe = quaternion_multiply(quaternion_conjugate(q), q_m)
-    sg = 2.0 if qe[0] >= 0.0 else -2.0
-    y0, y1, y2 = sg * qe[1], sg * qe[2], sg * qe[3]
+    y0, y1, y2 = error_rotation_vector(q, q_m)
     cov = Z.covariance
     r = _measurement_covariance(p)
     # S = P11 + R and its inverse (adjugate)
@@ -269,17 +268,10 @@ class AttitudeMekf(Model):
     """Multiplicative EKF (attitude + gyro bias) from a star tracker and a gyro; see the module docstring."""
 
     summary = "attitude MEKF (Markley-Crassidis 7.2.4): star tracker + gyro in; attitude, rate, bias, covariance out"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    discrete_states = DISCRETE
-    offsets = {"p": P, "u": U, "y": Y, "z": Z}
+    declarations = MEKF
     default_period = "0.1 s"
     state_outputs = staticmethod(_outputs)
     update = staticmethod(_mekf_update)
 
     def configure(self):
-        q = self.parameter("star_tracker_alignment")
-        if abs(float(np.linalg.norm(q)) - 1.0) > 1e-9:
-            raise ModelError(f"model {self.path}: parameter star_tracker_alignment: expected a unit quaternion "
-                             f"[w, x, y, z], given norm {float(np.linalg.norm(q)):.12g}")
+        self.require_unit_norm("star_tracker_alignment")

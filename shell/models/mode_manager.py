@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, OutputPort, Parameter, State, named_offsets
+from shell.model import Declarations, InputPort, Model, OutputPort, Parameter, State
 from shell.registry import register_model
 
 PARAMETERS = (
@@ -49,7 +49,8 @@ DISCRETE = (
     State("condition_since", "s", (), -1.0, "time the switching condition became true (-1: false)"),
     State("mode_start", "s", (), 0.0, "time the current mode began"),
 )
-P, U, Y, Z = (named_offsets(d) for d in (PARAMETERS, INPUTS, OUTPUTS, DISCRETE))
+MODES = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS, discrete=DISCRETE)
+P, U, Y, Z = MODES.P, MODES.U, MODES.Y, MODES.Z
 
 
 @njit(cache=True)
@@ -91,11 +92,7 @@ class AttitudeModeManager(Model):
     """Detumble -> pointing -> fine pointing mode logic and actuator routing; see the module docstring."""
 
     summary = "mode manager: detumble (B-dot) -> pointing -> fine pointing on rate / pointing-error conditions"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    discrete_states = DISCRETE
-    offsets = {"p": P, "u": U, "y": Y, "z": Z}
+    declarations = MODES
     default_period = "1 s"
     feedthrough_outputs = staticmethod(_route)
     update = staticmethod(_switch)

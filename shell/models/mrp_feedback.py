@@ -29,9 +29,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
-from shell.models.attitude_kinematics import (cross, quaternion_conjugate, quaternion_multiply, quaternion_to_mrp,
-                                              rotate_inverse)
+from shell.model import Declarations, InputPort, Model, ModelError, OutputPort, Parameter, State
+from shell.attitude import cross, quaternion_conjugate, quaternion_multiply, quaternion_to_mrp, rotate_inverse
+from shell.ports import MEASURED_ATTITUDE_AND_RATE, attitude_reference_inputs
 from shell.registry import register_model
 
 PARAMETERS = (
@@ -46,14 +46,8 @@ PARAMETERS = (
               "0: gyroscopic term (omega_RN + K_i z) x H; 1: omega_BN x H (Basilisk's controlLawType)"),
 )
 INPUTS = (
-    InputPort("attitude", "", (4,), "measured quaternion [w, x, y, z], node -> world"),
-    InputPort("angular_velocity", "rad/s", (3,), "measured angular velocity, node axes"),
-    InputPort("reference_attitude", "", (4,), "reference quaternion, reference -> world (default: identity)",
-              required=False, default=(1.0, 0.0, 0.0, 0.0)),
-    InputPort("reference_angular_velocity", "rad/s", (3,), "reference angular velocity, world axes",
-              required=False),
-    InputPort("reference_angular_acceleration", "rad/s^2", (3,), "reference angular acceleration, world axes",
-              required=False),
+    *MEASURED_ATTITUDE_AND_RATE,
+    *attitude_reference_inputs(reference_attitude="reference quaternion, reference -> world (default: identity)"),
     InputPort("wheel_momentum", "N*m*s", (3,), "wheels' spin momentum sum_k J_k (a_k . omega + Omega_k) a_k, "
               "node axes", required=False),
 )
@@ -70,7 +64,8 @@ DISCRETE = (
     State("integral", "N*m*s", (3,), None, "integral of K sigma"),
     State("last_time", "s", (), -1.0, "time of the previous sample (-1: none yet)"),
 )
-P, U, Y, Z = (named_offsets(d) for d in (PARAMETERS, INPUTS, OUTPUTS, DISCRETE))
+MRP = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS, discrete=DISCRETE)
+P, U, Y, Z = MRP.P, MRP.U, MRP.Y, MRP.Z
 
 
 @njit(cache=True)
@@ -136,11 +131,7 @@ class MrpFeedback(Model):
     """Sampled MRP feedback law (Basilisk's mrpFeedback); see the module docstring."""
 
     summary = "sampled MRP feedback (Basilisk mrpFeedback): -K sigma - P d_omega + integral, feed-forward, wheels"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    discrete_states = DISCRETE
-    offsets = {"p": P, "u": U, "y": Y, "z": Z}
+    declarations = MRP
     default_period = "0.1 s"
     state_outputs = staticmethod(_held)
     update = staticmethod(_mrp_feedback_update)

@@ -15,7 +15,9 @@ from __future__ import annotations
 
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
+from shell.attitude import error_rotation_vector
+from shell.model import Declarations, Model, Parameter
+from shell.ports import COMMANDED_TORQUE, HELD_TORQUE, MEASURED_ATTITUDE_AND_RATE
 from shell.registry import register_model
 
 PARAMETERS = (
@@ -26,13 +28,11 @@ PARAMETERS = (
     Parameter("angular_velocity_command", "rad/s", (0.0, 0.0, 0.0), (3,), None,
               "commanded angular velocity, node axes"),
 )
-INPUTS = (
-    InputPort("attitude", "", (4,), "measured quaternion [w, x, y, z], node -> world"),
-    InputPort("angular_velocity", "rad/s", (3,), "measured angular velocity, node axes"),
-)
-OUTPUTS = (OutputPort("torque", "N*m", (3,), "commanded torque, node axes (held between samples)"),)
-DISCRETE = (State("torque", "N*m", (3,), None, "held torque command"),)
-P, U, Y, Z = (named_offsets(d) for d in (PARAMETERS, INPUTS, OUTPUTS, DISCRETE))
+INPUTS = MEASURED_ATTITUDE_AND_RATE
+OUTPUTS = COMMANDED_TORQUE
+DISCRETE = (HELD_TORQUE,)
+PD = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS, discrete=DISCRETE)
+P, U, Y, Z = PD.P, PD.U, PD.Y, PD.Z
 
 
 @njit(cache=True)
@@ -44,14 +44,7 @@ def _held_torque(t, x, z, u, p, y):
 @njit(cache=True)
 def _pd_update(t, x, z, u, p):
     q, c = U.attitude, P.attitude_command
-    qw, qx, qy, qz = u[q], u[q + 1], u[q + 2], u[q + 3]
-    cw, cx, cy, cz = p[c], -p[c + 1], -p[c + 2], -p[c + 3]  # conjugate of the command
-    ew = cw * qw - cx * qx - cy * qy - cz * qz
-    ex = cw * qx + cx * qw + cy * qz - cz * qy
-    ey = cw * qy - cx * qz + cy * qw + cz * qx
-    ez = cw * qz + cx * qy - cy * qx + cz * qw
-    sign = 1.0 if ew >= 0.0 else -1.0
-    error = (2.0 * sign * ex, 2.0 * sign * ey, 2.0 * sign * ez)
+    error = error_rotation_vector((p[c], p[c + 1], p[c + 2], p[c + 3]), (u[q], u[q + 1], u[q + 2], u[q + 3]))
     for i in range(3):
         z[Z.torque + i] = (-p[P.kp + i] * error[i]
                            - p[P.kd + i] * (u[U.angular_velocity + i] - p[P.angular_velocity_command + i]))
@@ -62,18 +55,10 @@ class PdAttitudeController(Model):
     """Sampled quaternion-feedback PD attitude controller; attach it to a node of the engine."""
 
     summary = "sampled PD attitude controller: attitude, angular_velocity in, torque out (held)"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    discrete_states = DISCRETE
-    offsets = {"p": P, "u": U, "y": Y, "z": Z}
+    declarations = PD
     default_period = "0.1 s"
     state_outputs = staticmethod(_held_torque)
     update = staticmethod(_pd_update)
 
     def configure(self):
-        command = self.parameter("attitude_command")
-        norm = float((command ** 2).sum() ** 0.5)
-        if abs(norm - 1.0) > 1e-9:
-            raise ModelError(f"model {self.path}: parameter attitude_command: expected a unit quaternion "
-                             f"[w, x, y, z], given norm {norm:.12g}")
+        self.require_unit_norm("attitude_command")

@@ -43,7 +43,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, State, named_offsets
+from shell.model import Declarations, InputPort, Model, OutputPort, Parameter, State
+from shell.ports import node_inputs, node_load_outputs
 from shell.registry import register_model
 
 WHEEL_PARAMETERS = (
@@ -63,13 +64,12 @@ WHEEL_PARAMETERS = (
 )
 WHEEL_INPUTS = (
     InputPort("torque_command", "N*m", (), "commanded motor torque about the spin axis", feedthrough=True),
-    InputPort("angular_velocity", "rad/s", (3,), "inertial angular velocity of the node, node axes",
-              feedthrough=True),
+    *node_inputs("angular_velocity", feedthrough=True,
+                 angular_velocity="inertial angular velocity of the node, node axes"),
 )
 WHEEL_OUTPUTS = (
-    OutputPort("torque", "N*m", (3,), "torque on the node: reaction, gyroscopic, dynamic imbalance",
-               feedthrough=True),
-    OutputPort("force", "N", (3,), "static-imbalance force on the node", feedthrough=True),
+    *node_load_outputs("torque", "force", torque="torque on the node: reaction, gyroscopic, dynamic imbalance",
+                       force="static-imbalance force on the node"),
     OutputPort("wheel_speed", "rad/s", (), "spin speed relative to the node", feedthrough=True),
     OutputPort("motor_torque", "N*m", (), "applied motor torque after limits", feedthrough=True),
     OutputPort("spin_momentum", "N*m*s", (3,), "spin momentum vector h a = J_w (a . omega + Omega) a, node axes "
@@ -79,8 +79,9 @@ WHEEL_CONTINUOUS = (
     State("momentum", "N*m*s", (), 0.0, "absolute spin momentum J_w (a . omega + Omega)"),
     State("angle", "rad", (), 0.0, "wheel angle relative to the node (imbalance phase)"),
 )
-P_WHEEL, U_WHEEL, Y_WHEEL = named_offsets(WHEEL_PARAMETERS), named_offsets(WHEEL_INPUTS), named_offsets(WHEEL_OUTPUTS)
-X_WHEEL = named_offsets(WHEEL_CONTINUOUS)
+WHEEL = Declarations(parameters=WHEEL_PARAMETERS, inputs=WHEEL_INPUTS, outputs=WHEEL_OUTPUTS,
+                     continuous=WHEEL_CONTINUOUS)
+P_WHEEL, U_WHEEL, Y_WHEEL, X_WHEEL = WHEEL.P, WHEEL.U, WHEEL.Y, WHEEL.X
 
 
 @njit(cache=True)
@@ -168,19 +169,12 @@ class ReactionWheel(Model):
     """One reaction wheel at a node (momentum representation); see the module docstring."""
 
     summary = "reaction wheel at a node: torque command in; reaction torque, imbalance force, speed out"
-    parameters = WHEEL_PARAMETERS
-    inputs = WHEEL_INPUTS
-    outputs = WHEEL_OUTPUTS
-    continuous_states = WHEEL_CONTINUOUS
-    offsets = {"p": P_WHEEL, "u": U_WHEEL, "y": Y_WHEEL, "x": X_WHEEL}
+    declarations = WHEEL
     feedthrough_outputs = staticmethod(_wheel_loads)
     derivatives = staticmethod(_wheel_derivatives)
 
     def configure(self):
-        axis = self.parameter("spin_axis")
-        norm = float(np.sqrt(axis @ axis))
-        if abs(norm - 1.0) > 1e-9:
-            raise ModelError(f"model {self.path}: parameter spin_axis: expected a unit vector, given norm {norm:.12g}")
+        self.require_unit_norm("spin_axis")
 
 
 MOTOR_PARAMETERS = (
@@ -200,7 +194,8 @@ MOTOR_OUTPUTS = (
     OutputPort("torque", "N*m", (1,), "hinge torque: motor minus friction", feedthrough=True),
     OutputPort("motor_torque", "N*m", (), "applied motor torque after limits", feedthrough=True),
 )
-P_MOTOR, U_MOTOR, Y_MOTOR = named_offsets(MOTOR_PARAMETERS), named_offsets(MOTOR_INPUTS), named_offsets(MOTOR_OUTPUTS)
+MOTOR = Declarations(parameters=MOTOR_PARAMETERS, inputs=MOTOR_INPUTS, outputs=MOTOR_OUTPUTS)
+P_MOTOR, U_MOTOR, Y_MOTOR = MOTOR.P, MOTOR.U, MOTOR.Y
 
 
 @njit(cache=True)
@@ -218,8 +213,5 @@ class ReactionWheelMotor(Model):
     """Motor of a wheel body on a revolute hinge (body representation); see the module docstring."""
 
     summary = "reaction-wheel motor on a revolute hinge of a wheel body: limits, friction (attach: {hinge: ...})"
-    parameters = MOTOR_PARAMETERS
-    inputs = MOTOR_INPUTS
-    outputs = MOTOR_OUTPUTS
-    offsets = {"p": P_MOTOR, "u": U_MOTOR, "y": Y_MOTOR}
+    declarations = MOTOR
     feedthrough_outputs = staticmethod(_motor_torque)

@@ -28,12 +28,10 @@ offsets are multiples of n: with ``P`` and ``U`` the named offsets of the declar
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, ModelError, OutputPort, Parameter, count_option, named_offsets
+from shell.model import Declarations, InputPort, Model, ModelError, OutputPort, Parameter, count_option
 from shell.registry import register_model
 
 #: unit of each declaration by kind of hinge
@@ -51,7 +49,8 @@ PARAMETERS = (
 INPUTS = (InputPort("q", "", (), "hinge coordinates", feedthrough=True),
           InputPort("u", "", (), "hinge rates", feedthrough=True))
 OUTPUTS = (OutputPort("torque", "", (), "generalized force on the hinge", feedthrough=True),)
-P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
+SLOSH = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS)
+P, U, Y = SLOSH.P, SLOSH.U, SLOSH.Y
 
 
 def _scaled(offsets, n: int):
@@ -72,6 +71,7 @@ class SloshSpringDamper(Model):
     """tau = -k (q - q0) - c q_dot on a slosh body's hinge (config: dofs, kind)."""
 
     summary = "slosh pendulum / spring-mass hinge spring and damper (config: dofs, kind; attach: {hinge: ...})"
+    declarations = SLOSH
     feedthrough_outputs = staticmethod(_spring_damper)
 
     def __init__(self, name: str, *, dofs: int = 2, kind: str = "rotational", **kwargs):
@@ -82,7 +82,7 @@ class SloshSpringDamper(Model):
 
     def declare(self):
         n, units = self.dofs, UNITS[self.kind]
-        self.parameters = tuple(replace(d, unit=units[d.name], default=np.zeros(n), shape=(n,)) for d in PARAMETERS)
-        self.inputs = tuple(replace(d, unit=units[d.name], shape=(n,)) for d in INPUTS)
-        self.outputs = tuple(replace(d, unit=units[d.name], shape=(n,)) for d in OUTPUTS)
-        self.offsets = {"p": _scaled(P, n), "u": _scaled(U, n), "y": _scaled(Y, n)}
+        parameters = {d.name for d in PARAMETERS}
+        self.use_declarations(SLOSH.replace(**{name: {"unit": unit, "shape": (n,)} | (
+            {"default": np.zeros(n)} if name in parameters else {}) for name, unit in units.items()}))
+        self.offsets = {key: _scaled(offsets, n) for key, offsets in SLOSH.offsets.items()}

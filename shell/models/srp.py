@@ -23,13 +23,13 @@ vector's length, ``N = (len(p) - SCALAR_SIZE) / PLATE_SIZE``, and each plate arr
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, count_option, named_offsets
+from shell.model import (Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, count_option,
+                         named_offsets)
 from shell.models.ephemeris import ASTRONOMICAL_UNIT
+from shell.ports import node_inputs, node_load_outputs
 from shell.registry import register_model
 
 SOLAR_FLUX = 1361.0          # W/m^2 at 1 AU, total solar irradiance (Kopp & Lean 2011, GRL 38 L01706)
@@ -49,21 +49,21 @@ PLATES = (
 PLATE, PLATE_SIZE = named_offsets(PLATES), Layout.of(PLATES).size
 SCALAR_SIZE = Layout.of(SCALARS).size
 INPUTS = (
-    InputPort("position", "m", (3,), "node position from the central body, world axes", feedthrough=True),
-    InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
+    *node_inputs("position", "rotation", feedthrough=True, position="node position from the central body, world axes",
+                 rotation="rotation node -> world"),
     InputPort("sun_position", "m", (3,), "central body -> Sun, world axes", feedthrough=True),
     InputPort("shadow_factor", "", (), "1 lit .. 0 umbra (Eclipse)", feedthrough=True, required=False,
               default=1.0),
 )
 OUTPUTS = (
-    OutputPort("force", "N", (3,), "radiation-pressure force, node axes", feedthrough=True),
-    OutputPort("torque", "N*m", (3,), "radiation-pressure torque about the node, node axes", feedthrough=True),
+    *node_load_outputs("force", "torque", force="radiation-pressure force, node axes",
+                       torque="radiation-pressure torque about the node, node axes"),
     OutputPort("pressure", "Pa", (), "solar radiation pressure Phi/c at the node, before the shadow",
                feedthrough=True),
 )
-P_SCALARS = named_offsets(SCALARS)
-P = named_offsets(SCALARS + PLATES)._replace(**{d.name: None for d in PLATES})
-U, Y = named_offsets(INPUTS), named_offsets(OUTPUTS)
+#: the plate count is a configuration: each plate array has one row per plate
+SRP = Declarations(parameters=SCALARS + PLATES, inputs=INPUTS, outputs=OUTPUTS, sized=[d.name for d in PLATES])
+P, U, Y = SRP.P, SRP.U, SRP.Y
 
 
 @njit(cache=True)
@@ -113,9 +113,7 @@ class SolarRadiationPressure(Model):
     """Solar radiation pressure on N flat plates (specular, diffuse, absorbed) at a node, with shadow."""
 
     summary = "solar radiation pressure on flat plates (area, normal, specular/diffuse) at a node, shadowed"
-    inputs = INPUTS
-    outputs = OUTPUTS
-    offsets = {"p": P, "u": U, "y": Y}
+    declarations = SRP
     feedthrough_outputs = staticmethod(_srp_loads)
 
     def __init__(self, name: str, *, plates: int = 1, **kwargs):
@@ -124,12 +122,9 @@ class SolarRadiationPressure(Model):
 
     def declare(self):
         n = self.plate_count
-        shaped = []
-        for d in PLATES:
-            shape = (n,) + tuple(d.shape[1:])
-            default = np.broadcast_to(np.asarray(d.default, float)[0], shape).copy()
-            shaped.append(replace(d, shape=shape, default=default))
-        self.parameters = SCALARS + tuple(shaped)
+        rows = {d.name: (n,) + tuple(d.shape[1:]) for d in PLATES}  # one plate's default in each row
+        self.use_declarations(SRP.replace(**{d.name: {"shape": rows[d.name], "default": np.broadcast_to(
+            np.asarray(d.default, float)[0], rows[d.name]).copy()} for d in PLATES}))
 
     def configure(self):
         normals = self.parameter("normal")

@@ -32,9 +32,11 @@ from math import erfc
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, named_offsets, parse_period
+from shell.attitude import matrix_at_to_quaternion, quaternion_multiply, rotation_vector_quaternion
+from shell.model import (Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State,
+                         named_offsets, parse_period)
 from shell.models.gravity import EARTH_RADIUS
-from shell.models.magnetic import _check_unit_quaternion
+from shell.ports import node_inputs
 from shell.registry import register_model
 
 PARAMETERS = (
@@ -50,8 +52,9 @@ PARAMETERS = (
     Parameter("latency", "s", 0.0, (), (0.0, None), "output latency, a whole number of sample periods"),
 )
 INPUTS = (
-    InputPort("rotation", "", (3, 3), "rotation node -> world (an input named attitude would clash with the output)"),
-    InputPort("position", "m", (3,), "node position from the central body, world axes"),
+    *node_inputs("rotation", "position",
+                 rotation="rotation node -> world (an input named attitude would clash with the output)",
+                 position="node position from the central body, world axes"),
     InputPort("sun_position", "m", (3,), "central body -> Sun, world axes (zero: no Sun exclusion)", required=False),
     InputPort("moon_position", "m", (3,), "central body -> Moon, world axes (zero: no Moon exclusion)",
               required=False),
@@ -65,51 +68,10 @@ RECORD_SIZE = Layout.of(RECORD_PARTS).size
 DISCRETE = (State("last_attitude", "", (4,), (1.0, 0.0, 0.0, 0.0), "last valid measurement"),)
 RECORDS = State("records", "", (RECORD_SIZE,), None, "output shift register (latency)")
 NOISE_PARTS = (State("attitude", "", (3,)), State("dropout", "", ()))
-P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
-Z, R, N = named_offsets(DISCRETE + (RECORDS,)), named_offsets(RECORD_PARTS), named_offsets(NOISE_PARTS)
-
-
-@njit(cache=True)
-def quaternion_product(a0, a1, a2, a3, b0, b1, b2, b3):
-    """Hamilton product a (x) b of scalar-first quaternions."""
-    return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
-            a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
-            a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
-            a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
-
-
-@njit(cache=True)
-def rotation_vector_quaternion(v0, v1, v2):
-    """exp(v / 2): the unit quaternion of the rotation vector v (exact)."""
-    angle = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-    if angle < 1e-300:
-        return 1.0, 0.0, 0.0, 0.0
-    s = np.sin(0.5 * angle) / angle
-    return np.cos(0.5 * angle), s * v0, s * v1, s * v2
-
-
-@njit(cache=True)
-def rotation_quaternion(u, at):
-    """Unit quaternion [w, x, y, z] (w >= 0) of the row-major rotation matrix u[at:at + 9]
-    (Shepperd's method: the largest of the four squared components first)."""
-    r00, r01, r02 = u[at], u[at + 1], u[at + 2]
-    r10, r11, r12 = u[at + 3], u[at + 4], u[at + 5]
-    r20, r21, r22 = u[at + 6], u[at + 7], u[at + 8]
-    trace = r00 + r11 + r22
-    if trace >= r00 and trace >= r11 and trace >= r22:
-        w = 0.5 * np.sqrt(1.0 + trace)
-        q = (w, (r21 - r12) / (4.0 * w), (r02 - r20) / (4.0 * w), (r10 - r01) / (4.0 * w))
-    elif r00 >= r11 and r00 >= r22:
-        x = 0.5 * np.sqrt(1.0 + 2.0 * r00 - trace)
-        q = ((r21 - r12) / (4.0 * x), x, (r01 + r10) / (4.0 * x), (r02 + r20) / (4.0 * x))
-    elif r11 >= r22:
-        y = 0.5 * np.sqrt(1.0 + 2.0 * r11 - trace)
-        q = ((r02 - r20) / (4.0 * y), (r01 + r10) / (4.0 * y), y, (r12 + r21) / (4.0 * y))
-    else:
-        z = 0.5 * np.sqrt(1.0 + 2.0 * r22 - trace)
-        q = ((r10 - r01) / (4.0 * z), (r02 + r20) / (4.0 * z), (r12 + r21) / (4.0 * z), z)
-    sign = 1.0 if q[0] >= 0.0 else -1.0
-    return sign * q[0], sign * q[1], sign * q[2], sign * q[3]
+TRACKER = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS, discrete=DISCRETE + (RECORDS,),
+                       sized=("records",))
+P, U, Y, Z = TRACKER.P, TRACKER.U, TRACKER.Y, TRACKER.Z
+R, N = named_offsets(RECORD_PARTS), named_offsets(NOISE_PARTS)
 
 
 @njit(cache=True)
@@ -146,12 +108,12 @@ def _tracker_sample(t, x, z, u, p, noise):
         for m in range(RECORD_SIZE):
             z[r0 + k * RECORD_SIZE + m] = z[r0 + (k - 1) * RECORD_SIZE + m]
     mnt = P.mounting
-    qn = rotation_quaternion(u, U.rotation)
-    qt = quaternion_product(qn[0], qn[1], qn[2], qn[3], p[mnt], p[mnt + 1], p[mnt + 2], p[mnt + 3])
+    qn = matrix_at_to_quaternion(u, U.rotation)
+    qt = quaternion_multiply(qn, (p[mnt], p[mnt + 1], p[mnt + 2], p[mnt + 3]))
     e = rotation_vector_quaternion(p[P.misalignment] + p[P.noise] * noise[N.attitude],
                                    p[P.misalignment + 1] + p[P.noise + 1] * noise[N.attitude + 1],
                                    p[P.misalignment + 2] + p[P.noise + 2] * noise[N.attitude + 2])
-    qm = quaternion_product(qt[0], qt[1], qt[2], qt[3], e[0], e[1], e[2], e[3])
+    qm = quaternion_multiply(qt, e)
     sign = 1.0 if qm[0] >= 0.0 else -1.0
     # boresight (sensor z) in world axes: third column of the rotation of the true sensor attitude
     w, qx, qy, qz = qt
@@ -180,10 +142,7 @@ class StarTracker(Model):
     """Star tracker: noisy misaligned sensor attitude, exclusion angles, dropouts, latency."""
 
     summary = "star tracker at a node: attitude (sensor -> world) and valid; noise, misalignment, exclusions, dropouts"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    offsets = {"p": P, "u": U, "y": Y, "z": Z}
+    declarations = TRACKER
     noise_size = Layout.of(NOISE_PARTS).size
     default_period = "0.2 s"
     state_outputs = staticmethod(_tracker_outputs)
@@ -194,7 +153,7 @@ class StarTracker(Model):
         super().__init__(name, period=period, offset=offset, **parameter_values)
 
     def configure(self):
-        _check_unit_quaternion(self, "mounting")
+        self.require_unit_norm("mounting")
         period = parse_period(self._given_period if self._given_period is not None else self.default_period,
                               f"model {self.path}: period")
         latency = float(self.parameter("latency"))

@@ -45,9 +45,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, count_option, named_offsets
+from shell.model import Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, count_option
 from shell.models.ephemeris import ASTRONOMICAL_UNIT
 from shell.models.gravity import EARTH_RADIUS
+from shell.ports import node_inputs
 from shell.registry import register_model
 
 PARAMETERS = (
@@ -59,17 +60,18 @@ PARAMETERS = (
 )
 NORMAL = Parameter("normal", "", ((0.0, 0.0, 1.0),), (1, 3), (-1.0, 1.0), "cell normals, node axes")
 INPUTS = (
-    InputPort("position", "m", (3,), "node position from the central body, world axes"),
-    InputPort("rotation", "", (3, 3), "rotation node -> world"),
+    *node_inputs("position", "rotation", position="node position from the central body, world axes",
+                 rotation="rotation node -> world"),
     InputPort("sun_position", "m", (3,), "central body -> Sun, world axes"),
     InputPort("shadow_factor", "", (), "1 lit .. 0 umbra (Eclipse)", required=False, default=1.0),
 )
 OUTPUTS = (OutputPort("signals", "", (1,), "cell outputs (held)"),)
 DISCRETE = (State("signals", "", (1,), None, "held outputs"),)
 SCALAR_SIZE = Layout.of(PARAMETERS).size
-P = named_offsets(PARAMETERS + (NORMAL,))._replace(normal=None)
-U = named_offsets(INPUTS)
-Y, Z = named_offsets(OUTPUTS), named_offsets(DISCRETE)
+#: the cell count is a configuration: ``normal`` (N, 3), the outputs and the held states are sized by it
+CSS = Declarations(parameters=PARAMETERS + (NORMAL,), inputs=INPUTS, outputs=OUTPUTS, discrete=DISCRETE,
+                   sized=("normal", "signals"))
+P, U, Y, Z = CSS.P, CSS.U, CSS.Y, CSS.Z
 
 
 @njit(cache=True)
@@ -126,8 +128,7 @@ class CoarseSunSensors(Model):
     """N cosine-response sun cells with field of view, eclipse and optional Earth albedo."""
 
     summary = "coarse sun sensors at a node: N cosine cells, field of view, shadow, Earth albedo on/off, noise"
-    inputs = INPUTS
-    offsets = {"p": P, "u": U, "y": Y, "z": Z}
+    declarations = CSS
     default_period = "0.1 s"
     state_outputs = staticmethod(_css_outputs)
     update = staticmethod(_css_sample)
@@ -138,11 +139,8 @@ class CoarseSunSensors(Model):
 
     def declare(self):
         n = self.sensor_count
-        default = np.tile([0.0, 0.0, 1.0], (n, 1))
-        self.parameters = PARAMETERS + (Parameter(NORMAL.name, NORMAL.unit, default, (n, 3), NORMAL.bounds,
-                                                  NORMAL.description),)
-        self.outputs = (OutputPort("signals", "", (n,), "cell outputs (held)"),)
-        self.discrete_states = (State("signals", "", (n,), None, "held outputs"),)
+        self.use_declarations(CSS.replace(normal={"default": np.tile([0.0, 0.0, 1.0], (n, 1)), "shape": (n, 3)},
+                                          signals={"shape": (n,)}))
         self.noise_size = n
 
     def configure(self):
@@ -166,8 +164,9 @@ ESTIMATE_OUTPUTS = (
     OutputPort("lit_cells", "", (), "number of cells above the threshold", feedthrough=True),
 )
 ESTIMATE_SCALAR_SIZE = Layout.of(ESTIMATE_PARAMETERS).size
-P_EST = named_offsets(ESTIMATE_PARAMETERS + (NORMAL,))._replace(normal=None)
-U_EST, Y_EST = named_offsets(ESTIMATE_INPUTS), named_offsets(ESTIMATE_OUTPUTS)
+ESTIMATE = Declarations(parameters=ESTIMATE_PARAMETERS + (NORMAL,), inputs=ESTIMATE_INPUTS, outputs=ESTIMATE_OUTPUTS,
+                        sized=("normal", "signals"))
+P_EST, U_EST, Y_EST = ESTIMATE.P, ESTIMATE.U, ESTIMATE.Y
 
 
 @njit(cache=True)
@@ -238,8 +237,7 @@ class SunDirectionEstimate(Model):
     """Least-squares Sun direction from N cosine cells (config: sensors); see the module docstring."""
 
     summary = "Sun direction in node axes from coarse-sun-sensor outputs: least squares over the lit cells"
-    outputs = ESTIMATE_OUTPUTS
-    offsets = {"p": P_EST, "u": U_EST, "y": Y_EST}
+    declarations = ESTIMATE
     feedthrough_outputs = staticmethod(_sun_direction_estimate)
 
     def __init__(self, name: str, *, sensors: int = 3, **kwargs):
@@ -248,9 +246,9 @@ class SunDirectionEstimate(Model):
 
     def declare(self):
         n = self.sensor_count
-        self.parameters = ESTIMATE_PARAMETERS + (Parameter(NORMAL.name, NORMAL.unit, None, (n, 3), NORMAL.bounds,
-                                                           "cell normals, node axes (as the sensors')"),)
-        self.inputs = (InputPort("signals", "", (n,), "cell outputs (CoarseSunSensors.signals)", feedthrough=True),)
+        self.use_declarations(ESTIMATE.replace(
+            normal={"default": None, "shape": (n, 3), "description": "cell normals, node axes (as the sensors')"},
+            signals={"shape": (n,)}))
 
     def configure(self):
         normals = self.parameter("normal")

@@ -20,7 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Model, OutputPort, Parameter, named_offsets
+from shell.model import Declarations, InputPort, Model, OutputPort, Parameter
+from shell.ports import node_inputs, node_load_outputs
 from shell.registry import register_model
 
 SUN_MU = 1.32712440018e20   # m^3/s^2, DE405/DE440 (IERS Conventions 2010, Table 1.1)
@@ -32,18 +33,19 @@ PARAMETERS = (
     Parameter("moon_mu", "m^3/s^2", MOON_MU, (), (0.0, None), "gravitational parameter of the Moon"),
 )
 INPUTS = (
-    InputPort("position", "m", (3,), "node (center of mass) from the Earth's center, world", feedthrough=True),
-    InputPort("rotation", "", (3, 3), "rotation node -> world", feedthrough=True),
+    *node_inputs("position", "rotation", feedthrough=True,
+                 position="node (center of mass) from the Earth's center, world", rotation="rotation node -> world"),
     InputPort("sun_position", "m", (3,), "Earth -> Sun, world (zero: no Sun)", feedthrough=True, required=False),
     InputPort("moon_position", "m", (3,), "Earth -> Moon, world (zero: no Moon)", feedthrough=True,
               required=False),
 )
 OUTPUTS = (
-    OutputPort("force", "N", (3,), "third-body force, node axes", feedthrough=True),
+    *node_load_outputs("force", force="third-body force, node axes"),
     OutputPort("gravitational_acceleration", "m/s^2", (3,), "third-body acceleration, node axes",
                feedthrough=True),
 )
-P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
+THIRD_BODY = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS)
+P, U, Y = THIRD_BODY.P, THIRD_BODY.U, THIRD_BODY.Y
 
 
 @njit(cache=True)
@@ -76,8 +78,5 @@ class ThirdBodyGravity(Model):
     """Sun and Moon point-mass perturbations relative to the Earth at a center-of-mass node."""
 
     summary = "third-body (Sun, Moon) gravity at a center-of-mass node, Earth-centred (M&G eq. 3.37)"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    offsets = {"p": P, "u": U, "y": Y}
+    declarations = THIRD_BODY
     feedthrough_outputs = staticmethod(_third_body_outputs)

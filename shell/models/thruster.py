@@ -29,8 +29,8 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
-from shell.model import (InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, ZeroCrossing,
-                         named_offsets, parse_period)
+from shell.model import (Declarations, InputPort, Layout, Model, ModelError, OutputPort, Parameter, State, ZeroCrossing, named_offsets, parse_period)
+from shell.ports import node_load_outputs
 from shell.registry import register_model
 
 G0 = 9.80665
@@ -47,8 +47,8 @@ PARAMETERS = (
     Parameter("fall_time", "s", 0.0, (), (0.0, None), "time constant of the thrust decay (0: instant)"),
 )
 OUTPUTS = (
-    OutputPort("torque", "N*m", (3,), "torque about the node, node axes"),
-    OutputPort("force", "N", (3,), "force, node axes"),
+    *node_load_outputs("torque", "force", feedthrough=False, torque="torque about the node, node axes",
+                       force="force, node axes"),
     OutputPort("thrust", "N", (), "thrust magnitude"),
     OutputPort("propellant_used", "kg", (), "propellant consumed since t = 0"),
 )
@@ -67,8 +67,9 @@ CYCLE_PARTS = (State("mode", "", (), None, "mode code (MODES)"),
 DISCRETE = (State("valve", "", (Layout.of(VALVE_PARTS).size,), None,
                   "valve level N, closing time, closing scheduled, pulses fired"),
             State("cycle", "", (Layout.of(CYCLE_PARTS).size,), None, "mode code and cycle period (from config)"))
-P, U, Y = named_offsets(PARAMETERS), named_offsets(INPUTS), named_offsets(OUTPUTS)
-X, Z = named_offsets(CONTINUOUS), named_offsets(DISCRETE)
+THRUSTER = Declarations(parameters=PARAMETERS, inputs=INPUTS, outputs=OUTPUTS, continuous=CONTINUOUS,
+                        discrete=DISCRETE, zero_crossings=ZERO_CROSSINGS)
+P, U, Y, X, Z = THRUSTER.P, THRUSTER.U, THRUSTER.Y, THRUSTER.X, THRUSTER.Z
 _VALVE, _CYCLE = named_offsets(VALVE_PARTS), named_offsets(CYCLE_PARTS)
 LEVEL, CLOSING_TIME = Z.valve + _VALVE.level, Z.valve + _VALVE.closing_time
 CLOSING_SCHEDULED, PULSES = Z.valve + _VALVE.closing_scheduled, Z.valve + _VALVE.pulses
@@ -145,13 +146,7 @@ class Thruster(Model):
     """One thruster (config: mode = pwm | on_off | proportional); see the module docstring."""
 
     summary = "thruster at a node: pwm / on_off / proportional, min impulse, rise/fall lag, Isp propellant flow"
-    parameters = PARAMETERS
-    inputs = INPUTS
-    outputs = OUTPUTS
-    continuous_states = CONTINUOUS
-    discrete_states = DISCRETE
-    zero_crossings = ZERO_CROSSINGS
-    offsets = {"p": P, "u": U, "y": Y, "x": X, "z": Z}
+    declarations = THRUSTER
     default_period = "0.1 s"
     state_outputs = staticmethod(_thruster_outputs)
     derivatives = staticmethod(_thruster_derivatives)
@@ -167,13 +162,11 @@ class Thruster(Model):
 
     def declare(self):
         if self.mode == "on_off":
-            self.inputs = tuple(replace(d, unit="", description="valve flag: >= 0.5 open for the cycle")
-                                for d in INPUTS)
+            self.use_declarations(THRUSTER.replace(
+                command={"unit": "", "description": "valve flag: >= 0.5 open for the cycle"}))
 
     def configure(self):
-        direction = self.parameter("direction")
-        if abs(float(np.sqrt(direction @ direction)) - 1.0) > 1e-9:
-            raise ModelError(f"model {self.path}: parameter direction: expected a unit vector, given {direction}")
+        self.require_unit_norm("direction")
         period = float(parse_period(self._given_period if self._given_period is not None else self.default_period,
                                     f"model {self.path}: period"))
         if self.mode == "on_off" and period < float(self.parameter("min_on_time")):

@@ -39,13 +39,12 @@ import contextvars
 import importlib
 import importlib.machinery
 import importlib.util
-from collections import namedtuple
 from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-from shell.model import InputPort, Layout, Model, ModelError, OutputPort, State
+from shell.model import Declarations, InputPort, Layout, Model, ModelError, OutputPort, State
 from shell.registry import register_model
 
 
@@ -192,13 +191,13 @@ class UserFunction(Model):
         super().__init__(name, **kwargs)
 
     def declare(self):
-        self.inputs = tuple(InputPort(n, u, s, d or "input of the user function") for n, u, s, d in self._input_specs)
-        self.outputs = tuple(OutputPort(n, u, s, d or "output of the user function (held)")
-                             for n, u, s, d in self._output_specs)
-        self.discrete_states = tuple(State(n, u, s, None, "held output") for n, u, s, d in self._output_specs)
-        held = Layout.of(self.outputs)  # the output kernel copies z to y: the two layouts must be one
-        self.offsets = {key: namedtuple(f"UserFunction{kind}", held.names)(*held.offsets.values())
-                        for key, kind in (("y", "Outputs"), ("z", "Discrete"))}
+        declarations = Declarations(
+            inputs=(InputPort(n, u, s, d or "input of the user function") for n, u, s, d in self._input_specs),
+            outputs=(OutputPort(n, u, s, d or "output of the user function (held)") for n, u, s, d in self._output_specs),
+            discrete=(State(n, u, s, None, "held output") for n, u, s, d in self._output_specs))
+        self.use_declarations(declarations)
+        # the output kernel copies z to y: the held states must have the outputs' layout
+        self.offsets = {"y": declarations.Y, "z": declarations.Y}
 
     def configure(self):
         self._in_layout = Layout.of(self.inputs)

@@ -42,8 +42,7 @@ import numpy as np
 from shell.montecarlo.draws import DISTRIBUTIONS, CorrelationGroup, Dispersion, draw_run
 from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples, parse_requirement
 from shell.scenario import ScenarioError, build_simulation, decode_scenario, load_yaml, parse_scenario, show
-from shell.scenario import _expect_mapping
-from shell.scenario import _Where as scenario_Where
+from shell.schema import Where, expect_mapping, override_value
 from shell.units import UnitError, conversion_factor, parse_unit, to_magnitude, ureg
 
 class CampaignError(ScenarioError):
@@ -54,7 +53,7 @@ class RunTimeout(Exception):
     """Raised from the progress callback when a run exceeds the campaign's wall-time limit."""
 
 
-class _Where(scenario_Where):
+class _Where(Where):
     """A location in the campaign file (file, line, dotted key path); errors are CampaignErrors."""
 
     def error(self, message: str) -> CampaignError:
@@ -62,7 +61,7 @@ class _Where(scenario_Where):
                              else f"{self.file}:{self.line}: {message}")
 
 
-_mapping = _expect_mapping  # the scenario's key check; the _Where decides the error type
+_mapping = expect_mapping  # the scenario's key check; the _Where decides the error type
 
 
 def _plain(value):
@@ -137,13 +136,11 @@ def _as_read(value):
     try:
         return _read_back(value)
     except _NotExact:
-        from shell.scenario import _override_value, _Where
-
         text = yaml_text(value)
         if text not in _PARSED:
             if len(_PARSED) > 4096:
                 _PARSED.clear()
-            _PARSED[text] = _override_value(text, _Where("campaign", 0, "dispersed value"))
+            _PARSED[text] = override_value(text, Where("campaign", 0, "dispersed value"))
         return copy.deepcopy(_PARSED[text])
 
 

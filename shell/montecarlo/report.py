@@ -29,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from shell.commands.plot import FIGURE_WIDTH, PANEL_HEIGHT, PER_PAGE, component_labels, pretty_unit, unit_label
+from shell.charts import FIGURE_WIDTH, PANEL_HEIGHT, PER_PAGE, component_labels, pretty_unit, unit_label
+from shell.montecarlo.metrics import meets, parse_requirement
 from shell.montecarlo.results import read_kept, read_results
 
 PERCENTILES = (1, 5, 50, 95, 99)
@@ -96,8 +97,6 @@ def requirements(results: dict) -> dict:
     """{metric column: (operator, bound in the column's unit)} from the campaign text in the results file."""
     import yaml
 
-    from shell.montecarlo.metrics import parse_requirement
-
     try:
         document = yaml.safe_load(str(results["attrs"].get("campaign", ""))) or {}
     except yaml.YAMLError:
@@ -123,15 +122,33 @@ def write_report(path, directory) -> list[Path]:
     table = results["table"]
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
-    written = []
     good = np.isin(table["status"], [b"completed", b"stopped"])
+    required = requirements(results)
+    written = _write_tables(results, out, good, required)
+    for column in results["metric_columns"]:
+        written.append(_histogram(plt, results, out, column, good, required.get(column)))
+        if results["draw_columns"]:
+            written.append(_scatter(plt, results, out, column, good, required.get(column)))
+    status = {int(r): s for r, s in zip(table["run"], table["status"])}
+    kept_runs = [int(r) for r in table["run"][table["status"] != b"pending"]]
+    signals = {}
+    for run in kept_runs:
+        for signal, item in read_kept(path, run).items():
+            signals.setdefault(signal, []).append((run, item))
+    for signal, items in signals.items():
+        written.append(_signal_chart(plt, out, signal, items, status))
+    return written
+
+
+def _write_tables(results: dict, out: Path, good: np.ndarray, required: dict) -> list[Path]:
+    """``percentiles.csv`` and ``percentiles.md`` (with the requirements met and the runs that did not complete)."""
+    table = results["table"]
     rows = percentile_rows(results)
     header = ["column", "unit", "kind", "n", "infinite", "mean", "std", "min"] + [f"p{p}" for p in PERCENTILES] + ["max"]
     with open(out / "percentiles.csv", "w") as f:
         f.write(",".join(header) + "\n")
         for row in rows:
             f.write(",".join(str(v) if isinstance(v, (str, int)) else repr(float(v)) for v in row) + "\n")
-    written.append(out / "percentiles.csv")
     attrs = results["attrs"]
     statuses = {}
     for s in table["status"]:
@@ -143,10 +160,7 @@ def write_report(path, directory) -> list[Path]:
     for row in rows:
         lines.append("| " + " | ".join(v if isinstance(v, str) else str(v) if isinstance(v, (int, np.integer))
                                        else f"{v:.6g}" for v in row) + " |")
-    required = requirements(results)
     if required:
-        from shell.montecarlo.metrics import meets
-
         lines += ["", "## Requirements", "", "| metric | requirement | runs meeting it | of completed runs |",
                   "|---|---|---|---|"]
         for column, (operator, bound) in required.items():
@@ -158,82 +172,77 @@ def write_report(path, directory) -> list[Path]:
         lines += ["", "## Runs that did not complete", "", "| run | status | message |", "|---|---|---|"]
         lines += [f"| {r['run']} | {r['status'].decode()} | {str(r['message']).replace('|', '/')} |" for r in failed]
     (out / "percentiles.md").write_text("\n".join(lines) + "\n")
-    written.append(out / "percentiles.md")
+    return [out / "percentiles.csv", out / "percentiles.md"]
 
+
+def _histogram(plt, results: dict, out: Path, column: str, good: np.ndarray, requirement) -> Path:
+    """``hist_<column>.png``: the metric's histogram with its requirement line and the runs that meet it."""
+    table = results["table"]
+    bad = ~good & (table["status"] != b"pending")
+    values = table[column][good]
+    finite = np.isfinite(values)
+    label = f"{column}{unit_label(results['units'][column])}"
+    fig, ax = plt.subplots(figsize=(6.4, 4))
+    ax.hist(values[finite], bins=max(5, min(50, int(np.sqrt(finite.sum())) + 1)), color="C0", edgecolor="white")
+    ax.set_xlabel(label)
+    ax.set_ylabel("runs")
+    title = f"{column}: {finite.sum()} runs"
+    if (~finite).any():
+        title += f" ({(~finite).sum()} infinite: not settled)"
+    if bad.any():
+        title += f"; {int(bad.sum())} did not complete"
+    if requirement is not None:
+        met = int(meets(values, requirement).sum())
+        ax.axvline(requirement[1], color="C3", lw=1.5, ls="--",
+                   label=f"requirement {requirement[0]} {requirement[1]:g}")
+        ax.legend(fontsize=8)
+        title += f"\n{met} of {values.size} completed runs meet {requirement[0]} {requirement[1]:g}"
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    name = out / f"hist_{_file_name(column)}.png"
+    fig.savefig(name, dpi=90)
+    plt.close(fig)
+    return name
+
+
+def _scatter(plt, results: dict, out: Path, column: str, good: np.ndarray, requirement) -> Path:
+    """``scatter_<column>.png``: the metric against every drawn component, misses and failed runs in red."""
+    table = results["table"]
     draw_columns = results["draw_columns"]
     bad = ~good & (table["status"] != b"pending")
-    for column in results["metric_columns"]:
-        values = table[column][good]
-        finite = np.isfinite(values)
-        unit = results["units"][column]
-        label = f"{column}{unit_label(unit)}"
-        requirement = required.get(column)
-        fig, ax = plt.subplots(figsize=(6.4, 4))
-        ax.hist(values[finite], bins=max(5, min(50, int(np.sqrt(finite.sum())) + 1)), color="C0", edgecolor="white")
-        ax.set_xlabel(label)
-        ax.set_ylabel("runs")
-        title = f"{column}: {finite.sum()} runs"
-        if (~finite).any():
-            title += f" ({(~finite).sum()} infinite: not settled)"
-        if bad.any():
-            title += f"; {int(bad.sum())} did not complete"
+    values = table[column][good]
+    finite = np.isfinite(values)
+    label = f"{column}{unit_label(results['units'][column])}"
+    n = len(draw_columns)
+    cols = min(4, n)
+    nrows = -(-n // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(3.2 * cols, 2.6 * nrows + 0.4), squeeze=False)
+    ok = meets(values, requirement) if requirement is not None else np.ones(values.size, bool)
+    for k, draw in enumerate(draw_columns):
+        ax = axes[k // cols][k % cols]
+        x = table[draw][good]
+        ax.plot(x[finite & ok], values[finite & ok], ".", ms=3, color="C0")
+        if (finite & ~ok).any():
+            ax.plot(x[finite & ~ok], values[finite & ~ok], ".", ms=4, color="C3", label="misses requirement")
         if requirement is not None:
-            from shell.montecarlo.metrics import meets
-
-            met = int(meets(values, requirement).sum())
-            ax.axvline(requirement[1], color="C3", lw=1.5, ls="--",
-                       label=f"requirement {requirement[0]} {requirement[1]:g}")
-            ax.legend(fontsize=8)
-            title += f"\n{met} of {values.size} completed runs meet {requirement[0]} {requirement[1]:g}"
-        ax.set_title(title, fontsize=9)
-        fig.tight_layout()
-        name = out / f"hist_{_file_name(column)}.png"
-        fig.savefig(name, dpi=90)
-        plt.close(fig)
-        written.append(name)
-        if draw_columns:
-            n = len(draw_columns)
-            cols = min(4, n)
-            nrows = -(-n // cols)
-            fig, axes = plt.subplots(nrows, cols, figsize=(3.2 * cols, 2.6 * nrows + 0.4), squeeze=False)
-            from shell.montecarlo.metrics import meets
-
-            ok = meets(values, requirement) if requirement is not None else np.ones(values.size, bool)
-            for k, draw in enumerate(draw_columns):
-                ax = axes[k // cols][k % cols]
-                x = table[draw][good]
-                ax.plot(x[finite & ok], values[finite & ok], ".", ms=3, color="C0")
-                if (finite & ~ok).any():
-                    ax.plot(x[finite & ~ok], values[finite & ~ok], ".", ms=4, color="C3", label="misses requirement")
-                if requirement is not None:
-                    ax.axhline(requirement[1], color="C3", lw=1.0, ls="--")
-                if bad.any():
-                    ax.plot(table[draw][bad], np.zeros(int(bad.sum())), "x", color="C3", ms=5, clip_on=False,
-                            transform=ax.get_xaxis_transform(), label="did not complete")
-                ax.set_xlabel(f"{draw}{unit_label(results['units'][draw])}", fontsize=7)
-                ax.set_ylabel(label, fontsize=7)
-                ax.tick_params(labelsize=6)
-            for k in range(n, nrows * cols):
-                axes[k // cols][k % cols].axis("off")
-            handles = {h.get_label(): h for ax in axes.ravel() for h in ax.get_lines() if not h.get_label().startswith("_")}
-            if handles:
-                fig.legend(list(handles.values()), list(handles), fontsize=7, loc="upper right")
-            fig.suptitle(f"{column} against the draws", fontsize=9)
-            fig.tight_layout()
-            name = out / f"scatter_{_file_name(column)}.png"
-            fig.savefig(name, dpi=90)
-            plt.close(fig)
-            written.append(name)
-
-    status = {int(r): s for r, s in zip(table["run"], table["status"])}
-    kept_runs = [int(r) for r in table["run"][table["status"] != b"pending"]]
-    signals = {}
-    for run in kept_runs:
-        for signal, item in read_kept(path, run).items():
-            signals.setdefault(signal, []).append((run, item))
-    for signal, items in signals.items():
-        written.append(_signal_chart(plt, out, signal, items, status))
-    return written
+            ax.axhline(requirement[1], color="C3", lw=1.0, ls="--")
+        if bad.any():
+            ax.plot(table[draw][bad], np.zeros(int(bad.sum())), "x", color="C3", ms=5, clip_on=False,
+                    transform=ax.get_xaxis_transform(), label="did not complete")
+        ax.set_xlabel(f"{draw}{unit_label(results['units'][draw])}", fontsize=7)
+        ax.set_ylabel(label, fontsize=7)
+        ax.tick_params(labelsize=6)
+    for k in range(n, nrows * cols):
+        axes[k // cols][k % cols].axis("off")
+    handles = {h.get_label(): h for ax in axes.ravel() for h in ax.get_lines() if not h.get_label().startswith("_")}
+    if handles:
+        fig.legend(list(handles.values()), list(handles), fontsize=7, loc="upper right")
+    fig.suptitle(f"{column} against the draws", fontsize=9)
+    fig.tight_layout()
+    name = out / f"scatter_{_file_name(column)}.png"
+    fig.savefig(name, dpi=90)
+    plt.close(fig)
+    return name
 
 
 def _signal_chart(plt, out: Path, signal: str, items: list, status: dict) -> Path:

@@ -30,7 +30,9 @@ import numpy as np
 
 from shell.diagram import Diagram
 from shell.model import Model
-from shell.scenario import ScenarioError, _Where, apply_value, build_member, build_root, parse_scenario
+from shell.scenario import ScenarioError, apply_value, build_member, build_root, parse_scenario
+from shell.schema import Where
+from shell.schema.multibody import body_entries, initial_state, rigid_mass_properties
 
 
 class Structural(Exception):
@@ -123,7 +125,7 @@ class SceneReuse:
         mini = {"models": {name: entry}}
         for key, value in items:
             apply_value(mini, key, value, self.scenario.file)
-        where = _Where(self.scenario.file, 1, "").child(document, "models").child(document["models"], name)
+        where = Where(self.scenario.file, 1, "").child(document, "models").child(document["models"], name)
         fresh = build_member(self.diagram.root, name, mini["models"][name], where, self.scenario.template_classes)
         i = self.diagram.model_index.get(name)
         if i is None or not isinstance(fresh, Model):
@@ -139,8 +141,6 @@ class SceneReuse:
         context.next_sample[i] = d.first_sample(fresh.period, fresh.offset, context.t)
 
     def _apply_engine(self, context, items: list[tuple[str, object]]) -> None:
-        from shell.models.multibody import body_entries, initial_state, rigid_mass_properties
-
         if self.engine_index is None:
             raise Structural("no engine model to disperse")
         document = self.scenario.document
@@ -148,7 +148,7 @@ class SceneReuse:
         for key, value in items:
             apply_value(mini, key, value, self.scenario.file)
         description = mini["multibody"]
-        where = _Where(self.scenario.file, 1, "").child(document, "multibody")
+        where = Where(self.scenario.file, 1, "").child(document, "multibody")
         system = context.hosts[self.engine_index]
         entries = body_entries(description, where)
         nominal = {b.get("name"): b for b, _ in body_entries(document["multibody"], where)}

@@ -45,6 +45,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
+
+from dynamics.hinges import HINGE_NQ, HINGE_TYPES
+from shell.analysis.linear_model_file import read_linear_model
+from shell.analysis.linearize import quaternion_exp
+from shell.analysis.system_modes import state_space_modes
+from shell.assembly import flatten
+from shell.attitude import quaternion_products
+from shell.charts import component_labels, resolve_signal
+from shell.log_file import LogIncompleteWarning, log_info, read_log
+from shell.models.multibody import MultibodyModel
+from shell.models.reaction_wheel import ReactionWheel
+from shell.models.thruster import Thruster
+from shell.scenario import build_root, build_simulation, load_scenario, parse_scenario
 
 G0 = 9.80665
 #: frames kept by default: 10 Hz over 10 minutes
@@ -96,7 +110,6 @@ class ViewScene:
 # -- the scene's models ------------------------------------------------------------------------------
 
 def _engine_of(models):
-    from shell.models.multibody import MultibodyModel
 
     engines = [m for m in models if isinstance(m, MultibodyModel)]
     if not engines:
@@ -106,9 +119,6 @@ def _engine_of(models):
 
 def _build(scenario):
     """(engine model, models, connections) of a validated scenario, without a simulation."""
-    from shell.assembly import flatten
-    from shell.scenario import build_root
-
     root = build_root(scenario)
     models, connections = flatten(root)
     return _engine_of(models), models, connections
@@ -170,7 +180,6 @@ def inertia_box(mass: float, inertia) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _quat_xyzw(R) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
 
     return Rotation.from_matrix(R).as_quat()
 
@@ -336,7 +345,6 @@ def _body_files(engine, scenario_file: str) -> dict:
 def _poses(system, q_frames: np.ndarray):
     """(body positions (F, nb, 3), body quaternions (F, nb, 4), node positions (F, nn, 3), node
     quaternions (F, nn, 4)) for each row of ``q_frames``."""
-    from scipy.spatial.transform import Rotation
 
     F = len(q_frames)
     nb, nn = system.nbodies, system.nnodes
@@ -356,8 +364,6 @@ def _poses(system, q_frames: np.ndarray):
 
 def _eta(system, q_frames: np.ndarray, b: int) -> np.ndarray:
     """Modal coordinates of body ``b`` per frame (its q slice after the hinge coordinates)."""
-    from dynamics.hinges import HINGE_NQ, HINGE_TYPES
-
     sl = system.q_slices[b]
     start = sl.start + int(HINGE_NQ[HINGE_TYPES[system.hinge_names[b]]])
     return q_frames[:, start:sl.stop]
@@ -413,7 +419,6 @@ def _assemble(engine, scenario_file, meshes, time, q_frames, notes, title, sourc
     nodes = [{"name": name, "body": system.node_bodies[k], "position": node_pos[:, k],
               "quaternion": node_quat[:, k].astype(np.float32), "hinge": False}
              for k, name in enumerate(system.node_names)]
-    from scipy.spatial.transform import Rotation
 
     for b, definition in enumerate(system.definitions[0]):  # hinge frames: the outboard frame M of each hinge
         if system.parents[b] < 0:
@@ -529,9 +534,8 @@ def _hinge_from_node(engine, b: int, node: str, data: dict, signals: dict, time,
     """Fill the hinge coordinates of root body ``b`` from its node's logged attitude (and position):
     ``R_body = R_node R_n^T``, ``p_body = p_node - R_body p_n`` (node frame (R_n, p_n) in the body), then
     the hinge's ``R_FM = R_in^T R_body R_out``, ``p_FM = R_in^T (p_body + R_body p_out - p_in)`` (inboard
-    frame F on the world, outboard frame M on the body: CONVENTIONS.md, free hinge = quaternion of M in F,
+    frame F on the world, outboard frame M on the body: docs/conventions.md, free hinge = quaternion of M in F,
     then the position of M's origin in F)."""
-    from scipy.spatial.transform import Rotation
 
     system = engine.system
     definition = system.definitions[0][b]
@@ -567,8 +571,6 @@ def _resample(t_from, values, t_to, hold=False):
 
 
 def _devices(engine, models, connections, data, info, time, notes) -> tuple[list, list]:
-    from shell.models.reaction_wheel import ReactionWheel
-    from shell.models.thruster import Thruster
 
     signals = info["signals"]
     nodes = _device_nodes(engine, models, connections)
@@ -621,32 +623,6 @@ def _extend_length(view: ViewScene) -> None:
         view.length = max(view.length, float(np.ptp(np.array(points), axis=0).max()))
 
 
-def component_labels(name: str, shape: tuple) -> list[str]:
-    """Legend labels of a signal's components: x/y/z for 3-vectors, w/x/y/z for quaternions."""
-    size = int(np.prod(shape)) if shape else 1
-    if size == 1:
-        return [name.rsplit(".", 1)[-1]]
-    if size == 3:
-        return ["x", "y", "z"]
-    if size == 4 and name.endswith(("attitude", "quaternion")):
-        return ["w", "x", "y", "z"]
-    if len(shape) == 2:
-        return [f"[{i},{j}]" for i in range(shape[0]) for j in range(shape[1])]
-    return [f"[{k}]" for k in range(size)]
-
-
-def resolve_signal(requested: str, available: list[str]) -> str:
-    """A logged signal named in full or by a unique suffix (as ``flexshell plot``)."""
-    if requested in available:
-        return requested
-    matches = [name for name in available if name.endswith("." + requested)]
-    if len(matches) == 1:
-        return matches[0]
-    if not matches:
-        raise ViewError(f"no signal {requested!r} in the log; signals: {available}")
-    raise ViewError(f"{requested!r} is ambiguous: {matches}")
-
-
 def _panel(data, info, requested, engine_path) -> list[dict]:
     signals = info["signals"]
     available = list(signals)
@@ -657,7 +633,7 @@ def _panel(data, info, requested, engine_path) -> list[dict]:
         requested = requested or available[:1]
     out = []
     for request in requested:
-        name = resolve_signal(request, available)
+        name = resolve_signal(request, available, ViewError)
         meta = signals[name]
         t = data[meta["time"]]
         values = data[name].reshape(len(t), -1)
@@ -668,14 +644,11 @@ def _panel(data, info, requested, engine_path) -> list[dict]:
 
 
 def _scenario_of_log(path: str, info: dict, scenario_path: str | None, overrides):
-    from shell.scenario import parse_scenario
 
     attributes = info["attributes"]
     text = attributes.get("scenario")
     file = scenario_path or attributes.get("scenario_file") or "<log>"
     if scenario_path:
-        from shell.scenario import load_scenario
-
         return load_scenario(scenario_path, overrides)
     if not text:
         raise ViewError(f"{path}: the log keeps no scenario (written from Python, not flexshell run); give it "
@@ -689,8 +662,6 @@ def _scenario_of_log(path: str, info: dict, scenario_path: str | None, overrides
 def from_log(path, *, signals=None, scenario=None, overrides=(), meshes=None, scale="auto",
              max_frames: int = DEFAULT_MAX_FRAMES) -> ViewScene:
     """The scene of a log (see the module docstring)."""
-    from shell.log_file import LogIncompleteWarning, log_info, read_log
-
     notes: list[str] = []
     info = log_info(path)
     with warnings.catch_warnings(record=True) as caught:
@@ -722,7 +693,6 @@ def from_scenario(path, *, overrides=(), meshes=None, scale="auto", t_final=None
                   max_frames: int = DEFAULT_MAX_FRAMES, say=None) -> ViewScene:
     """A scenario's initial configuration, or (``t_final`` seconds) a short run of it viewed as its log;
     ``say(text)`` announces the run (its first time compiles the loop for minutes)."""
-    from shell.scenario import build_simulation, load_scenario
 
     spec = load_scenario(path, list(overrides or []))
     if t_final is None:
@@ -738,8 +708,6 @@ def from_scenario(path, *, overrides=(), meshes=None, scale="auto", t_final=None
     simulation = build_simulation(spec)
     engine = _engine_of(simulation.models)
     view_rate = rate or spec.log_rate or "10 Hz"
-    from shell.models.reaction_wheel import ReactionWheel
-    from shell.models.thruster import Thruster
 
     # what the view draws: the engine's coordinates, the wheels' speeds, the thrusters' thrust
     simulation.log([f"{engine.path}.q"] + [f"{m.path}.wheel_speed" for m in simulation.models
@@ -782,7 +750,6 @@ def _tangent_map(state_names: list[str], label: str):
 
 
 def _mode_frames(q0, v, plain, quaternions, amplitude, phases):
-    from shell.analysis.linearize import _quat_multiply, quaternion_exp
 
     frames = np.tile(q0, (len(phases), 1))
     for f, phi in enumerate(phases):
@@ -790,7 +757,7 @@ def _mode_frames(q0, v, plain, quaternions, amplitude, phases):
         for row, k in plain:
             frames[f, k] += xi[row]
         for row, k in quaternions:
-            frames[f, k:k + 4] = _quat_multiply(q0[k:k + 4], quaternion_exp(xi[row:row + 3]))
+            frames[f, k:k + 4] = quaternion_products(q0[k:k + 4], quaternion_exp(xi[row:row + 3]))
     return frames
 
 
@@ -798,9 +765,6 @@ def from_linear_model(path, mode: int, *, scenario=None, overrides=None, meshes=
                       frames: int = 48) -> ViewScene:
     """System mode ``mode`` (1 = the lowest-frequency oscillatory mode) of a linear model, animated over
     one period (see the module docstring)."""
-    from shell.analysis.linear_model_file import read_linear_model
-    from shell.analysis.system_modes import state_space_modes
-    from shell.scenario import load_scenario
 
     try:
         model = read_linear_model(path)
@@ -880,7 +844,6 @@ def _displacement(trial: ViewScene, reference: ViewScene) -> float:
     for a, b in zip(trial.bodies, reference.bodies):
         worst = max(worst, float(np.abs(a.position - b.position[0]).max()), a.max_deformation)
         if a.kind == "box":  # a rotation shows at the box's corners
-            from scipy.spatial.transform import Rotation
 
             relative = Rotation.from_quat(a.quaternion) * Rotation.from_quat(b.quaternion[0]).inv()
             worst = max(worst, float(relative.magnitude().max()) * 0.5 * float(np.linalg.norm(a.box)))

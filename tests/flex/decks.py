@@ -148,12 +148,12 @@ def solid_bar_deck(nx: int, ny: int, nz: int, length: float, width: float, heigh
                    coupled: bool = True) -> str:
     """Prismatic bar along x from solids: CHEXA8/CHEXA20 bricks, or each brick split into six
     CTETRA4/CTETRA10 (Kuhn split along the brick diagonal, conforming in a structured mesh), or
-    two CPENTA6 wedges. Grid ids 1 + i + (nx+1)(j + (ny+1) k) on the corner lattice; mid-edge
+    two CPENTA6/CPENTA15 wedges. Grid ids 1 + i + (nx+1)(j + (ny+1) k) on the corner lattice; mid-edge
     grids of the quadratic elements follow. ``clamp_root``: SPC1 123 on the x = 0 face."""
     lines = ["SOL 103", "CEND", "SPC = 1", "BEGIN BULK"]
     if coupled:
         lines.append("PARAM,COUPMASS,1")
-    quadratic = element in ("CHEXA20", "CTETRA10")
+    quadratic = element in ("CHEXA20", "CTETRA10", "CPENTA15")
     # lattice with spacing h/2 for quadratic elements so mid-edge grids are lattice points
     f = 2 if quadratic else 1
     mx, my, mz = f * nx, f * ny, f * nz
@@ -166,6 +166,7 @@ def solid_bar_deck(nx: int, ny: int, nz: int, length: float, width: float, heigh
     hex_edges = [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 5), (2, 6), (3, 7), (4, 5), (5, 6),
                  (6, 7), (7, 4)]
     tet_edges = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]
+    penta_edges = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 4), (2, 5), (3, 4), (4, 5), (5, 3)]
     for k in range(nz):
         for j in range(ny):
             for i in range(nx):
@@ -183,9 +184,11 @@ def solid_bar_deck(nx: int, ny: int, nz: int, length: float, width: float, heigh
                         if element == "CTETRA10":
                             v += [mid(v[a], v[b]) for a, b in tet_edges]
                         elements.append(("CTETRA", v))
-                elif element == "CPENTA6":
-                    elements.append(("CPENTA", [c[0], c[1], c[2], c[4], c[5], c[6]]))
-                    elements.append(("CPENTA", [c[0], c[2], c[3], c[4], c[6], c[7]]))
+                elif element in ("CPENTA6", "CPENTA15"):
+                    for v in ([c[0], c[1], c[2], c[4], c[5], c[6]], [c[0], c[2], c[3], c[4], c[6], c[7]]):
+                        if element == "CPENTA15":
+                            v = v + [mid(v[a], v[b]) for a, b in penta_edges]
+                        elements.append(("CPENTA", v))
                 else:
                     raise ValueError(element)
     for _, v in elements:

@@ -64,13 +64,23 @@ def test_near_rigid_round_off_modes_are_not_kept_as_flexible(write_deck, aset):
 def test_lumped_cbar_component_split_condenses_the_massless_spin(write_deck):
     """Lumped-mass CBAR: the spin of the line about its axis moves only massless rotations and
     has no strain energy. With interface grids in the a-set this stopped with 'K - sigma M is
-    not positive definite'; now one DOF is held (reported) and the frequencies equal those of
-    the deck where the user holds that spin with an SPC."""
+    not positive definite'; then one DOF was held, which gave the interface's constraint mode a torsional
+    spring the beam does not have. Now (issue 33) the interface restrains the spin, nothing is held: the
+    spin's constraint mode is a massless rigid motion (removed), the twist between the two interface grids
+    a quasi-static mode (kept), and the flexible frequencies are those of the deck where the user holds the
+    spin with an SPC, within the truncation of 8 fixed-interface modes."""
     deck = write_deck(decks.beam_deck(10, 2.0, coupled=False), "lumped.dat")
     aset = [(1, [1, 2, 3, 4, 5, 6]), (11, [1, 2, 3, 4, 5, 6])]
-    with pytest.warns(UserWarning, match=r"1 massless mechanism.*holding grid \d+ component 4"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        warnings.filterwarnings("ignore", message=".*principal moments of inertia")
         body = fem2modal(deck, Fem2ModalOptions(n_modes=8, aset=aset))
     assert body.n_rigid_modes_removed == 5          # no rotation about the beam axis
+    assert body.n_quasi_static == 1
+    twist = body.rotation_shapes[:, 0, -1]          # the quasi-static mode: rotation about x only
+    assert np.abs(body.translation_shapes[:, :, -1]).max() < 1e-9 * np.abs(twist).max()
+    assert_allclose(twist, twist[0] * np.linspace(1.0, -1.0, 11) if twist[0] != 0 else twist,
+                    atol=1e-9 * abs(twist).max())
     held = write_deck(decks.beam_deck(10, 2.0, coupled=False, extra="SPC1,1,4,6",
                                       with_header=True), "held.dat")
     free = _quiet(fem2modal, deck, Fem2ModalOptions(n_modes=8))

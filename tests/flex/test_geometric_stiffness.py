@@ -104,7 +104,7 @@ def test_body_file_round_trip_and_version_1_0_still_reads(tmp_path):
     out = tmp_path / "b.h5"
     write_body_file(out, body)
     back = read_body_file(out)
-    assert back.version == "1.1"
+    assert back.version == "1.2"  # 1.2 (issue 33): Units and OutputFrame groups
     for name in ("translation", "rotation", "angular_velocity", "preload"):
         np.testing.assert_array_equal(getattr(back.geometric_stiffness, name), getattr(body.geometric_stiffness, name))
     assert back.geometric_stiffness.preload_names == ["thrust"]

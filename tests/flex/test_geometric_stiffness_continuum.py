@@ -2,7 +2,7 @@
 
 Element level, against brute force:
 
-* the initial-stress matrix ``H (x) I_3`` of every element type (CHEXA8/20, CTETRA4/10, CPENTA6, CQUAD4,
+* the initial-stress matrix ``H (x) I_3`` of every element type (CHEXA8/20, CTETRA4/10, CPENTA6/15, CQUAD4,
   CTRIA3) equals the finite-difference Hessian of the nonlinear strain energy
   ``W(v) = 1/2 sum_q w_q sigma_q : (grad v' grad v)`` at the element's Gauss stresses, with ``grad v`` formed
   independently (shape-function values differenced in the natural coordinates, where they are at most
@@ -56,6 +56,11 @@ REFERENCE[solids.HEXA20] = np.vstack([REFERENCE[solids.HEXA8],
 REFERENCE[solids.TETRA10] = np.vstack([REFERENCE[solids.TETRA4],
                                        0.5 * (REFERENCE[solids.TETRA4][solids._TET_EDGES[:, 0]]
                                               + REFERENCE[solids.TETRA4][solids._TET_EDGES[:, 1]])])
+_P6 = REFERENCE[solids.PENTA6]
+REFERENCE[solids.PENTA15] = np.vstack([_P6,    # corners, then the mid-edge grids of the bottom triangle, the
+                                       0.5 * (_P6[solids._TRI_EDGES[:, 0]] + _P6[solids._TRI_EDGES[:, 1]]),
+                                       0.5 * (_P6[:3] + _P6[3:]),       # vertical edges, the top triangle
+                                       0.5 * (_P6[3 + solids._TRI_EDGES[:, 0]] + _P6[3 + solids._TRI_EDGES[:, 1]])])
 
 
 def distorted(kind, rng):
@@ -89,7 +94,8 @@ def hessian(f, n, h=1.0):
     return Hm
 
 
-@pytest.mark.parametrize("kind", [solids.HEXA8, solids.HEXA20, solids.TETRA4, solids.TETRA10, solids.PENTA6])
+@pytest.mark.parametrize("kind", [solids.HEXA8, solids.HEXA20, solids.TETRA4, solids.TETRA10, solids.PENTA6,
+                                  solids.PENTA15])
 def test_solid_initial_stress_matrix_is_the_hessian_of_the_nonlinear_strain_energy(kind):
     rng = np.random.default_rng(kind + 1)
     xyz = distorted(kind, rng)
@@ -117,7 +123,8 @@ def test_solid_initial_stress_matrix_is_the_hessian_of_the_nonlinear_strain_ener
     assert np.abs(brute).max() > 0.0
 
 
-@pytest.mark.parametrize("kind", [solids.HEXA8, solids.HEXA20, solids.TETRA4, solids.TETRA10, solids.PENTA6])
+@pytest.mark.parametrize("kind", [solids.HEXA8, solids.HEXA20, solids.TETRA4, solids.TETRA10, solids.PENTA6,
+                                  solids.PENTA15])
 def test_solid_stresses_are_the_elements_own(kind):
     """Nodal forces of the recovered stresses = K u (CHEXA8: the incompatible modes recovered)."""
     rng = np.random.default_rng(10 + kind)
@@ -127,7 +134,7 @@ def test_solid_stresses_are_the_elements_own(kind):
     E, nu = 2.0e5, 0.27
     u = rng.normal(size=(3 * n, 2))
     stress, grads, w = gsc.solid_stresses(kind, xyz, E, nu, pts, wts, u)
-    forces = sum(solids._strain_matrix(grads[q], n).T @ stress[q] * w[q] for q in range(len(w)))
+    forces = sum(solids.strain_matrix(grads[q], n).T @ stress[q] * w[q] for q in range(len(w)))
     K, _ = solids.solid_matrices(kind, xyz, E, nu, 1.0, pts, wts, False)
     np.testing.assert_allclose(forces, K @ u, atol=1e-10 * np.abs(K @ u).max())
     # a uniform strain field gives the exact uniform stress (patch test)
@@ -195,7 +202,7 @@ def test_shell_initial_stress_matrix_is_the_hessian_of_the_membrane_energy(nn, z
     local[:, :2] = loc @ G.T
     grid = np.linalg.solve(T, local.reshape(-1))  # grid basic DOFs giving that local field
     res, _, _ = gsc.shell_membrane_resultants(xyz, props, grid.reshape(-1, 1))
-    A = shells._materials(props, Lam)[0]
+    A = shells.shell_materials(props, Lam)[0]
     expected = A @ np.array([G[0, 0], G[1, 1], G[0, 1] + G[1, 0]])
     np.testing.assert_allclose(res[:, :, 0], np.tile(expected, (len(res), 1)), atol=1e-10 * np.abs(expected).max())
 

@@ -68,29 +68,41 @@ def test_fixed_interface_modes_of_the_101_grid_beam_are_cantilever_modes(beam101
     assert_allclose(body.modal_mass, np.eye(6), atol=1e-10)
 
 
-def test_massless_craig_bampton_direction_is_dropped_with_a_warning(tmp_path):
+def test_massless_craig_bampton_direction_is_kept_as_a_quasi_static_mode(tmp_path):
     """Lumped-mass beam (20 elements: no rotary inertia on the bending rotations), grid 1 in the a-set.
     Once the fixed-interface modes span every interior translation of a bending plane, the constraint
     mode of grid 1's massless rotation differs from a combination of them only in massless DOFs, so
-    M_n is singular up to round-off (cond 1e16 at 40 modes). That direction is an infinite-frequency
-    mode: it must be dropped (with a warning naming the cause), not returned as a spurious mode of
-    arbitrary frequency (it came out at -5.3e7 Hz, with two rigid-body modes leaking into the flexible
-    set, before the singular-M check in solve_dense)."""
-    from dynamics.modal_analysis import BeamDeck
+    M_n is singular up to round-off (cond 1e16 at 40 modes). That direction has stiffness and no mass: it
+    is kept as a quasi-static mode (issue 33; it used to be dropped, and before that it came out as a
+    spurious mode at -5.3e7 Hz): the last mode, infinite frequency, zero modal mass, modal stiffness the
+    largest flexible eigenvalue. Mounted at grid 1 the body is the clamped beam: with every fixed-interface
+    mode that has mass the basis is complete, and the first ten modes agree to round-off (measured 5e-12)."""
+    from dynamics import Multibody
+    from dynamics.modal_analysis import BeamDeck, rest_body_data, system_modes
 
     deck = BeamDeck()
     deck.add_line(1, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), 9.0, 20, (0.0, 1.0, 0.0), 1)
     path = str(deck.write(tmp_path / "beam20.dat"))
-    with pytest.warns(UserWarning, match="1 direction.*carry no mass.*39 flexible modes instead of 40"):
-        body = fem2modal(path, Fem2ModalOptions(n_modes=40, aset=[(1, [1, 2, 3, 4, 5, 6])]))
-    assert body.n_modes == 39 and body.n_rigid_modes_removed == 6
-    assert_allclose(body.modal_mass, np.eye(39), atol=1e-9)
+    body = fem2modal(path, Fem2ModalOptions(n_modes=40, aset=[(1, [1, 2, 3, 4, 5, 6])]))
+    assert body.n_modes == 40 and body.n_quasi_static == 1 and body.n_rigid_modes_removed == 6
+    assert np.isposinf(body.frequencies_hz[-1]) and np.all(np.isfinite(body.frequencies_hz[:-1]))
+    assert_allclose(body.modal_mass, np.diag(np.r_[np.ones(39), 0.0]), atol=1e-9)
+    assert_allclose(body.modal_stiffness[-1, -1], body.modal_stiffness[-2, -2], rtol=1e-12)
+    assert np.abs(body.modal_stiffness[-1, :-1]).max() < 1e-9 * body.modal_stiffness[-1, -1]
     whole = fem2modal(path, Fem2ModalOptions(n_modes=8))
     f, reference = body.frequencies_hz[:8], whole.frequencies_hz
     # Rayleigh-Ritz: the component-mode frequencies bound the whole-beam ones from above; with 40
     # fixed-interface modes the truncation error of the first eight is <= 1.4e-5 (measured)
     assert np.all(f >= reference * (1.0 - 1e-12))
     assert_allclose(f, reference, rtol=5e-5)
+    deck.spc.append((1, 123456))
+    clamped = fem2modal(str(deck.write(tmp_path / "clamped.dat")), Fem2ModalOptions(n_modes=10))
+    mb = Multibody()
+    mb.add_flexible_body("beam", None, modal=rest_body_data(body), hinge="locked", child_grid=1)
+    system = mb.compile()
+    assert "quasi-static" in system.solver_reason and system.solver == "dense"
+    modes = system_modes(system, system.neutral_configuration())
+    assert_allclose(modes.frequencies_hz[:10], clamped.frequencies_hz, rtol=1e-10)
 
 
 @pytest.fixture(scope="module")

@@ -34,8 +34,8 @@ import decks
 from dynamics.flex import laminates
 from dynamics.flex.bulk_data import BulkDataError, read_bulk_data
 from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
-from dynamics.flex.shells import (_materials, drilling_modulus, element_frame, property_row, rotate_plane,
-                                  shell_batch)
+from dynamics.flex.shells import (drilling_modulus, element_frame, property_row, rotate_plane, shell_batch,
+                                  shell_materials)
 
 
 def _section_deck(cards, pid):
@@ -360,7 +360,7 @@ def test_reference_plane_offset_leaves_a_laminate_unchanged(corners):
     K1 = shell_batch(xyz, base[None], True)[0][0]
     K2 = shell_batch(xyz, moved[None], True)[0][0]
     Lam, loc, _ = element_frame(xyz[0])
-    Am, Dm, _, gt, Bm = _materials(base, Lam)
+    Am, Dm, _, gt, Bm = shell_materials(base, Lam)
     area = 0.5 * np.sum(loc[:, 0] * np.roll(loc[:, 1], -1) - np.roll(loc[:, 0], -1) * loc[:, 1])
     bound = 1e-3 * drilling_modulus(gt, Am, Dm, Bm, area) / gt
     if len(corners) == 4:

@@ -1,4 +1,4 @@
-"""CHEXA8 (incompatible modes), CHEXA20, CTETRA4, CTETRA10, CPENTA6 with PSOLID/MAT1: patch tests,
+"""CHEXA8 (incompatible modes), CHEXA20, CTETRA4, CTETRA10, CPENTA6, CPENTA15 with PSOLID/MAT1: patch tests,
 axial bar modes against the closed form with convergence rates, slender cantilever bending
 against Euler-Bernoulli, a thick block across element families.
 
@@ -94,11 +94,14 @@ def _patch(kind):
                 if a[0] * b[1] - a[1] * b[0] < 0:
                     t[1], t[2] = t[2], t[1]
                 elems.append([8 * layer + v for v in t] + [8 * (layer + 1) + v for v in t])
+        if kind == solids.PENTA15:
+            pts, elems = _with_mid_edges(pts, elems, [(0, 1), (1, 2), (2, 0), (0, 3), (1, 4), (2, 5), (3, 4),
+                                                      (4, 5), (5, 3)])
     return np.asarray(pts, float), elems
 
 
 def _on_boundary(pts, kind):
-    if kind == solids.PENTA6:
+    if kind in (solids.PENTA6, solids.PENTA15):
         x, y, z = pts.T
         return (np.isclose(x, 0) | np.isclose(x, 0.24) | np.isclose(y, 0) | np.isclose(y, 0.12)
                 | np.isclose(z, 0) | np.isclose(z, 0.1))
@@ -106,7 +109,7 @@ def _on_boundary(pts, kind):
 
 
 @pytest.mark.parametrize("kind", [solids.HEXA8, solids.HEXA20, solids.TETRA4, solids.TETRA10,
-                                  solids.PENTA6], ids=lambda k: solids.NAMES[k])
+                                  solids.PENTA6, solids.PENTA15], ids=lambda k: solids.NAMES[k])
 def test_patch_test(kind):
     """Exact linear displacement on the boundary grids: the interior grids take the exact values
     (every element reproduces constant strain, including the incompatible-mode CHEXA8)."""
@@ -145,10 +148,10 @@ def _axial_frequency(body):
 
 # measured errors of the first axial mode at 4 / 8 / 16 elements along the bar:
 #   CHEXA8 6.4e-3 1.6e-3 4.0e-4 | CHEXA20 1.6e-5 1.0e-6 | CTETRA4 4.8e-3 1.9e-3 |
-#   CTETRA10 1.2e-5 5.9e-7 | CPENTA6 5.6e-3 1.7e-3
+#   CTETRA10 1.2e-5 5.9e-7 | CPENTA6 5.6e-3 1.7e-3 | CPENTA15 (2 / 4 / 8) 2.4e-4 1.4e-5 7.6e-7, rate 4.18
 @pytest.mark.parametrize("element,meshes,order", [
     ("CHEXA8", (4, 8, 16), 2), ("CHEXA20", (2, 4, 8), 4), ("CTETRA4", (4, 8, 16), 2),
-    ("CTETRA10", (2, 4, 8), 4), ("CPENTA6", (4, 8, 16), 2)])
+    ("CTETRA10", (2, 4, 8), 4), ("CPENTA6", (4, 8, 16), 2), ("CPENTA15", (2, 4, 8), 4)])
 def test_axial_bar_modes_converge_at_the_element_order(write_deck, element, meshes, order):
     L = 1.0
     exact = np.sqrt(E / RHO) / (4 * L)

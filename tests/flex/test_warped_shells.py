@@ -118,7 +118,7 @@ def test_flat_elements_are_unchanged(nn, zoff):
     for xyz in (np.column_stack([xy, np.zeros(nn)]), np.column_stack([xy, np.zeros(nn)]) @ R.T):
         Lam, loc, h = shells.element_frame(xyz)
         assert np.abs(h).max() <= 1e-15
-        A, D, S, gt, _ = shells._materials(props, Lam)
+        A, D, S, gt, _ = shells.shell_materials(props, Lam)
         if nn == 4:
             Kl, Ml = shells.quad4_local(loc, A, D, S, gt, RHO, 0.01, 0.0, True, np.zeros((3, 3)))
         else:
@@ -136,7 +136,7 @@ def test_the_mass_of_a_warped_quad_stays_with_its_grids():
     xyz = _warped_quad(0.05, np.random.default_rng(5))
     props = PROPERTIES["ZOFFS"]
     Lam, loc, _ = shells.element_frame(xyz)
-    A, D, S, gt, Bc = shells._materials(props, Lam)
+    A, D, S, gt, Bc = shells.shell_materials(props, Lam)
     _, Ml = shells.quad4_local(loc, A, D, S, gt, RHO, 0.01, 0.0, True, Bc)
     x, y = loc[:, 0], loc[:, 1]
     area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
@@ -158,7 +158,7 @@ def test_geometric_stiffness_recovers_the_stress_of_the_linked_element():
     rng = np.random.default_rng(7)
     xyz = _warped_quad(0.05, rng)
     props = shells.isotropic_props(E, NU, RHO, 0.01)
-    A = shells._materials(props, shells.element_frame(xyz)[0])[0]
+    A = shells.shell_materials(props, shells.element_frame(xyz)[0])[0]
     res, _, _ = gsc.shell_membrane_resultants(xyz, props, _rigid_motions(xyz))
     assert np.abs(res).max() <= 1e-12 * np.abs(A).max()
     Q = E / (1 - NU**2) * np.array([[1.0, NU, 0.0], [NU, 1.0, 0.0], [0.0, 0.0, (1 - NU) / 2]])
@@ -168,7 +168,7 @@ def test_geometric_stiffness_recovers_the_stress_of_the_linked_element():
     K = shells.shell_batch(xyz[None], membrane[None], True)[0][0]
     res, dNx, wts = gsc.shell_membrane_resultants(xyz, membrane, u)
     T = gsc.shell_frame_transform(xyz, 0.0)[0]
-    f = sum(shells._membrane_bending_B(dNx[q], 4)[0].T @ res[q] * wts[q] for q in range(len(wts)))
+    f = sum(shells.membrane_bending_B(dNx[q], 4)[0].T @ res[q] * wts[q] for q in range(len(wts)))
     assert_allclose(T.T @ f, K @ u, rtol=0, atol=1e-10 * np.abs(K @ u).max())
 
 

@@ -2,7 +2,8 @@
 
 For every model module with module-level declaration tuples, a copy of its source with each tuple
 reversed (``ast``: the tuples assigned to module-level names ending in PARAMETERS, INPUTS, OUTPUTS,
-CONTINUOUS or DISCRETE, and the tuples returned by module-level ``*_parameters`` functions) is imported
+CONTINUOUS or DISCRETE, also when given by a name or a call, as the shared port bundles of
+``shell.ports`` are, and the tuples returned by module-level ``*_parameters`` functions) is imported
 under a new name; every model of the module, from the original and from the copy, runs all its kernels
 on the same values placed by name (``model_cases.kernel_results``), and the results must agree bit for
 bit: the same floating-point operations on the same numbers, only at other places in the arrays.
@@ -29,7 +30,19 @@ REORDERED = ["aerodynamics", "allocation", "atmosphere", "controllers", "eclipse
 
 
 def _is_declarations(node):
-    return isinstance(node, ast.Tuple) and len(node.elts) > 1
+    return (isinstance(node, ast.Tuple) and len(node.elts) > 1) or isinstance(node, (ast.Name, ast.Call))
+
+
+def _reversed(node, local_names):
+    """The declarations of ``node`` in reverse order: a tuple reversed in place, a bundle (a name imported from
+    another module or a call) wrapped in ``tuple(reversed(...))``; a name of this module's own tuple (reversed
+    where it is assigned) is left as it is."""
+    if isinstance(node, ast.Tuple):
+        node.elts.reverse()
+        return node
+    if isinstance(node, ast.Name) and node.id in local_names:
+        return node
+    return ast.Call(ast.Name("tuple", ast.Load()), [ast.Call(ast.Name("reversed", ast.Load()), [node], [])], [])
 
 
 class _Reverse(ast.NodeTransformer):
@@ -39,10 +52,12 @@ class _Reverse(ast.NodeTransformer):
         self.reversed = []
 
     def visit_Module(self, node):
+        local_names = {t.id for statement in node.body if isinstance(statement, ast.Assign)
+                       for t in statement.targets if isinstance(t, ast.Name)}
         for statement in node.body:
             if isinstance(statement, ast.Assign) and _is_declarations(statement.value) and any(
                     isinstance(t, ast.Name) and t.id.endswith(DECLARATION_SUFFIXES) for t in statement.targets):
-                statement.value.elts.reverse()
+                statement.value = _reversed(statement.value, local_names)
                 self.reversed.append(statement.targets[0].id)
             elif isinstance(statement, ast.FunctionDef) and statement.name.endswith("_parameters"):
                 for inner in ast.walk(statement):

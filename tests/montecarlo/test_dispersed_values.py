@@ -9,7 +9,7 @@ import numpy as np
 
 from shell.model import parse_period
 from shell.montecarlo.campaign import _as_read, yaml_text
-from shell.scenario import _override_value, _Where
+from shell.schema import Where, override_value
 
 
 def _kind(x):
@@ -39,9 +39,9 @@ VALUES = [
 
 
 def test_direct_objects_equal_the_text_read_back():
-    where = _Where("campaign", 0, "test")
+    where = Where("campaign", 0, "test")
     for value in VALUES:
-        expected = _override_value(yaml_text(value), where)
+        expected = override_value(yaml_text(value), where)
         assert _same(_as_read(value), expected), (value, _as_read(value), expected)
 
 

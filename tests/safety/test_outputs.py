@@ -249,4 +249,4 @@ def test_every_verb_that_writes_takes_overwrite():
         if options & {"-o", "--output", "--save-state", "--mat"}:
             writers.append(verb)
             assert "--overwrite" in options, f"flexshell {verb} writes a file but takes no --overwrite"
-    assert sorted(writers) == ["fem2modal", "linearize", "montecarlo", "plot", "report", "run", "view"]
+    assert sorted(writers) == ["bode", "fem2modal", "linearize", "montecarlo", "plot", "report", "run", "view"]

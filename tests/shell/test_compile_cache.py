@@ -195,7 +195,7 @@ def test_every_cached_kernel_uses_the_dependency_keyed_cache():
 def test_units_follow_the_architecture():
     """The compiled loop calls model kernels and the engine through function pointers, so neither is in its unit (a
     model edit does not recompile the loop); the engine's unit is dynamics/ and its shell model; a model kernel's
-    unit is its own module."""
+    unit is its own module and the attitude-library functions it calls (shell/attitude.py)."""
     from dynamics.compile_cache import unit_members
     from shell.compiled_loop import advance
     from shell.models.multibody import engine_kernel
@@ -207,18 +207,19 @@ def test_units_follow_the_architecture():
     engine = unit_members(engine_kernel)
     assert "dynamics.kernels.articulated_body.forward_dynamics" in engine and "dynamics.spatial.mat6_vec" in engine
     assert not [m for m in engine if m.startswith("shell.") and not m.startswith("shell.models.multibody.")]
-    assert unit_members(_pd_update) == ["shell.models.pd_attitude._pd_update"]
+    assert unit_members(_pd_update) == ["shell.attitude.error_rotation_vector", "shell.attitude.quaternion_conjugate",
+                                        "shell.attitude.quaternion_multiply", "shell.models.pd_attitude._pd_update"]
 
 
 def test_a_constant_rebound_at_run_time_changes_the_key(monkeypatch):
     """Keys are hashed once per process, but a global read by a unit and rebound since is seen (numba would freeze
     the new value into code compiled now)."""
-    import dynamics.kernels as K
+    import dynamics.kernels.articulated_body as articulated_body
     from dynamics.compile_cache import unit_key
     from shell.models.multibody import engine_kernel
 
     before = unit_key(engine_kernel.py_func)
-    monkeypatch.setattr(K, "GROUND_ACCEL", K.GROUND_ACCEL + 1)
+    monkeypatch.setattr(articulated_body, "GROUND_ACCEL", articulated_body.GROUND_ACCEL + 1)
     assert unit_key(engine_kernel.py_func) != before
     monkeypatch.undo()
     assert unit_key(engine_kernel.py_func) == before
@@ -251,3 +252,56 @@ def test_flexshell_uses_only_the_numba_extensions_the_keys_follow():
                 if names & _UNFOLLOWED:
                     offenders.append(f"{path.relative_to(ROOT)}:{node.lineno}: {sorted(names & _UNFOLLOWED)}")
     assert not offenders, offenders
+
+
+def test_flexshell_compile_compiles_what_a_first_run_needs(tmp_path, capsys):
+    """The verb compiles the common set (here into the suite's cache, mostly loading it); afterwards its parts are
+    compiled in this process, and a fresh process running the demo scene compiles nothing."""
+    from numba.core.registry import CPUDispatcher
+
+    from shell.cli import main
+    from shell.commands.compile import FAMILIES, work_items
+    from shell.compiled_loop import ENGINE_SIGNATURE, advance
+    from shell.models.multibody import engine_kernel
+    from shell.registry import registered
+
+    assert main(["compile"]) == 0
+    captured = capsys.readouterr()
+    parts = work_items()
+    assert f"[{len(parts)}/{len(parts)}]" in captured.err and "functions compiled" in captured.out
+    assert [label for label, _ in parts][:2] == [f"simulation loop, {FAMILIES[0][1]}", "multibody engine"]
+    assert ENGINE_SIGNATURE.args in engine_kernel.overloads
+    steppers = {signature[4].instance_class.__name__ for signature in advance.signatures}  # advance(k, engine, ., ., st
+    assert {"Stepper", "ExponentialStepper"} <= steppers
+    kernels = ("state_outputs", "feedthrough_outputs", "derivatives", "zero_crossing_values", "update")
+    uncompiled = [f"{name}.{kernel}" for name, cls in registered().items() for kernel in kernels
+                  if isinstance(getattr(cls, kernel, None), CPUDispatcher) and not getattr(cls, kernel).overloads]
+    assert not uncompiled
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    done = subprocess.run([sys.executable, "-m", "shell.cli", "run", str(ROOT / "configs" / "demo_attitude_hold.yaml"),
+                           "--t-final", "1 s", "-o", str(tmp_path / "demo.h5")], capture_output=True, text=True,
+                          env=env, timeout=600, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "compil" not in done.stderr
+
+
+def test_the_first_run_notice_says_what_compiles(tmp_path):
+    """A kernel compiled for the first time (a fresh function in a fresh process) is announced with its part."""
+    script = textwrap.dedent("""
+        import numba
+        from shell.commands.run import CompileNotice
+
+        @numba.njit
+        def fresh(x):
+            return x + 1.0
+
+        with CompileNotice(quiet=False) as notice:
+            fresh(1.0)
+        print(notice.parts)
+    """)
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "['model kernels']" in done.stdout
+    assert "flexshell: compiling model kernels (up to ~" in done.stderr

@@ -13,7 +13,7 @@ import pytest
 from numba.core.caching import NullCache
 from numba.core.registry import CPUDispatcher
 
-from shell.model import Layout, ModelError, Parameter, State, named_offsets
+from shell.model import Declarations, InputPort, Layout, Model, ModelError, Parameter, State, named_offsets
 from shell.models.allocation import NodeLoadSum
 from shell.models.controllers import LqrStateFeedback
 from shell.models.imu import Imu
@@ -135,3 +135,25 @@ def test_every_kernel_is_compiled_unless_the_model_says_its_update_is_python(tmp
             python_updates.add(class_name)
     # the three that must stay Python: user code, scipy's linear program, the engine's Python API
     assert python_updates == {"UserFunction", "NonnegativeAllocator", "MassDepletion"}
+
+
+def test_declarations_give_the_offsets_and_the_class_attributes():
+    declarations = Declarations(parameters=(Parameter("a", shape=(3,)), Parameter("b")),
+                                inputs=(InputPort("u", shape=(2,)), InputPort("v"), InputPort("w")), sized=("u",))
+    assert tuple(declarations.P) == (0, 3) and declarations.P._fields == ("a", "b")
+    assert tuple(declarations.U) == (0, None, None)  # after a configuration-sized input the kernel derives them
+
+    class Plain(Model):
+        declarations = Declarations(parameters=(Parameter("a", shape=(3,), default=0.0), Parameter("b", default=1.0)))
+
+    assert Plain.parameters == Plain.declarations.parameters and Plain.offsets["p"] == (0, 3)
+    assert Plain("plain").p_layout.offsets == {"a": 0, "b": 3}
+    wider = declarations.replace(u={"shape": (5,), "unit": "m"})
+    assert [d.name for d in wider.inputs] == ["u", "v", "w"] and wider.inputs[0].shape == (5,)
+    assert wider.inputs[0].unit == "m" and wider.U == declarations.U
+    with pytest.raises(ModelError, match=r"u has no field\(s\) \['initial'\]"):
+        declarations.replace(u={"initial": 1.0})
+    with pytest.raises(ModelError, match=r"no declarations named \['x'\]"):
+        declarations.replace(x={"shape": (2,)})
+    with pytest.raises(ModelError, match=r"sized names \['x'\] are not declared"):
+        Declarations(inputs=(InputPort("u"),), sized=("x",))

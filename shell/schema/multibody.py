@@ -1,0 +1,358 @@
+"""The ``multibody:`` section of a scenario: bodies, hinges, nodes and initial state, read into an engine system.
+
+The section (docs/scenario_schema.md, section multibody) lists bodies in order, each with its parent, hinge
+(locked, revolute, prismatic, ujoint, spherical, free; docs/conventions.md for their coordinates), rigid
+mass properties or a flexible body file (``flexshell fem2modal``), the placement of its inboard and outboard
+frames, and an optional ``initial:`` hinge state; then nodes fixed on bodies. :func:`read_multibody` checks it
+key by key (every refusal names file, line and key path), builds the :class:`dynamics.Multibody` and compiles
+it. The runtime side, the engine as a shell model with its ports, is :mod:`shell.models.multibody`; Monte
+Carlo runs read a body's dispersed mass properties again with :func:`rigid_mass_properties` and
+:func:`initial_state`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dynamics import ModelDefinitionError, Multibody, MultibodySystem
+from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
+from dynamics.modal_order import resolve_modal_orders
+from dynamics.mode_selection import select_modes
+from dynamics.spatial import quaternion_to_rotation
+from shell.diagnostics import located
+from shell.schema.validation import Where, expect_list, expect_mapping, expect_name
+from shell.units import UnitError, to_magnitude, ureg
+
+SECTION_KEYS = {"name": "engine model name (default multibody)", "gravity": "uniform gravity, world axes (m/s^2)",
+                "bodies": "list of bodies", "nodes": "list of nodes"}
+NODE_KEYS = {"name": "node name", "body": "body it is fixed on", "position": "in the body frame (m)",
+             "rotation": "node -> body", "grid": "FE grid id (nodes on flexible bodies)"}
+BODY_KEYS = {
+    "name": "body name", "parent": "parent body name or world", "hinge": "locked, revolute, prismatic, "
+    "ujoint, spherical or free", "mass": "mass (kg)", "com": "center of mass in the body frame (m)",
+    "inertia": "inertia about the center of mass, 3x3 or 3 principal moments (kg m^2)",
+    "axis": "hinge axis (unit vector)", "axes": "two U-joint axes", "inboard_position": "m",
+    "inboard_rotation": "3x3 or quaternion", "outboard_position": "m", "outboard_rotation": "3x3 or quaternion",
+    "prescribed": "bool or one bool per hinge DOF", "initial": "initial hinge state",
+    "parent_node": "node of a flexible parent the hinge attaches at",
+    "body_file": "flexible body file (HDF5, from flexshell fem2modal), relative to the scenario",
+    "modes": "indices of the body file's modes to keep (default all)",
+    "max_frequency": "keep the body file's modes at or below this frequency, e.g. 100 Hz (with modes: the listed "
+                     "modes below it)",
+    "modal_integrals_order": "0, 1, 2 or auto: order of the deformation-dependent modal integrals (default auto: "
+                             "the order the scene needs at its initial state, dynamics.modal_order)",
+    "omit_terms": "terms of the nodes' rotary inertia to leave out: a list of G1, F2, G2 (auto chooses otherwise)",
+    "damping_ratio": "modal damping ratio overriding the body file's",
+    "integrals": "general or point_mass modal integrals (default general)",
+    "child_grid": "grid of this flexible body that the hinge holds (its deforming interface grid)",
+    "geometric_stiffening": "true/false: stiffening by the rigid-motion stresses (default: on when the body "
+                            "file has them, fem2modal --geometric-stiffness)",
+    "preload": "mapping preload name -> scale of the body file's named preloads (fem2modal --preload)",
+}
+FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "omit_terms", "damping_ratio", "integrals",
+                 "child_grid", "geometric_stiffening", "preload")
+INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
+    "q": ("", "all"), "u": ("", "all"),
+    "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
+    "displacement": ("m", "prismatic"), "displacement_rate": ("m/s", "prismatic"),
+    "attitude": ("", "spherical free"), "angular_velocity": ("rad/s", "spherical free"),
+    "position": ("m", "free"), "velocity": ("m/s", "free"),
+    "modal": ("", "flexible"), "modal_rate": ("1/s", "flexible"),
+}
+
+
+@dataclass(frozen=True)
+class MultibodySection:
+    """What the ``multibody:`` section describes: the engine model's name, its compiled system and initial
+    state (hinge quaternions normalized)."""
+
+    name: str
+    system: MultibodySystem
+    initial_q: np.ndarray
+    initial_u: np.ndarray
+
+
+def read_multibody(description, where: Where) -> MultibodySection:
+    """Read the scenario's ``multibody:`` mapping; ``where`` locates errors (file, line, key)."""
+    expect_mapping(description, where, SECTION_KEYS, required=("bodies",))
+    name = description.get("name", "multibody")
+    gravity = _vector(description, "gravity", "m/s^2", (3,), where, (0.0, 0.0, 0.0))
+    builder = Multibody(gravity=tuple(gravity))
+    bodies = expect_list(description["bodies"], where.child(description, "bodies"), "bodies")
+    # nodes are added right after their body, so that a later body's hinge can attach to them
+    pending_nodes = _node_adders(builder, description, where)
+    initial = []
+    for k, body in enumerate(bodies):
+        here = where.child(description, "bodies").child(bodies, k)
+        here = _add_body(builder, body, here)
+        for add in pending_nodes.pop(body["name"], []):
+            add()
+        initial.append((body.get("initial"), here, body))
+    for node_body in list(pending_nodes):  # nodes of bodies that do not exist: named by add_node
+        for add in pending_nodes.pop(node_body):
+            add()
+    try:
+        system = builder.compile()
+    except ModelDefinitionError as exc:
+        raise where.error(str(exc)) from None
+    q0, u0 = initial_state(system, initial)
+    places = {body.get("name"): here for _, here, body in initial}  # the stiffening warning names its body
+    with located(lambda text: next((h for b, h in places.items() if f"body '{b}'" in text), where)):
+        system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto
+    return MultibodySection(name, system, q0, u0)
+
+
+def _node_adders(builder: Multibody, description, where: Where) -> dict:
+    """{body name: [function adding one of its nodes to ``builder``]} of the section's nodes, each checked."""
+    pending = {}
+    nodes = expect_list(description.get("nodes", []), where.child(description, "nodes"), "nodes")
+    for k, node in enumerate(nodes):
+        here = where.child(description, "nodes").child(nodes, k)
+        expect_mapping(node, here, NODE_KEYS, required=("name", "body"))
+        grid = node.get("grid")
+        if grid is not None and (isinstance(grid, bool) or not isinstance(grid, int)):
+            raise here.child(node, "grid").error(f"expected an FE grid id (integer), given {grid!r}")
+        node_name = expect_name(node["name"], here.child(node, "name"), "a node name")
+        node_body = expect_name(node["body"], here.child(node, "body"), "a body name")
+        position = _vector(node, "position", "m", (3,), here) if "position" in node else None
+        rotation = _rotation(node, "rotation", here)
+
+        def add(node_name=node_name, node_body=node_body, position=position, rotation=rotation, grid=grid,
+                here=here):
+            try:
+                builder.add_node(node_name, node_body, position=position, rotation=rotation, grid=grid)
+            except ModelDefinitionError as exc:
+                raise here.error(str(exc)) from None
+
+        pending.setdefault(node_body, []).append(add)
+    return pending
+
+
+def _add_body(builder: Multibody, body, here: Where) -> Where:
+    """Check one body entry and add it to ``builder``; returns its location named by the body."""
+    flexible = isinstance(body, dict) and "body_file" in body
+    expect_mapping(body, here, BODY_KEYS,
+                   required=("name", "hinge") if flexible else ("name", "hinge", "mass", "inertia"))
+    body_name = expect_name(body["name"], here.child(body, "name"), "a body name")
+    here = here.named(body_name)
+    for key in (("mass", "inertia", "com") if flexible else FLEXIBLE_ONLY):
+        if key in body:
+            raise here.child(body, key).error(
+                "the body file gives the mass properties of a flexible body" if flexible else
+                f"{key!r} applies to flexible bodies (with body_file:)")
+    parent = body.get("parent", "world")
+    if parent is not None:
+        parent = expect_name(parent, here.child(body, "parent"), "a body name or world")
+    kwargs = dict(
+        hinge=expect_name(body["hinge"], here.child(body, "hinge"), "a hinge type"),
+        inboard_position=_vector(body, "inboard_position", "m", (3,), here, (0, 0, 0)),
+        outboard_position=_vector(body, "outboard_position", "m", (3,), here, (0, 0, 0)),
+        inboard_rotation=_rotation(body, "inboard_rotation", here),
+        outboard_rotation=_rotation(body, "outboard_rotation", here),
+    )
+    if "axis" in body:
+        kwargs["axis"] = _vector(body, "axis", "", (3,), here)
+    if "axes" in body:
+        kwargs["axes"] = _vector(body, "axes", "", (2, 3), here)
+    if "prescribed" in body:
+        kwargs["prescribed"] = body["prescribed"]
+    if "parent_node" in body:
+        kwargs["parent_node"] = expect_name(body["parent_node"], here.child(body, "parent_node"), "a node")
+    parent = None if parent in (None, "world") else parent
+    try:
+        with located(here):  # the engine's warnings about this body, with its file, line and key
+            if flexible:
+                builder.add_flexible_body(body_name, parent, **_flexible_options(body, here), **kwargs)
+            else:
+                mass, com, inertia = rigid_mass_properties(body, here)
+                builder.add_body(body_name, parent, mass=mass, inertia=inertia, com=com, **kwargs)
+    except (ModelDefinitionError, OSError, KeyError) as exc:
+        raise here.error(str(exc.args[0] if isinstance(exc, KeyError) else exc)) from None
+    return here
+
+
+def rigid_mass_properties(body, where):
+    """(mass, com, inertia about the COM) of a rigid body's scenario entry, SI."""
+    return (float(_vector(body, "mass", "kg", (), where)), _vector(body, "com", "m", (3,), where, (0, 0, 0)),
+            _matrix_or_diagonal(body, where))
+
+
+def initial_state(system, entries):
+    """(q0, u0) from each body's ``initial:`` entry (``entries``: (spec or None, where, body entry) in body
+    order), quaternions normalized."""
+    q0, u0 = system.neutral_configuration(), np.zeros(system.nu)
+    for b, (spec, here, body) in enumerate(entries):
+        if spec is not None:
+            _apply_initial(system, b, spec, here.child(body, "initial"), q0, u0)
+    system.normalize_quaternions(q0)
+    return q0, u0
+
+
+def body_entries(description, where):
+    """[(body entry, where)] of the multibody: section, in order, ``where`` naming each body."""
+    bodies = expect_list(description["bodies"], where.child(description, "bodies"), "bodies")
+    out = []
+    for k, body in enumerate(bodies):
+        here = where.child(description, "bodies").child(bodies, k)
+        out.append((body, here.named(body.get("name")) if isinstance(body, dict) else here))
+    return out
+
+
+def _flexible_options(body, where) -> dict:
+    """The :meth:`dynamics.Multibody.add_flexible_body` options of a flexible body's entry."""
+    path = Path(str(body["body_file"]))
+    if not path.is_absolute():
+        path = Path(where.file).parent / path
+    if not path.exists():
+        raise where.child(body, "body_file").error(f"no body file {str(path)!r} (paths are relative to the scenario)")
+    options = {"modal": str(path)}
+    if "modes" in body:
+        modes = body["modes"]
+        if not isinstance(modes, list) or not all(isinstance(m, int) and not isinstance(m, bool) for m in modes):
+            raise where.child(body, "modes").error(f"expected a list of mode indices, given {modes!r}")
+        options["modes"] = list(modes)
+    if "max_frequency" in body:
+        options.update(_max_frequency_options(body, where, path, options.get("modes")))
+    order = body.get("modal_integrals_order", "auto")
+    if isinstance(order, bool) or order not in (0, 1, 2, "auto"):
+        raise where.child(body, "modal_integrals_order").error(f"expected 0, 1, 2 or auto, given {order!r}")
+    options["order"] = order
+    if "omit_terms" in body:
+        omit = body["omit_terms"]
+        if not isinstance(omit, list) or not set(omit) <= {"G1", "F2", "G2"}:
+            raise where.child(body, "omit_terms").error(f"expected a list of G1, F2, G2, given {omit!r}")
+        options["omit_terms"] = tuple(omit)
+    if "damping_ratio" in body:
+        options["damping_ratio"] = float(_vector(body, "damping_ratio", "", (), where))
+    if "integrals" in body:
+        if body["integrals"] not in ("general", "point_mass"):
+            raise where.child(body, "integrals").error(f"expected general or point_mass, given {body['integrals']!r}")
+        options["integrals"] = body["integrals"]
+    if "child_grid" in body:
+        grid = body["child_grid"]
+        if not isinstance(grid, int) or isinstance(grid, bool):
+            raise where.child(body, "child_grid").error(f"expected an FE grid id (integer), given {grid!r}")
+        options["child_grid"] = grid
+    if "geometric_stiffening" in body:
+        flag = body["geometric_stiffening"]
+        if not isinstance(flag, bool):
+            raise where.child(body, "geometric_stiffening").error(f"expected true or false, given {flag!r}")
+        options["geometric_stiffening"] = flag
+    if "preload" in body:
+        pre = body["preload"]
+        if (not isinstance(pre, dict) or not all(isinstance(k, str) for k in pre)
+                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+                           for v in pre.values())):
+            raise where.child(body, "preload").error(f"expected a mapping preload name -> scale (number), "
+                                                     f"e.g. {{thrust: 1.0}}, given {pre!r}")
+        options["preload"] = {k: float(v) for k, v in pre.items()}
+    return options
+
+
+def _max_frequency_options(body, where, path, modes) -> dict:
+    """``modal`` (the body file, read once) and ``modes`` kept by the ``max_frequency:`` cutoff
+    (:func:`dynamics.mode_selection.select_modes`); the value must carry a cyclic-frequency unit."""
+    here = where.child(body, "max_frequency")
+    value = body["max_frequency"]
+    f_max = float(_vector(body, "max_frequency", "Hz", (), where))  # refuses what is not a frequency
+    if isinstance(value, dict):
+        quantity = ureg.Quantity(1.0, value["unit"])
+    else:
+        quantity = ureg.Quantity(value) if isinstance(value, str) else None
+    if quantity is None or quantity.unitless:
+        raise here.error(f"expected a frequency with its unit, e.g. '100 Hz', given {value!r}")
+    if "radian" in str(quantity.to_root_units().units):  # pint takes rad as 1: 628 rad/s would pass as 628 Hz
+        raise here.error(f"max_frequency is a cyclic frequency: give it in Hz, not in an angular unit (given "
+                         f"{value!r}, i.e. {f_max / (2 * np.pi):.6g} Hz)")
+    # imported here: dynamics.flex loads the FEM pipeline (pyNastran, ~1 s), which only this option needs
+    from dynamics.flex.body_file import read_body_file
+
+    modal = read_body_file(path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            keep = select_modes(modal.frequencies_hz, modes, f_max)
+        except ValueError as exc:
+            raise here.error(str(exc).replace("select_modes: ", "")) from None
+    for warning in caught:
+        warnings.warn(f"{here}: {str(warning.message).replace('select_modes: ', '')}", stacklevel=2)
+    return {"modal": modal, "modes": keep.tolist()}
+
+
+def _vector(mapping, key, unit, shape, where, default=None):
+    if key not in mapping:
+        if default is None:
+            raise where.error(f"missing required key {key!r}")
+        return np.asarray(default, dtype=float).reshape(shape)
+    try:
+        return to_magnitude(mapping[key], unit, shape, key)
+    except UnitError as exc:
+        raise where.child(mapping, key).error(str(exc)) from None
+
+
+def _matrix_or_diagonal(body, where):
+    try:
+        inertia = to_magnitude(body["inertia"], "kg*m^2", None, "inertia")
+    except UnitError as exc:
+        raise where.child(body, "inertia").error(str(exc)) from None
+    if inertia.shape == (3,):
+        inertia = np.diag(inertia)
+    if inertia.shape != (3, 3):
+        raise where.child(body, "inertia").error(f"expected a 3x3 matrix or 3 principal moments, given shape "
+                                                 f"{inertia.shape}")
+    return inertia
+
+
+def _rotation(mapping, key, where):
+    if key not in mapping:
+        return None
+    value = to_magnitude(mapping[key], "", None, key)
+    if value.shape == (4,):
+        norm = np.linalg.norm(value)
+        if abs(norm - 1.0) > 1e-9:
+            raise where.child(mapping, key).error(f"expected a unit quaternion [w, x, y, z], given norm {norm:.12g}")
+        rotation = np.empty((3, 3))
+        quaternion_to_rotation(value[0], value[1], value[2], value[3], rotation)
+        return rotation
+    if value.shape != (3, 3):
+        raise where.child(mapping, key).error(f"expected a 3x3 rotation matrix or a quaternion [w, x, y, z], "
+                                              f"given shape {value.shape}")
+    return value
+
+
+def _apply_initial(system, b, spec, where, q0, u0) -> None:
+    """Write a body's ``initial:`` entry into its slices of ``q0`` and ``u0`` (SI)."""
+    hinge = system.hinge_names[b]
+    expect_mapping(spec, where, {k: f"{unit or 'SI'} ({applies})" for k, (unit, applies) in INITIAL_KEYS.items()})
+    qs, us = system.q_slices[b], system.u_slices[b]
+    nq, nu = qs.stop - qs.start, us.stop - us.start
+    hinge_nq, hinge_nu = int(HINGE_NQ[HINGE_TYPES[hinge]]), int(HINGE_NU[HINGE_TYPES[hinge]])
+    n_modes = nq - hinge_nq
+    kinds = hinge.split() + (["flexible"] if n_modes else [])
+    for key, value in spec.items():
+        unit, applies = INITIAL_KEYS[key]
+        if applies != "all" and not set(applies.split()) & set(kinds):
+            raise where.child(spec, key).error(f"{key!r} does not apply to a {hinge} hinge; use "
+                                               f"{[k for k, (_, a) in INITIAL_KEYS.items() if a == 'all' or hinge in a.split()]}")
+        target, sl, shape = {
+            "q": (q0, slice(0, nq), (nq,)), "u": (u0, slice(0, nu), (nu,)),
+            "angle": (q0, slice(0, hinge_nq), (hinge_nq,)), "angle_rate": (u0, slice(0, hinge_nu), (hinge_nu,)),
+            "displacement": (q0, slice(0, 1), (1,)), "displacement_rate": (u0, slice(0, 1), (1,)),
+            "attitude": (q0, slice(0, 4), (4,)), "angular_velocity": (u0, slice(0, 3), (3,)),
+            "position": (q0, slice(4, 7), (3,)), "velocity": (u0, slice(3, 6), (3,)),
+            "modal": (q0, slice(hinge_nq, nq), (n_modes,)), "modal_rate": (u0, slice(hinge_nu, nu), (n_modes,)),
+        }[key]
+        value_si = _vector(spec, key, unit, None, where)
+        if value_si.shape == () and shape == (1,):
+            value_si = value_si.reshape(1)
+        if value_si.shape != shape:
+            raise where.child(spec, key).error(f"expected shape {shape} for a {hinge} hinge, given {value_si.shape}")
+        if key == "attitude" and abs(np.linalg.norm(value_si) - 1.0) > 1e-9:
+            raise where.child(spec, key).error(f"expected a unit quaternion [w, x, y, z], given norm "
+                                               f"{np.linalg.norm(value_si):.12g}")
+        base = qs.start if target is q0 else us.start
+        target[base + sl.start:base + sl.stop] = value_si
