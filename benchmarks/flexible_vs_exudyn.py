@@ -252,9 +252,10 @@ class Run:
 
 # ------------------------------------------------------------------------------------------------
 def flexshell_scene(model: Model, order, omit=()) -> str:
-    if model.case == "beam":
-        return f"""
-name: beam_hub_{model.n_modes}
+    """The YAML scene: the boom on a free hinge, RK4, its modal coordinates and rates logged; the beam case spun
+    up by a hub torque, the truss case tumbling with its initial deformation."""
+    head = f"""
+name: {model.case}_{model.n_modes}
 multibody:
   bodies:
     - name: boom
@@ -262,37 +263,27 @@ multibody:
       hinge: free
       body_file: {model.body_file.name}
       modal_integrals_order: {order}
-      omit_terms: {list(omit)}
+"""
+    tail = f"""integrator: {{method: rk4, step: {model.step} s}}
+log:
+  rate: {1.0 / SAMPLE:g} Hz
+  signals: [multibody.boom.modal_q, multibody.boom.u]
+"""
+    if model.case == "beam":
+        return head + f"""      omit_terms: {list(omit)}
   nodes:
     - {{name: hub, body: boom, grid: {int(model.body.grid_ids[model.hub_nodes[0]])}}}
 models:
   spin_up: {{type: Constant, config: {{unit: N*m, shape: [3]}}, parameters: {{value: "[0, 0, {float(model.torque)!r}] N*m"}}}}
 connections:
   - spin_up.y -> multibody.hub.torque
-integrator: {{method: rk4, step: {model.step} s}}
-log:
-  rate: {1.0 / SAMPLE:g} Hz
-  signals: [multibody.boom.modal_q, multibody.boom.u]
-"""
+""" + tail
     phi = model.body.translation_shapes.reshape(-1, model.n_modes)
     eta0 = project(phi, model.mass_matrix, model.initial_deformation)
-    return f"""
-name: truss_boom_{model.n_modes}
-multibody:
-  bodies:
-    - name: boom
-      parent: world
-      hinge: free
-      body_file: {model.body_file.name}
-      modal_integrals_order: {order}
-      initial:
+    return head + f"""      initial:
         angular_velocity: "{OMEGA0.tolist()} rad/s"
         modal: {eta0.tolist()}
-integrator: {{method: rk4, step: {model.step} s}}
-log:
-  rate: {1.0 / SAMPLE:g} Hz
-  signals: [multibody.boom.modal_q, multibody.boom.u]
-"""
+""" + tail
 
 
 def run_flexshell(model: Model, duration: float, order: int, omit=()) -> Run:
