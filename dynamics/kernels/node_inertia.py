@@ -61,6 +61,56 @@ def _q_times(params, j, m, t0, t1, t2, u0, u1, u2, c0, c1, c2, x0, x1, x2):
     return -q0 - m * e0, -q1 - m * e1, -q2 - m * e2
 
 
+@njit(cache=True, inline="always")
+def _node_record(params, o, k, n):
+    """The ``k``-th node record at ``o``: mass m, CG offset p, the params offset of J, whether p is non-zero,
+    and the params offsets of its lambda (3 x n) and gamma (3 x n) rows."""
+    b = o + k * (NODE_RECORD + 6 * n)
+    lam = b + NODE_RECORD
+    return params[b], params[b + 1], params[b + 2], params[b + 3], b + 4, params[b + 13] != 0.0, lam, lam + 3 * n
+
+
+@njit(cache=True, inline="always")
+def _dj_times(params, j, g1, g2, t0, t1, t2, x0, x1, x2):
+    """``dJ x``, the change of the node's inertia ``J`` (at ``params[j:j + 9]``) turned by ``theta`` applied to
+    ``x``: ``theta x (J x) - J (theta x x)`` (first order, G1) and ``- theta x J (theta x x)`` (second order, G2)."""
+    a0 = a1 = a2 = 0.0
+    if g1 or g2:
+        c0, c1, c2 = _cross(t0, t1, t2, x0, x1, x2)
+        k0, k1, k2 = _times_inertia(params, j, c0, c1, c2)
+        if g1:
+            j0, j1, j2 = _times_inertia(params, j, x0, x1, x2)
+            y0, y1, y2 = _cross(t0, t1, t2, j0, j1, j2)
+            a0 += y0 - k0
+            a1 += y1 - k1
+            a2 += y2 - k2
+        if g2:
+            y0, y1, y2 = _cross(t0, t1, t2, k0, k1, k2)
+            a0 -= y0
+            a1 -= y1
+            a2 -= y2
+    return a0, a1, a2
+
+
+@njit(cache=True, inline="always")
+def _block_times_two(params, at, n, x, y):
+    """``(A x, A y)`` for the 3 x n block ``A`` stored row by row at ``params[at:]``."""
+    a0 = a1 = a2 = b0 = b1 = b2 = 0.0
+    for s in range(n):
+        xs = x[s]
+        ys = y[s]
+        r0 = params[at + s]
+        r1 = params[at + n + s]
+        r2 = params[at + 2 * n + s]
+        a0 += r0 * xs
+        a1 += r1 * xs
+        a2 += r2 * xs
+        b0 += r0 * ys
+        b1 += r1 * ys
+        b2 += r2 * ys
+    return a0, a1, a2, b0, b1, b2
+
+
 @njit(cache=True, fastmath=FAST_SUMS)
 def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br, bm, nodes_state):
     """Add the node terms (module docstring) to ``Mre`` (6 x n: the omega rows, F2), and with ``with_bias`` to
@@ -71,41 +121,12 @@ def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br
     g2 = (terms & NODE_G2) != 0
     f2 = (terms & NODE_F2) != 0
     w0, w1, w2 = V[0], V[1], V[2]
-    record = NODE_RECORD + 6 * n
     for k in range(count):
-        b = o + k * record
-        m = params[b]
-        p0, p1, p2 = params[b + 1], params[b + 2], params[b + 3]
-        jb = b + 4
-        offset = params[b + 13] != 0.0
-        lam = b + NODE_RECORD
-        gam = lam + 3 * n
-        t0 = t1 = t2 = d0 = d1 = d2 = u0 = u1 = u2 = v0 = v1 = v2 = 0.0
-        for s in range(n):
-            es = eta[s]
-            rs = e[s]
-            l0_ = params[lam + s]
-            l1_ = params[lam + n + s]
-            l2_ = params[lam + 2 * n + s]
-            t0 += l0_ * es
-            t1 += l1_ * es
-            t2 += l2_ * es
-            d0 += l0_ * rs
-            d1 += l1_ * rs
-            d2 += l2_ * rs
+        m, p0, p1, p2, jb, offset, lam, gam = _node_record(params, o, k, n)
+        t0, t1, t2, d0, d1, d2 = _block_times_two(params, lam, n, eta, e)  # theta = lambda eta, lambda e
+        u0 = u1 = u2 = v0 = v1 = v2 = 0.0
         if offset:
-            for s in range(n):
-                es = eta[s]
-                rs = e[s]
-                g0_ = params[gam + s]
-                g1_ = params[gam + n + s]
-                g2_ = params[gam + 2 * n + s]
-                u0 += g0_ * es
-                u1 += g1_ * es
-                u2 += g2_ * es
-                v0 += g0_ * rs
-                v1 += g1_ * rs
-                v2 += g2_ * rs
+            u0, u1, u2, v0, v1, v2 = _block_times_two(params, gam, n, eta, e)  # u = gamma eta, gamma e
         st = 6 * k
         nodes_state[st] = t0
         nodes_state[st + 1] = t1
@@ -217,15 +238,8 @@ def node_inertia_times(params, o, count, n, terms, nodes_state, x, out):
     g2 = (terms & NODE_G2) != 0
     if not (g1 or g2):
         return
-    record = NODE_RECORD + 6 * n
     for k in range(count):
-        b = o + k * record
-        m = params[b]
-        p0, p1, p2 = params[b + 1], params[b + 2], params[b + 3]
-        jb = b + 4
-        offset = params[b + 13] != 0.0
-        lam = b + NODE_RECORD
-        gam = lam + 3 * n
+        m, p0, p1, p2, jb, offset, lam, gam = _node_record(params, o, k, n)
         st = 6 * k
         t0, t1, t2 = nodes_state[st], nodes_state[st + 1], nodes_state[st + 2]
         al0 = al1 = al2 = be0 = be1 = be2 = 0.0
@@ -240,32 +254,18 @@ def node_inertia_times(params, o, count, n, terms, nodes_state, x, out):
                 be0 += params[gam + s] * xs
                 be1 += params[gam + n + s] * xs
                 be2 += params[gam + 2 * n + s] * xs
-        a0 = a1 = a2 = z0 = z1 = z2 = 0.0
-        if g1:
-            j0, j1, j2 = _times_inertia(params, jb, al0, al1, al2)
-            x0, x1, x2 = _cross(t0, t1, t2, j0, j1, j2)
-            y0, y1, y2 = _cross(t0, t1, t2, al0, al1, al2)
-            j0, j1, j2 = _times_inertia(params, jb, y0, y1, y2)
-            a0 += x0 - j0
-            a1 += x1 - j1
-            a2 += x2 - j2
-            if offset:
-                c0, c1, c2 = _cross(t0, t1, t2, p0, p1, p2)
-                x0, x1, x2 = _cross(c0, c1, c2, be0, be1, be2)
-                a0 += m * x0
-                a1 += m * x1
-                a2 += m * x2
-                x0, x1, x2 = _cross(al0, al1, al2, c0, c1, c2)
-                z0 += m * x0
-                z1 += m * x1
-                z2 += m * x2
-        if g2:
-            y0, y1, y2 = _cross(t0, t1, t2, al0, al1, al2)
-            j0, j1, j2 = _times_inertia(params, jb, y0, y1, y2)
-            x0, x1, x2 = _cross(t0, t1, t2, j0, j1, j2)
-            a0 -= x0
-            a1 -= x1
-            a2 -= x2
+        a0, a1, a2 = _dj_times(params, jb, g1, g2, t0, t1, t2, al0, al1, al2)
+        z0 = z1 = z2 = 0.0
+        if g1 and offset:
+            c0, c1, c2 = _cross(t0, t1, t2, p0, p1, p2)
+            x0, x1, x2 = _cross(c0, c1, c2, be0, be1, be2)
+            a0 += m * x0
+            a1 += m * x1
+            a2 += m * x2
+            z0, z1, z2 = _cross(al0, al1, al2, c0, c1, c2)
+            z0 *= m
+            z1 *= m
+            z2 *= m
         for s in range(n):
             out[s] += params[lam + s] * a0 + params[lam + n + s] * a1 + params[lam + 2 * n + s] * a2
         if offset and g1:
@@ -282,15 +282,8 @@ def node_inertia_modal_mass(params, o, count, n, terms, nodes_state, G, scratch)
     g2 = (terms & NODE_G2) != 0
     if not (g1 or g2):
         return
-    record = NODE_RECORD + 6 * n
     for k in range(count):
-        b = o + k * record
-        m = params[b]
-        p0, p1, p2 = params[b + 1], params[b + 2], params[b + 3]
-        jb = b + 4
-        offset = params[b + 13] != 0.0
-        lam = b + NODE_RECORD
-        gam = lam + 3 * n
+        m, p0, p1, p2, jb, offset, lam, gam = _node_record(params, o, k, n)
         st = 6 * k
         t0, t1, t2 = nodes_state[st], nodes_state[st + 1], nodes_state[st + 2]
         # X = dJ lambda (3 x n, in scratch), then G += lambda' X
@@ -298,22 +291,7 @@ def node_inertia_modal_mass(params, o, count, n, terms, nodes_state, G, scratch)
             x0 = params[lam + s]
             x1 = params[lam + n + s]
             x2 = params[lam + 2 * n + s]
-            a0 = a1 = a2 = 0.0
-            if g1:
-                j0, j1, j2 = _times_inertia(params, jb, x0, x1, x2)
-                y0, y1, y2 = _cross(t0, t1, t2, j0, j1, j2)
-                c0, c1, c2 = _cross(t0, t1, t2, x0, x1, x2)
-                j0, j1, j2 = _times_inertia(params, jb, c0, c1, c2)
-                a0 += y0 - j0
-                a1 += y1 - j1
-                a2 += y2 - j2
-            if g2:
-                c0, c1, c2 = _cross(t0, t1, t2, x0, x1, x2)
-                j0, j1, j2 = _times_inertia(params, jb, c0, c1, c2)
-                y0, y1, y2 = _cross(t0, t1, t2, j0, j1, j2)
-                a0 -= y0
-                a1 -= y1
-                a2 -= y2
+            a0, a1, a2 = _dj_times(params, jb, g1, g2, t0, t1, t2, x0, x1, x2)
             scratch[s] = a0
             scratch[n + s] = a1
             scratch[2 * n + s] = a2
