@@ -92,7 +92,7 @@ def _fmt(counts: dict[str, int]) -> str:
 class BulkData:
     """A parsed deck: pyNastran model plus resolved grid geometry and the card report.
 
-    Attributes
+    Parameters
     ----------
     grid_ids : (n,) int64, sorted ascending; the g-set order is 6 DOFs per grid in this order.
     positions : (n, 3) grid locations in the basic frame [m].

@@ -148,7 +148,7 @@ def modes_on_fset(op2: Op2Results, sm, K, M, rigid_vectors: np.ndarray, n_modes:
     vector is its independent DOFs, and T_gf of it must give NASTRAN's dependent and constrained values back
     (reported; a large difference means the deck's constraints are not NASTRAN's). The rigid-body modes are
     the geometry's (``rigid_vectors``, as in :func:`dynamics.flex.modes.free_free_modes`): the OP2's modes
-    with the lowest |eigenvalue|, as many as the geometry has rigid motions, are left out (their alignment
+    with the lowest ``abs(eigenvalue)``, as many as the geometry has rigid motions, are left out (their alignment
     with the rigid space is reported), and the rest are projected M-orthogonal to it. NASTRAN's vectors
     (single precision, NASTRAN's mass matrix, any normalization) are made M-orthonormal with the deck's mass
     matrix by the symmetric (Loewdin) transformation V (V' M V)^-1/2, the one that changes them least; the

@@ -6,9 +6,10 @@ The geometry is the 8-node serendipity surface; the displacements and rotations 
 bubble (1 - r^2)(1 - s^2) (the biquadratic Lagrange field), whose six amplitudes are condensed statically, so
 the element keeps six DOFs per grid. At each integration point the shell is taken as flat in its tangent plane
 (the degenerated shell in resultant form, Hughes, The Finite Element Method, 1987, sec. 6.4, thickness
-integrated analytically, the lamina's own curvature within an element neglected): e3 = g1 x g2 / |g1 x g2| with
-g_a = dx/dxi_a, e1 the element x axis projected on the tangent plane, e2 = e3 x e1; with u_a = e_a . u,
-theta_a = e_a . theta (a point at height z moves by theta x z e3, as in :mod:`dynamics.flex.shells`):
+integrated analytically, the lamina's own curvature within an element neglected):
+``e3 = g1 x g2 / norm(g1 x g2)`` with g_a = dx/dxi_a, e1 the element x axis projected on the tangent plane,
+e2 = e3 x e1; with u_a = e_a . u, theta_a = e_a . theta (a point at height z moves by theta x z e3, as in
+:mod:`dynamics.flex.shells`):
 
 * membrane e = [u1,1, u2,2, u1,2 + u2,1], N = A e (+ B kappa);
 * bending kappa = [theta2,1, -theta1,2, theta2,2 - theta1,1], M = D kappa (+ B e);

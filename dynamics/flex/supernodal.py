@@ -77,6 +77,8 @@ ZRELAX = (0.8, 0.1, 0.05)
 class Symbolic:
     """The analysis of a sparsity pattern, reusable for every matrix with that pattern.
 
+    Parameters
+    ----------
     perm : (n,) original DOF of each factor column; pinv its inverse.
     first, width, n_rows : (ns,) first column, number of columns and of rows below of each
         supernode (in factor order, postordered).

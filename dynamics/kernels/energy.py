@@ -43,7 +43,7 @@ def accumulate_energy_momentum(Mrr, h, ke, R, p, ground_accel, out):
 @njit(cache=True)
 def energy_momentum(topology, nodes, joint_rot, joint_vec, params, q, u, out, ws_rot, ws_vec, ws_mat, pool):
     """``out = [kinetic, potential, P_x, P_y, P_z, L_x, L_y, L_z]``: the potential of the uniform field
-    ``-sum m g . r_com`` plus the elastic ``1/2 eta' K eta``, the angular momentum about the world origin,
+    ``-sum m g^T r_com`` plus the elastic ``1/2 eta' K eta``, the angular momentum about the world origin,
     world axes. Leaves the world poses and body velocities in the workspace."""
     nb = topology.shape[0]
     ground = params[GROUND_ACCEL:GROUND_ACCEL + 6]

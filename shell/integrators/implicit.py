@@ -167,13 +167,15 @@ class Radau5(StepSizeControl, Integrator):
         return x
 
     def _predict_factor(self, h_abs, error_norm):
-        """Gustafsson's predictive controller (HW II eq. IV.8.25)."""
-        if self.error_norm_old is None or self.h_abs_old is None or error_norm == 0:
+        """Gustafsson's predictive controller (HW II eq. IV.8.25); an exact step (error 0: a state at rest, a
+        polynomial solution) allows the largest growth, which the caller caps at MAX_FACTOR."""
+        if error_norm == 0:
+            return np.inf
+        if self.error_norm_old is None or self.h_abs_old is None:
             multiplier = 1.0
         else:
             multiplier = h_abs / self.h_abs_old * (self.error_norm_old / error_norm) ** 0.25
-        with np.errstate(divide="ignore"):
-            return min(1.0, multiplier) * error_norm ** -0.25
+        return min(1.0, multiplier) * error_norm ** -0.25
 
     def _accepted_step_factor(self, h, error_norm, safety, recompute_jac):
         """Next step / this step after an accepted step; kept at 1 (reusing the LU) unless it would grow by

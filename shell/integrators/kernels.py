@@ -122,7 +122,7 @@ def hermite_cubic(x, h, y0, f0, y1, f1, out):
 
 @njit(cache=True)
 def stiffness_ratio(k_a, k_b, y_a, y_b):
-    """||k_b - k_a|| / ||y_b - y_a||: a Rayleigh-quotient estimate of the dominant |eigenvalue| from two
+    """``||k_b - k_a|| / ||y_b - y_a||``: a Rayleigh-quotient estimate of the dominant ``abs(eigenvalue)`` from two
     stages taken at the same time (HNW I Sec. IV.2); 0 when the two states coincide."""
     num = 0.0
     den = 0.0

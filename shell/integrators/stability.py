@@ -9,7 +9,7 @@ import numpy as np
 
 
 def stability_radius(tableau, angle, r_max=40.0, n_grid=40000):
-    """Largest r such that |R(r' e^{i angle})| <= 1 for all 0 < r' <= r (0 if unstable right away).
+    """Largest r such that ``abs(R(r' e^{i angle})) <= 1`` for all 0 < r' <= r (0 if unstable right away).
 
     ``angle`` is measured from the positive real axis: pi for a real decaying mode, pi/2 for an undamped
     oscillation, ``pi - arcsin(sqrt(1 - zeta^2))`` ... i.e. ``pi/2 + arcsin(zeta)`` for damping ratio zeta.

@@ -1,7 +1,7 @@
 """Loads recovery of a flexible body: element forces and stresses and interface forces from its modal
 coordinates, by mode displacement and by mode acceleration (:mod:`dynamics.flex.loads_recovery` has the
-equations; the matrices come from the body file, ``flexshell fem2modal --recover-elements ... --recover-grids
-...``).
+equations; the matrices come from the body file, ``flexshell fem2modal`` with ``--recover-elements`` and
+``--recover-grids``).
 
     mode_displacement = Y eta
     mode_acceleration = Y eta + S [alpha; a] + F loads
@@ -31,7 +31,8 @@ from numba import njit
 from shell.model import Declarations, InputPort, Model, ModelError, OutputPort, Parameter
 from shell.registry import register_model
 
-#: shapes (n outputs, m modes, l loads) come from the body file: set per instance in ``declare``
+#: the model's declarations; their shapes (n outputs, m modes, l loads) come from the body file, set per
+#: instance in ``declare``
 RECOVERY = Declarations(
     parameters=(Parameter("sizes", "", None, (2,), None, "modes m and load DOFs l (from the body file)"),
                 Parameter("per_mode", "", None, (1, 1), None, "Y: outputs per unit modal coordinate"),

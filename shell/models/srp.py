@@ -45,7 +45,8 @@ PLATES = (
     Parameter("specular", "", (0.0,), (1,), (0.0, 1.0), "specular reflection fraction rho_s"),
     Parameter("diffuse", "", (0.0,), (1,), (0.0, 1.0), "diffuse reflection fraction rho_d"),
 )
-#: offsets of one plate's values per plate: a plate array of N plates starts at SCALAR_SIZE + N * PLATE.<name>
+#: offsets of one plate's values within its block; a plate array of N plates starts at
+#: ``SCALAR_SIZE + N * PLATE.<name>``
 PLATE, PLATE_SIZE = named_offsets(PLATES), Layout.of(PLATES).size
 SCALAR_SIZE = Layout.of(SCALARS).size
 INPUTS = (

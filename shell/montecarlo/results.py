@@ -297,6 +297,22 @@ def _create(path: str, campaign: Campaign) -> h5py.File:
     return h5
 
 
+def _discard_journal(journal: str, overwrite: bool) -> None:
+    """Remove the journal a new campaign would append to; one that holds anything (completed runs of a campaign
+    that was killed before its results file took them, or a file that is not a journal) only with --overwrite."""
+    try:
+        size = os.path.getsize(journal)
+    except FileNotFoundError:
+        return
+    if size and not overwrite:
+        runs = len(read_journal(journal))
+        held = (f"holds {runs} completed run(s) of a campaign that did not finish" if runs
+                else "is not empty and holds no run of a campaign")
+        raise ResultsError(f"{journal} {held}: --resume to finish that campaign, --overwrite to discard the file, "
+                           "or choose another output")
+    Path(journal).unlink()
+
+
 def open_results(path, campaign: Campaign, resume: bool = False, overwrite: bool = False) -> ResultsFile:
     """Create ``path`` for ``campaign``, or (``resume``) reopen it, replaying the journal.
 
@@ -319,7 +335,7 @@ def open_results(path, campaign: Campaign, resume: bool = False, overwrite: bool
     if not resume or not exists and not os.path.exists(journal):
         if resume:
             raise ResultsError(f"{path}: nothing to resume (no results file and no journal {journal})")
-        Path(journal).unlink(missing_ok=True)
+        _discard_journal(journal, overwrite)
         results = ResultsFile(path, campaign, _create(path, campaign))
         return results
     h5 = None

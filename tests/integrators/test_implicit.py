@@ -112,3 +112,33 @@ def test_discontinuity_makes_radau_fail_with_actionable_message():
     assert integ.status == "failed"
     assert "step size underflow" in integ.message and "event function" in integ.message
     assert integ.t <= 0.5
+
+
+@pytest.mark.parametrize("fun, y0, exact", [
+    (lambda t, y: np.zeros_like(y), np.zeros(2), lambda t: np.zeros(2)),                 # a state at rest
+    (lambda t, y: np.array([1.0, 2.0 * t]), np.zeros(2), lambda t: np.array([t, t * t])),  # collocation is exact
+])
+def test_an_exact_step_grows_the_next_one(fun, y0, exact):
+    """An error estimate of exactly 0 (no motion, or a polynomial the collocation reproduces) takes the
+    largest step growth; before, the step-size controller raised ZeroDivisionError (0.0 ** -0.25)."""
+    r = integrate("radau5", fun, 0.0, y0, 10.0, rtol=1e-8, atol=1e-10)
+    assert r.status == "finished"
+    assert r.nsteps < 12            # growth by MAX_FACTOR = 10 per step from the initial step
+    assert_allclose(r.y[:, -1], exact(10.0), rtol=1e-12, atol=1e-12)
+
+
+def test_a_scene_at_rest_runs_with_radau5_from_the_command_line(tmp_path):
+    from shell.cli import main
+    from shell.log_file import read_log
+
+    scene = tmp_path / "rest.yaml"
+    scene.write_text("models:\n"
+                     "  zero: {type: Constant, config: {unit: m/s}, parameters: {value: 0 m/s}}\n"
+                     "  position: {type: Integrator, config: {unit: m}}\n"
+                     "connections: [zero.y -> position.u]\n"
+                     "integrator: {method: radau5, step: 0.1 s, options: {rtol: 1e-8, atol: 1e-10}}\n"
+                     "stop: {time: 5 s}\n"
+                     "log: {rate: 1 Hz, signals: [position.y]}\n")
+    assert main(["run", str(scene), "-o", str(tmp_path / "rest.h5")]) == 0
+    log = read_log(tmp_path / "rest.h5")
+    assert log["time"][-1] == pytest.approx(5.0) and not np.any(log["position.y"])

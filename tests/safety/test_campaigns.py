@@ -91,3 +91,38 @@ def test_a_campaign_cut_by_a_kill_reads_as_interrupted(tmp_path):
     running.file.close()  # what a kill leaves: the file closed by the system, its status still "running"
     running._journal.close()
     assert read_results(output)["attrs"]["status"] == "interrupted"
+
+
+def test_a_new_campaign_keeps_the_journal_of_one_that_did_not_finish(tmp_path, capsys):
+    """Completed runs that only the journal holds (their campaign was killed, its results file then removed)
+    are not deleted by a new campaign on that output: refused, --resume finishes from them, --overwrite
+    discards them. Before, ``open_results`` unlinked ``OUT.h5.journal`` unread (a user's runs lost)."""
+    from shell.cli import main
+    from shell.montecarlo.results import read_journal, read_results, record_to_json
+
+    path = write_campaign(tmp_path, runs=4)
+    output, journal = tmp_path / "out.h5", tmp_path / "out.h5.journal"
+    campaign = load_campaign(path, validate=False)
+    running = open_results(output, campaign)
+    for run in (0, 2):
+        running._journal.write(record_to_json(campaign.run(run)) + "\n")
+    running._journal.close()
+    running.file.close()
+    output.unlink()
+    kept = journal.read_bytes()
+
+    assert main(["montecarlo", str(path), "-o", str(output), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "holds 2 completed run(s)" in err and "--resume" in err and "Traceback" not in err
+    assert journal.read_bytes() == kept and not output.exists()
+
+    assert main(["montecarlo", str(path), "-o", str(output), "--resume", "--quiet"]) == 0
+    table = read_results(output)["table"]
+    assert set(table["status"]) == {b"completed"} and not journal.exists()
+
+    journal.write_text("my notes\n")                       # not a journal: kept unless --overwrite
+    output.unlink()
+    assert main(["montecarlo", str(path), "-o", str(output), "--quiet"]) == 1
+    assert "holds no run" in capsys.readouterr().err and journal.read_text() == "my notes\n"
+    assert main(["montecarlo", str(path), "-o", str(output), "--quiet", "--overwrite"]) == 0
+    assert not journal.exists() and read_journal(journal) == []
