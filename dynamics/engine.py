@@ -15,8 +15,11 @@ argument and write their results into caller-owned arrays (no allocation, no Pyt
 * :func:`normalize_quaternions` - hinge quaternions back to unit norm in place.
 
 A system of one rigid body on a free hinge (a rigid spacecraft bus with its nodes: the most common scene)
-runs :mod:`dynamics.single_body` instead of the general recursion, chosen per call from the topology
-(same outputs to round-off, about 4x less time).
+runs :mod:`dynamics.single_body` instead of the general recursion (same outputs to round-off, about 4x less
+time). The functions above choose that path, the articulated-body recursion or the dense solve per call; each
+path also has its own entry points (:data:`PATHS`, :func:`path_of`), so that a caller compiled for one system
+contains only that path's code: the engine model compiles one kernel per path it meets, and a rigid-body scene
+does not wait for the recursion's compilation (most of a cold start's time, issue 31).
 
 Speed: the entry points are ``inline="always"`` (the engine model's kernel calls them with the data
 tuple, which numba passes flattened, ~13 words an array: one call level cost 0.3-0.5 us), and
@@ -70,7 +73,7 @@ def borrowed(typingctx, value):
     increment and decrement each time one is passed to or taken from a function, ~32 arrays per engine
     call) becomes a null test. Valid only while the owner keeps the arrays alive: the engine's arrays
     belong to the simulation's context, which outlives every compiled call on them. Measured on the
-    reaction-wheel scene: see ``shell.models.multibody.engine_kernel``."""
+    reaction-wheel scene: see ``shell.models.multibody.ENGINE_KERNELS``."""
     if not isinstance(value, (types.Array, types.BaseTuple)):
         return None
 
@@ -107,6 +110,86 @@ def engine_data(system) -> EngineData:
         system.ws_mat, system.pool, np.zeros((system.nbodies, 6)))
 
 
+# -- the paths: a compiled caller that knows its system's path (:func:`path_of`) calls that path's functions and
+# contains only its code; the functions without a suffix choose the path per call and contain all three.
+
+@njit(cache=True, inline="always")
+def forward_dynamics_single_body(d, q, u, tau, node_forces, udot, tau_out):
+    """:func:`forward_dynamics` of a system whose path is ``"single_body"``."""
+    return SB.forward_dynamics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, tau, node_forces,
+                               d.zero_body_forces, udot, tau_out, d.ws_rot, d.ws_vec, d.ws_mat)
+
+
+@njit(cache=True, inline="always")
+def forward_dynamics_dense(d, q, u, tau, node_forces, udot, tau_out):
+    """:func:`forward_dynamics` of a system whose path is ``"dense"``."""
+    return K.forward_dynamics_dense(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, tau, node_forces,
+                                    d.zero_body_forces, udot, tau_out, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
+
+
+@njit(cache=True, inline="always")
+def forward_dynamics_articulated(d, q, u, tau, node_forces, udot, tau_out):
+    """:func:`forward_dynamics` of a system whose path is ``"articulated"``."""
+    return K.forward_dynamics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, tau, node_forces,
+                              d.zero_body_forces, udot, tau_out, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
+
+
+@njit(cache=True, inline="always")
+def node_kinematics_single_body(d, q, u, udot, rotation, position, velocity, acceleration):
+    """:func:`node_kinematics` of a system whose path is ``"single_body"``."""
+    SB.node_kinematics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, udot, rotation, position,
+                       velocity, acceleration, d.ws_rot, d.ws_vec)
+
+
+@njit(cache=True, inline="always")
+def node_kinematics_tree(d, q, u, udot, rotation, position, velocity, acceleration):
+    """:func:`node_kinematics` of a system whose path is ``"articulated"`` or ``"dense"``."""
+    K.node_kinematics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, udot, rotation, position,
+                      velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
+
+
+@njit(cache=True, inline="always")
+def node_kinematics_after_dynamics_single_body(d, q, u, udot, rotation, position, velocity, acceleration):
+    """:func:`node_kinematics_after_dynamics` of a system whose path is ``"single_body"``."""
+    SB.node_kinematics_after_dynamics(d.nodes, d.params, rotation, position, velocity, acceleration, d.ws_rot,
+                                      d.ws_vec)
+
+
+@njit(cache=True, inline="always")
+def node_kinematics_after_dynamics_tree(d, q, u, udot, rotation, position, velocity, acceleration):
+    """:func:`node_kinematics_after_dynamics` of a system whose path is ``"articulated"`` or ``"dense"``."""
+    K.node_kinematics_after_dynamics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, udot, rotation,
+                                     position, velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
+
+
+class EnginePath(NamedTuple):
+    """The entry points of one path (same arguments and results as the functions without a suffix)."""
+
+    name: str
+    forward_dynamics: object
+    node_kinematics: object
+    node_kinematics_after_dynamics: object
+
+
+#: path name -> its entry points
+PATHS = {
+    "single_body": EnginePath("single_body", forward_dynamics_single_body, node_kinematics_single_body,
+                              node_kinematics_after_dynamics_single_body),
+    "articulated": EnginePath("articulated", forward_dynamics_articulated, node_kinematics_tree,
+                              node_kinematics_after_dynamics_tree),
+    "dense": EnginePath("dense", forward_dynamics_dense, node_kinematics_tree, node_kinematics_after_dynamics_tree),
+}
+
+
+def path_of(system) -> str:
+    """The path a compiled caller of ``system`` takes: ``"single_body"`` (one rigid body on a free hinge,
+    :func:`dynamics.single_body.applies`), else the solver the system chose (``"articulated"`` or ``"dense"``).
+    Fixed for the system's life: its topology and solver do not change after ``Multibody.compile``."""
+    if SB.applies(system.topology):
+        return "single_body"
+    return "dense" if system.solver == "dense" else "articulated"
+
+
 @njit(cache=True, inline="always")
 def forward_dynamics(d, q, u, tau, node_forces, udot, tau_out):
     """Accelerations of all DOFs into ``udot`` (which holds the prescribed accelerations on entry) and the
@@ -114,14 +197,10 @@ def forward_dynamics(d, q, u, tau, node_forces, udot, tau_out):
     at prescribed DOFs). ``node_forces`` (nnodes, 6): ``[torque; force]`` per node, node axes, about the
     node origin. Returns 0, or 1 + the index of a body whose articulated inertia is singular."""
     if SB.applies(d.topology):
-        return SB.forward_dynamics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, tau, node_forces,
-                                   d.zero_body_forces, udot, tau_out, d.ws_rot, d.ws_vec, d.ws_mat)
+        return forward_dynamics_single_body(d, q, u, tau, node_forces, udot, tau_out)
     if d.dense:
-        return K.forward_dynamics_dense(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, tau,
-                                        node_forces, d.zero_body_forces, udot, tau_out, d.ws_rot, d.ws_vec, d.ws_mat,
-                                        d.pool)
-    return K.forward_dynamics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, tau, node_forces,
-                              d.zero_body_forces, udot, tau_out, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
+        return forward_dynamics_dense(d, q, u, tau, node_forces, udot, tau_out)
+    return forward_dynamics_articulated(d, q, u, tau, node_forces, udot, tau_out)
 
 
 @njit(cache=True, inline="always")
@@ -130,11 +209,9 @@ def node_kinematics(d, q, u, udot, rotation, position, velocity, acceleration):
     ``velocity`` (nnodes, 6) ``[omega; v]`` and ``acceleration`` (nnodes, 6) ``[omega_dot; a]`` (classical
     acceleration of the node origin, gravity not included), node axes; elastic motion included."""
     if SB.applies(d.topology):
-        SB.node_kinematics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, udot, rotation, position,
-                           velocity, acceleration, d.ws_rot, d.ws_vec)
+        node_kinematics_single_body(d, q, u, udot, rotation, position, velocity, acceleration)
         return
-    K.node_kinematics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, udot, rotation, position,
-                      velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
+    node_kinematics_tree(d, q, u, udot, rotation, position, velocity, acceleration)
 
 
 @njit(cache=True, inline="always")
@@ -144,11 +221,9 @@ def node_kinematics_after_dynamics(d, q, u, udot, rotation, position, velocity, 
     the workspace, so it costs O(N + nnodes n) instead of a kinematics pass and the modal mass terms.
     Precondition (not checked): no other engine function ran on ``d`` in between."""
     if SB.applies(d.topology):
-        SB.node_kinematics_after_dynamics(d.nodes, d.params, rotation, position, velocity, acceleration, d.ws_rot,
-                                          d.ws_vec)
+        node_kinematics_after_dynamics_single_body(d, q, u, udot, rotation, position, velocity, acceleration)
         return
-    K.node_kinematics_after_dynamics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, udot, rotation,
-                                     position, velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool)
+    node_kinematics_after_dynamics_tree(d, q, u, udot, rotation, position, velocity, acceleration)
 
 
 @njit(cache=True, inline="always")

@@ -87,6 +87,23 @@ def rotate_inverse(q, v):
 
 
 @njit(cache=True)
+def quaternion_rotation_vector(q):
+    """Log(q): the rotation vector phi with ``q = exp(phi / 2)`` on the short rotation (``|phi| <= pi``), the
+    exact inverse of :func:`rotation_vector_quaternion` (``phi = 2 atan2(|v|, w) v / |v|`` with ``w >= 0``;
+    Sola, "Quaternion kinematics for the error-state Kalman filter", 2017, eq. 105). ``q`` need not be unit:
+    atan2 takes the ratio."""
+    s = 1.0 if q[0] >= 0.0 else -1.0
+    vx, vy, vz = s * q[1], s * q[2], s * q[3]
+    n = np.sqrt(vx * vx + vy * vy + vz * vz)
+    w = s * q[0]
+    if n < 1e-8 * w:  # 2 atan2(n, w) / n = (2 / w) (1 - (n / w)^2 / 3 + ...): the series, exact to round-off
+        k = 2.0 / w * (1.0 - n * n / (3.0 * w * w))
+    else:
+        k = 2.0 * np.arctan2(n, w) / n
+    return (k * vx, k * vy, k * vz)
+
+
+@njit(cache=True)
 def quaternion_to_mrp(q):
     """MRP of the short rotation: sigma = v / (1 + w) with the sign making w >= 0."""
     s = 1.0 if q[0] >= 0.0 else -1.0

@@ -20,12 +20,13 @@ The diagram's public methods evaluate a context: :meth:`Diagram.evaluate` (every
 :meth:`Diagram.derivatives` (the integrator's right-hand side: only the output stages the derivatives
 need, then every derivative kernel), :meth:`Diagram.zero_crossings`, :meth:`Diagram.update` (one sampled
 model), and :meth:`Diagram.opened` (the same plan with some inputs cut from their drivers, for
-linearization). This interpreted path calls each model kernel from Python; the compiled loop
-(:mod:`shell.compiled_plan`, :mod:`shell.compiled_loop`) runs the same sequence as one compiled function and
-must give the same numbers.
+linearization). This interpreted path calls each model kernel from Python (:class:`InterpretedPlan` offers it with
+the methods of the compiled plan); :mod:`shell.compiled_loop` runs the same sequence compiled and must give the
+same numbers.
 
-Kernel signatures (:mod:`shell.model`): ``kernel(t, x, z, u, p, out)``; a model with per-run data
-(``Model.uses_data``) receives it after ``p``: ``kernel(t, x, z, u, p, d, out)``.
+Kernel signatures (:mod:`shell.model`, :mod:`shell.kernel_protocol`): ``kernel(t, x, z, u, p, out)``; a model with
+per-run data (``Model.uses_data``) receives it after ``p``: ``kernel(t, x, z, u, p, d, out)`` (its data slot, one
+float64 array of the context's ``flat_data``, or its typed data).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from numba import njit
 from shell.assembly import Assembly, Connection, flatten
 from shell.graphs import CycleError, Digraph, condensation_order, find_cycle, topological_order
 from shell.model import ModelError
+from shell.names import NameIndex
 from shell.units import UnitError, conversion_factor, format_unit, to_magnitude
 
 
@@ -94,6 +96,8 @@ class Diagram:
         #: initial continuous and discrete states of the models (their declared or overridden values)
         self.initial_x = _frozen(np.concatenate([m.initial_continuous_state() for m in self.models]))
         self.initial_z = _frozen(np.concatenate([m.initial_discrete_state() for m in self.models]))
+        #: every parameter, state, sample schedule and model value by dotted name (:mod:`shell.names`)
+        self.names = NameIndex(self)
 
     # ------------------------------------------------------------------------------------------------
     # build
@@ -375,7 +379,7 @@ class Diagram:
         return OpenedDiagram(self, destination_elements)
 
     # ------------------------------------------------------------------------------------------------
-    # interpreted evaluation (the reference for the compiled loop)
+    # interpreted evaluation (the reference for shell.compiled_loop)
     def evaluate(self, context: "Context", t: float | None = None, stages=None) -> None:
         """Compute every output (or those of ``stages``) and then every input at ``context``'s state."""
         t = context.t if t is None else t
@@ -524,9 +528,44 @@ class OpenedDiagram:
                       self.gather_factor)
         gather_inputs(context.signals, self.gather_source, d.gather_destination, self.gather_factor, 0, d.n_gather)
 
-    def derivatives_into(self, context: "Context", t: float, stages) -> None:
-        """Derivatives at ``context.x`` into ``context.xdot``, running only ``stages`` first."""
-        self.diagram._derivatives(context, t, stages, self.gather_source, self.gather_factor)
+
+class InterpretedPlan:
+    """The evaluation of ``diagram`` at ``context`` with every kernel called from Python: the reference that the
+    compiled plan (:class:`shell.compiled_plan.CompiledPlan`, the same methods) must equal, and what runs a scene
+    whose kernels are not all numba functions. A failing kernel raises :class:`EvaluationError` naming the model,
+    the stage and the time."""
+
+    mode = "interpreted"
+    #: the sampled models whose update is Python (here: every one; the compiled plan lists its Python-only ones)
+    python_updates = ()
+
+    def __init__(self, diagram: Diagram, context: "Context"):
+        self.diagram, self.context = diagram, context
+
+    def derivative(self, t: float, y: np.ndarray) -> np.ndarray:
+        """f(t, y), a new array (the integrators' right-hand side)."""
+        return self.diagram.derivatives(self.context, t, y)
+
+    def evaluate(self, t: float, stages=None) -> None:
+        """Every output (or those of ``stages``), then every input, at the context's state."""
+        self.diagram.evaluate(self.context, t, stages)
+
+    def zero_crossings(self, t: float, y: np.ndarray) -> np.ndarray:
+        return self.diagram.zero_crossings(self.context, t, y)
+
+    def update(self, t: float, i: int) -> None:
+        """Sampled model ``i``'s update (its inputs' stages first, its noise drawn)."""
+        self.diagram.update(self.context, i, t)
+
+    def normalize(self, y: np.ndarray) -> None:
+        self.diagram.normalize(self.context, y)
+
+    def derivatives_into(self, t: float, stages, source=None, factor=None) -> None:
+        """Derivatives at the context's ``x`` into its ``xdot``, running only the output ``stages`` first, with the
+        gather arrays ``source``/``factor`` (an opened diagram's, for linearization and trim)."""
+        d = self.diagram
+        d._derivatives(self.context, t, stages, d.gather_source if source is None else source,
+                       d.gather_factor if factor is None else factor)
 
 
 @dataclass
@@ -562,13 +601,27 @@ class Context:
         models = diagram.models
         self.x[:] = diagram.initial_x
         self.z[:] = diagram.initial_z
-        #: per model: (host, data) of models with per-run data: ``data`` the tuple its kernels receive,
-        #: ``host`` the Python object owning those arrays (the engine's MultibodySystem), else None
+        #: per model: (host, data) of models with per-run data: ``data`` what its kernels receive after ``p`` (one
+        #: float64 array, the model's *data slot*, or a typed tuple served by its op kernel), ``host`` the Python
+        #: object owning those arrays (the engine's MultibodySystem), else None
         self.hosts, self.data = [], []
+        #: the data slots of every model that has one, side by side (``data[i]`` is a view), and each one's slice
+        self.flat_slices: list = []
+        slots, n_flat = [], 0
         for m in models:
             host, data = m.create_data(own=own_data) if m.uses_data else (None, None)
             self.hosts.append(host)
             self.data.append(data)
+            if isinstance(data, np.ndarray) and data.ndim == 1 and data.dtype == np.float64:
+                self.flat_slices.append(slice(n_flat, n_flat + data.size))
+                slots.append(data)
+                n_flat += data.size
+            else:
+                self.flat_slices.append(None)
+        self.flat_data = np.concatenate(slots) if slots else np.zeros(0)
+        for i, sl in enumerate(self.flat_slices):
+            if sl is not None:
+                self.data[i] = self.flat_data[sl]
         self.rngs = [m.random_stream(seed) for m in models]
         self.noise = {i: np.zeros(int(m.noise_size)) for i, m in enumerate(models) if m.noise_size}
         self.views = [ModelViews(m, self.x[diagram.x_block[i]], self.z[diagram.z_block[i]],
@@ -579,7 +632,22 @@ class Context:
         self.periods = list(diagram.periods)
         self.offsets = list(diagram.offsets)
         self.next_sample = [diagram.first_sample(self.periods[i], self.offsets[i], self.t) for i in range(len(models))]
+        #: no run has advanced this context yet: initial values and changes that build a model again may be given
+        self.unstarted = True
         self._reuse_cache: dict = {}
+
+    def set(self, name: str, value) -> None:
+        """Give parameter, state, sample rate or model value ``name`` the value ``value`` (a number or array in the
+        declared unit, a string with a unit, ``{value, unit}``): :meth:`shell.names.NameIndex.assign`."""
+        self.diagram.names.assign(self, [(name, value)])
+
+    def assign(self, items) -> None:
+        """Several (name, value) pairs at once (one construction per model whose configuration they change)."""
+        self.diagram.names.assign(self, items)
+
+    def get(self, name: str):
+        """The current value of ``name`` in its declared unit (a copy)."""
+        return self.diagram.names.value(self, name)
 
     def reuse_for(self, stages) -> tuple[bool, ...]:
         key = id(stages)

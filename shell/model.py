@@ -58,6 +58,9 @@ Writing a model's kernels (the conventions every built-in model follows):
   (``y.shape[0]``, ``u.shape[0]``; the module says how); the check still refuses any change of the names or
   their order. The instance's declarations of one configuration are ``declare()``'s
   ``self.use_declarations(TEMPLATE.replace(name={"shape": ..., "unit": ...}))``.
+* ``configure`` reads parameters with ``self.parameter(name)``: the parameters it reads are recorded
+  (``configured_parameters``), and a run that changes one builds the model again from its constructor's
+  arguments; every other parameter may change in a run's Context alone (:mod:`shell.names`).
 * Kernels allocate nothing: scratch goes in the model's discrete states or in scalars.
 * A sampled model that needs Gaussian noise sets ``noise_size``; the framework fills the update
   kernel's ``noise`` argument from the model's random stream before each call.
@@ -437,6 +440,13 @@ class Model:
     #: take it as an extra argument after ``p``, and :meth:`create_data` makes it for each run's context
     uses_data = False
 
+    def __new__(cls, *args, **kwargs):
+        model = super().__new__(cls)
+        #: the constructor's arguments: a change of a value that :meth:`configure` reads (or of the sample rate)
+        #: builds the model again from them (:mod:`shell.names`), not from the scenario's text
+        model.construction = (args, dict(kwargs))
+        return model
+
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         declarations = cls.__dict__.get("declarations")
@@ -453,7 +463,13 @@ class Model:
         self.initial_overrides: dict[str, object] = {}
         self.declare()
         self._set_parameters(parameter_values)
+        self._read_by_configure = set()
         self.configure()
+        #: the parameters :meth:`configure` read (through :meth:`parameter`): their values shape declarations,
+        #: derived data or initial states; every other parameter is read by the kernels from ``p`` alone, so a
+        #: run may change it in its Context without building the model again (:mod:`shell.names`)
+        self.configured_parameters = frozenset(self._read_by_configure)
+        self._read_by_configure = None
         self._check_declarations()
         check_named_offsets(self)
         self.period: Fraction | None = None
@@ -487,6 +503,9 @@ class Model:
 
     def parameter(self, name: str) -> np.ndarray:
         """The value of parameter ``name`` in its declared unit (a view into ``self.p``)."""
+        reading = getattr(self, "_read_by_configure", None)
+        if reading is not None:
+            reading.add(name)
         return self.parameter_values[name]
 
     def require_unit_norm(self, name: str, tolerance: float = 1e-9) -> float:

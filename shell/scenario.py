@@ -39,7 +39,7 @@ def build_root(scenario: Scenario) -> Assembly:
         try:
             section = read_multibody(document["multibody"], where)
             root.add(MultibodyModel(section.name, section.system, initial_q=section.initial_q,
-                                    initial_u=section.initial_u))
+                                    initial_u=section.initial_u, written_q=section.written_q))
         except (ModelError, UnitError, ValueError) as exc:
             if isinstance(exc, ScenarioError):
                 raise
@@ -132,34 +132,29 @@ def _assembly_class(name: str, spec: dict, where: Where, scenario: Scenario) -> 
 
 
 def _locate_error(here: Where, entry: dict, exc: Exception) -> ScenarioError:
-    """Point an error from a model constructor at the parameter line it concerns, if any."""
+    """Point an error from a model constructor at the parameter or config line it concerns, if any."""
     message = str(exc)
     params = entry.get("parameters", {}) or {}
     unknown_part = message.split("known:")[0] if "unknown parameter" in message else ""
     for key in params:
         if f"parameter {key}:" in message or f"'{key}'" in unknown_part:
             return here.child(entry, "parameters").child(params, key).error(message)
+    config = entry.get("config", {}) or {}
+    for key in config:
+        if f"config {key}:" in message:
+            return here.child(entry, "config").child(config, key).error(message)
     return here.error(message)
 
 
 def build_simulation(scenario: Scenario):
     """The :class:`shell.simulation.Simulation` of a validated scenario, with its log configured."""
     root = build_root(scenario)
-    where = Where(scenario.file, 1, "")
     try:
         with located(lambda text: _model_location(scenario, text)):  # configure()'s warnings, located
-            simulation = Simulation(root, integrator=scenario.integrator, step=scenario.step,
-                                    integrator_options=scenario.integrator_options, seed=scenario.seed,
-                                    stop_events=scenario.stop_events, event_tol=scenario.event_tolerance,
-                                    event_detection=scenario.event_detection)
+            simulation = Simulation.of_scenario(scenario, root)
     except (ModelError, UnitError) as exc:
         message = str(exc)
         raise ScenarioError(message if message.startswith(scenario.file) else f"{scenario.file}: {message}") from None
-    for name, rate, here in scenario.log_signals:
-        try:
-            simulation.log([name], rate)
-        except ModelError as exc:
-            raise here.error(str(exc)) from None
     _check_initial_state(simulation, scenario)
     return simulation
 

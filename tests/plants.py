@@ -10,13 +10,17 @@ from the free-fall solution: t_1 = (v0 + sqrt(v0^2 + 2 g h0)) / g, then each fli
 
 FiniteEscape: x' = x^2, x(0) = x0 > 0 has x(t) = x0 / (1 - x0 t), which escapes to infinity at
 t = 1 / x0 (a model that produces a non-finite state, to test that runs stop and name it).
+
+TableTracker: a first-order lag tracking a table held in the model's per-run data slot, sampled with noise (to
+test data slots in the compiled loop; closed form below).
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
-from shell.model import Model, OutputPort, Parameter, State, ZeroCrossing, named_offsets
+from shell.model import Model, ModelError, OutputPort, Parameter, State, ZeroCrossing, named_offsets
 from shell.registry import register_model
 
 
@@ -96,3 +100,75 @@ class FiniteEscape(Model):
     offsets = {"y": Y_ESCAPE, "x": X_ESCAPE}
     state_outputs = staticmethod(_escape_outputs)
     derivatives = staticmethod(_escape_derivatives)
+
+
+# TableTracker: x' = (r(t) - x) / tau with r(t) the piecewise-linear table of breakpoints and values held in the
+# model's data slot (per-run data, shell.kernel_protocol), the interpolation weight written to a scratch entry of the
+# slot at every call; sampled every ``period``, it reports x plus white noise of standard deviation sigma (noise from
+# its own stream) scaled by the last weight. Closed form for a constant table value r from x(0) = 0:
+# x(t) = r (1 - exp(-t / tau)).
+TRACKER_PARAMETERS = (Parameter("tau", "s", 1.0, (), (1e-9, None), "time constant"),
+                      Parameter("sigma", "", 0.0, (), (0.0, None), "measurement noise standard deviation"))
+TRACKER_OUTPUTS = (OutputPort("x", "", (), "the tracking state"), OutputPort("measured", "", (), "the last sample"))
+TRACKER_CONTINUOUS = (State("x", "", (), 0.0, "tracking state"),)
+TRACKER_DISCRETE = (State("measured", "", (), 0.0, "last noisy sample"),)
+P_TRACK, Y_TRACK = named_offsets(TRACKER_PARAMETERS), named_offsets(TRACKER_OUTPUTS)
+X_TRACK, Z_TRACK = named_offsets(TRACKER_CONTINUOUS), named_offsets(TRACKER_DISCRETE)
+
+
+@njit(cache=True)
+def _table_value(t, d):
+    """r(t) from the slot d = [n, times (n), values (n), scratch]; the weight of the upper point into the scratch."""
+    n = int(d[0])
+    k = 0
+    while k < n - 2 and t >= d[1 + k + 1]:
+        k += 1
+    w = min(max((t - d[1 + k]) / (d[1 + k + 1] - d[1 + k]), 0.0), 1.0)
+    d[1 + 2 * n] = w
+    return (1.0 - w) * d[1 + n + k] + w * d[1 + n + k + 1]
+
+
+@njit(cache=True)
+def _tracker_outputs(t, x, z, u, p, d, y):
+    y[Y_TRACK.x] = x[X_TRACK.x]
+    y[Y_TRACK.measured] = z[Z_TRACK.measured]
+
+
+@njit(cache=True)
+def _tracker_derivatives(t, x, z, u, p, d, xdot):
+    xdot[X_TRACK.x] = (_table_value(t, d) - x[X_TRACK.x]) / p[P_TRACK.tau]
+
+
+@njit(cache=True)
+def _tracker_sample(t, x, z, u, p, d, noise):
+    _table_value(t, d)
+    z[Z_TRACK.measured] = x[X_TRACK.x] + p[P_TRACK.sigma] * (1.0 + d[1 + 2 * int(d[0])]) * noise[0]
+
+
+@register_model
+class TableTracker(Model):
+    """First-order lag tracking a table held in the model's data slot, sampled with noise (data-slot test plant)."""
+
+    summary = "x' = (table(t) - x) / tau, table in a per-run data slot; noisy samples (data-slot test plant)"
+    parameters = TRACKER_PARAMETERS
+    outputs = TRACKER_OUTPUTS
+    continuous_states = TRACKER_CONTINUOUS
+    discrete_states = TRACKER_DISCRETE
+    offsets = {"p": P_TRACK, "y": Y_TRACK, "x": X_TRACK, "z": Z_TRACK}
+    default_period = "0.1 s"
+    noise_size = 1
+    uses_data = True
+    state_outputs = staticmethod(_tracker_outputs)
+    derivatives = staticmethod(_tracker_derivatives)
+    update = staticmethod(_tracker_sample)
+
+    def __init__(self, name, *, times=(0.0, 1.0), values=(0.0, 1.0), **kwargs):
+        times, values = np.asarray(times, dtype=float), np.asarray(values, dtype=float)
+        if times.shape != values.shape or times.size < 2 or np.any(np.diff(times) <= 0):
+            raise ModelError(f"model {name}: config times and values: two lists of equal length >= 2, times "
+                             f"increasing; given {times.tolist()} and {values.tolist()}")
+        self.table = np.concatenate(([times.size], times, values, [0.0]))
+        super().__init__(name, **kwargs)
+
+    def create_data(self, own=False):
+        return None, self.table.copy()

@@ -70,6 +70,12 @@ GALLERY = (
     Entry("12", "observatory_flexible_jets", "60-mode observatory: wheels, pulsing jets, IMU vibration",
           "12_observatory_flexible_jets.yaml",
           ("multibody.acs.angular_velocity", "imu.angular_rate", "multibody.tip.position")),
+    Entry("13", "lqr_3axis", "3-axis LQR on a flexible spacecraft, closed in YAML", "13_lqr_3axis.yaml",
+          ("lqr.command", "multibody.acs.attitude", "multibody.acs.angular_velocity")),
+    Entry("14", "spacecraft_notch", "Scene 10 with every mode to 100 Hz, stabilized by a notch",
+          "14_spacecraft_notch.yaml",
+          ("multibody.bus_top.attitude", "multibody.spacecraft.modal_q", "controller.torque"),
+          prepare="spacecraft_body"),
 )
 
 
@@ -174,7 +180,7 @@ def outcome(entry: Entry, log) -> dict:
         result["peak_modal_q"] = float(np.max(np.abs(q[:, 1:])))
     if entry.key == "09":
         result["final_bus_angle_deg"] = float(np.degrees(data["multibody.bus.q"][-1, 0]))
-    if entry.key == "10":
+    if entry.key in ("10", "14"):
         eta = data["multibody.spacecraft.modal_q"]
         result["peak_modal_q"] = float(np.max(np.abs(eta)))
         result["final_modal_q"] = float(np.max(np.abs(eta[-1])))
@@ -184,6 +190,8 @@ def outcome(entry: Entry, log) -> dict:
         result["max_rate_deg_s"] = float(np.degrees(np.max(np.linalg.norm(data["multibody.nav.angular_velocity"],
                                                                           axis=1))))
         result["max_gimbal_deg"] = float(np.degrees(np.max(np.abs(data["multibody.engine.q"]))))
+    if entry.key == "13":
+        result["peak_command_n_m"] = float(np.max(np.abs(data["lqr.command"])))
     if entry.key == "12":
         result["max_imu_rate"] = float(np.max(np.abs(data["imu.angular_rate"])))
         result["finite"] = bool(all(np.isfinite(v).all() for v in data.values()))
@@ -196,7 +204,7 @@ def outcome(entry: Entry, log) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="run, plot and check the example gallery")
-    parser.add_argument("keys", nargs="*", help="entries to run (01 .. 12; default all)")
+    parser.add_argument("keys", nargs="*", help="entries to run (01 .. 14; default all)")
     parser.add_argument("--output-directory", default="gallery_out", help="working directory (default gallery_out)")
     parser.add_argument("--figures", help="also copy each entry's figure into this folder (docs/gallery)")
     args = parser.parse_args(argv)

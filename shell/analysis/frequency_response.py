@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from shell.analysis.linearize import LinearModel, _Evaluator, _input_signals, _Signals, _StateMap
+from shell.analysis.linearize import LinearModel, Evaluation, input_signals, NamedSignals, TangentStates
 
 
 def frequency_response(model: LinearModel, frequencies_hz) -> np.ndarray:
@@ -56,13 +56,13 @@ def small_signal_response(sim, model: LinearModel, input_name: str, output_name:
     x_periodic = np.linalg.solve(1j * w * np.eye(n) - model.A, model.B[:, k])  # response to e^{j w t}
     xi0 = amplitude * x_periodic.imag                                          # to a sin(w t), at t = 0
     x_saved, signals_saved = sim.x.copy(), sim.signals.copy()
-    states = _StateMap(sim, op["x"], {})
-    ins = _input_signals(sim, [input_name])
-    outs = _Signals(sim, [output_name], "output")
+    states = TangentStates(sim, op["x"], {})
+    ins = input_signals(sim, [input_name])
+    outs = NamedSignals(sim, [output_name], "output")
     u0 = np.array([op["u"][k]])
     t0 = float(op["t"])
     try:
-        evaluate = _Evaluator(sim, states, ins, outs)
+        evaluate = Evaluation(sim, states, ins, outs)
         context = sim.context
 
         def rhs(t, x):

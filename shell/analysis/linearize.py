@@ -140,7 +140,7 @@ def _split_element(name: str):
     return name.strip(), None
 
 
-class _StateMap:
+class TangentStates:
     """Tangent coordinates of the simulation's continuous state (quaternions -> rotation vectors)."""
 
     def __init__(self, sim, x0, scales):
@@ -253,7 +253,7 @@ class _StateMap:
         return out
 
 
-class _Signals:
+class NamedSignals:
     """Named ports/states (with optional ``[k]`` element) resolved to buffer indices."""
 
     def __init__(self, sim, names, what):
@@ -288,8 +288,8 @@ class _Signals:
         return np.array([sources[k][p] for k, p in zip(self.kinds, self.positions)])
 
 
-def _input_signals(sim, names):
-    inputs = _Signals(sim, names, "input")
+def input_signals(sim, names):
+    inputs = NamedSignals(sim, names, "input")
     input_ports = {sl.start for key, sl in sim.port_slices.items()
                    if key[1] in {port.name for port in sim.models[sim.model_index[key[0]]].inputs}}
     for name, idx in inputs.index.items():
@@ -301,14 +301,16 @@ def _input_signals(sim, names):
     return inputs
 
 
-class _Evaluator:
+class Evaluation:
     """f and g at one perturbed point, running only the output stages that the derivatives or the
     requested outputs need (a flexible body's node accelerations, say, are skipped unless asked for),
     on the diagram opened at the inputs (their drivers no longer reach them)."""
 
-    def __init__(self, sim, states: _StateMap, inputs: _Signals, outputs: _Signals):
+    def __init__(self, sim, states: TangentStates, inputs: NamedSignals, outputs: NamedSignals, parameters=None):
         diagram = sim.diagram
         self.sim, self.states, self.inputs, self.outputs = sim, states, inputs, outputs
+        #: named parameters the evaluations perturb (:class:`NamedParameters`), or None
+        self.parameters = parameters
         self.opened = diagram.opened(inputs.positions)
         pending = list(diagram.stages_needed_by_derivatives())
         for name in outputs.index:
@@ -323,8 +325,12 @@ class _Evaluator:
                 pending.append((c.source_model.path, "feedthrough" if port.feedthrough else "state"))
         self.stages = diagram.stages_for(diagram.stages_closure(pending))
 
-    def __call__(self, t, u0, xi, v):
+    def __call__(self, t, u0, xi, v, w=None):
+        """[tangent state rates; outputs] at the operating point moved by ``xi`` (tangent states), ``v`` (inputs)
+        and ``w`` (the named parameters' elements)."""
         context = self.sim.context
+        if w is not None:
+            self.parameters.apply(w)
         x = self.states.retract(xi)
         context.signals[self.inputs.positions] = u0 + v
         context.x[:] = x
@@ -333,11 +339,71 @@ class _Evaluator:
 
     def derivatives_into(self, t) -> None:
         """Derivatives at the context's state into its xdot: compiled when the scene is (the same numbers)."""
-        plan = self.sim.plan
-        if plan is not None:
-            plan.derivatives_into(t, self.stages, self.opened.gather_source, self.opened.gather_factor)
-        else:
-            self.opened.derivatives_into(self.sim.context, t, self.stages)
+        self.sim.plan.derivatives_into(t, self.stages, self.opened.gather_source, self.opened.gather_factor)
+
+
+class NamedParameters:
+    """Named parameters of the scene (:mod:`shell.names`) as elements to perturb: a model parameter's elements in the
+    run's ``p``, a rigid body's mass, center of mass and inertia (the six distinct entries of its symmetric matrix,
+    each moved with its partner) in the run's engine system. :meth:`apply` writes the operating values plus ``w``,
+    ``apply(None)`` the operating values again. A parameter that a model's ``configure`` reads (it builds the model
+    again) and a state, rate or initial value are refused."""
+
+    def __init__(self, sim, names):
+        index, context = sim.diagram.names, sim.context
+        self.sim = sim
+        self.names, self.units, self.index = [], [], {}
+        self._p0 = context.p.copy()
+        self._plain = []   # (element, position in p)
+        self._own = []     # (entry, operating value, [(element, index into the value)])
+        for name in names:
+            try:
+                entry = index[name]
+            except ModelError as exc:
+                raise LinearizationError(f"parameter {name!r}: {exc}") from None
+            if name in self.index:
+                raise LinearizationError(f"parameter {name!r} is listed twice")
+            start = len(self.names)
+            if entry.kind == "parameter" and not entry.configured:
+                shape = entry.shape
+                for k, position in enumerate(range(entry.where.start, entry.where.stop)):
+                    self._plain.append((len(self.names), position))
+                    self.names.append(name if not shape else f"{name}[{k}]")
+            elif entry.kind == "model" and not entry.initial:
+                value = np.array(context.get(name), dtype=float)
+                cells = [(i, j) for i in range(3) for j in range(i, 3)] if value.shape == (3, 3) else \
+                    list(np.ndindex(*value.shape))
+                elements = []
+                for cell in cells:
+                    elements.append((len(self.names), cell))
+                    self.names.append(name if not cell else f"{name}[{','.join(str(c) for c in cell)}]")
+                self._own.append((entry, value, elements))
+            else:
+                what = "a parameter that its model's configure reads (a change builds the model again)" \
+                    if entry.kind == "parameter" else "not a parameter (a state, a rate or an initial value)"
+                raise LinearizationError(f"parameter {name!r}: {what}")
+            self.units += [format_unit(entry.unit)] * (len(self.names) - start)
+            self.index[name] = np.arange(start, len(self.names), dtype=np.int64)
+        self.n = len(self.names)
+        self.value = np.zeros(self.n)  # operating values of the elements
+        for k, position in self._plain:
+            self.value[k] = self._p0[position]
+        for _, value, elements in self._own:
+            for k, cell in elements:
+                self.value[k] = value[cell]
+
+    def apply(self, w) -> None:
+        context, models = self.sim.context, self.sim.diagram.models
+        for k, position in self._plain:
+            context.p[position] = self._p0[position] + (0.0 if w is None else w[k])
+        for entry, value, elements in self._own:
+            moved = value.copy()
+            for k, cell in elements:
+                moved[cell] = value[cell] + (0.0 if w is None else w[k])
+                if len(cell) == 2:
+                    moved[cell[::-1]] = moved[cell]
+            models[entry.model].assign_named([(entry.leaf, moved)], context.hosts[entry.model],
+                                             context.x[self.sim.diagram.x_block[entry.model]])
 
 
 def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4, richardson: bool = True,
@@ -364,9 +430,9 @@ def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4
     if x0.shape != sim.x.shape:
         raise LinearizationError(f"operating state has shape {x0.shape}, the scene's state has {sim.x.shape}")
     sim.diagram.normalize(sim.context, x0)  # the operating point lies on the unit-quaternion manifold
-    states = _StateMap(sim, x0, scales)
-    ins = _input_signals(sim, inputs)
-    outs = _Signals(sim, outputs, "output")
+    states = TangentStates(sim, x0, scales)
+    ins = input_signals(sim, inputs)
+    outs = NamedSignals(sim, outputs, "output")
     for name in scales:
         if name not in states.index and name not in ins.index:
             raise LinearizationError(f"scale given for {name!r}, which is neither a state nor a listed input; "
@@ -387,37 +453,25 @@ def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4
 
     n, m = states.n, len(ins.names)
     p = len(outs.names)
-    levels = (1, 2) if points == 2 else (1, 2, 4)  # step multiples: the scheme and its error estimate
     try:
-        evaluate = _Evaluator(sim, states, ins, outs)
+        evaluate = Evaluation(sim, states, ins, outs)
         F0 = evaluate(t0, u0, np.zeros(n), np.zeros(m))
         jac = np.empty((n + p, n + m))
         err = np.empty((n + p, n + m))
         steps = np.empty(n + m)
         for j in range(n + m):
             scale = states.scale[j] if j < n else input_scale[j - n]
-            h = scale * tolerance ** (1.0 / order)
-            h = float((scale + h) - scale) or h  # a step representable against the variable
-            steps[j] = h
-            diffs, fmax = {}, float(np.max(np.abs(F0), initial=0.0))
-            for level in levels:
-                plus, minus = [], []
-                for sign, store in ((1.0, plus), (-1.0, minus)):
-                    xi, v = np.zeros(n), np.zeros(m)
-                    if j < n:
-                        xi[j] = sign * level * h
-                    else:
-                        v[j - n] = sign * level * h
-                    F = evaluate(t0, u0, xi, v)
-                    if not np.all(np.isfinite(F)):
-                        raise LinearizationError(f"non-finite derivative or output perturbing "
-                                                 f"{(states.names + ins.names)[j]} by {sign * level * h:.3g}")
-                    fmax = max(fmax, float(np.max(np.abs(F), initial=0.0)))
-                    store.append(F)
-                diffs[level] = (plus[0] - minus[0]) / (2.0 * level * h)
-            column, correction = _combine(diffs, points, richardson)
-            jac[:, j] = column
-            err[:, j] = np.abs(correction) + 16.0 * EPS * fmax / h
+
+            def at(delta, j=j):
+                xi, v = np.zeros(n), np.zeros(m)
+                if j < n:
+                    xi[j] = delta
+                else:
+                    v[j - n] = delta
+                return evaluate(t0, u0, xi, v)
+
+            jac[:, j], err[:, j], steps[j] = difference_column(at, scale, F0, tolerance, points, richardson,
+                                                               (states.names + ins.names)[j])
     finally:
         sim.x[:] = x_saved
         sim.signals[:] = signals_saved
@@ -430,6 +484,26 @@ def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4
                        method={"points": points, "richardson": bool(richardson), "tolerance": tolerance,
                                "order": order, "state_steps": steps[:n], "input_steps": steps[n:]},
                        metadata=dict(metadata or {}))
+
+
+def difference_column(at, scale: float, F0, tolerance: float, points: int, richardson: bool, label: str):
+    """(column, error estimate, step) of the derivative of ``at(delta)`` (a vector) at ``delta = 0`` by the
+    module docstring's scheme: step ``scale * tolerance^(1/order)``, central differences at 1, 2 (and 4) steps,
+    Richardson; the error the last correction plus the round-off of the largest value seen (``F0`` = at(0))."""
+    order = SCHEMES[(points, bool(richardson))]
+    h = scale * tolerance ** (1.0 / order)
+    h = float((scale + h) - scale) or h  # a step representable against the variable
+    levels = (1, 2) if points == 2 else (1, 2, 4)  # step multiples: the scheme and its error estimate
+    diffs, fmax = {}, float(np.max(np.abs(F0), initial=0.0))
+    for level in levels:
+        plus, minus = at(level * h), at(-level * h)
+        for F, sign in ((plus, 1.0), (minus, -1.0)):
+            if not np.all(np.isfinite(F)):
+                raise LinearizationError(f"non-finite derivative or output perturbing {label} by {sign * level * h:.3g}")
+            fmax = max(fmax, float(np.max(np.abs(F), initial=0.0)))
+        diffs[level] = (plus - minus) / (2.0 * level * h)
+    column, correction = _combine(diffs, points, richardson)
+    return column, np.abs(correction) + 16.0 * EPS * fmax / h, h
 
 
 def _combine(diffs, points, richardson):

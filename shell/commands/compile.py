@@ -63,11 +63,27 @@ def work_items() -> list[tuple[str, object]]:
     return items
 
 
-def _engine() -> None:
-    from shell.compiled_loop import ENGINE_SIGNATURE
-    from shell.models.multibody import engine_kernel
+def engine_signature():
+    """The op-kernel signature of the engine model (:mod:`shell.kernel_protocol`) for the numba type of every engine
+    model's data (a one-body probe's)."""
+    from numba import typeof
 
-    engine_kernel.compile(ENGINE_SIGNATURE)
+    from dynamics import Multibody
+    from shell.kernel_protocol import op_kernel_signature
+    from shell.models.multibody import MultibodyModel
+
+    builder = Multibody()
+    builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
+    builder.add_node("probe_node", "probe")
+    return op_kernel_signature(typeof(MultibodyModel("probe", builder.compile()).create_data()[1]))
+
+
+def _engine() -> None:
+    from shell.models.multibody import ENGINE_KERNELS
+
+    signature = engine_signature()
+    for kernel in ENGINE_KERNELS.values():  # single body, articulated-body recursion, dense solve
+        kernel.compile(signature)
 
 
 def _loop(method: str):
@@ -107,13 +123,13 @@ def _kernels(cls) -> list[tuple[str, object]]:
 
 def _model(name: str, cls):
     def compile_model() -> None:
-        """Each numba kernel of ``cls`` for the compiled loop's uniform signature (an update of five arguments, or
-        of six with the noise array, whose signature is the output kernels')."""
-        from shell.compiled_loop import KERNEL_SIGNATURE, UPDATE_SIGNATURE
+        """Each numba kernel of ``cls`` for the compiled loop's signature of its arity (:mod:`shell.kernel_protocol`:
+        an update without noise of five arguments, a kernel of six, a kernel of a model with a data slot of seven)."""
+        from shell.kernel_protocol import DATA_KERNEL_SIGNATURE, KERNEL_SIGNATURE, UPDATE_SIGNATURE
 
-        for kernel_name, kernel in _kernels(cls):
-            five = kernel_name == "update" and kernel.py_func.__code__.co_argcount == 5
-            kernel.compile(UPDATE_SIGNATURE if five else KERNEL_SIGNATURE)
+        by_arity = {5: UPDATE_SIGNATURE, 6: KERNEL_SIGNATURE, 7: DATA_KERNEL_SIGNATURE}
+        for _, kernel in _kernels(cls):
+            kernel.compile(by_arity[kernel.py_func.__code__.co_argcount])
 
     return compile_model
 

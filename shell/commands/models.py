@@ -14,13 +14,24 @@ def register(subparsers) -> None:
 
 
 def _example(cls):
-    """An instance with default configuration (to show ports that depend on construction options)."""
-    for options in ({}, {"period": 1.0}):
+    """An instance of the class's ``example_config`` (a model whose ports its configuration sets), else of the
+    default configuration (to show ports that depend on construction options)."""
+    example = getattr(cls, "example_config", None)
+    for options in ([example] if example else []) + [{}, {"period": 1.0}]:
         try:
             return cls("example", **options)
         except Exception:  # types needing construction data (the engine) show their class declarations
             continue
     return None
+
+
+def _default(value) -> str:
+    """A parameter's default on one line (a matrix from a configuration too)."""
+    import numpy as np
+
+    if isinstance(value, np.ndarray):
+        return " ".join(np.array2string(value, separator=", ", max_line_width=10**6, threshold=12).split())
+    return repr(value)
 
 
 def _unit(unit: str) -> str:
@@ -40,6 +51,13 @@ def describe(name: str, cls) -> str:
 
     def shape(declaration) -> str:
         return "set by the configuration" if declaration.name in sized else str(declaration.shape)
+    depends = sorted(getattr(getattr(cls, "declarations", None), "sized", ()))
+    config = getattr(cls, "example_config", None)
+    if example is not None and (depends or config):
+        shown = f"the example config: {config}" if config else "the default config"
+        lines.append(f"  shapes{' of ' + ', '.join(depends) if depends else ''} depend on config; shown for {shown}")
+    if getattr(cls, "config_note", ""):
+        lines.append(f"  {cls.config_note}")
     period = getattr(example, "period", None)
     if period is not None:
         lines.append("  sampled: set rate: or period:"
@@ -48,7 +66,7 @@ def describe(name: str, cls) -> str:
         if items:
             lines.append(f"  {title}:")
             for p in items:
-                lines.append(f"    {p.name:28s} [{_unit(p.unit)}] shape {shape(p)} default {p.default!r}"
+                lines.append(f"    {p.name:28s} [{_unit(p.unit)}] shape {shape(p)} default {_default(p.default)}"
                              f"{' bounds ' + str(p.bounds) if p.bounds else ''}  {p.description}")
     if isinstance(source, Model) or (isinstance(source, type) and issubclass(source, Model)):
         for title, items in (("inputs", source.inputs), ("outputs", source.outputs)):

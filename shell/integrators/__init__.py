@@ -16,34 +16,9 @@ from .events import event, locate_events
 from .exponential import ExponentialRK4, StiffRemainderWarning
 from .implicit import Radau5
 from .fixed import RK4, RK8, ExplicitEuler, FixedStepRungeKutta, Heun
+from .registry import INTEGRATORS, make_integrator, register_integrator
 
-INTEGRATORS = {cls.name: cls for cls in (ExplicitEuler, Heun, RK4, RK8, BogackiShampine32, DormandPrince54,
-                                         DOP853, Radau5, ExponentialRK4)}
-
-
-def make_integrator(method, fun, t0, y0, t_bound, **options):
-    """Construct the integrator named ``method`` (a key of ``INTEGRATORS``) or given as a class.
-
-    Options: ``step`` (fixed-step methods: the step; adaptive: initial step guess), ``rtol``, ``atol``,
-    ``max_step``, ``normalize``, ``error_exclude``, ``jac`` for implicit methods, and ``linear_part`` for the
-    exponential method (classes with ``uses_linear_part``).
-    """
-    if isinstance(method, type) and issubclass(method, Integrator):
-        cls = method
-    else:
-        try:
-            cls = INTEGRATORS[str(method).lower()]
-        except KeyError:
-            raise ValueError(f"unknown integrator {method!r}; choose one of {sorted(INTEGRATORS)}") from None
-    if options.get("jac") is not None and not cls.implicit:
-        raise ValueError(f"integrator {cls.name!r} is explicit and does not use a Jacobian; pass jac only "
-                         f"to an implicit method ({sorted(k for k, c in INTEGRATORS.items() if c.implicit)})")
-    if "jac" in options and not cls.implicit:
-        options = {k: v for k, v in options.items() if k != "jac"}
-    return cls(fun, t0, y0, t_bound, **options)
-
-
-__all__ = ["INTEGRATORS", "make_integrator", "Integrator", "DenseOutput", "quaternion_gauge",
+__all__ = ["INTEGRATORS", "register_integrator", "make_integrator", "Integrator", "DenseOutput", "quaternion_gauge",
            "locate_events", "event", "integrate", "IntegrationResult",
            "FixedStepRungeKutta", "ExplicitEuler", "Heun", "RK4", "RK8",
            "EmbeddedRungeKutta", "BogackiShampine32", "DormandPrince54", "DOP853", "StiffnessWarning", "Radau5",

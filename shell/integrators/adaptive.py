@@ -37,6 +37,9 @@ class StiffnessWarning(UserWarning):
 
 class EmbeddedRungeKutta(StepSizeControl, Integrator):
     adaptive = True
+    options = {"rtol": ("", "relative tolerance of the error control"),
+               "atol": ("", "absolute tolerance of the error control (state units)"),
+               "max_step": ("s", "largest step")}
     tableau = None
     stiffness_boundary = None  # h*rho at which the stiffness counter increments (None: no detection)
     oscillatory_stability_radius = None  # stability radius along the ray of a 1%-damped mode

@@ -149,7 +149,7 @@ class Integrator:
     """Base class. Subclasses set the class attributes and implement ``_step_impl`` and ``_dense_output_impl``.
 
     Class attributes: ``name``, ``order`` (global order of accuracy), ``adaptive`` (error-controlled
-    step), ``implicit``, ``fixed_step`` (bool).
+    step), ``implicit``, ``fixed_step`` (bool), ``options`` (what a scenario may set), ``compiled_stepping``.
     """
 
     name = ""
@@ -157,6 +157,10 @@ class Integrator:
     adaptive = False
     implicit = False
     fixed_step = False
+    #: the options a scenario may give the method (``integrator.options``): name -> (unit, description)
+    options: dict = {}
+    #: its :class:`shell.integrators.compiled.CompiledStepping` when it steps in the compiled loop, else None
+    compiled_stepping = None
 
     def __init__(self, fun, t0, y0, t_bound, *, step=None, rtol=1e-6, atol=1e-9, max_step=np.inf,
                  normalize=None, error_exclude=None):

@@ -9,6 +9,7 @@ the first terminal one (the state there is taken from the dense output).
 import numpy as np
 
 from .events import locate_events
+from .registry import make_integrator
 
 
 class IntegrationResult:
@@ -43,8 +44,6 @@ def integrate(method, fun, t0, y0, t_end, *, events=(), t_eval=None, event_xtol=
     ``error_exclude``, ``jac`` for implicit methods). ``t_eval``: increasing output times within
     [t0, t_end], interpolated on dense output; by default every accepted step is returned.
     """
-    from . import make_integrator
-
     integ = make_integrator(method, fun, t0, y0, t_end, **options)
     events = list(events) if events else []
     if t_eval is not None:

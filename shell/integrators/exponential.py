@@ -128,11 +128,11 @@ def phi_functions(z, k_max):
 
     Taylor series ``phi_k(z) = sum_j z^j / (j + k)!`` for |z| < 1 (30 terms: truncation below 1e-32), the
     recurrence ``phi_{k+1} = (phi_k - 1/k!) / z`` from ``e^z`` otherwise (cancellation bounded by 1/|z|^k <= 1).
-    Compiled (:func:`_phi_into`): the dense output evaluates it at every event-search sample.
+    Compiled (:func:`phi_into`): the dense output evaluates it at every event-search sample.
     """
     z = np.asarray(z, dtype=np.complex128).ravel()
     out = np.empty((k_max + 1, z.size), dtype=np.complex128)
-    _phi_into(z, int(k_max), out)
+    phi_into(z, int(k_max), out)
     return out
 
 
@@ -141,7 +141,9 @@ _INVERSE_FACTORIALS = np.array([1.0 / math.factorial(j) for j in range(40)])
 
 
 @njit(cache=True)
-def _phi_into(z, k_max, out):
+def phi_into(z, k_max, out):
+    """``phi_0(z) .. phi_{k_max}(z)`` into ``out`` (shape (k_max + 1, z.size)), as :func:`phi_functions` says; the
+    exponential stepper's dense output calls it at each event-search sample (no allocation)."""
     inverse_factorials = _INVERSE_FACTORIALS
     for i in range(z.size):
         zi = z[i]
@@ -380,7 +382,7 @@ def dense_state(theta, h, y_old, n, z, lam, V, indices, z_work, phi, modal, z_ou
         return
     for a in range(m):
         z_work[a] = th * lam[a]
-    _phi_into(z_work[:m], 3, phi)
+    phi_into(z_work[:m], 3, phi)
     for a in range(m):
         modal[a] = phi[0, a] * z[0, a] + th * (phi[1, a] * z[1, a] + theta * phi[2, a] * z[2, a]
                                                + 2.0 * theta * theta * phi[3, a] * z[3, a])
@@ -434,6 +436,7 @@ class ExponentialRK4(Integrator):
     name = "etdrk4"
     order = 4
     fixed_step = True
+    options = {"max_step": ("s", "largest step: the step taken is min(step, max_step)")}
     #: the simulation passes ``linear_part`` (from the models' ``stiff_linear_part``)
     uses_linear_part = True
 

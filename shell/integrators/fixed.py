@@ -7,11 +7,137 @@ both the end slope of the cubic Hermite dense output and the first stage of the 
 costs exactly ``s`` derivative evaluations). The last step before ``t_bound`` is shortened to land on it
 exactly; a remainder within 1e-9 h of a full step is taken as one step, so a discrete sample period that
 is a multiple of the step never produces a sliver step from round-off.
+
+In the compiled loop (:mod:`shell.integrators.compiled`) a method steps with :class:`RungeKuttaStepper`: the same
+stage states, combination and slopes from the same kernels, driven by the tableau's arrays (one compiled stepper
+for every tableau); with zero crossings, when its dense output is the cubic Hermite one.
 """
+import math
+from typing import NamedTuple
+
 import numpy as np
+from numba import njit
 
 from . import kernels, stability, tableaus
 from .base import HermiteDenseOutput, Integrator
+from .compiled import (I_F_VALID, I_FAILED_STAGE, I_NFEV, R_FAILED_T, START_FAILED, STEP_FAILED, CompiledStepping,
+                       derivative, normalize, register_stepper, state)
+
+
+# -- stepping in the compiled loop (shell.integrators.compiled) -----------------------------------------------------
+class RungeKuttaStepper(NamedTuple):
+    """A fixed-step explicit Runge-Kutta method as arrays: its tableau and nominal step, the state and its slope,
+    the stage slopes and state, the new state and its slope."""
+
+    A: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    n_stages: int
+    h: float
+    Y: np.ndarray
+    F: np.ndarray
+    K: np.ndarray
+    YS: np.ndarray
+    YN: np.ndarray
+    FN: np.ndarray
+
+
+@njit(cache=True)
+def _start(system, st, t, ints, reals):
+    """A restart from the run's state (Integrator.reset: normalized, its slope evaluated)."""
+    if ints[I_F_VALID] == 0:
+        kernels.copy_into(st.Y, state(system))
+        normalize(system, st.Y)
+        f = derivative(system, t, st.Y)
+        ints[I_NFEV] += 1
+        if not kernels.all_finite(f):
+            return START_FAILED
+        kernels.copy_into(st.F, f)
+        ints[I_F_VALID] = 1
+    return 0
+
+
+@njit(cache=True, inline="always")
+def _step(system, st, t, h, t_new, skip_slope, ints, reals):
+    """FixedStepRungeKutta._step_impl: the same arithmetic."""
+    Y, K, YS, YN = st.Y, st.K, st.YS, st.YN
+    s = st.n_stages
+    kernels.copy_into(K[0], st.F)
+    for i in range(1, s):
+        kernels.stage_state(Y, K, st.A[i], i, h, YS)
+        kernels.copy_into(K[i], derivative(system, t + st.c[i] * h, YS))
+    ints[I_NFEV] += s - 1
+    if not kernels.propagate(Y, K, st.b, s, h, YN):
+        reals[R_FAILED_T] = t_new
+        ints[I_FAILED_STAGE] = 0
+        return STEP_FAILED
+    normalize(system, YN)
+    if skip_slope:
+        return 0
+    f = derivative(system, t_new, YN)
+    ints[I_NFEV] += 1
+    if not kernels.all_finite(f):
+        reals[R_FAILED_T] = t_new
+        ints[I_FAILED_STAGE] = 1
+        return STEP_FAILED
+    kernels.copy_into(st.FN, f)
+    return 0
+
+
+@njit(cache=True)
+def _keep(st, ev):
+    kernels.copy_into(ev.y_old, st.Y)
+    kernels.copy_into(ev.f_old, st.F)
+
+
+@njit(cache=True)
+def _accept(st, ints, skipped):
+    kernels.copy_into(st.Y, st.YN)
+    if skipped:
+        ints[I_F_VALID] = 0
+    else:
+        kernels.copy_into(st.F, st.FN)
+
+
+@njit(cache=True)
+def _prepare_dense(st, ev):
+    return
+
+
+@njit(cache=True)
+def _dense(st, ev, theta, h, out):
+    kernels.hermite_cubic(theta, h, ev.y_old, ev.f_old, st.Y, st.F, out)
+
+
+register_stepper(RungeKuttaStepper, start=_start, step=_step, keep=_keep, accept=_accept, prepare_dense=_prepare_dense,
+                 dense=_dense)
+
+
+class RungeKuttaStepping(CompiledStepping):
+    """The Python side of a fixed-step Runge-Kutta method in the compiled loop: its stepper (one per step size),
+    and the cubic Hermite dense output of its steps for event location (as ``FixedStepRungeKutta.dense_output``)."""
+
+    @classmethod
+    def applies(cls, method, options, has_events) -> bool:
+        # events are located on the dense output: the compiled loop evaluates the cubic Hermite one
+        return options.get("step") is not None and (not has_events or method.hermite_dense_output)
+
+    def stepper(self, stale: bool):
+        options = self.run.options
+        step = float(options["step"])
+        if not (step > 0.0 and math.isfinite(step)):
+            raise ValueError(f"integrator step must be a positive number of seconds, got {options['step']!r}")
+        h = min(step, float(options.get("max_step", np.inf)))
+        tb = self.method.tableau
+        if not isinstance(self.st, RungeKuttaStepper) or self.st.h != h or self.st.A is not tb.A:
+            n = self.run.x.size
+            self.st = RungeKuttaStepper(tb.A, tb.b, tb.c, tb.n_stages, h, self.run.x.copy(), np.zeros(n),
+                                        np.zeros((tb.n_stages, n)), np.zeros(n), np.zeros(n), np.zeros(n))
+            stale = True
+        return self.st, 0 if stale else 1
+
+    def dense_output(self, st, t_old, t_new, y_old, f_old):
+        return HermiteDenseOutput(t_old, t_new, y_old, f_old, st.Y, st.F)
 
 
 class FixedStepRungeKutta(Integrator):
@@ -26,6 +152,10 @@ class FixedStepRungeKutta(Integrator):
     fixed_step = True
     tableau = None
     skip_final_slope = False
+    options = {"max_step": ("s", "largest step: the step taken is min(step, max_step)")}
+    #: the dense output is the cubic Hermite one (the compiled loop then locates zero crossings on it too)
+    hermite_dense_output = True
+    compiled_stepping = RungeKuttaStepping
 
     def _setup(self):
         tb = self.tableau
@@ -129,6 +259,7 @@ class RK8(FixedStepRungeKutta):
     name = "rk8"
     order = 8
     tableau = tableaus.RK8
+    hermite_dense_output = False
 
     def _setup(self):
         super()._setup()
@@ -140,3 +271,4 @@ class RK8(FixedStepRungeKutta):
 
         self.K_extended[12] = self.f
         return dop853_dense_output(self, self.K_extended, self.t - self.t_old)
+

@@ -59,6 +59,9 @@ class Radau5(StepSizeControl, Integrator):
     order = 5
     adaptive = True
     implicit = True
+    options = {"rtol": ("", "relative tolerance of the error control"),
+               "atol": ("", "absolute tolerance of the error control (state units)"),
+               "max_step": ("s", "largest step")}
 
     def __init__(self, fun, t0, y0, t_bound, *, jac=None, **options):
         if jac is not None and not callable(jac):

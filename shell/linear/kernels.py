@@ -87,8 +87,14 @@ def dead_zone(u, lower, upper, y):
 
 
 @njit(cache=True)
+def rate_limited(y, u, falling_step, rising_step):
+    """``y + min(max(u - y, -falling_step), rising_step)``: one sample of a rate limiter, one channel."""
+    return y + min(max(u - y, -falling_step), rising_step)
+
+
+@njit(cache=True)
 def rate_limiter_update(y, u, falling_step, rising_step):
     """``y <- y + min(max(u - y, -falling_step), rising_step)`` in place: the output moves toward ``u`` by at
     most ``rising_step`` up or ``falling_step`` down per sample (rate limit times the period)."""
     for j in range(u.shape[0]):
-        y[j] += min(max(u[j] - y[j], -falling_step[j]), rising_step[j])
+        y[j] = rate_limited(y[j], u[j], falling_step[j], rising_step[j])

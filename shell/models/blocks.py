@@ -162,7 +162,7 @@ def _profile(t, x, z, u, p, y):
                               + p[row + 4 * mk] * c + p[row + 5 * mk] * sn)
 
 
-class _Block(Model):
+class SignalBlock(Model):
     """A block whose port unit and shape are construction options."""
 
     def __init__(self, name: str, *, unit: str = "", shape=(), **kwargs):
@@ -175,7 +175,7 @@ class _Block(Model):
 
 
 @register_model
-class Constant(_Block):
+class Constant(SignalBlock):
     """y = value."""
 
     summary = "constant output (unit and shape under config:)"
@@ -187,7 +187,7 @@ class Constant(_Block):
 
 
 @register_model
-class Gain(_Block):
+class Gain(SignalBlock):
     """y = k u, direct feedthrough; k has the unit output_unit / unit."""
 
     summary = "static gain y = k u (direct feedthrough; config: unit, output_unit, shape)"
@@ -204,7 +204,7 @@ class Gain(_Block):
 
 
 @register_model
-class Sum(_Block):
+class Sum(SignalBlock):
     """y = u_1 + ... + u_count, direct feedthrough (config: count, unit, shape)."""
 
     summary = "sum of count inputs u_1 .. u_count of one unit and shape (config: count, unit, shape)"
@@ -228,7 +228,7 @@ class Sum(_Block):
 
 
 @register_model
-class Integrator(_Block):
+class Integrator(SignalBlock):
     """x' = u, y = x (u in the unit of y per second)."""
 
     summary = "continuous integrator x' = u, y = x"
@@ -242,7 +242,7 @@ class Integrator(_Block):
 
 
 @register_model
-class SampleHold(_Block):
+class SampleHold(SignalBlock):
     """Zero-order hold: samples u every period, holds it; counts its samples."""
 
     summary = "zero-order hold at its own period, with a sample counter"
@@ -255,7 +255,7 @@ class SampleHold(_Block):
 
 
 @register_model
-class NoisySampler(_Block):
+class NoisySampler(SignalBlock):
     """Samples u every period and adds white noise of standard deviation sigma (held between samples)."""
 
     summary = "sampled signal plus Gaussian white noise from the model's random stream"
@@ -270,7 +270,7 @@ class NoisySampler(_Block):
 
 
 @register_model
-class Profile(_Block):
+class Profile(SignalBlock):
     """A piecewise waveform of time (module docstring): ``segments`` under config (default 1); parameters
     ``times`` (segments + 1 ascending breakpoints, s), per segment ``c0`` .. ``c3``, ``cosine``, ``sine`` (port
     unit, shape (segments,) + port shape), ``cycles`` (per segment, default 1) and ``after`` (the value from

@@ -163,6 +163,8 @@ class LqrStateFeedback(Model):
     update = staticmethod(_lqr_update)
     declarations = LQR
     default_period = "0.1 s"
+    config_note = ("port sizes follow K (m x n): state (n,), command (m,), e.g. config: {gain_file: "
+                   "configs/lqr_data/gain_position.csv, command_unit: N*m} (K 1 x 7: state (7,), command (1,))")
 
     def __init__(self, name: str, *, gain_file: str | None = None, gain_dataset: str = "K", state_unit: str = "",
                  command_unit: str = "", **kwargs):

@@ -45,9 +45,13 @@ from dynamics import engine as E
 from dynamics import kernels as K
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 
+from shell.kernel_protocol import (DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, FEEDTHROUGH_OUTPUTS, NORMALIZE,
+                                   STATE_OUTPUTS)
 from shell.model import InputPort, Model, ModelError, OutputPort, State
 from shell.ports import NODE_INPUTS, NODE_OUTPUTS
 from shell.registry import register_model
+from shell.schema.multibody import initial_targets
+from shell.units import UnitError, to_magnitude
 
 # unit of (q, u, u_dot, generalized force) per hinge type; "" = mixed or dimensionless (SI values)
 HINGE_UNITS = {
@@ -128,12 +132,10 @@ class EngineWork(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _solve_accelerations(x, u, d):
-    """Scatter the input ports into the engine's arrays and run its forward dynamics into ``work.udot``.
-    A singular articulated inertia records the body in ``work.status`` and makes the accelerations NaN,
-    which the simulation reports with the body's name (``MultibodyModel.failure_message``)."""
+def _gather_inputs(x, u, d):
+    """Scatter the input ports into the engine's arrays: hinge forces, node forces and the prescribed
+    accelerations (``work.udot``, zero elsewhere) that the forward dynamics reads."""
     engine, ports, work = d
-    nq = ports.nq
     for k in range(ports.tau_src.shape[0]):
         work.tau[ports.tau_dst[k]] = u[ports.tau_src[k]]
     for k in range(ports.force_src.shape[0]):
@@ -143,7 +145,13 @@ def _solve_accelerations(x, u, d):
         work.udot[k] = 0.0
     for k in range(ports.acc_src.shape[0]):
         work.udot[ports.acc_dst[k]] = u[ports.acc_src[k]]
-    status = E.forward_dynamics(engine, x[:nq], x[nq:], work.tau, work.node_forces, work.udot, work.tau_out)
+
+
+@njit(cache=True, inline="always")
+def _record_status(status, d):
+    """A singular articulated inertia records the body in ``work.status`` and makes the accelerations NaN,
+    which the simulation reports with the body's name (``MultibodyModel.failure_message``)."""
+    engine, ports, work = d
     work.status[0] = status
     if status != 0:
         for k in range(ports.nu):
@@ -158,80 +166,67 @@ def _copy_blocks(source, blocks, y):
             y[y0 + k] = source[s0 + k]
 
 
-# operations of engine_kernel
-STATE_OUTPUTS, FEEDTHROUGH_OUTPUTS, DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, NORMALIZE = range(5)
+def _engine_kernel(path):
+    """The engine model's kernel for the systems of one path (:data:`dynamics.engine.PATHS`): it contains that
+    path's code only, so a rigid single-body scene compiles neither the articulated-body recursion nor the
+    dense solver (measured on the demo from an empty cache: see docs/benchmarks.md, "Compile time")."""
+    forward_dynamics = path.forward_dynamics
+    node_kinematics = path.node_kinematics
+    node_kinematics_after_dynamics = path.node_kinematics_after_dynamics
+
+    def engine_kernel(op, t, x, z, u, p, d, out):
+        """Every kernel of the engine model in one compiled function, its op kernel (:mod:`shell.kernel_protocol`:
+        ``op`` selects it), so the engine's code is compiled once, not once per kernel: state outputs, feedthrough outputs (forward dynamics and
+        node accelerations), derivatives (solving, or reusing the feedthrough stage's accelerations), and the
+        quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as borrowed
+        references (:func:`dynamics.engine.borrowed`): their reference counting was about a third of the
+        derivative of a single-body scene."""
+        d = E.borrowed(d)
+        engine, ports, work = d
+        nq, nu = ports.nq, ports.nu
+        if op == STATE_OUTPUTS:
+            for k in range(nq):
+                out[ports.q_out + k] = x[k]
+            for k in range(nu):
+                out[ports.u_out + k] = x[nq + k]
+            _copy_blocks(x, ports.hinge_q, out)
+            _copy_blocks(x[nq:], ports.hinge_u, out)
+            if ports.node_offsets.shape[0]:
+                node_kinematics(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
+                                work.acceleration)
+                _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets)
+        elif op == FEEDTHROUGH_OUTPUTS:
+            _gather_inputs(x, u, d)
+            _record_status(forward_dynamics(engine, x[:nq], x[nq:], work.tau, work.node_forces, work.udot,
+                                            work.tau_out), d)
+            _copy_blocks(work.udot, ports.hinge_udot, out)
+            if ports.accel_offsets.shape[0]:  # reusing the workspace the forward dynamics just left
+                node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
+                                               work.velocity, work.acceleration)
+                for n in range(ports.accel_offsets.shape[0]):
+                    a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
+                    for k in range(3):
+                        out[a + k] = work.acceleration[n, k]
+                        out[b + k] = work.acceleration[n, 3 + k]
+        elif op == DERIVATIVES or op == DERIVATIVES_AFTER_FEEDTHROUGH:
+            if op == DERIVATIVES:
+                _gather_inputs(x, u, d)
+                _record_status(forward_dynamics(engine, x[:nq], x[nq:], work.tau, work.node_forces, work.udot,
+                                                work.tau_out), d)
+            for k in range(nu):
+                out[nq + k] = work.udot[k]
+            E.coordinate_rates(engine, x[:nq], x[nq:], out[:nq])
+        else:
+            E.normalize_quaternions(engine, x)
+
+    # a name of its own per path: compiled code is named after the function, and the three closures share one
+    # code object (loaded from the cache into one process, same-named kernels would resolve to one another)
+    engine_kernel.__name__ = engine_kernel.__qualname__ = f"engine_kernel_{path.name}"
+    return njit(cache=True)(engine_kernel)
 
 
-@njit(cache=True)
-def engine_kernel(op, t, x, z, u, p, d, out):
-    """Every kernel of the engine model in one compiled function (``op`` selects it), so the engine's
-    code is compiled once, not once per kernel: state outputs, feedthrough outputs (forward dynamics and
-    node accelerations), derivatives (solving, or reusing the feedthrough stage's accelerations), and the
-    quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as borrowed
-    references (:func:`dynamics.engine.borrowed`): their reference counting was about a third of the
-    derivative of a single-body scene."""
-    d = E.borrowed(d)
-    engine, ports, work = d
-    nq, nu = ports.nq, ports.nu
-    if op == STATE_OUTPUTS:
-        for k in range(nq):
-            out[ports.q_out + k] = x[k]
-        for k in range(nu):
-            out[ports.u_out + k] = x[nq + k]
-        _copy_blocks(x, ports.hinge_q, out)
-        _copy_blocks(x[nq:], ports.hinge_u, out)
-        if ports.node_offsets.shape[0]:
-            E.node_kinematics(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
-                              work.acceleration)
-            _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets)
-    elif op == FEEDTHROUGH_OUTPUTS:
-        _solve_accelerations(x, u, d)
-        _copy_blocks(work.udot, ports.hinge_udot, out)
-        if ports.accel_offsets.shape[0]:  # reusing the workspace the forward dynamics just left
-            E.node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
-                                             work.velocity, work.acceleration)
-            for n in range(ports.accel_offsets.shape[0]):
-                a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
-                for k in range(3):
-                    out[a + k] = work.acceleration[n, k]
-                    out[b + k] = work.acceleration[n, 3 + k]
-    elif op == DERIVATIVES or op == DERIVATIVES_AFTER_FEEDTHROUGH:
-        if op == DERIVATIVES:
-            _solve_accelerations(x, u, d)
-        for k in range(nu):
-            out[nq + k] = work.udot[k]
-        E.coordinate_rates(engine, x[:nq], x[nq:], out[:nq])
-    else:
-        E.normalize_quaternions(engine, x)
-
-
-@njit(cache=True)
-def no_engine_kernel(op, t, x, z, u, p, d, out):
-    """Fills the compiled loop's engine slot in a scene without the engine model. Such a scene has no engine
-    op, so this is never called; it exists so that such a scene does not compile :func:`engine_kernel`, the
-    whole engine (measured: 200 trivial models compiled from an empty cache in 155 s CPU, the engine's
-    share being most of it)."""
-    return
-
-
-def _engine_state_outputs(t, x, z, u, p, d, y):
-    engine_kernel(STATE_OUTPUTS, t, x, z, u, p, d, y)
-
-
-def _engine_feedthrough_outputs(t, x, z, u, p, d, y):
-    engine_kernel(FEEDTHROUGH_OUTPUTS, t, x, z, u, p, d, y)
-
-
-def _engine_derivatives(t, x, z, u, p, d, xdot):
-    engine_kernel(DERIVATIVES, t, x, z, u, p, d, xdot)
-
-
-def _engine_derivatives_after_feedthrough(t, x, z, u, p, d, xdot):
-    engine_kernel(DERIVATIVES_AFTER_FEEDTHROUGH, t, x, z, u, p, d, xdot)
-
-
-def _engine_normalize(x, d):
-    engine_kernel(NORMALIZE, 0.0, x, x, x, x, d, x)
+#: path name -> the engine model's kernel for systems of that path (each compiled on first use)
+ENGINE_KERNELS = {name: _engine_kernel(path) for name, path in E.PATHS.items()}
 
 
 @njit(cache=True)
@@ -247,17 +242,6 @@ def _node_outputs(rotation, position, velocity, y, offsets):
             y[o[2] + a] = position[n, a]
             y[o[3] + a] = velocity[n, a]
             y[o[4] + a] = velocity[n, 3 + a]
-
-
-def probe_engine_data():
-    """The data tuple of a one-body engine model: its numba type is that of every engine model's data
-    (the compiled loop's signature), and it stands in where a scene has no engine."""
-    from dynamics import Multibody
-
-    builder = Multibody()
-    builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
-    builder.add_node("probe_node", "probe")
-    return MultibodyModel("probe", builder.compile()).create_data()[1]
 
 
 def _private_system(system):
@@ -283,10 +267,15 @@ class MultibodyModel(Model):
         "continuous states: q, u (docs/scenario_schema.md, section multibody)",
     )
 
-    def __init__(self, name: str, system, *, initial_q=None, initial_u=None):
+    def __init__(self, name: str, system, *, initial_q=None, initial_u=None, written_q=None):
         self.system = system
+        #: the engine's path for this system (its kernel compiles that path only)
+        self.engine_path = E.path_of(system)
         self._initial_q = system.neutral_configuration() if initial_q is None else np.asarray(initial_q, float)
         self._initial_u = np.zeros(system.nu) if initial_u is None else np.asarray(initial_u, float)
+        #: the initial coordinates as written, before their quaternions were normalized: a run that changes a
+        #: body's initial value normalizes from these, as the scene built with that value does
+        self.written_q = self._initial_q.copy() if written_q is None else np.asarray(written_q, float)
         super().__init__(name)
 
     @property
@@ -412,6 +401,76 @@ class MultibodyModel(Model):
                 "is singular: the subtree it moves has no inertia along a free DOF (massless subtree, or a "
                 "configuration where the hinge axes align)")
 
+    # -- named values (shell.names): mass properties and initial values a run may change ------------------------
+    def named_values(self) -> dict:
+        """``<body>.mass``, ``.com``, ``.inertia`` of each rigid body (a run's own engine system takes them:
+        :meth:`dynamics.MultibodySystem.set_mass_properties`) and ``<body>.initial.<key>`` of each body (the
+        scenario's initial keys its hinge takes): {leaf: (unit, shape, description, is an initial value)}; an
+        inertia takes 3 principal moments or a 3 x 3 matrix (shape None)."""
+        s = self.system
+        values = {}
+        for b, body in enumerate(s.body_names):
+            if not s.topology[b, K.FLEXIBLE]:
+                values[f"{body}.mass"] = ("kg", (), f"mass of {body}", False)
+                values[f"{body}.com"] = ("m", (3,), f"center of mass of {body}, body frame", False)
+                values[f"{body}.inertia"] = ("kg*m^2", None, f"inertia of {body} about its center of mass", False)
+            for key, (_, _, shape, unit) in initial_targets(s, b).items():
+                values[f"{body}.initial.{key}"] = (unit, shape, f"initial {key} of {body}'s hinge", True)
+        return values
+
+    def named_value(self, leaf: str, system):
+        """The value of named value ``leaf`` in the run whose engine system is ``system``."""
+        body, _, key = leaf.partition(".")
+        if key.startswith("initial."):
+            target, sl, shape, _ = initial_targets(system, system.body_index(body))[key[len("initial."):]]
+            return (self.written_q if target == "q" else self._initial_u)[sl].reshape(shape).copy()
+        definition = system.definitions[0][system.body_index(body)]
+        return np.array(getattr(definition, key), dtype=float)
+
+    def assign_named(self, items, system, x) -> None:
+        """Named values ``items`` ((leaf, value) pairs) into the run's engine ``system`` (mass properties) and its
+        state ``x`` (initial values: the coordinates as written, the changed ones replaced, quaternions then
+        normalized, so the run starts where the scene built with those values starts)."""
+        masses: dict[str, dict] = {}
+        initial = []
+        for leaf, value in items:
+            body, _, key = leaf.partition(".")
+            if key.startswith("initial."):
+                initial.append((body, key[len("initial."):], value))
+            else:
+                masses.setdefault(body, {})[key] = value
+        for body, given in masses.items():
+            definition = system.definitions[0][system.body_index(body)]
+            mass = float(_converted(given["mass"], "kg", (), f"{body}.mass")) if "mass" in given else definition.mass
+            com = _converted(given["com"], "m", (3,), f"{body}.com") if "com" in given else definition.com
+            inertia = definition.inertia
+            if "inertia" in given:
+                inertia = _converted(given["inertia"], "kg*m^2", None, f"{body}.inertia")
+                inertia = np.diag(inertia) if inertia.shape == (3,) else inertia
+                if inertia.shape != (3, 3):
+                    raise ModelError(f"{self.path}.{body}.inertia: expected a 3x3 matrix or 3 principal moments, "
+                                     f"given shape {inertia.shape}")
+            try:
+                system.set_mass_properties(body, mass, com, inertia)
+            except ValueError as exc:
+                raise ModelError(f"{self.path}.{body}: {exc}") from None
+        if initial:
+            q, u = self.written_q.copy(), self._initial_u.copy()
+            for body, key, value in initial:
+                target, sl, shape, unit = initial_targets(system, system.body_index(body))[key]
+                value_si = _converted(value, unit, None, f"{body}.initial.{key}")
+                value_si = value_si.reshape(1) if value_si.shape == () and shape == (1,) else value_si
+                if value_si.shape != shape:
+                    raise ModelError(f"{self.path}.{body}.initial.{key}: expected shape {shape}, given "
+                                     f"{value_si.shape}")
+                if key == "attitude" and abs(np.linalg.norm(value_si) - 1.0) > 1e-9:
+                    raise ModelError(f"{self.path}.{body}.initial.attitude: expected a unit quaternion [w, x, y, z], "
+                                     f"given norm {np.linalg.norm(value_si):.12g}")
+                (q if target == "q" else u)[sl] = value_si
+            system.normalize_quaternions(q)
+            x[:system.nq] = q
+            x[system.nq:] = u
+
     def attachment_ports(self, kind: str, target: str):
         s = self.system
         if kind == "node":
@@ -427,12 +486,29 @@ class MultibodyModel(Model):
 
     # -- kernels (dynamics.engine under the uniform signature, with the per-run data d) ------------------
     uses_data = True
-    state_outputs = staticmethod(_engine_state_outputs)
-    feedthrough_outputs = staticmethod(_engine_feedthrough_outputs)
-    derivatives = staticmethod(_engine_derivatives)
-    derivatives_after_feedthrough = staticmethod(_engine_derivatives_after_feedthrough)
-    #: renormalize hinge quaternions in place (the integrator's normalize hook): ``normalize_state(x, d)``
-    normalize_state = staticmethod(_engine_normalize)
+
+    @property
+    def compiled_kernel(self):
+        """The op kernel serving every kernel below in the compiled loop (:mod:`shell.kernel_protocol`): the one for
+        this model's system (:data:`ENGINE_KERNELS`, by :func:`dynamics.engine.path_of`; a copy of the system, as a
+        run's own, takes the same path)."""
+        return ENGINE_KERNELS[self.engine_path]
+
+    def state_outputs(self, t, x, z, u, p, d, y):
+        self.compiled_kernel(STATE_OUTPUTS, t, x, z, u, p, d, y)
+
+    def feedthrough_outputs(self, t, x, z, u, p, d, y):
+        self.compiled_kernel(FEEDTHROUGH_OUTPUTS, t, x, z, u, p, d, y)
+
+    def derivatives(self, t, x, z, u, p, d, xdot):
+        self.compiled_kernel(DERIVATIVES, t, x, z, u, p, d, xdot)
+
+    def derivatives_after_feedthrough(self, t, x, z, u, p, d, xdot):
+        self.compiled_kernel(DERIVATIVES_AFTER_FEEDTHROUGH, t, x, z, u, p, d, xdot)
+
+    def normalize_state(self, x, d):
+        """Renormalize hinge quaternions in place (the integrator's normalize hook)."""
+        self.compiled_kernel(NORMALIZE, 0.0, x, x, x, x, d, x)
 
     def stiff_linear_part(self, x, system=None):
         """(indices into this model's [q; u], L): the linear modal dynamics at the configuration of ``x`` that
@@ -446,3 +522,10 @@ class MultibodyModel(Model):
     def quaternion_w_indices(self) -> list[int]:
         """Positions in this model's state of each hinge quaternion's w (for the integrator's error norm)."""
         return [int(k) for k in self.system.quaternion_q_indices]
+
+
+def _converted(value, unit, shape, name):
+    try:
+        return to_magnitude(value, unit, shape, name)
+    except UnitError as exc:
+        raise ModelError(str(exc)) from None

@@ -25,7 +25,6 @@ bit for bit. Every refusal names the campaign file, the line and the key path, l
 
 from __future__ import annotations
 
-import copy
 import difflib
 import hashlib
 import os
@@ -42,7 +41,7 @@ import numpy as np
 from shell.montecarlo.draws import DISTRIBUTIONS, CorrelationGroup, Dispersion, draw_run
 from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples, parse_requirement
 from shell.scenario import ScenarioError, build_simulation, decode_scenario, load_yaml, parse_scenario, show
-from shell.schema import Where, expect_mapping, override_value
+from shell.schema import Where, expect_mapping
 from shell.units import UnitError, conversion_factor, parse_unit, to_magnitude, ureg
 
 class CampaignError(ScenarioError):
@@ -95,53 +94,6 @@ def yaml_text(value, top: bool = True) -> str:
     if value is None:
         return "null"
     raise TypeError(f"cannot write {value!r} as YAML")
-
-
-class _NotExact(Exception):
-    pass
-
-
-def _read_back(value, top: bool = True):
-    """What YAML reads from ``yaml_text(value, top)``, built directly where that is plain (numbers, quoted
-    strings, lists, mappings with plain keys); raises _NotExact where the text's reading depends on YAML's
-    resolver (a bare top-level string, a non-finite float, an unusual key)."""
-    if isinstance(value, bool) or value is None:
-        return value
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        if not np.isfinite(value):
-            raise _NotExact
-        return float(value)
-    if isinstance(value, str):
-        if top:
-            raise _NotExact
-        return value
-    if isinstance(value, (list, tuple, np.ndarray)):
-        return [_read_back(v, False) for v in value]
-    if isinstance(value, dict):
-        if not all(isinstance(k, str) and k.isidentifier() and k.lower() not in _YAML_WORDS for k in value):
-            raise _NotExact
-        return {k: _read_back(v, False) for k, v in value.items()}
-    raise _NotExact
-
-
-_YAML_WORDS = {"y", "n", "yes", "no", "on", "off", "true", "false", "null"}
-_PARSED: dict = {}
-
-
-def _as_read(value):
-    """The value a run's ``--set path=TEXT`` override gives, TEXT being ``yaml_text(value)``: built directly, or
-    parsed from the text as the override would be (remembered per text: choices repeat)."""
-    try:
-        return _read_back(value)
-    except _NotExact:
-        text = yaml_text(value)
-        if text not in _PARSED:
-            if len(_PARSED) > 4096:
-                _PARSED.clear()
-            _PARSED[text] = override_value(text, Where("campaign", 0, "dispersed value"))
-        return copy.deepcopy(_PARSED[text])
 
 
 #: most runs of one campaign (its results table is allocated when the campaign starts)
@@ -497,43 +449,45 @@ class Campaign:
         return items
 
     def dispersed_values(self, run: int, draws: dict | None = None) -> list[tuple[str, object]]:
-        """(path, value) of each dispersion of run ``run``: the objects the YAML text of :meth:`overrides`
-        reads back as, made without writing and parsing that text (a run of a reused scene applies them
-        with :func:`shell.scenario.apply_value`)."""
+        """(path, value) of each dispersion of run ``run``, as the scene's values take them by name
+        (:meth:`shell.diagram.Context.assign`): ``{value, unit}`` with the drawn magnitudes, or the chosen value;
+        the numbers :meth:`overrides` writes as text, without the text."""
         draws = self.draws(run) if draws is None else draws
         values = []
         for d in self.dispersions:
             value = d.value(draws[d.path])
-            if d.distribution != "choice":
-                magnitude = value.tolist() if isinstance(value, np.ndarray) else value
-                value = {"value": magnitude, "unit": d.unit or ""}
-            values.append((d.path, _as_read(value)))
+            values.append((d.path, value if d.distribution == "choice" else {"value": value, "unit": d.unit or ""}))
         return values
 
     def build(self, run: int, draws: dict | None = None):
-        """(scenario, simulation) of run ``run``, logging the campaign's signals."""
+        """(scenario, simulation) of run ``run`` built from its overrides, logging the campaign's signals."""
         scenario = parse_scenario(self.scenario_text, self.scenario_file, self.overrides(run, draws))
         simulation = build_simulation(scenario)
+        self.log_signals(simulation, scenario)
+        return scenario, simulation
+
+    def log_signals(self, simulation, scenario) -> None:
+        """Log the campaign's signals that the scenario does not log (at ``log_rate``, else the scenario's)."""
         logged = {name for name, _, _ in scenario.log_signals}
         rate = self.log_rate or scenario.log_rate or "10 Hz"
         for signal in self.signals:
             if signal not in logged:
                 simulation.log([signal], rate)  # refuses unknown signals, naming the model's ports
-        return scenario, simulation
 
     def _scene(self, run: int, draws: dict, log_path):
         """(scenario, simulation, in-memory log or None) of run ``run``: a new context of the scene built
         once per process (:mod:`shell.montecarlo.reuse`), or the scene rebuilt from the overrides when the
         dispersions change its structure."""
         from shell.log_file import MemoryLog
-        from shell.montecarlo.reuse import Structural, scene_for
+        from shell.montecarlo.reuse import scene_for
+        from shell.names import StructuralChange
 
         scene = scene_for(self) if self.reuse_scene else "disabled"
         if not isinstance(scene, str):
             try:
                 scenario, simulation = scene.simulation(run, draws)
                 return scenario, simulation, MemoryLog(simulation.log_groups()) if log_path is None else None
-            except Structural as exc:
+            except StructuralChange as exc:
                 self.rebuild_reason = str(exc)
         else:
             self.rebuild_reason = scene
@@ -662,7 +616,9 @@ def parse_campaign(text: str, filename: str = "<string>", validate: bool = True)
         raise root.error(f"expected a mapping at the top level (keys {sorted(CAMPAIGN_KEYS)})")
     _mapping(document, root, CAMPAIGN_KEYS, required=("scenario", "runs"))
     here = root.child(document, "scenario")
-    scenario_file = Path(filename).parent / str(document["scenario"])
+    if not isinstance(document["scenario"], str) or not document["scenario"].strip() or "\0" in document["scenario"]:
+        raise here.error(f"expected the scenario's file name, given {show(document['scenario'])}")
+    scenario_file = Path(filename).parent / document["scenario"]
     try:
         with open(scenario_file, "rb") as f:
             scenario_text = decode_scenario(f.read(), str(scenario_file))

@@ -1,52 +1,28 @@
 """Monte Carlo runs on one diagram: the campaign's scene is built once per process, and each run is a new
-context with its dispersions applied (no YAML parse, no scene build, no engine compilation per run).
+context with its dispersed values written by name (:mod:`shell.names`): no YAML, no scene build, no model
+construction, no engine compilation per run.
 
 Run ``i`` is defined as the scenario with ``--set`` overrides (:meth:`Campaign.overrides`); this module
-produces the same run without rebuilding, by applying each dispersed value where the rebuilt scene
-would have it, through the same code that builds a scene:
+produces the same run without building it: every dispersion names a value of the scene's
+:class:`shell.names.NameIndex` (a model parameter, state or sample rate, a rigid body's mass properties or a
+body's initial value), and the run's Context takes the drawn value converted as the scene's builder converts
+it (same functions, same arithmetic). A parameter that a model's ``configure`` reads, and a sample rate, build
+that one model again from its constructor's arguments (remembered per value: a choice of rates costs one
+construction per choice and process).
 
-* a parameter, rate, period, offset, config or initial value of a model of the ``models:`` section:
-  the model is constructed again from its entry with the run's values (:func:`shell.scenario.build_member`,
-  the scenario builder's own function), checked to have the same layout as the diagram's model (same
-  class, parameters, ports, states, noise), and the run's context takes its packed parameters, initial
-  states, sample period and offset;
-* the mass, center of mass or inertia of a rigid body of ``multibody:``: the context's private engine
-  system gets them with ``MultibodySystem.set_mass_properties`` (parsed by the same function as at build);
-* a body's ``initial:`` state: the engine's initial (q, u) recomputed from the run's entries;
-* ``seed``: the context's random streams.
-
-Anything else (integrator, stop, log, a body file, a hinge, wiring, the type of a model, members of
-assemblies) changes the scene's structure, and so do models whose update is Python (``python_update``:
-user flight software keeps its own state between calls, which must not leak from one run into the next):
-such a campaign rebuilds the scene for every run, as before, and says so once. Tests check that both
-ways give the same table bit for bit.
+Anything else (integrator, stop, log, a body file, a hinge, wiring, the type or configuration of a model,
+parameters of assemblies, states and rates of assembly members, which ``--set`` cannot reach) changes the
+scene's structure, and so do models whose update is Python (``python_update``: user flight software keeps its
+own state between calls, which must not leak from one run into the next): such a campaign builds the scene
+from its overrides for every run, as before, and says so once. Tests check that both ways give the same
+table bit for bit.
 """
 
 from __future__ import annotations
 
-import copy
-
-import numpy as np
-
 from shell.diagram import Diagram
-from shell.model import Model
-from shell.scenario import ScenarioError, apply_value, build_member, build_root, parse_scenario
-from shell.schema import Where
-from shell.schema.multibody import body_entries, initial_state, rigid_mass_properties
-
-
-class Structural(Exception):
-    """A dispersion the context of an existing diagram cannot take; the message says why."""
-
-
-def _layout_key(m: Model):
-    def decl(d):
-        return (d.name, tuple(d.shape), str(getattr(d, "unit", "")))
-
-    return (type(m), tuple(decl(p) for p in m.parameters), tuple(decl(p) for p in m.inputs),
-            tuple(decl(p) for p in m.outputs), tuple(decl(s) for s in m.continuous_states),
-            tuple(decl(s) for s in m.discrete_states), tuple(z.name for z in m.zero_crossings), int(m.noise_size),
-            m.period is None)
+from shell.names import StructuralChange
+from shell.scenario import ScenarioError, build_root, parse_scenario
 
 
 class SceneReuse:
@@ -55,111 +31,41 @@ class SceneReuse:
     def __init__(self, campaign):
         self.campaign = campaign
         self.scenario = parse_scenario(campaign.scenario_text, campaign.scenario_file, campaign.base_overrides)
-        document = self.scenario.document
-        models = document.get("models", {}) or {}
-        self.targets = {}
-        for d in campaign.dispersions:
-            self.targets[d.path] = self._classify(d.path, document, models)
-        root = build_root(self.scenario)
-        self.diagram = Diagram(root, stop_events=self.scenario.stop_events)
+        self.diagram = Diagram(build_root(self.scenario), stop_events=self.scenario.stop_events)
         python = [m.path for m in self.diagram.models if getattr(m, "python_update", False)]
         if python:
-            raise Structural(f"models {python} run Python updates (their own state must not carry from one run "
-                             "to the next)")
-        self.engine_index = next((i for i, m in enumerate(self.diagram.models) if hasattr(m, "system")
-                                  and m.path == document.get("multibody", {}).get("name", "multibody")), None)
+            raise StructuralChange(f"models {python} run Python updates (their own state must not carry from one run "
+                                   "to the next)")
+        for d in campaign.dispersions:
+            self._check_path(d.path)
 
-    def _classify(self, path: str, document: dict, models: dict) -> tuple:
-        parts = path.split(".")
-        if parts[0] == "multibody" and len(parts) >= 3 and "multibody" in document:
-            bodies = {b.get("name"): b for b in document["multibody"].get("bodies", []) or [] if isinstance(b, dict)}
-            body = bodies.get(parts[1])
-            if body is None:
-                raise Structural(f"{path}: not a body of multibody (a node, or unknown)")
-            if parts[2] in ("mass", "com", "inertia") and len(parts) == 3 and "body_file" not in body:
-                return ("engine", "mass", parts[1])
-            if parts[2] == "initial":
-                return ("engine", "initial", parts[1])
-            raise Structural(f"{path}: changes the engine's structure")
-        if parts[0] in models and len(parts) >= 2:
-            if parts[1] == "type":
-                raise Structural(f"{path}: changes a model's type")
-            return ("model", parts[0])
-        raise Structural(f"{path}: not a model parameter, rate or initial value, nor a rigid body's mass "
-                         "properties or initial state")
+    def _check_path(self, path: str) -> None:
+        """Refuse (StructuralChange) a dispersion whose ``--set`` path is not a value of the scene by name, or means
+        another one: ``--set`` reaches the parameters of models and of assembly members, the rate, period, offset
+        and ``initial.<state>`` of the scenario's own models, and the bodies of its ``multibody:`` section."""
+        entry = self.diagram.names.find(path)
+        if entry is None:
+            raise StructuralChange(f"{path}: not a model parameter, state or sample rate, nor a rigid body's mass "
+                                   "properties or a body's initial value")
+        model = self.diagram.models[entry.model]
+        own = model.path in (self.scenario.document.get("models") or {})
+        if entry.kind == "model" and not path.startswith("multibody."):
+            raise StructuralChange(f"{path}: --set reaches the engine's bodies as multibody.<body>")
+        if (entry.kind in ("schedule", "x", "z") or ".parameters." in path) and not own:
+            raise StructuralChange(f"{path}: a state or rate of a model that is not an entry of models:")
+        if entry.kind in ("x", "z") and ".initial." not in path:
+            raise StructuralChange(f"{path}: --set reads a model's states as <model>.initial.<state>")
 
     def simulation(self, run: int, draws: dict):
-        """The Simulation of run ``run`` (a new context of the shared diagram), logging the campaign's
-        signals."""
+        """The Simulation of run ``run`` (a new context of the shared diagram), logging the campaign's signals."""
         from shell.simulation import Simulation
 
-        campaign, diagram, scenario = self.campaign, self.diagram, self.scenario
-        context = diagram.create_context(seed=[campaign.seed, int(run)], own_data=True)
-        assignments = {}
-        for key, value in campaign.dispersed_values(run, draws):
-            if key in self.targets:
-                assignments.setdefault(self.targets[key][:2] if self.targets[key][0] == "engine"
-                                       else self.targets[key], []).append((key, value))
-        engine_items = [item for key, items in assignments.items() if key[0] == "engine" for item in items]
-        if engine_items:
-            self._apply_engine(context, engine_items)
-        for key, items in assignments.items():
-            if key[0] == "model":
-                self._apply_model(context, key[1], items)
-        simulation = Simulation(None, integrator=scenario.integrator, step=scenario.step,
-                                integrator_options=scenario.integrator_options, seed=context.seed,
-                                event_tol=scenario.event_tolerance, event_detection=scenario.event_detection,
-                                diagram=diagram, context=context)
-        for name, rate, _ in scenario.log_signals:
-            simulation.log([name], rate)
-        rate = campaign.log_rate or scenario.log_rate or "10 Hz"
-        logged = {name for name, _, _ in scenario.log_signals}
-        for signal in campaign.signals:
-            if signal not in logged:
-                simulation.log([signal], rate)
-        return scenario, simulation
-
-    def _apply_model(self, context, name: str, items: list[tuple[str, object]]) -> None:
-        document = self.scenario.document
-        entry = copy.deepcopy(document["models"][name])
-        mini = {"models": {name: entry}}
-        for key, value in items:
-            apply_value(mini, key, value, self.scenario.file)
-        where = Where(self.scenario.file, 1, "").child(document, "models").child(document["models"], name)
-        fresh = build_member(self.diagram.root, name, mini["models"][name], where, self.scenario.template_classes)
-        i = self.diagram.model_index.get(name)
-        if i is None or not isinstance(fresh, Model):
-            raise Structural(f"{name}: not a model of the diagram")
-        model = self.diagram.models[i]
-        if _layout_key(fresh) != _layout_key(model):
-            raise Structural(f"{name}: the run's values change the model's layout (ports, states or parameters)")
-        d = self.diagram
-        context.p[d.p_block[i]] = fresh.p
-        context.x[d.x_block[i]] = fresh.initial_continuous_state()
-        context.z[d.z_block[i]] = fresh.initial_discrete_state()
-        context.periods[i], context.offsets[i] = fresh.period, fresh.offset
-        context.next_sample[i] = d.first_sample(fresh.period, fresh.offset, context.t)
-
-    def _apply_engine(self, context, items: list[tuple[str, object]]) -> None:
-        if self.engine_index is None:
-            raise Structural("no engine model to disperse")
-        document = self.scenario.document
-        mini = {"multibody": copy.deepcopy(document["multibody"])}
-        for key, value in items:
-            apply_value(mini, key, value, self.scenario.file)
-        description = mini["multibody"]
-        where = Where(self.scenario.file, 1, "").child(document, "multibody")
-        system = context.hosts[self.engine_index]
-        entries = body_entries(description, where)
-        nominal = {b.get("name"): b for b, _ in body_entries(document["multibody"], where)}
-        for body, here in entries:
-            old = nominal[body.get("name")]
-            if "body_file" not in body and any(old.get(k) != body.get(k) for k in ("mass", "com", "inertia")):
-                mass, com, inertia = rigid_mass_properties(body, here)
-                system.set_mass_properties(body["name"], mass, com, inertia)
-        q0, u0 = initial_state(system, [(body.get("initial"), here, body) for body, here in entries])
-        block = self.diagram.x_block[self.engine_index]
-        context.x[block] = np.concatenate([q0, u0])
+        campaign = self.campaign
+        context = self.diagram.create_context(seed=[campaign.seed, int(run)], own_data=True)
+        context.assign(campaign.dispersed_values(run, draws))
+        simulation = Simulation.of_scenario(self.scenario, diagram=self.diagram, context=context)
+        campaign.log_signals(simulation, self.scenario)
+        return self.scenario, simulation
 
 
 _CACHE: dict = {}
@@ -173,6 +79,6 @@ def scene_for(campaign):
         try:
             _CACHE.clear()  # one campaign per process at a time
             _CACHE[key] = SceneReuse(campaign)
-        except (Structural, ScenarioError) as exc:
+        except (StructuralChange, ScenarioError) as exc:
             _CACHE[key] = str(exc)
     return _CACHE[key]

@@ -68,12 +68,14 @@ INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
 @dataclass(frozen=True)
 class MultibodySection:
     """What the ``multibody:`` section describes: the engine model's name, its compiled system and initial
-    state (hinge quaternions normalized)."""
+    state (hinge quaternions normalized; ``written_q`` the coordinates as written, from which a run that changes
+    a body's initial value normalizes, as the scene built with that value does)."""
 
     name: str
     system: MultibodySystem
     initial_q: np.ndarray
     initial_u: np.ndarray
+    written_q: np.ndarray
 
 
 def read_multibody(description, where: Where) -> MultibodySection:
@@ -99,11 +101,12 @@ def read_multibody(description, where: Where) -> MultibodySection:
         system = builder.compile()
     except ModelDefinitionError as exc:
         raise where.error(str(exc)) from None
-    q0, u0 = initial_state(system, initial)
+    written, u0 = initial_state(system, initial)
+    q0 = system.normalize_quaternions(written.copy())
     places = {body.get("name"): here for _, here, body in initial}  # the stiffening warning names its body
     with located(lambda text: next((h for b, h in places.items() if f"body '{b}'" in text), where)):
         system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto
-    return MultibodySection(name, system, q0, u0)
+    return MultibodySection(name, system, q0, u0, written)
 
 
 def _node_adders(builder: Multibody, description, where: Where) -> dict:
@@ -183,13 +186,47 @@ def rigid_mass_properties(body, where):
 
 def initial_state(system, entries):
     """(q0, u0) from each body's ``initial:`` entry (``entries``: (spec or None, where, body entry) in body
-    order), quaternions normalized."""
+    order), as written: the engine model normalizes the quaternions (MultibodySection's ``written_q``)."""
     q0, u0 = system.neutral_configuration(), np.zeros(system.nu)
     for b, (spec, here, body) in enumerate(entries):
         if spec is not None:
             _apply_initial(system, b, spec, here.child(body, "initial"), q0, u0)
-    system.normalize_quaternions(q0)
     return q0, u0
+
+
+def initial_targets(system, b) -> dict:
+    """{key: ("q" or "u", slice of q or u, shape, unit)} of the initial keys (INITIAL_KEYS) body ``b``'s hinge
+    takes: the hinge's own coordinates first, then a flexible body's modal coordinates (docs/conventions.md)."""
+    cached = _INITIAL_TARGETS.get((id(system.topology), b))
+    if cached is not None and cached[0] is system.topology:
+        return cached[1]
+    hinge = system.hinge_names[b]
+    qs, us = system.q_slices[b], system.u_slices[b]
+    nq, nu = qs.stop - qs.start, us.stop - us.start
+    hinge_nq, hinge_nu = int(HINGE_NQ[HINGE_TYPES[hinge]]), int(HINGE_NU[HINGE_TYPES[hinge]])
+    n_modes = nq - hinge_nq
+    kinds = set(hinge.split() + (["flexible"] if n_modes else []))
+    local = {
+        "q": ("q", 0, nq), "u": ("u", 0, nu), "angle": ("q", 0, hinge_nq), "angle_rate": ("u", 0, hinge_nu),
+        "displacement": ("q", 0, 1), "displacement_rate": ("u", 0, 1), "attitude": ("q", 0, 4),
+        "angular_velocity": ("u", 0, 3), "position": ("q", 4, 7), "velocity": ("u", 3, 6),
+        "modal": ("q", hinge_nq, nq), "modal_rate": ("u", hinge_nu, nu),
+    }
+    targets = {}
+    for key, (unit, applies) in INITIAL_KEYS.items():
+        if applies != "all" and not set(applies.split()) & kinds:
+            continue
+        target, start, stop = local[key]
+        base = qs.start if target == "q" else us.start
+        targets[key] = (target, slice(base + start, base + stop), (stop - start,), unit)
+    if len(_INITIAL_TARGETS) > 1024:
+        _INITIAL_TARGETS.clear()
+    _INITIAL_TARGETS[(id(system.topology), b)] = (system.topology, targets)
+    return targets
+
+
+#: initial_targets per (engine topology, body): the same for every run of a scene (its systems share the topology)
+_INITIAL_TARGETS: dict = {}
 
 
 def body_entries(description, where):
@@ -328,24 +365,12 @@ def _apply_initial(system, b, spec, where, q0, u0) -> None:
     """Write a body's ``initial:`` entry into its slices of ``q0`` and ``u0`` (SI)."""
     hinge = system.hinge_names[b]
     expect_mapping(spec, where, {k: f"{unit or 'SI'} ({applies})" for k, (unit, applies) in INITIAL_KEYS.items()})
-    qs, us = system.q_slices[b], system.u_slices[b]
-    nq, nu = qs.stop - qs.start, us.stop - us.start
-    hinge_nq, hinge_nu = int(HINGE_NQ[HINGE_TYPES[hinge]]), int(HINGE_NU[HINGE_TYPES[hinge]])
-    n_modes = nq - hinge_nq
-    kinds = hinge.split() + (["flexible"] if n_modes else [])
+    targets = initial_targets(system, b)
     for key, value in spec.items():
-        unit, applies = INITIAL_KEYS[key]
-        if applies != "all" and not set(applies.split()) & set(kinds):
+        if key not in targets:
             raise where.child(spec, key).error(f"{key!r} does not apply to a {hinge} hinge; use "
                                                f"{[k for k, (_, a) in INITIAL_KEYS.items() if a == 'all' or hinge in a.split()]}")
-        target, sl, shape = {
-            "q": (q0, slice(0, nq), (nq,)), "u": (u0, slice(0, nu), (nu,)),
-            "angle": (q0, slice(0, hinge_nq), (hinge_nq,)), "angle_rate": (u0, slice(0, hinge_nu), (hinge_nu,)),
-            "displacement": (q0, slice(0, 1), (1,)), "displacement_rate": (u0, slice(0, 1), (1,)),
-            "attitude": (q0, slice(0, 4), (4,)), "angular_velocity": (u0, slice(0, 3), (3,)),
-            "position": (q0, slice(4, 7), (3,)), "velocity": (u0, slice(3, 6), (3,)),
-            "modal": (q0, slice(hinge_nq, nq), (n_modes,)), "modal_rate": (u0, slice(hinge_nu, nu), (n_modes,)),
-        }[key]
+        target, sl, shape, unit = targets[key]
         value_si = _vector(spec, key, unit, None, where)
         if value_si.shape == () and shape == (1,):
             value_si = value_si.reshape(1)
@@ -354,5 +379,4 @@ def _apply_initial(system, b, spec, where, q0, u0) -> None:
         if key == "attitude" and abs(np.linalg.norm(value_si) - 1.0) > 1e-9:
             raise where.child(spec, key).error(f"expected a unit quaternion [w, x, y, z], given norm "
                                                f"{np.linalg.norm(value_si):.12g}")
-        base = qs.start if target is q0 else us.start
-        target[base + sl.start:base + sl.stop] = value_si
+        (q0 if target == "q" else u0)[sl] = value_si

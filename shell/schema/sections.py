@@ -286,7 +286,7 @@ def _validate_integrator(document, root: Where, scenario: Scenario) -> None:
     where = root.child(document, "integrator")
     spec = expect_mapping(document["integrator"], where, {"method": f"one of {sorted(INTEGRATORS)}",
                                                           "step": "time step, e.g. 10 ms",
-                                                          "options": "rtol, atol, max_step"})
+                                                          "options": "the method's options (its class's options)"})
     if "method" in spec:
         method = spec["method"]
         if not isinstance(method, str) or method not in INTEGRATORS:
@@ -301,11 +301,13 @@ def _validate_integrator(document, root: Where, scenario: Scenario) -> None:
     options = spec.get("options", {})
     if not isinstance(options, dict):
         raise where.child(spec, "options").error(f"expected a mapping, given {options!r}")
+    declared = INTEGRATORS[scenario.integrator].options
     for key, value in options.items():
-        if key not in ("rtol", "atol", "max_step"):
+        if key not in declared:
             raise where.child(spec, "options").child(options, key).error(
-                f"unknown integrator option; expected rtol, atol or max_step")
-        unit = "s" if key == "max_step" else ""
+                f"not an option of {scenario.integrator}; its options: "
+                + (", ".join(f"{k} ({d})" for k, (_, d) in declared.items()) or "none"))
+        unit = declared[key][0]
         here = where.child(spec, "options").child(options, key)
         try:
             number = float(to_magnitude(value, unit, (), key))

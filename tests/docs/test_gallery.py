@@ -107,6 +107,9 @@ def test_gallery_outcomes(outcomes):
     assert abs(o["09"]["final_bus_angle_deg"]) == pytest.approx(8.4e-4, abs=5e-5)
     assert o["10"]["final_attitude_error_deg"] < 0.1
     assert o["10"]["final_modal_q"] < 0.2 * o["10"]["peak_modal_q"]          # the slew's ringing decays
+    assert o["13"]["final_attitude_error_deg"] < 2e-3 and o["13"]["peak_command_n_m"] == pytest.approx(38.83, abs=0.01)
+    assert o["14"]["final_attitude_error_deg"] < 0.1                            # every mode to 100 Hz, notch
+    assert o["14"]["final_modal_q"] < 0.2 * o["14"]["peak_modal_q"]
     assert o["11"]["mass_used_kg"] == pytest.approx(300e3 / (300 * 9.80665) * 40.0, rel=1e-6)
     assert o["11"]["max_gimbal_deg"] <= 6.0 + 1e-9
     assert o["12"]["finite"]

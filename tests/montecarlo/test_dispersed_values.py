@@ -1,54 +1,76 @@
-"""A run of a reused scene takes its dispersed values as objects (Campaign.dispersed_values), not as --set text
-parsed again: those objects must be exactly what the text would read back as (same types, same bits), for every
-kind of value a dispersion produces, including the awkward ones (exponents without a '.', -0.0, bare strings that
-YAML resolves, non-finite numbers)."""
-
-import math
+"""A run of a reused scene takes its dispersed values by name (shell.names: Context.assign), not as --set text
+parsed into a rebuilt scene: the context must hold exactly what the scene built from that text holds (same bits),
+for every kind of value a dispersion produces, including the awkward ones (exponents without a '.', -0.0,
+subnormal numbers, another unit, choices written as text, rates), and refuse what the text's scene refuses."""
 
 import numpy as np
+import pytest
 
-from shell.model import parse_period
-from shell.montecarlo.campaign import _as_read, yaml_text
-from shell.schema import Where, override_value
+from shell.diagram import Diagram
+from shell.model import ModelError, parse_period
+from shell.montecarlo.campaign import yaml_text
+from shell.scenario import ScenarioError, build_root, parse_scenario
 
+SCENE = """
+models:
+  c: {type: Constant, config: {unit: N*m/rad, shape: [3]}, parameters: {value: "[10, 7.5, 6.25] N*m/rad"}}
+  hold: {type: SampleHold, rate: 10 Hz, config: {unit: N*m/rad, shape: [3]}, initial: {samples: 2}}
+connections:
+  - c.y -> hold.u
+"""
 
-def _kind(x):
-    return dict if isinstance(x, dict) else list if isinstance(x, list) else type(x)
-
-
-def _same(a, b) -> bool:
-    if _kind(a) is not _kind(b):  # YAML's LineDict/LineList (lines for messages) are dicts and lists
-        return False
-    if isinstance(a, float):
-        return repr(a) == repr(b) or (math.isnan(a) and math.isnan(b))
-    if isinstance(a, list):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
-    if isinstance(a, dict):
-        return list(a) == list(b) and all(_same(a[k], b[k]) for k in a)
-    return a == b
-
-
-VALUES = [
-    {"value": [400.00000000000006, 1e-05, -0.0, 3.0], "unit": "kg*m^2"},
-    {"value": np.float64(2.5e-300), "unit": ""},
-    {"value": [[1.0, 2.0], [3.5, -7e22]], "unit": "N*m/rad"},
-    np.float64(0.1), np.int64(7), 3, True, None,
-    "10 Hz", "5", "yes", "0.1 s", "[1, 2] N*m",
-    [1.5, "on", 2], {"y": 1.0}, {"value": float("nan"), "unit": "m"}, float("inf"),
+VALUES = [  # (name, value as a dispersion gives it)
+    ("c.value", {"value": np.array([400.00000000000006, 1e-05, -0.0]), "unit": "N*m/rad"}),
+    ("c.value", {"value": np.array([2.5e-300, 5e-324, 1.0e22]), "unit": "N*m/rad"}),
+    ("c.value", {"value": np.array([1.0, 2.5, -3.75]), "unit": "mN*m/deg"}),
+    ("c.value", "[1, 2, 3] N*m/deg"),
+    ("c.value", [4.0, 5.0, 6.0]),
+    ("c.parameters.value", {"value": np.array([0.1, 0.2, 0.3]), "unit": "N*m/rad"}),
+    ("hold.rate", "5 Hz"),
+    ("hold.period", "0.3 s"),
+    ("hold.initial.samples", {"value": 7.0, "unit": ""}),
+    ("hold.initial.held", {"value": np.array([1e-5, -0.0, 3.0]), "unit": "N*m/mrad"}),
 ]
 
 
-def test_direct_objects_equal_the_text_read_back():
-    where = Where("campaign", 0, "test")
-    for value in VALUES:
-        expected = override_value(yaml_text(value), where)
-        assert _same(_as_read(value), expected), (value, _as_read(value), expected)
+def _text_scene(name, value):
+    """The context of the scene built from the --set text of ``name=value``."""
+    scenario = parse_scenario(SCENE, "scene.yaml", [f"{name}={yaml_text(value)}"])
+    return Diagram(build_root(scenario)).create_context()
 
 
-def test_parsed_values_are_not_shared_between_runs():
-    first = _as_read({"value": [1.5], "on": "x"})
-    first["value"].append("changed by a run")
-    assert _as_read({"value": [1.5], "on": "x"}) == {"value": [1.5], True: "x"}
+def test_values_by_name_equal_the_scene_built_from_their_text():
+    nominal = Diagram(build_root(parse_scenario(SCENE, "scene.yaml")))
+    for name, value in VALUES:
+        expected = _text_scene(name, value)
+        context = nominal.create_context()
+        context.set(name, value)
+        for array in ("p", "x", "z"):
+            assert getattr(context, array).tobytes() == getattr(expected, array).tobytes(), (name, value, array)
+        assert (context.periods, context.offsets, context.next_sample) == \
+            (expected.periods, expected.offsets, expected.next_sample), (name, value)
+
+
+def test_values_the_text_scene_refuses_are_refused_by_name():
+    nominal = Diagram(build_root(parse_scenario(SCENE, "scene.yaml")))
+    for name, value in [("c.value", {"value": np.array([np.nan, 1.0, 2.0]), "unit": "N*m/rad"}),
+                        ("c.value", {"value": np.array([1.0, 2.0]), "unit": "N*m/rad"}),
+                        ("c.value", {"value": np.array([1.0, 2.0, 3.0]), "unit": "m"}),
+                        ("hold.rate", "0 Hz")]:
+        with pytest.raises((ScenarioError, ModelError)):
+            _text_scene(name, value)
+        with pytest.raises(ModelError, match=name.split(".")[0]):
+            nominal.create_context().set(name, value)
+
+
+def test_a_started_run_refuses_initial_values_and_unknown_names_get_a_suggestion():
+    nominal = Diagram(build_root(parse_scenario(SCENE, "scene.yaml")))
+    context = nominal.create_context()
+    context.unstarted = False
+    with pytest.raises(ModelError, match="before its run starts"):
+        context.set("hold.rate", "5 Hz")
+    with pytest.raises(ModelError, match="did you mean 'c.value'"):
+        context.set("c.valeu", 1.0)
 
 
 def test_period_text_remembered_gives_the_same_fraction_and_still_refuses_bad_text():

@@ -176,3 +176,20 @@ def test_correlation_errors(tmp_path):
         campaign(tmp_path, base, "correlations:\n  - {between: [a.value, b.value], coefficient: 0.5}\n")
     with pytest.raises(CampaignError, match="'c.value' is not a dispersion"):
         campaign(tmp_path, base, "correlations:\n  - {between: [a.value, c.value], coefficient: 0.5}\n")
+
+
+def test_truncated_normal_quantiles_equal_scipys_bit_for_bit():
+    """The draws' quantile function (scipy's kernel without the public method's argument handling) against
+    scipy.stats.truncnorm.ppf: bounds on both sides of zero and far out, probabilities from the normal tails down to
+    underflow (q = 0) and up to one half, as a run's draws give them."""
+    from scipy import special, stats
+
+    from shell.montecarlo.draws import truncated_normal_ppf
+
+    rng = np.random.default_rng(7)
+    for _ in range(2000):
+        a = rng.uniform(-12.0, 6.0, 4)
+        b = a + rng.uniform(1e-3, 12.0, 4)
+        z = rng.standard_normal(4) * rng.choice([1.0, 10.0, 40.0])
+        q = np.where(z > 0, special.ndtr(-z), special.ndtr(z))
+        assert truncated_normal_ppf(q, a, b).tobytes() == stats.truncnorm.ppf(q, a, b).tobytes(), (q, a, b)

@@ -93,7 +93,7 @@ def test_guided_chunks_cover_every_run_once_and_shrink_to_single_runs():
 
 _WARM_UP = """
 import sys
-from shell.models.multibody import engine_kernel
+from shell.models.multibody import ENGINE_KERNELS
 from shell.compiled_loop import advance
 from shell.montecarlo.campaign import load_campaign
 from shell.montecarlo.executors import start_worker
@@ -101,7 +101,7 @@ from shell.montecarlo.executors import start_worker
 campaign = load_campaign(sys.argv[1], validate=False)   # as a Dask worker gets it: nothing run in this process
 start_worker(campaign)
 print("rebuilt", campaign.rebuild_reason is not None, "loops", len(advance.overloads), "engine",
-      len(engine_kernel.overloads))
+      sum(len(kernel.overloads) for kernel in ENGINE_KERNELS.values()))
 """
 
 

@@ -451,6 +451,11 @@ CAMPAIGN_CASES = [
     ("campaign-yaml-error", CAMPAIGN.replace("runs: 4", "runs: [4"), [], None, None, "not valid YAML"),
     ("campaign-scenario-binary", CAMPAIGN, [], "scenario", "scenario:", "not a text file"),
     ("campaign-utf16", CAMPAIGN.encode("utf-16"), [], None, None, "UTF-16"),
+    # found by the fuzzer: a NUL in the file name was a bare ValueError (embedded null byte)
+    ("campaign-scenario-nul", CAMPAIGN.replace("scenario: scene.yaml", 'scenario: "scene\\0.yaml"'), [], "scenario",
+     "scenario:", "expected the scenario's file name"),
+    ("campaign-scenario-list", CAMPAIGN.replace("scenario: scene.yaml", "scenario: [scene.yaml]"), [], "scenario",
+     "scenario:", "expected the scenario's file name"),
     ("kept-runs-zero", CAMPAIGN.replace("runs: 4", "runs: 0"), [], "runs", "runs: 0", None),
     ("kept-runs-text", CAMPAIGN.replace("runs: 4", "runs: many"), [], "runs", "runs: many", None),
 ]

@@ -187,9 +187,10 @@ def test_an_edited_overload_implementation_recompiles_its_callers(tmp_path, pack
 def test_every_cached_kernel_uses_the_dependency_keyed_cache():
     from dynamics.compile_cache import DependencyCache
     from shell.compiled_loop import advance
-    from shell.models.multibody import engine_kernel
+    from shell.models.multibody import ENGINE_KERNELS
 
-    assert isinstance(engine_kernel._cache, DependencyCache) and isinstance(advance._cache, DependencyCache)
+    assert isinstance(advance._cache, DependencyCache)
+    assert all(isinstance(kernel._cache, DependencyCache) for kernel in ENGINE_KERNELS.values())
 
 
 def test_units_follow_the_architecture():
@@ -198,15 +199,25 @@ def test_units_follow_the_architecture():
     unit is its own module and the attitude-library functions it calls (shell/attitude.py)."""
     from dynamics.compile_cache import unit_members
     from shell.compiled_loop import advance
-    from shell.models.multibody import engine_kernel
+    from shell.models.multibody import ENGINE_KERNELS
     from shell.models.pd_attitude import _pd_update
 
     loop = unit_members(advance)
     assert "shell.compiled_loop.advance" in loop and "shell.compiled_loop._integrate" in loop
     assert not [m for m in loop if m.startswith(("shell.models.", "dynamics.kernels", "dynamics.single_body"))]
-    engine = unit_members(engine_kernel)
+    engine = unit_members(ENGINE_KERNELS["articulated"])
     assert "dynamics.kernels.articulated_body.forward_dynamics" in engine and "dynamics.spatial.mat6_vec" in engine
     assert not [m for m in engine if m.startswith("shell.") and not m.startswith("shell.models.multibody.")]
+    # each path's kernel holds that path only: a rigid single-body scene (the demo) compiles neither the
+    # recursion nor the dense solve nor the tree's node kinematics (issue 31: most of a cold start)
+    single = unit_members(ENGINE_KERNELS["single_body"])
+    assert "dynamics.single_body.forward_dynamics" in single
+    assert not [m for m in single if m.startswith(("dynamics.kernels.articulated_body", "dynamics.kernels.dense_forward",
+                                                     "dynamics.kernels.node_frames"))], single
+    dense = unit_members(ENGINE_KERNELS["dense"])
+    assert "dynamics.kernels.dense_forward.forward_dynamics_dense" in dense
+    assert "dynamics.kernels.articulated_body.forward_dynamics" not in dense
+    assert "dynamics.kernels.dense_forward.forward_dynamics_dense" not in engine
     assert unit_members(_pd_update) == ["shell.attitude.error_rotation_vector", "shell.attitude.quaternion_conjugate",
                                         "shell.attitude.quaternion_multiply", "shell.models.pd_attitude._pd_update"]
 
@@ -216,8 +227,9 @@ def test_a_constant_rebound_at_run_time_changes_the_key(monkeypatch):
     the new value into code compiled now)."""
     import dynamics.kernels.articulated_body as articulated_body
     from dynamics.compile_cache import unit_key
-    from shell.models.multibody import engine_kernel
+    from shell.models.multibody import ENGINE_KERNELS
 
+    engine_kernel = ENGINE_KERNELS["articulated"]
     before = unit_key(engine_kernel.py_func)
     monkeypatch.setattr(articulated_body, "GROUND_ACCEL", articulated_body.GROUND_ACCEL + 1)
     assert unit_key(engine_kernel.py_func) != before
@@ -260,9 +272,9 @@ def test_flexshell_compile_compiles_what_a_first_run_needs(tmp_path, capsys):
     from numba.core.registry import CPUDispatcher
 
     from shell.cli import main
-    from shell.commands.compile import FAMILIES, work_items
-    from shell.compiled_loop import ENGINE_SIGNATURE, advance
-    from shell.models.multibody import engine_kernel
+    from shell.commands.compile import FAMILIES, engine_signature, work_items
+    from shell.compiled_loop import advance
+    from shell.models.multibody import ENGINE_KERNELS
     from shell.registry import registered
 
     assert main(["compile"]) == 0
@@ -270,9 +282,9 @@ def test_flexshell_compile_compiles_what_a_first_run_needs(tmp_path, capsys):
     parts = work_items()
     assert f"[{len(parts)}/{len(parts)}]" in captured.err and "functions compiled" in captured.out
     assert [label for label, _ in parts][:2] == [f"simulation loop, {FAMILIES[0][1]}", "multibody engine"]
-    assert ENGINE_SIGNATURE.args in engine_kernel.overloads
+    assert all(engine_signature().args in kernel.overloads for kernel in ENGINE_KERNELS.values())
     steppers = {signature[4].instance_class.__name__ for signature in advance.signatures}  # advance(k, engine, ., ., st
-    assert {"Stepper", "ExponentialStepper"} <= steppers
+    assert {"RungeKuttaStepper", "ExponentialStepper"} <= steppers
     kernels = ("state_outputs", "feedthrough_outputs", "derivatives", "zero_crossing_values", "update")
     uncompiled = [f"{name}.{kernel}" for name, cls in registered().items() for kernel in kernels
                   if isinstance(getattr(cls, kernel, None), CPUDispatcher) and not getattr(cls, kernel).overloads]
