@@ -59,28 +59,34 @@ def _start(system, st, t, ints, reals):
 
 @njit(cache=True, inline="always")
 def _step(system, st, t, h, t_new, skip_slope, ints, reals):
-    """FixedStepRungeKutta._step_impl: the same arithmetic."""
+    """FixedStepRungeKutta._step_impl: the same arithmetic. One call site of the system's derivative serves the
+    stages and the end slope (i == s): the evaluation is inlined here, and a second site compiled it twice."""
     Y, K, YS, YN = st.Y, st.K, st.YS, st.YN
     s = st.n_stages
     kernels.copy_into(K[0], st.F)
-    for i in range(1, s):
-        kernels.stage_state(Y, K, st.A[i], i, h, YS)
-        kernels.copy_into(K[i], derivative(system, t + st.c[i] * h, YS))
-    ints[I_NFEV] += s - 1
-    if not kernels.propagate(Y, K, st.b, s, h, YN):
-        reals[R_FAILED_T] = t_new
-        ints[I_FAILED_STAGE] = 0
-        return STEP_FAILED
-    normalize(system, YN)
-    if skip_slope:
-        return 0
-    f = derivative(system, t_new, YN)
-    ints[I_NFEV] += 1
-    if not kernels.all_finite(f):
-        reals[R_FAILED_T] = t_new
-        ints[I_FAILED_STAGE] = 1
-        return STEP_FAILED
-    kernels.copy_into(st.FN, f)
+    for i in range(1, s + 1):
+        if i < s:
+            kernels.stage_state(Y, K, st.A[i], i, h, YS)
+            at, ys = t + st.c[i] * h, YS
+        else:
+            if not kernels.propagate(Y, K, st.b, s, h, YN):
+                reals[R_FAILED_T] = t_new
+                ints[I_FAILED_STAGE] = 0
+                return STEP_FAILED
+            normalize(system, YN)
+            if skip_slope:
+                return 0
+            at, ys = t_new, YN
+        f = derivative(system, at, ys)
+        ints[I_NFEV] += 1
+        if i < s:
+            kernels.copy_into(K[i], f)
+        elif not kernels.all_finite(f):
+            reals[R_FAILED_T] = t_new
+            ints[I_FAILED_STAGE] = 1
+            return STEP_FAILED
+        else:
+            kernels.copy_into(st.FN, f)
     return 0
 
 
