@@ -9,6 +9,7 @@ its children; that is also the coordinate order of ``q`` and ``u`` (docs/convent
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -112,21 +113,27 @@ class Multibody:
         ``dynamics.flex.body_file.ModalBody`` or a :class:`dynamics.flexible_body.FlexibleBodyData`.
         The body frame is the FE model's reference frame (basic axes at the reference grid). ``modes``
         selects mode indices, ``max_frequency`` (Hz) keeps only the body file's modes at or below it (of the
-        listed ones when ``modes`` is given; :func:`dynamics.mode_selection.select_modes`), ``order`` the modal-integral order (0, 1, 2; default: the highest the body
-        file supports, 2 unless the file omits G2 for its nodes' rotational inertia, then 1, which is
-        recorded in :attr:`notes` and warned about), ``damping_ratio`` overrides the file's modal
+        listed ones when ``modes`` is given; :func:`dynamics.mode_selection.select_modes`), ``order`` the
+        modal-integral order: 0, 1, 2 (the default; the terms G1, F2, G2 of nodes with rotary inertia are summed
+        over the file's grids where its tables are missing or dearer), or ``"auto"``: the order the scene needs,
+        chosen from its initial state by :func:`dynamics.modal_order.resolve_modal_orders` (the YAML default;
+        until then the body is compiled at order 2). ``damping_ratio`` overrides the file's modal
         damping, ``integrals`` picks ``"general"`` or ``"point_mass"`` integrals, ``omit_terms`` leaves
-        out terms of M(eta) that cost O(n^3) or O(n^4) per evaluation (a subset of ("G1", "F2", "G2"),
-        see :mod:`dynamics.flexible_body`). ``geometric_stiffening`` (None: on when the body file has the
+        out the terms of nodes with rotary inertia (a subset of ("G1", "F2", "G2"), see
+        :mod:`dynamics.flexible_body`). ``geometric_stiffening`` (None: on when the body file has the
         geometric stiffness of ``fem2modal --geometric-stiffness``; False: off; True: required) and ``preload``
         ({name: scale} of the file's named preloads) add the stiffening of the rigid-motion and preload
-        stresses (:func:`dynamics.flexible_body.add_geometric_stiffening`). ``child_grid`` puts the hinge's outboard frame on that grid
-        of this body, so the hinge holds the deforming interface grid (as DARTS does) rather than the
+        stresses (:func:`dynamics.flexible_body.add_geometric_stiffening`). ``child_grid`` puts the hinge's
+        outboard frame on that grid of this body, so the hinge holds the deforming interface grid (as DARTS
+        does) rather than the
         body frame; ``outboard_position`` and ``outboard_rotation`` are then relative to the grid's node
         frame. Other keywords are those of :meth:`add_body` (hinge axes, frames, prescribed,
         parent_node, joint_name). Modal coordinates are appended to the hinge coordinates in ``q`` and
         ``u``.
         """
+        auto = order == "auto"
+        if order not in (None, 0, 1, 2, "auto"):
+            raise ModelDefinitionError(f"body '{name}': modal-integral order must be 0, 1, 2 or 'auto', got {order!r}")
         if isinstance(modal, FlexibleBodyData):
             data = modal.without(omit_terms)
             if (modes is not None or max_frequency is not None or damping_ratio is not None or preload
@@ -146,12 +153,20 @@ class Multibody:
                     modes = select_modes(modal.frequencies_hz, modes, max_frequency)
                 except ValueError as exc:
                     raise ModelDefinitionError(f"body '{name}': {exc}") from None
-            try:
-                data = flexible_body_from_modal_body(modal, modes=modes, order=order, damping_ratio=damping_ratio,
-                                                     integrals=integrals, omit_terms=omit_terms,
-                                                     geometric_stiffening=geometric_stiffening, preload=preload)
-            except ModelDefinitionError as exc:
-                raise ModelDefinitionError(f"body '{name}': {exc}") from None
+
+            def build(order_, omit_=()):
+                try:
+                    return flexible_body_from_modal_body(
+                        modal, modes=modes, order=order_, damping_ratio=damping_ratio, integrals=integrals,
+                        omit_terms=tuple(omit_terms) + tuple(t for t in omit_ if t not in omit_terms),
+                        geometric_stiffening=geometric_stiffening, preload=preload)
+                except ModelDefinitionError as exc:
+                    raise ModelDefinitionError(f"body '{name}': {exc}") from None
+
+            data = build(2 if auto else order)
+            if auto:
+                data = dataclasses.replace(data, note="modal integrals order auto, compiled at order 2 until "
+                                                      "dynamics.modal_order.resolve_modal_orders chooses")
             # normalized component modes mounted where their interface is not held, or held twice (a free
             # body without child_grid needs no holding: its modes span the interface motion)
             if hasattr(modal, "mounting_warnings") and not (child_grid is None and hinge == "free"):
@@ -164,7 +179,8 @@ class Multibody:
         J_com = J0 - mass * (com @ com * np.eye(3) - np.outer(com, com))
         self.add_body(name, parent, mass=mass, com=com, inertia=J_com, hinge=hinge, **hinge_kwargs)
         self.bodies[-1].flexible = data
-        if data.note:
+        self.bodies[-1].auto_order = build if auto else None
+        if data.note and not auto:
             self.notes.append(f"body '{name}': {data.note}")
             warnings.warn(self.notes[-1], UserWarning, stacklevel=2)
         if child_grid is not None:

@@ -41,6 +41,7 @@ class BodyDefinition:
     flexible: object | None = None  # dynamics.flexible_body.FlexibleBodyData
     locked_from: tuple | None = None  # the hinge a run-time lock replaced (dynamics.reconfigure)
     outboard_node: str | None = None  # node of this (flexible) body carrying the hinge's outboard frame
+    auto_order: object | None = None  # order="auto": (order, omit) -> FlexibleBodyData (dynamics.modal_order)
 
 
 @dataclass

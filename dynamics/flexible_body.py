@@ -20,12 +20,14 @@ term   block of M(eta)                 integrals              cost per evaluatio
 =====  ==============================  =====================  ===================================
 R1     rigid/rigid, first order        J1, p1                 O(n)
 C1     rigid/modal, first order        F1, E1                 O(n^2)
-G1     modal/modal, first order        G1                     O(n^3); also makes the modal mass
-                                                              eta-dependent, so the articulated-
-                                                              body step factors it (O(n^3))
+G1     modal/modal, first order        G1                     O(n^3) as a table, O(N_r n) summed over
+                                                              the nodes; makes the modal mass eta-
+                                                              dependent (dynamics.kernels.articulated_body
+                                                              refines against the constant G0, or
+                                                              factors G(eta): O(n^3))
 J2     rotational, second order        J2                     O(n^2)
-F2     rotational/modal, second order  F2                     O(n^3)
-G2     modal/modal, second order       G2                     O(n^4)
+F2     rotational/modal, second order  F2                     O(n^3) as a table, O(N_r n) over nodes
+G2     modal/modal, second order       G2                     O(n^4) as a table, O(N_r n) over nodes
 P2     rotational/translational,       geometric stiffness    O(n^2)
        second order                    (translation cases)
 =====  ==============================  =====================  ===================================
@@ -33,12 +35,23 @@ P2     rotational/translational,       geometric stiffness    O(n^2)
 Geometric stiffening (:func:`add_geometric_stiffening`, issue 15) adds to C1 and J2 and brings P2.
 
 G1, F2 and G2 come only from nodes with rotational inertia or centre-of-mass offsets (zero for point
-masses, TM eq. E.3.1); a user may leave them out (``omit_terms``, :data:`OMITTABLE_TERMS`). The kinetic
-energy stays a positive quadratic form of the velocities with any subset of the terms (they are
-small corrections at small deformation), so the equations of motion remain Lagrangian and conserve
-energy; what is lost is the change of the modal mass (G1, G2) and of the rotational/modal coupling
-(F2) with the rotation ``lambda eta`` of the nodes' own inertia, effects of relative size
-``|lambda eta|`` (the node rotation angles) on those blocks.
+masses, TM eq. E.3.1): they are the turning of each such node's own inertia with its elastic rotation
+``theta_j = lambda_j eta`` (first-order attitude ``I + theta_j~``, E.1.17). Summed over those nodes
+(:class:`NodeInertia`, the per-node invariants m_j, p_j, J_j, lambda_j, gamma_j, as Exudyn's floating-frame
+formulation evaluates its inertia terms) they cost O(N_r n) per evaluation instead of the O(n^3) and O(n^4)
+tables (N_r: the nodes with rotary inertia or offsets), exactly: with ``dJ = theta~ J - J theta~`` (first
+order), ``-theta~ J theta~`` (second order) and ``dP = (theta x p)~``,
+
+    G(eta)  = G0 + sum_j lambda_j' dJ_j lambda_j + m_j (lambda_j' dP_j gamma_j + gamma_j' dP_j' lambda_j),
+    F2 eta eta (rows omega of M_re) = sum_j (-theta_j~ J_j theta_j~ - m_j u_j~ dP_j) lambda_j,  u_j = gamma_j eta,
+
+the blocks of ``sum_j Y_j' M_nd,j Y_j`` (E.1.34) that the tables hold. :func:`flexible_body_from_modal_body`
+chooses the nodal form where it is cheaper (:func:`nodal_is_cheaper`). A user may also leave the three
+terms out (``omit_terms``, :data:`OMITTABLE_TERMS`). The kinetic energy stays a positive quadratic form of the
+velocities with any subset of the terms (they are small corrections at small deformation), so the
+equations of motion remain Lagrangian and conserve energy; what is lost is the change of the modal mass
+(G1, G2) and of the rotational/modal coupling (F2) with the rotation ``lambda eta`` of the nodes' own
+inertia, effects of relative size ``|lambda eta|`` (the node rotation angles) on those blocks.
 
 The equations of motion follow from Lagrange's equations for ``eta`` and the Euler-Poincare (Kirchhoff)
 equations for the quasi-velocity ``V`` (see :mod:`dynamics.kernels`).
@@ -83,13 +96,33 @@ class ModalMassTerms:
 
 
 @dataclass
+class NodeInertia:
+    """The nodes of a flexible body whose own inertia turns with their elastic rotation (rotary inertia
+    ``inertia`` J_j about the node, or a centre-of-mass offset ``cg`` p_j), with their mass ``mass`` m_j and
+    mode shapes ``shapes`` (N_r, 6, n) = [lambda_j; gamma_j]: the engine evaluates the ``terms`` (a subset of
+    :data:`OMITTABLE_TERMS`) of M(eta) as sums over them (module docstring) instead of tables."""
+
+    mass: np.ndarray  # (N_r,)
+    cg: np.ndarray  # (N_r, 3)
+    inertia: np.ndarray  # (N_r, 3, 3) about the node
+    shapes: np.ndarray  # (N_r, 6, n)
+    terms: tuple = ()
+
+    @property
+    def count(self):
+        return int(self.mass.shape[0])
+
+
+@dataclass
 class FlexibleBodyData:
     """Modal data of one flexible body, ready for the engine (SI units, body frame).
 
     The eta-dependent part of M(eta) is given either as the polynomial coefficients ``M1`` (n, N, N)
     and ``M2`` (n, n, N, N) (convenient for small bodies and tests), or compactly as ``terms`` (what
-    :func:`flexible_body_from_modal_body` builds, without the O(n^3) arrays). ``note`` records a choice
-    made for the user (an order chosen by default), reported by the compiled system."""
+    :func:`flexible_body_from_modal_body` builds, without the O(n^3) arrays). ``node_inertia`` (a
+    :class:`NodeInertia`) holds the terms G1, F2, G2 as per-node invariants instead of tables (then absent
+    from ``terms``). ``note`` records a choice made for the user (an order chosen by default), reported by the
+    compiled system."""
 
     n_modes: int
     order: int
@@ -105,6 +138,16 @@ class FlexibleBodyData:
     source: str = "arrays"
     terms: ModalMassTerms | None = None
     note: str = ""
+    node_inertia: NodeInertia | None = None
+    geometric_stiffening: bool = False  # the terms of add_geometric_stiffening are in
+    stiffness_available: bool = False  # the body file holds geometric stiffness (used or not)
+    first_frequency_hz: float | None = None  # the body's lowest elastic frequency mounted (None: its lowest mode's)
+
+    @property
+    def lowest_frequency_hz(self):
+        """The lowest elastic frequency to compare the scene's rates with: ``first_frequency_hz`` (a component
+        mode set's fixed-interface frequency: the body held at its interface), else the lowest of its modes."""
+        return float(self.first_frequency_hz if self.first_frequency_hz is not None else np.min(self.frequencies_hz))
 
     @property
     def mass(self):
@@ -134,7 +177,11 @@ class FlexibleBodyData:
         if not omit:
             return self
         terms = dataclasses.replace(self.mass_terms(), **{name: None for name in omit})
-        return dataclasses.replace(self, M1=None, M2=None, terms=terms)
+        nodes = self.node_inertia
+        if nodes is not None:
+            kept = tuple(t for t in nodes.terms if t not in omit)
+            nodes = dataclasses.replace(nodes, terms=kept) if kept else None
+        return dataclasses.replace(self, M1=None, M2=None, terms=terms, node_inertia=nodes)
 
 
 def _nonzero(a):
@@ -297,18 +344,48 @@ def add_geometric_stiffening(terms, stiffness, gs, preload=None, source=""):
     return dataclasses.replace(terms, C1=_nonzero(C1), J2=_nonzero(J2), P2=_nonzero(P2)), K
 
 
+def node_inertia_from_nodes(mass, cg, inertia, shapes, order, omit=()):
+    """The :class:`NodeInertia` of the nodes with rotary inertia or a CG offset among ``mass`` (N,),
+    ``cg`` (N, 3), ``inertia`` (N, 3, 3) about the node and ``shapes`` (N, 6, n), for the terms of
+    modal-integral ``order`` (G1 at 1, G1, F2, G2 at 2) not in ``omit``; None when no node has either or no
+    term is left."""
+    terms = tuple(t for t in (("G1",) if order >= 1 else ()) + (("F2", "G2") if order >= 2 else ()) if t not in omit)
+    inertia = np.asarray(inertia, dtype=np.float64)
+    cg = np.asarray(cg, dtype=np.float64)
+    sel = (np.abs(inertia).reshape(len(inertia), -1).max(axis=1, initial=0.0) > 0.0) | (np.abs(cg).max(axis=1) > 0.0)
+    if not terms or not np.any(sel):
+        return None
+    return NodeInertia(mass=np.asarray(mass, dtype=np.float64)[sel], cg=cg[sel], inertia=inertia[sel],
+                       shapes=np.ascontiguousarray(np.asarray(shapes, dtype=np.float64)[sel]), terms=terms)
+
+
+def nodal_is_cheaper(n, count, terms, tables_available=True):
+    """Whether the terms ``terms`` (of G1, F2, G2) cost less per evaluation as sums over ``count`` nodes than
+    as tables of a body of ``n`` modes (multiply-adds: G1 2 n^3 to form and differentiate, F2 9 n^3, G2 2 n^4,
+    and a factorization of the modal mass n^3 / 3; over the nodes about 30 n per node for the forces and
+    four refinements of 6 n per node against the constant modal mass, see :mod:`dynamics.kernels.articulated_body`).
+    Tables that the body file does not hold (G2 above 40 modes) are never cheaper."""
+    if not tables_available:
+        return True
+    table = (2.0 * n ** 3 if "G1" in terms else 0.0) + (9.0 * n ** 3 if "F2" in terms else 0.0) \
+        + (2.0 * n ** 4 if "G2" in terms else 0.0) + (n ** 3 / 3.0 if {"G1", "G2"} & set(terms) else 0.0)
+    nodal = count * n * (30.0 + (24.0 if {"G1", "G2"} & set(terms) else 0.0))
+    return nodal < table
+
+
 def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=None, integrals="general",
                                   omit_terms=(), geometric_stiffening=None, preload=None):
     """Build :class:`FlexibleBodyData` from a ``dynamics.flex.body_file.ModalBody`` (a body file).
 
     ``modes``: indices of the modes to keep (default all); ``order``: modal-integral order 0, 1, 2, or
-    None for the highest the file supports (2 when it holds G2 or its nodes have no rotational inertia,
-    else 1; the choice is recorded in ``note``); ``damping_ratio``: overrides the file's damping (scalar
-    or per kept mode); ``integrals``: ``"general"`` (nodes with their own inertia and offsets,
-    E.2.2-E.2.5) or ``"point_mass"`` (E.3.1); ``omit_terms``: terms of M(eta) to leave out (subset of
-    :data:`OMITTABLE_TERMS`, see the module docstring); ``geometric_stiffening``: add the body file's
-    geometric stiffness (:func:`add_geometric_stiffening`); None (default) adds it when the file has it,
-    True requires it, False leaves it out; ``preload``: {name: scale} of the file's named preloads.
+    None for 2 (the terms G1, F2, G2 of nodes with rotary inertia come from the file's per-grid masses and
+    shapes, :class:`NodeInertia`, where that is cheaper than the file's tables or the file omits them);
+    ``damping_ratio``: overrides the file's damping (scalar or per kept mode); ``integrals``: ``"general"``
+    (nodes with their own inertia and offsets, E.2.2-E.2.5) or ``"point_mass"`` (E.3.1); ``omit_terms``: terms
+    of M(eta) to leave out (subset of :data:`OMITTABLE_TERMS`, see the module docstring);
+    ``geometric_stiffening``: add the body file's geometric stiffness (:func:`add_geometric_stiffening`); None
+    (default) adds it when the file has it, True requires it, False leaves it out; ``preload``: {name:
+    scale} of the file's named preloads.
     """
     if order not in (None, 0, 1, 2):
         raise ModelDefinitionError(f"modal-integral order must be 0, 1 or 2, got {order!r}")
@@ -323,19 +400,22 @@ def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=No
     keep = np.arange(n_all) if modes is None else np.asarray(modes, dtype=np.int64)
     if keep.size == 0 or keep.min() < 0 or keep.max() >= n_all:
         raise ModelDefinitionError(f"{body.source}: modes {keep.tolist()} out of range 0..{n_all - 1}")
-    g2_missing = (mi.G2 is None and integrals == "general" and bool(np.any(body.node_inertia))
-                  and "G2" not in omit_terms)
-    note = ""
     if order is None:
-        order = 1 if g2_missing else 2
-        if g2_missing:
-            note = f"modal integrals order 1 (the body file has no G2 for its {n_all} modes)"
-    elif order == 2 and g2_missing:
-        raise ModelDefinitionError(
-            f"{body.source}: order-2 modal integrals need G2, which the body file omits (too many modes "
-            f"for the n^4 table: {n_all}); select fewer modes when generating it, use order 1, or leave "
-            f"the term out with omit_terms=('G2',)")
-    sub = _select_modes(mi, keep)
+        order = 2
+    shapes = np.concatenate([body.rotation_shapes[:, :, keep], body.translation_shapes[:, :, keep]], axis=1)
+    nodes = None
+    if integrals == "general":
+        nodes = node_inertia_from_nodes(body.node_mass, body.node_cm_offset, body.node_inertia, shapes, order,
+                                        omit_terms)
+    if nodes is not None:
+        tables = all(getattr(mi, t) is not None for t in nodes.terms)
+        if not nodal_is_cheaper(int(keep.size), nodes.count, nodes.terms, tables):
+            nodes = None
+    if nodes is None and order == 2 and integrals == "general" and mi.G2 is None \
+            and bool(np.any(body.node_inertia)) and "G2" not in omit_terms:
+        raise ModelDefinitionError(f"{body.source}: order-2 modal integrals need G2, which the body file omits and "
+                                   f"its per-grid inertias cannot give")
+    sub = _select_modes(mi, keep, skip=() if nodes is None else nodes.terms)
     terms = mass_terms_from_integrals(sub, order)
     K = np.asarray(body.modal_stiffness)[np.ix_(keep, keep)]
     gs = getattr(body, "geometric_stiffness", None)
@@ -355,16 +435,29 @@ def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=No
         omega = 2.0 * np.pi * np.asarray(body.frequencies_hz)[keep]
         omega[np.isinf(omega)] = 0.0          # quasi-static modes: no mass, nothing to damp
         C = np.diag(2.0 * zeta * omega)
-    shapes = np.concatenate([body.rotation_shapes[:, :, keep], body.translation_shapes[:, :, keep]], axis=1)
     data = FlexibleBodyData(n_modes=int(keep.size), order=order, M0=rigid_mass_block(sub), M1=None, M2=None,
                             stiffness=K, damping=C, grid_ids=np.asarray(body.grid_ids),
                             grid_positions=body.grid_positions, grid_shapes=shapes,
                             frequencies_hz=np.asarray(body.frequencies_hz)[keep], source=body.source,
-                            terms=terms, note=note)
+                            terms=terms, node_inertia=nodes,
+                            geometric_stiffening=gs is not None and geometric_stiffening is not False,
+                            stiffness_available=gs is not None, first_frequency_hz=_first_frequency(body, keep))
     return data.without(omit_terms)
 
 
-def _select_modes(mi, keep):
+def _first_frequency(body, keep):
+    """The lowest elastic frequency of the body file's kept modes, or of its fixed-interface modes when it has
+    them (normalized component modes list the frequencies of the free body: 6.4 times the first of a cantilever
+    held at its interface)."""
+    f = float(np.min(np.asarray(body.frequencies_hz)[keep]))
+    cb = getattr(body, "craig_bampton", None)
+    if cb is not None and len(cb.frequencies_hz):
+        f = min(f, float(np.min(cb.frequencies_hz)))
+    return f
+
+
+def _select_modes(mi, keep, skip=()):
+    """The integrals of the kept modes; those named in ``skip`` (evaluated over the nodes instead) are None."""
     from dynamics.flex.modal_integrals import ModalIntegrals
 
     ix = np.ix_
@@ -374,5 +467,6 @@ def _select_modes(mi, keep):
 
     return ModalIntegrals(
         mass=mi.mass, p0=mi.p0, J0=mi.J0, p1=take(mi.p1, 0), J1=take(mi.J1, 0), J2=take(mi.J2, 0, 1),
-        F0=mi.F0[keep], F1=take(mi.F1, 0, 1), F2=take(mi.F2, 0, 1, 2), E0=mi.E0[keep], E1=take(mi.E1, 0, 1),
-        G0=mi.G0[ix(keep, keep)], G1=take(mi.G1, 0, 1, 2), G2=take(mi.G2, 0, 1, 2, 3))
+        F0=mi.F0[keep], F1=take(mi.F1, 0, 1), F2=None if "F2" in skip else take(mi.F2, 0, 1, 2), E0=mi.E0[keep],
+        E1=take(mi.E1, 0, 1), G0=mi.G0[ix(keep, keep)], G1=None if "G1" in skip else take(mi.G1, 0, 1, 2),
+        G2=None if "G2" in skip else take(mi.G2, 0, 1, 2, 3))

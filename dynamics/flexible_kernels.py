@@ -37,6 +37,12 @@ from dynamics.layout import (
     FX_C, FX_C1, FX_C1_ROWS, FX_C_DIAGONAL, FX_F2, FX_G0, FX_G1, FX_G2, FX_GINV, FX_GINV_KIND, FX_J2, FX_K,
     FX_K_DIAGONAL, FX_M0RE, FX_P2, FX_R1, GINV_DENSE, GINV_DIAGONAL, GINV_FACTORED)
 
+FAST_SUMS = {"reassoc", "contract"}
+"""numba's fastmath flags of the kernels whose cost is long sums over modes (tables, node shapes, the modal
+mass's factorization): reassociation lets LLVM vectorize a sum (measured 2-3x on the 196-mode beam of
+benchmarks/flexible_scaling.py), contraction fuses its multiply-adds. The result changes by round-off only
+(the order of the additions), and the same on every call: no finite-math or signed-zero assumptions."""
+
 
 @njit(cache=True, inline="always")
 def so3_coefficients(phi):
@@ -251,7 +257,7 @@ def psi_times_inverse_modal_mass(shape_ginv, n, phi, pos, Z):
         Z[5, r] = shape_ginv[5, r] + x * b1 - y * b0
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST_SUMS)
 def modal_mass_and_bias(fx, params, n, eta, V, e, with_bias, form_G, Mrr, Mre, Gm, br, bm, Mdrr, Mdre):
     """Blocks of ``M(eta)`` and, with ``with_bias``, the body forces ``b`` (module docstring).
 
@@ -538,8 +544,10 @@ def modal_mass_and_bias(fx, params, n, eta, V, e, with_bias, form_G, Mrr, Mre, G
 
 @njit(cache=True)
 def modal_mass_times(fx, params, n, Gm, a, out):
-    """``out = G a`` with the body's current modal mass: the constant ``G0`` (diagonal or dense) or the
-    ``G(eta)`` formed in ``Gm`` (when G1 or G2 is present)."""
+    """``out = G a`` with the body's modal mass as its ``FX_GINV_KIND`` holds it: the constant ``G0``
+    (diagonal or dense), or the ``G(eta)`` formed in ``Gm`` (when tables of G1 or G2 are present). The node
+    terms of a refined body (``FX_REFINE``) are added by the caller
+    (:func:`dynamics.kernels.body_terms.modal_mass_times`)."""
     if fx[FX_GINV_KIND] == GINV_FACTORED:
         for s in range(n):
             t = 0.0
@@ -559,7 +567,7 @@ def modal_mass_times(fx, params, n, Gm, a, out):
         out[s] = t
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST_SUMS)
 def cholesky_in_place(G, n):
     """Lower Cholesky factor of the symmetric ``G`` (n x n) in its lower triangle. Returns -1, or the first
     column whose pivot is not positive relative to its diagonal entry (a matrix that is not positive
@@ -580,11 +588,11 @@ def cholesky_in_place(G, n):
     return -1
 
 
-@njit(cache=True)
-def modal_mass_solve_rows(fx, params, n, L, X, rows, out):
+@njit(cache=True, fastmath=FAST_SUMS)
+def modal_mass_solve_rows(fx, kind, params, n, L, X, rows, out):
     """``out[:rows] = X[:rows] G^-1`` (each row a vector of length n; ``out`` must not be ``X``): with the
-    precomputed inverse (diagonal or dense) or the Cholesky factor ``L`` of ``G(eta)``."""
-    kind = fx[FX_GINV_KIND]
+    precomputed inverse (``kind`` GINV_DIAGONAL or GINV_DENSE) or the Cholesky factor ``L`` of ``G(eta)``
+    (GINV_FACTORED)."""
     if kind == GINV_DIAGONAL:
         o = fx[FX_GINV]
         for a in range(rows):

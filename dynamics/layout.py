@@ -71,14 +71,29 @@ FX_P_SMALL = 25  # pool: the Woodbury system (V and Q r x r, [C | rhs] r x (r + 
 FX_RANK = 26  # r = 6 (child attachment nodes) + 12 (when the hinge sits on a node of the body)
 FX_P_MRR = 27  # pool: M_rr(eta) (6 x 6)
 FX_P2 = 28  # params: (n, n, 3) second-order mass-centre shift of geometric stiffening (ModalMassTerms.P2)
-N_FX = 29
+FX_NODES = 29  # params: the node-inertia records (NODE_RECORD + 6 n numbers each), -1 when none
+FX_NODE_COUNT = 30  # how many nodes with rotary inertia or CG offsets carry terms of M(eta)
+FX_NODE_TERMS = 31  # which terms they carry: a sum of NODE_G1, NODE_G2, NODE_F2
+FX_P_NODES = 32  # pool: theta_j = lambda_j eta and u_j = gamma_j eta of each such node (6 per node)
+FX_REFINE = 33  # > 0: G(eta) = G0 + node terms, refined against the constant G0 (GINV_KIND of G0) for at
+#                most this many passes (the cost of factoring G(eta) instead); 0: not refined
+N_FX = 34
 
 # n-vectors of a flexible body in the pool (FX_P_VEC + k n)
 PV_FORCE = 0  # modal bias minus applied modal forces (ABA) / modal body force (RNEA)
 PV_RHS = 1  # G^-1 d (ABA)
 PV_Y = 2  # E'^-1 d (ABA), kept for the acceleration pass
 PV_TMP = 3
-N_PV = 4
+PV_DG = 4  # (G(eta) - G0) etaddot of the current refinement iterate (ABA)
+PV_PREV = 5  # the modal accelerations of the previous refinement iterate
+N_PV = 6
+
+# the terms of M(eta) summed over nodes (FX_NODE_TERMS bits); a node record in params is [m, p (3), J (9, row
+# major), 1 if p != 0 else 0] followed by its shapes [lambda; gamma] (6 x n, row major)
+NODE_G1 = 1
+NODE_G2 = 2
+NODE_F2 = 4
+NODE_RECORD = 14
 
 # how G^-1 is applied
 GINV_DIAGONAL = 0
@@ -119,6 +134,7 @@ P_V1 = 48
 P_V2 = 54
 P_ZERO = 60  # 6 zeros: the ground acceleration of node kinematics
 P_T33 = 66  # 3 x 3
+P_REFINEMENTS = 75  # refinement passes of the last forward dynamics (dynamics.kernels.articulated_body)
 POOL_HEADER = 80
 
 # joint_rot slots: (nb, 2, 3, 3) and joint_vec slots: (nb, 4, 3)
@@ -147,7 +163,8 @@ VEC_WPOS = 7  # [0:3] body origin in the world, [3:6] p_PF on a deforming parent
 VEC_XW = 8  # X w: the parent node's velocity relative to the parent, in body axes
 VEC_WC = 9  # w_c: the outboard node's velocity relative to the body
 VEC_PBM = 10  # [0:3] p_BM of an outboard frame on a deforming node
-N_VEC = 11
+VEC_P0 = 11  # the body's own force pA of pass 1 (ABA), from which a refinement pass starts again
+N_VEC = 12
 
 MAT_S = 0  # motion subspace in body axes (6 x nu)
 MAT_IA = 1  # articulated (ABA) or composite (CRBA) inertia, rigid block

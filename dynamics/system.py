@@ -77,7 +77,12 @@ class _Packer:
 
 
 def _is_diagonal(a):
-    return not np.any(a - np.diag(np.diag(a)))
+    """Diagonal to round-off: every off-diagonal entry below 1e-13 of the geometric mean of its two diagonal
+    entries (a mass-normalized modal mass or a modal stiffness from an eigen-solution is diagonal with
+    off-diagonal round-off of 1e-15 relative; treating it as diagonal changes results by as little)."""
+    d = np.sqrt(np.abs(np.diag(a)))
+    off = np.abs(a - np.diag(np.diag(a)))
+    return bool(np.all(off <= 1e-13 * np.outer(d, d)))
 
 
 def has_quasi_static_modes(data) -> bool:
@@ -104,14 +109,28 @@ def _modal_mass_inverse(G0, where):
     return L.GINV_DENSE, 0.5 * (inverse + inverse.T)
 
 
+MIN_REFINEMENT_BUDGET = 5
+"""A body whose modal mass varies through node terms is refined when five refinements (what deformations of
+1e-4..1e-3 rad take) cost less than forming and factoring ``G(eta)``."""
+
+
+def refinement_budget(n, count):
+    """How many refinements of a body of ``n`` modes whose modal mass varies through the terms of ``count`` nodes
+    (a product of 6 n per node and the bias and acceleration passes, ~40 n) cost as much as forming ``G(eta)``
+    over the nodes (3 n^2 per node) and factoring it (n^3 / 3, and 14 n^2 for its solves) per evaluation: the
+    forward dynamics refines against the constant ``G0`` while the iterations it predicts stay within this
+    budget, and factors ``G(eta)`` past it (:mod:`dynamics.kernels.articulated_body`)."""
+    return int((3.0 * count * n * n + n ** 3 / 3.0 + 14.0 * n * n) / (6.0 * count * n + 40.0 * n))
+
+
 def choose_solver(topology):
     """``("aba" | "dense", reason)``: the forward-dynamics solver with the lower estimated cost.
 
     The estimate (in multiply-adds, ~1 ns each here) counts only what differs between the two. The
     articulated-body recursion costs ~600 per rigid body and, per flexible body, ~6000 fixed (the modal
     elimination's small dense steps) plus its applications of ``G^-1`` (7 n or 7 n^2 for a constant modal
-    mass; with G1 or G2 a Cholesky factorization n^3/3 and 2 n^2 per solved row) and the Woodbury rank
-    terms 3 r^2 n. The dense path costs an inverse dynamics and a composite-inertia pass (~1100 per
+    mass; with G1 or G2 tables a Cholesky factorization n^3/3 and 2 n^2 per solved row), the Woodbury rank
+    terms 3 r^2 n, the node terms 30 n per node and, for a refined modal mass, about five refinements. The dense path costs an inverse dynamics and a composite-inertia pass (~1100 per
     rigid body, ~4000 + 8 n^2 per flexible body, the mass-matrix columns carried to the root, the modal
     mass formed a second time: n^3 with G1, 3 n^3 with F2, n^4 with G2) and the Cholesky factorization
     nu^3/3 + 2 nu^2 of the mass matrix. The constants were fitted to ``benchmarks/flexible_scaling.py``
@@ -134,17 +153,20 @@ def choose_solver(topology):
         fx = t[L.FLEX:]
         kind = int(fx[L.FX_GINV_KIND])
         r = int(fx[L.FX_RANK])
-        varying = fx[L.FX_C1] >= 0 or fx[L.FX_F2] >= 0
-        aba += 6000.0 + 3.0 * r * r * n
+        varying = fx[L.FX_C1] >= 0 or fx[L.FX_F2] >= 0 or (fx[L.FX_NODE_TERMS] & L.NODE_F2) != 0
+        count = int(fx[L.FX_NODE_COUNT]) if fx[L.FX_NODES] >= 0 else 0
+        aba += 6000.0 + 3.0 * r * r * n + 30.0 * count * n + (5.0 * (6.0 * count * n + 40.0 * n) if fx[L.FX_REFINE]
+                                                               else 0.0)
         if kind == L.GINV_DIAGONAL:
             aba += 7.0 * n * (1 + 6 * varying)
         elif kind == L.GINV_DENSE:
             aba += 1.0 * n * n * (1 + 6 * varying)
         else:
             aba += n ** 3 / 3.0 + 2.0 * n * n * (r + 13)
-        dense += 4000.0 + 8.0 * n * n
+        dense += 4000.0 + 8.0 * n * n + 30.0 * count * n
         dense += (n ** 3 if fx[L.FX_G1] >= 0 else 0) + (3 * n ** 3 if fx[L.FX_F2] >= 0 else 0) + \
-            (n ** 4 if fx[L.FX_G2] >= 0 else 0)
+            (n ** 4 if fx[L.FX_G2] >= 0 else 0) + (3.0 * count * n * n if fx[L.FX_NODE_TERMS] & (L.NODE_G1 | L.NODE_G2)
+                                                   else 0)
     dense += nu_total ** 3 / 3.0 + 2.0 * nu_total ** 2
     if dense < aba:
         return "dense", (f"dense M udot = tau - h (estimated {dense:.3g} multiply-adds against {aba:.3g} for "
@@ -299,9 +321,10 @@ class MultibodySystem:
                 fx = t[L.FLEX:]
                 cubic = [name for name, col in (("G1", L.FX_G1), ("F2", L.FX_F2), ("G2", L.FX_G2)) if fx[col] >= 0]
                 if cubic:
-                    notes.append(f"body '{b.name}': terms {', '.join(cubic)} of M(eta) cost O(n^3) or more per "
-                                 f"evaluation at {t[L.N_MODES]} modes; omit_terms={tuple(cubic)!r} leaves them out "
-                                 f"(see dynamics/flexible_body.py)")
+                    notes.append(f"body '{b.name}': terms {', '.join(cubic)} of M(eta) from tables cost O(n^3) or "
+                                 f"more per evaluation at {t[L.N_MODES]} modes (no per-node data to sum them over); "
+                                 f"omit_terms={tuple(cubic)!r} leaves them out (see dynamics/flexible_body.py)")
+        requested = solver
         quasi = [b.name for b in bodies if b.flexible is not None and has_quasi_static_modes(b.flexible)]
         if quasi and solver == "aba":
             raise ModelDefinitionError(f"bodies {quasi} have quasi-static modes (no modal mass): the articulated-body "
@@ -323,6 +346,7 @@ class MultibodySystem:
                      joint_vec=joint_vec, params=flat, pool_size=pool.size, gravity=gravity,
                      node_rot=[n.rotation for n in nodes], node_pos=[n.position for n in nodes],
                      masses=[b.mass for b in bodies], notes=notes, solver=solver, solver_reason=reason)
+        system.requested_solver = requested  # what compile(solver=...) asked for, kept by a recompilation
         # the description this system was compiled from, for run-time reconfiguration
         system.definitions = (tuple(dataclasses.replace(b) for b in bodies),
                               tuple(dataclasses.replace(n) for n in nodes), np.array(gravity, dtype=float))
@@ -365,7 +389,32 @@ class MultibodySystem:
                                            f"shape {a.shape}")
             fx[col] = params.push(a)
             fx[diag_col] = _is_diagonal(a)
-        if terms.G1 is not None or terms.G2 is not None or has_quasi_static_modes(data):
+        nodes = data.node_inertia
+        node_terms = 0
+        fx[L.FX_NODE_COUNT] = 0
+        fx[L.FX_NODE_TERMS] = 0
+        if nodes is not None:
+            twice = sorted(t for t in nodes.terms if getattr(terms, t) is not None)
+            if twice:
+                raise ModelDefinitionError(f"{where}: terms {twice} are given both as tables and over the nodes")
+            bits = {"G1": L.NODE_G1, "G2": L.NODE_G2, "F2": L.NODE_F2}
+            node_terms = sum(bits[t] for t in nodes.terms)
+            fx[L.FX_NODE_COUNT] = nodes.count
+            fx[L.FX_NODE_TERMS] = node_terms
+            shapes = np.asarray(nodes.shapes, dtype=np.float64)
+            if shapes.shape != (nodes.count, 6, n):
+                raise ModelDefinitionError(f"{where}: node_inertia shapes must have shape {(nodes.count, 6, n)}, got "
+                                           f"{shapes.shape}")
+            offset = np.any(nodes.cg != 0.0, axis=1).astype(float)
+            records = np.concatenate([nodes.mass[:, None], nodes.cg, np.asarray(nodes.inertia).reshape(-1, 9),
+                                      offset[:, None], shapes.reshape(nodes.count, 6 * n)], axis=1)
+            fx[L.FX_NODES] = params.push(records)
+            fx[L.FX_P_NODES] = pool.reserve(6 * nodes.count)
+        varying = terms.G1 is not None or terms.G2 is not None
+        quasi_static = has_quasi_static_modes(data)
+        budget = refinement_budget(n, nodes.count) if node_terms & (L.NODE_G1 | L.NODE_G2) else 0
+        refine = not varying and not quasi_static and budget >= MIN_REFINEMENT_BUDGET
+        if varying or quasi_static or (node_terms & (L.NODE_G1 | L.NODE_G2) and not refine):
             # quasi-static modes make G singular: no inverse (the dense solver factors the whole mass matrix)
             kind, inverse = L.GINV_FACTORED, None
         else:
@@ -373,6 +422,7 @@ class MultibodySystem:
             fx[L.FX_GINV] = params.push(inverse)
             fx[L.FX_ZM0] = params.push(M0[:6, 6:] * inverse if kind == L.GINV_DIAGONAL else M0[:6, 6:] @ inverse)
         fx[L.FX_GINV_KIND] = kind
+        fx[L.FX_REFINE] = budget if refine else 0
         r = 6 * n_child_nodes + (12 if t[L.OUTBOARD_NODE] >= 0 else 0)
         fx[L.FX_RANK] = r if n else 0
         for col in (L.FX_P_MRE, L.FX_P_MDRE, L.FX_P_BP, L.FX_P_ZM, L.FX_P_W):
@@ -622,8 +672,14 @@ class MultibodySystem:
                 terms = [term for term, col in (("R1", L.FX_R1), ("C1", L.FX_C1), ("G1", L.FX_G1),
                                                 ("J2", L.FX_J2), ("F2", L.FX_F2), ("G2", L.FX_G2),
                                                 ("P2", L.FX_P2)) if fx[col] >= 0]
+                if fx[L.FX_NODES] >= 0:
+                    nodal = [t for t, bit in (("G1", L.NODE_G1), ("F2", L.NODE_F2), ("G2", L.NODE_G2))
+                             if fx[L.FX_NODE_TERMS] & bit]
+                    terms.append(f"{'+'.join(nodal)} over {fx[L.FX_NODE_COUNT]} nodes")
                 kind = {L.GINV_DIAGONAL: "diagonal G0", L.GINV_DENSE: "G0^-1 precomputed",
                         L.GINV_FACTORED: "G(eta) factored per call"}[int(fx[L.FX_GINV_KIND])]
+                if fx[L.FX_REFINE]:
+                    kind += ", G(eta) - G0 refined"
                 lines.append(f"  flexible body '{name}': {self.n_modes[i]} modes, modal-integral order "
                              f"{fx[L.FX_ORDER]}, terms {'+'.join(['M0'] + terms)}, {kind}")
         lines.append(f"  solver: {self.solver_reason}")

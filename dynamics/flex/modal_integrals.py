@@ -29,7 +29,6 @@ The FEM pipeline takes m_j, p_j, J_j from the 6 x 6 grid blocks of the lumped ma
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -81,7 +80,7 @@ class ModalIntegrals:
 def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np.ndarray,
                     positions: np.ndarray, rotation_shapes: np.ndarray,
                     translation_shapes: np.ndarray, max_g2_modes: int = 40, order: int = 2,
-                    omit: tuple = ()) -> ModalIntegrals:
+                    omit: tuple = (), max_cubic_modes: int = 40) -> ModalIntegrals:
     """The integrals of eqs. E.2.2-E.2.5 that modal-integral ``order`` 0, 1 or 2 uses.
 
     ``order`` 0 computes m, p0, J0, F0, E0, G0; 1 adds p1, J1, F1, E1, G1; 2 (default) adds J2,
@@ -90,7 +89,10 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
     and at order 1 without G1, O(N n^3) with G1 or F2, O(N n^4) with G2 (N nodes, n modes).
 
     G2 is also ``None`` when it is identically zero (no node has rotational inertia) or when
-    n > ``max_g2_modes`` (n^4 numbers; a warning says so).
+    n > ``max_g2_modes`` (n^4 numbers), and G1 and F2 when n > ``max_cubic_modes`` (n^3 numbers each, 3 n^3 for
+    F2): the engine evaluates these three terms as sums over the nodes (their masses, offsets, inertias and
+    shapes, which a body file always holds: :mod:`dynamics.kernels.node_inertia`) at O(N n) per evaluation, so
+    the tables are worth their size only for small mode counts, where they are the cheaper form.
 
     node_mass (N,), node_cm (N,3) = p_j, node_inertia (N,3,3) = J_j about the node,
     positions (N,3) = l0_j from the body-frame origin, rotation_shapes (N,3,n) = lambda_j,
@@ -101,8 +103,9 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
     unknown = set(omit) - {"G1", "F2", "G2"}
     if unknown:
         raise ValueError(f"omit: only G1, F2 and G2 can be left out, got {sorted(unknown)}")
-    want_g1 = order >= 1 and "G1" not in omit
-    want_f2 = order >= 2 and "F2" not in omit
+    n_modes = np.shape(rotation_shapes)[2]
+    want_g1 = order >= 1 and "G1" not in omit and n_modes <= max_cubic_modes
+    want_f2 = order >= 2 and "F2" not in omit and n_modes <= max_cubic_modes
     want_g2 = order >= 2 and "G2" not in omit
     m = np.asarray(node_mass, float)
     p = np.asarray(node_cm, float)
@@ -206,11 +209,6 @@ def modal_integrals(node_mass: np.ndarray, node_cm: np.ndarray, node_inertia: np
                            cross_rl[hasJ].transpose(0, 3, 1, 2).reshape(-1, 3, n * n))
             X = (C.T @ JC.reshape(-1, n * n)).reshape(n, n, n, n)         # [r,l,m,s]
             G2 = -X.transpose(0, 3, 1, 2)
-        elif want_g2 and np.any(hasJ):
-            warnings.warn(f"modal integral G2 (n^4 = {n**4} numbers) not computed for {n} "
-                          f"modes (limit max_g2_modes = {max_g2_modes}); the O(eta^2) "
-                          "rotational-inertia term of the modal mass block is omitted",
-                          stacklevel=2)
     if J2 is not None:
         J2 = 0.5 * (J2 + J2.transpose(1, 0, 2, 3))
     return ModalIntegrals(mass=mass, p0=p0, J0=J0, p1=p1, J1=J1, J2=J2, F0=F0, F1=F1, F2=F2,

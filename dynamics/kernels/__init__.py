@@ -21,20 +21,23 @@ from its kinetic energy (:mod:`dynamics.flexible_kernels`; a rigid body has ``M 
 ``b = V x* I V``). The algorithms are the rigid-body ones run in these augmented spaces (Jain, *Robot and
 Multibody Dynamics*, 2011, ch. 13: the flexible-body ABA):
 
-* :func:`forward_dynamics` (:mod:`dynamics.kernels.articulated_body`) - articulated-body algorithm (RBDA Table 7.1) with prescribed hinge DOFs (their
-  known accelerations enter the bias, their forces come from ``IA a + pA``, RBDA sec. 9.3). A flexible
-  body's modal DOFs are eliminated before its hinge DOFs by a Schur complement whose modal block,
-  ``E' = G + L' Q L``, is the constant modal mass ``G`` plus updates of rank 6 per node that children
-  hang from (and 12 for a hinge on a node of the body), so ``E'^-1`` comes from the precomputed ``G^-1``
-  and a small dense solve (Woodbury): O(n^2) per body at orders 0 and 1 (O(n) with a diagonal ``G``),
-  see :mod:`dynamics.kernels.modal_condensation`. When G1 or G2 make ``G`` depend on eta it is factored per call, O(n^3);
+* :func:`forward_dynamics` - articulated-body algorithm (RBDA Table 7.1; :mod:`~dynamics.kernels.articulated_body`)
+  with prescribed hinge DOFs (their known accelerations enter the bias, their forces come from ``IA a + pA``,
+  RBDA sec. 9.3). A flexible body's modal DOFs are eliminated before its hinge DOFs by a Schur complement whose
+  modal block, ``E' = G + L' Q L``, is the modal mass ``G`` plus updates of rank 6 per node that children hang
+  from (and 12 for a hinge on a node of the body), so ``E'^-1`` comes from the precomputed ``G0^-1`` and a small
+  dense solve (Woodbury): O(n^2) per body (O(n) with a diagonal ``G0``), see
+  :mod:`dynamics.kernels.modal_condensation`. A modal mass that depends on eta through the nodes' rotary
+  inertia is refined against ``G0`` (O(N_r n) per pass); tables of G1 or G2 make it factored per call, O(n^3);
 * :func:`forward_dynamics_dense` - the same accelerations from ``M(q) udot = tau - h`` (CRBA, RNEA and a
   dense Cholesky factorization): chosen at compile time when it is cheaper (``MultibodySystem.solver``);
-* :func:`inverse_dynamics` (:mod:`dynamics.kernels.newton_euler`) - recursive Newton-Euler (RBDA Table 5.1);
-* :func:`mass_matrix` (:mod:`dynamics.kernels.composite_body`) - composite-rigid-body algorithm (RBDA Table 6.2), exactly symmetric;
-* :func:`node_kinematics` and :func:`node_kinematics_after_dynamics` (:mod:`dynamics.kernels.node_frames`) - pose, spatial velocity and
-  classical acceleration of frames on (deforming) bodies;
-* :func:`energy_momentum` (:mod:`dynamics.kernels.energy`) - kinetic and potential energy, linear and angular momentum in the world.
+* :func:`inverse_dynamics` - recursive Newton-Euler (RBDA Table 5.1; :mod:`~dynamics.kernels.newton_euler`);
+* :func:`mass_matrix` - composite-rigid-body algorithm (RBDA Table 6.2; :mod:`~dynamics.kernels.composite_body`),
+  exactly symmetric;
+* :func:`node_kinematics` and :func:`node_kinematics_after_dynamics` - pose, spatial velocity and classical
+  acceleration of frames on (deforming) bodies (:mod:`~dynamics.kernels.node_frames`);
+* :func:`energy_momentum` - kinetic and potential energy, linear and angular momentum in the world
+  (:mod:`~dynamics.kernels.energy`).
 
 A body without modal data whose hinge is not on a deforming node (topology column ``GENERAL`` = 0) runs the
 6 x 6 rigid-body code (the rigid fast path); every other body runs the augmented code, which reduces to
@@ -54,9 +57,9 @@ Modules, one per algorithm: :mod:`~dynamics.kernels.kinematics` (poses, velociti
 coordinate rates), :mod:`~dynamics.kernels.body_terms` (per-body inertia and forces),
 :mod:`~dynamics.kernels.modal_condensation` (the modal elimination), :mod:`~dynamics.kernels.articulated_body`,
 :mod:`~dynamics.kernels.newton_euler`, :mod:`~dynamics.kernels.composite_body`,
-:mod:`~dynamics.kernels.node_frames`, :mod:`~dynamics.kernels.energy`, and
-:mod:`~dynamics.kernels.small_linalg` (the few-by-few solves). This package names the algorithms and the
-layout's columns (``dynamics.kernels.articulated_body``, ``dynamics.kernels.FLEXIBLE``).
+:mod:`~dynamics.kernels.node_frames`, :mod:`~dynamics.kernels.energy`, :mod:`~dynamics.kernels.node_inertia` (the
+terms of nodes with rotary inertia) and :mod:`~dynamics.kernels.small_linalg` (the few-by-few solves). This package
+names the algorithms and the layout's columns (``dynamics.kernels.forward_dynamics``, ``dynamics.kernels.FLEXIBLE``).
 """
 from dynamics.kernels.articulated_body import forward_dynamics
 from dynamics.kernels.body_terms import rigid_bias_add

@@ -1,44 +1,69 @@
 """Forward dynamics by the articulated-body algorithm (RBDA Table 7.1) in augmented form, O(N), with
 prescribed hinge DOFs (their known accelerations enter the bias, their forces come from ``IA a + pA``, RBDA
 sec. 9.3); a flexible body's modal DOFs are eliminated by :mod:`dynamics.kernels.modal_condensation`.
+
+The inward pass is split, per body, into an inertia part (the articulated inertias and their factorizations:
+:func:`dynamics.kernels.modal_condensation.condense_inertia`, the hinge's ``D^-1``) and a bias part (the
+articulated forces: :func:`~dynamics.kernels.modal_condensation.condense_bias`, the hinge's ``d``, ``pa``), so
+that the same factorizations solve for another right-hand side at the cost of the bias and acceleration passes
+alone. The forward dynamics uses that to refine: a flexible body whose modal mass depends on its deformation
+through the terms of its nodes with rotary inertia, ``G(eta) = G0 + dG(eta)`` (``FX_REFINE``, terms G1, G2 of
+:mod:`dynamics.kernels.node_inertia`), is eliminated with the constant ``G0`` (precomputed ``G0^-1``, O(n) or
+O(n^2)), and the system ``(K0 + dK) udot = f`` is solved by the iteration ``K0 udot_{k+1} = f - dK udot_k``
+(Richardson, converging as ``rho^k`` with ``rho`` the spectral radius of ``K0^-1 dK``, of the order of the
+nodes' elastic rotation angles: three to five passes to round-off for deformations of 1e-4..1e-3 rad),
+each pass one product with ``dG`` over the nodes (O(N_r n)) and the bias and acceleration passes. The
+iteration stops when the next change of the modal accelerations would be below 1e-14 of their size (the
+round-off of the sums that form them), or stagnates at round-off;
+when the passes it still needs (predicted from its contraction rate) would cost more than forming ``G(eta)``
+and factoring it (the body's budget, ``dynamics.system.refinement_budget``: node rotations of a tenth of a
+radian and more on a body of a few tens of modes), the forward dynamics is solved again with ``G(eta)``
+formed and factored (O(N_r n^2 + n^3)), the result being the same to round-off either way.
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from dynamics.kernels.body_terms import apply_node_forces, flexible_body_terms, rigid_bias_add
 from dynamics.kernels.kinematics import general_kinematics, parent_acceleration_general, rigid_position, rigid_velocity
-from dynamics.kernels.modal_condensation import condense_modes, modal_accelerations, to_slot
+from dynamics.kernels.modal_condensation import (
+    condense_bias, condense_inertia, force_to_slot, inertia_to_slot, modal_accelerations, modal_mass_kind)
+from dynamics.kernels.node_inertia import node_inertia_times
 from dynamics.kernels.small_linalg import spd_inverse
 from dynamics.layout import (
-    FLEX, FLEXIBLE, FREE_DOFS, FX_GINV_KIND, FX_P_MRR, GENERAL, GINV_FACTORED, GROUND_ACCEL, INERTIA, MAT_DINV,
-    MAT_IA, MAT_IAP, MAT_S, MAT_TMP, MAT_U, N_FREE, N_MODES, N_PRESCRIBED, PARENT, PARENT_NODE, PRESCRIBED_DOFS,
-    ROT_PB, U_START, VEC_A, VEC_AUX, VEC_C, VEC_D, VEC_P, VEC_POS, VEC_V, view)
+    FIRST_SLOT, FLEX, FLEXIBLE, FREE_DOFS, FX_NODES, FX_NODE_COUNT, FX_NODE_TERMS, FX_P_MRR, FX_P_NODES, FX_P_VEC,
+    FX_REFINE, GENERAL, GINV_FACTORED, GROUND_ACCEL, INERTIA, MAT_DINV, MAT_IA, MAT_IAP, MAT_S, MAT_TMP, MAT_U,
+    NODE_NEXT_SLOT, NODE_SLOT, NU_HINGE, N_FREE, N_FX, N_MODES, N_PRESCRIBED, PARENT, PARENT_NODE, PRESCRIBED_DOFS,
+    PV_DG, PV_PREV, P_REFINEMENTS, ROT_PB, SL_G, U_START, VEC_A, VEC_AUX, VEC_C, VEC_D, VEC_P, VEC_P0, VEC_POS, VEC_V,
+    view)
 from dynamics.spatial import force_to_parent_add, inertia_to_parent_add, mat6_vec, motion_to_child
+
+NOT_CONVERGED = -1
+"""Status of a pass whose refinement of the modal mass would cost more than factoring it (solved again so)."""
+REFINED = 1e-14
+"""The refinement stops when its next correction would be below this fraction of the largest modal acceleration:
+the round-off of the sums over modes and nodes that form them."""
 
 
 @njit(cache=True, inline="always")
-def _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
-    """Articulated-body step of body i's free hinge DOFs (RBDA Table 7.1): U = IA S, D = S' U,
-    d = tau - S' pA, Ia = IA - U D^-1 U', pa = pA + Ia c + U D^-1 d (the last two only for a body with a
-    parent: what a root would pass inward is never read). False when D is singular."""
+def _hinge_inertia(i, topology, ws_mat):
+    """Articulated-body step of body i's free hinge DOFs (RBDA Table 7.1), inertia part: U = IA S, D = S' U,
+    its inverse, and Ia = IA - U D^-1 U' (only for a body with a parent: what a root would pass inward is never
+    read). False when D is singular."""
     S = ws_mat[i, MAT_S]
     IA = ws_mat[i, MAT_IA]
     U = ws_mat[i, MAT_U]
     Dinv = ws_mat[i, MAT_DINV]
     Ia = ws_mat[i, MAT_IAP]
-    pA = ws_vec[i, VEC_P]
-    c = ws_vec[i, VEC_C]
-    d = ws_vec[i, VEC_D]
-    pa = ws_vec[i, VEC_AUX]
     nf = topology[i, N_FREE]
-    u0 = topology[i, U_START]
+    root = topology[i, PARENT] < 0 and topology[i, PARENT_NODE] < 0
+    tol = 1e-14 * (IA[0, 0] + IA[1, 1] + IA[2, 2] + IA[3, 3] + IA[4, 4] + IA[5, 5])
     if nf == 1:
-        # the common 1-DOF hinge without the loops over DOFs (the same operations in the same order)
+        # the common 1-DOF hinge without the loops over DOFs
         k = topology[i, FREE_DOFS]
         D0 = 0.0
-        d0 = tau[u0 + k]
         for a in range(6):
             s = 0.0
             for b in range(6):
@@ -46,22 +71,17 @@ def _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
             U[a, 0] = s
         for a in range(6):
             D0 += S[a, k] * U[a, 0]
-            d0 -= S[a, k] * pA[a]
-        d[0] = d0
-        if not D0 > 1e-14 * (IA[0, 0] + IA[1, 1] + IA[2, 2] + IA[3, 3] + IA[4, 4] + IA[5, 5]):
+        if not D0 > tol:
             return False
         dinv = 1.0 / D0
         Dinv[0, 0] = dinv
+        if root:
+            return True
         for a in range(6):
             for b in range(a, 6):
                 s = IA[a, b] - U[a, 0] * (dinv * U[b, 0])
                 Ia[a, b] = s
                 Ia[b, a] = s
-        mat6_vec(Ia, c, pa)
-        t = dinv * d0
-        for a in range(6):
-            pa[a] += pA[a]
-            pa[a] += U[a, 0] * t
         return True
     for kk in range(nf):
         k = topology[i, FREE_DOFS + kk]
@@ -78,16 +98,11 @@ def _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
             for a in range(6):
                 s += S[a, k] * U[a, ll]
             D[kk, ll] = s
-        s = tau[u0 + k]
-        for a in range(6):
-            s -= S[a, k] * pA[a]
-        d[kk] = s
     if nf > 0:
-        tol = 1e-14 * (IA[0, 0] + IA[1, 1] + IA[2, 2] + IA[3, 3] + IA[4, 4] + IA[5, 5])
         if not spd_inverse(D, nf, tol, ws_mat[i, MAT_IAP], Dinv):
             return False
-    if topology[i, PARENT] < 0 and topology[i, PARENT_NODE] < 0:
-        return True  # a root body passes nothing inward: Ia, pa are never read (skips 6 x 6 x nf^2 work)
+    if root:
+        return True  # a root body passes nothing inward (skips 6 x 6 x nf^2 work)
     for a in range(6):
         for b in range(a, 6):
             s = IA[a, b]
@@ -98,7 +113,30 @@ def _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
                 s -= U[a, kk] * t
             Ia[a, b] = s
             Ia[b, a] = s
-    mat6_vec(Ia, c, pa)
+    return True
+
+
+@njit(cache=True, inline="always")
+def _hinge_bias(i, topology, tau, ws_mat, ws_vec):
+    """Articulated-body step of body i's free hinge DOFs, bias part (after :func:`_hinge_inertia`):
+    d = tau - S' pA and, for a body with a parent, pa = pA + Ia c + U D^-1 d."""
+    S = ws_mat[i, MAT_S]
+    U = ws_mat[i, MAT_U]
+    Dinv = ws_mat[i, MAT_DINV]
+    pA = ws_vec[i, VEC_P]
+    d = ws_vec[i, VEC_D]
+    nf = topology[i, N_FREE]
+    u0 = topology[i, U_START]
+    for kk in range(nf):
+        k = topology[i, FREE_DOFS + kk]
+        s = tau[u0 + k]
+        for a in range(6):
+            s -= S[a, k] * pA[a]
+        d[kk] = s
+    if topology[i, PARENT] < 0 and topology[i, PARENT_NODE] < 0:
+        return
+    pa = ws_vec[i, VEC_AUX]
+    mat6_vec(ws_mat[i, MAT_IAP], ws_vec[i, VEC_C], pa)
     for a in range(6):
         pa[a] += pA[a]
     for kk in range(nf):
@@ -107,14 +145,13 @@ def _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
             t += Dinv[kk, ll] * d[ll]
         for a in range(6):
             pa[a] += U[a, kk] * t
-    return True
 
 
 @njit(cache=True)
-def _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, ws_vec, ws_mat, pool):
+def _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, factored, ws_vec, ws_mat, pool):
     """Pass 1 of the ABA at a flexible body: IA = M_rr(eta) and pA = b - f_ext (modal rows in the pool)."""
     flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, True,
-                         topology[i, FLEX + FX_GINV_KIND] == GINV_FACTORED)
+                        modal_mass_kind(topology[i, FLEX:FLEX + N_FX], factored) == GINV_FACTORED)
     IA = ws_mat[i, MAT_IA]
     pA = ws_vec[i, VEC_P]
     M = view(pool, topology[i, FLEX + FX_P_MRR], 6, 6)
@@ -125,66 +162,10 @@ def _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, ws_vec, w
 
 
 @njit(cache=True)
-def forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, node_forces, body_forces, udot,
-                     tau_out, ws_rot, ws_vec, ws_mat, pool):
-    """Articulated-body forward dynamics with prescribed DOFs (module docstring).
-
-    On entry ``udot`` holds the prescribed accelerations at the prescribed DOFs (other entries are
-    ignored); on exit it holds all accelerations. ``tau`` gives the generalized forces of the free DOFs
-    (modal DOFs are always free: ``tau`` there is an applied modal force); ``tau_out`` receives ``tau`` at
-    free DOFs and the generalized force realizing the prescribed motion at prescribed DOFs. Returns 0, or
-    1 + the index of the first body whose articulated inertia is singular. On exit the workspace holds
-    every body's pose, velocity and acceleration (the latter including the ground's ``[0; -g]``).
-
-    Rigid bodies on fixed frames run inline 6 x 6 code (the rigid fast path); the augmented path's steps
-    (kinematics through deforming nodes, modal terms, modal elimination, slots) are calls.
-    """
-    nb = topology.shape[0]
-    ground = params[GROUND_ACCEL:GROUND_ACCEL + 6]
-    for i in range(nb):
-        if topology[i, GENERAL]:
-            general_kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool,
-                                True)
-        else:
-            rigid_position(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat)
-            rigid_velocity(i, topology, joint_vec, u, ws_rot, ws_vec, ws_mat)
-        S = ws_mat[i, MAT_S]
-        c = ws_vec[i, VEC_C]
-        u0 = topology[i, U_START]
-        for kk in range(topology[i, N_PRESCRIBED]):
-            k = topology[i, PRESCRIBED_DOFS + kk]
-            acc = udot[u0 + k]
-            for a in range(6):
-                c[a] += S[a, k] * acc
-        if topology[i, FLEXIBLE]:
-            _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, ws_vec, ws_mat, pool)
-            continue
-        IA = ws_mat[i, MAT_IA]
-        pA = ws_vec[i, VEC_P]
-        o = topology[i, INERTIA]
-        for a in range(6):
-            for b in range(6):
-                IA[a, b] = params[o + 6 * a + b]
-            pA[a] = -body_forces[i, a]
-        rigid_bias_add(params, o, ws_vec[i, VEC_V], pA)
-    apply_node_forces(topology, nodes, params, q, node_forces, ws_vec, pool, -1.0)
-
-    for i in range(nb - 1, -1, -1):
-        if topology[i, FLEXIBLE]:
-            if not condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
-                return 1 + i
-        if not _eliminate_hinge(i, topology, tau, ws_mat, ws_vec):
-            return 1 + i
-        parent = topology[i, PARENT]
-        if topology[i, PARENT_NODE] >= 0:
-            to_slot(i, topology, nodes, ws_mat[i, MAT_IAP], ws_vec[i, VEC_AUX], ws_rot, ws_vec, ws_mat, pool)
-        elif parent >= 0:
-            R = ws_rot[i, ROT_PB]
-            r = ws_vec[i, VEC_POS]
-            inertia_to_parent_add(R, r, ws_mat[i, MAT_IAP], ws_mat[parent, MAT_IA], ws_mat[i, MAT_TMP])
-            force_to_parent_add(R, r, ws_vec[i, VEC_AUX], ws_vec[parent, VEC_P])
-
-    for i in range(nb):
+def _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool):
+    """Pass 3 (outward): every body's acceleration, the free DOFs' accelerations, the prescribed DOFs' forces
+    and the modal accelerations."""
+    for i in range(topology.shape[0]):
         A = ws_vec[i, VEC_A]
         parent = topology[i, PARENT]
         if topology[i, GENERAL]:
@@ -242,4 +223,188 @@ def forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, n
                 tau_out[u0 + k] = s
         if topology[i, N_MODES] > 0:
             modal_accelerations(i, topology, nodes, tau, udot, tau_out, ws_vec, pool)
-    return 0
+
+
+@njit(cache=True)
+def _bias_pass(topology, nodes, params, tau, factored, ws_rot, ws_vec, ws_mat, pool):
+    """The inward pass again for other forces, on the factorizations of the last full pass: every body's force
+    from its pass-1 value (``VEC_P0``), the children's and the modal elimination's."""
+    nb = topology.shape[0]
+    for i in range(nb):
+        pA = ws_vec[i, VEC_P]
+        p0 = ws_vec[i, VEC_P0]
+        for a in range(6):
+            pA[a] = p0[a]
+        if topology[i, FLEXIBLE]:
+            nd = topology[i, FIRST_SLOT]
+            while nd >= 0:
+                s = nodes[nd, NODE_SLOT]
+                for a in range(6):
+                    pool[s + SL_G + a] = 0.0
+                nd = nodes[nd, NODE_NEXT_SLOT]
+    for i in range(nb - 1, -1, -1):
+        if topology[i, FLEXIBLE]:
+            condense_bias(i, topology, nodes, params, tau, factored, ws_vec, pool)
+        _hinge_bias(i, topology, tau, ws_mat, ws_vec)
+        parent = topology[i, PARENT]
+        if topology[i, PARENT_NODE] >= 0:
+            force_to_slot(i, topology, nodes, ws_vec[i, VEC_AUX], ws_rot, ws_vec, pool)
+        elif parent >= 0:
+            force_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], ws_vec[i, VEC_AUX], ws_vec[parent, VEC_P])
+
+
+@njit(cache=True)
+def _refinement_products(topology, params, udot, pool):
+    """``(G(eta) - G0) etaddot`` of every refined body into its ``PV_DG`` vector."""
+    for i in range(topology.shape[0]):
+        if not topology[i, FLEXIBLE] or not topology[i, FLEX + FX_REFINE]:
+            continue
+        n = topology[i, N_MODES]
+        fx = topology[i, FLEX:FLEX + N_FX]
+        pv = fx[FX_P_VEC]
+        ue = topology[i, U_START] + topology[i, NU_HINGE]
+        dg = pool[pv + PV_DG * n:pv + (PV_DG + 1) * n]
+        for s in range(n):
+            dg[s] = 0.0
+        count = fx[FX_NODE_COUNT]
+        node_inertia_times(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS],
+                           pool[fx[FX_P_NODES]:fx[FX_P_NODES] + 6 * count], udot[ue:ue + n], dg)
+
+
+@njit(cache=True)
+def _refinement_change(topology, udot, pool):
+    """(largest change of a refined body's modal acceleration since the last call, largest modal acceleration),
+    keeping the accelerations in ``PV_PREV``."""
+    change = 0.0
+    scale = 0.0
+    for i in range(topology.shape[0]):
+        if not topology[i, FLEXIBLE] or not topology[i, FLEX + FX_REFINE]:
+            continue
+        n = topology[i, N_MODES]
+        pv = topology[i, FLEX + FX_P_VEC]
+        ue = topology[i, U_START] + topology[i, NU_HINGE]
+        for s in range(n):
+            a = udot[ue + s]
+            change = max(change, abs(a - pool[pv + PV_PREV * n + s]))
+            scale = max(scale, abs(a))
+            pool[pv + PV_PREV * n + s] = a
+    return change, scale
+
+
+@njit(cache=True)
+def _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, node_forces, body_forces, udot,
+                      tau_out, ws_rot, ws_vec, ws_mat, pool, factored):
+    """:func:`forward_dynamics` with refined modal masses (``factored`` False; may return NOT_CONVERGED) or
+    factored (True)."""
+    nb = topology.shape[0]
+    ground = params[GROUND_ACCEL:GROUND_ACCEL + 6]
+    refine = False
+    budget = 1 << 30
+    for i in range(nb):
+        if topology[i, GENERAL]:
+            general_kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool,
+                               True)
+        else:
+            rigid_position(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat)
+            rigid_velocity(i, topology, joint_vec, u, ws_rot, ws_vec, ws_mat)
+        S = ws_mat[i, MAT_S]
+        c = ws_vec[i, VEC_C]
+        u0 = topology[i, U_START]
+        for kk in range(topology[i, N_PRESCRIBED]):
+            k = topology[i, PRESCRIBED_DOFS + kk]
+            acc = udot[u0 + k]
+            for a in range(6):
+                c[a] += S[a, k] * acc
+        if topology[i, FLEXIBLE]:
+            _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, factored, ws_vec, ws_mat, pool)
+            if topology[i, FLEX + FX_REFINE] and not factored:
+                refine = True
+                budget = min(budget, topology[i, FLEX + FX_REFINE])
+                n = topology[i, N_MODES]
+                pv = topology[i, FLEX + FX_P_VEC]
+                for s in range(n):
+                    pool[pv + PV_DG * n + s] = 0.0
+            continue
+        IA = ws_mat[i, MAT_IA]
+        pA = ws_vec[i, VEC_P]
+        o = topology[i, INERTIA]
+        for a in range(6):
+            for b in range(6):
+                IA[a, b] = params[o + 6 * a + b]
+            pA[a] = -body_forces[i, a]
+        rigid_bias_add(params, o, ws_vec[i, VEC_V], pA)
+    apply_node_forces(topology, nodes, params, q, node_forces, ws_vec, pool, -1.0)
+    if refine:
+        for i in range(nb):
+            for a in range(6):
+                ws_vec[i, VEC_P0, a] = ws_vec[i, VEC_P, a]
+
+    for i in range(nb - 1, -1, -1):
+        if topology[i, FLEXIBLE]:
+            if not condense_inertia(i, topology, nodes, params, factored, ws_mat, pool):
+                return 1 + i
+            condense_bias(i, topology, nodes, params, tau, factored, ws_vec, pool)
+        if not _hinge_inertia(i, topology, ws_mat):
+            return 1 + i
+        _hinge_bias(i, topology, tau, ws_mat, ws_vec)
+        parent = topology[i, PARENT]
+        if topology[i, PARENT_NODE] >= 0:
+            inertia_to_slot(i, topology, nodes, ws_mat[i, MAT_IAP], ws_rot, ws_vec, ws_mat, pool)
+            force_to_slot(i, topology, nodes, ws_vec[i, VEC_AUX], ws_rot, ws_vec, pool)
+        elif parent >= 0:
+            R = ws_rot[i, ROT_PB]
+            r = ws_vec[i, VEC_POS]
+            inertia_to_parent_add(R, r, ws_mat[i, MAT_IAP], ws_mat[parent, MAT_IA], ws_mat[i, MAT_TMP])
+            force_to_parent_add(R, r, ws_vec[i, VEC_AUX], ws_vec[parent, VEC_P])
+
+    _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool)
+    pool[P_REFINEMENTS] = 0.0
+    if not refine:
+        return 0
+    _refinement_products(topology, params, udot, pool)
+    _refinement_change(topology, udot, pool)
+    previous = 0.0
+    for it in range(1, budget + 1):
+        _bias_pass(topology, nodes, params, tau, factored, ws_rot, ws_vec, ws_mat, pool)
+        _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool)
+        pool[P_REFINEMENTS] = it
+        change, scale = _refinement_change(topology, udot, pool)
+        if change <= REFINED * scale:
+            return 0
+        if it > 1:
+            # contraction rate from the last two changes: done when the next change would be below round-off;
+            # given up where the passes still needed exceed the budget (or it no longer contracts: at round-off
+            # already, or rho >= 1)
+            rate = change / previous
+            if rate < 1.0 and rate * change <= REFINED * scale:
+                return 0
+            if rate >= 1.0 or it + np.log(REFINED * scale / change) / np.log(rate) > budget:
+                return 0 if change <= 10.0 * REFINED * scale else NOT_CONVERGED
+        previous = change
+        _refinement_products(topology, params, udot, pool)
+    return NOT_CONVERGED
+
+
+@njit(cache=True)
+def forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, node_forces, body_forces, udot,
+                     tau_out, ws_rot, ws_vec, ws_mat, pool):
+    """Articulated-body forward dynamics with prescribed DOFs (module docstring).
+
+    On entry ``udot`` holds the prescribed accelerations at the prescribed DOFs (other entries are
+    ignored); on exit it holds all accelerations. ``tau`` gives the generalized forces of the free DOFs
+    (modal DOFs are always free: ``tau`` there is an applied modal force); ``tau_out`` receives ``tau`` at
+    free DOFs and the generalized force realizing the prescribed motion at prescribed DOFs. Returns 0, or
+    1 + the index of the first body whose articulated inertia is singular. On exit the workspace holds
+    every body's pose, velocity and acceleration (the latter including the ground's ``[0; -g]``).
+
+    Rigid bodies on fixed frames run inline 6 x 6 code (the rigid fast path); the augmented path's steps
+    (kinematics through deforming nodes, modal terms, modal elimination, slots) are calls.
+    """
+    status = _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, node_forces, body_forces,
+                               udot, tau_out, ws_rot, ws_vec, ws_mat, pool, False)
+    if status == NOT_CONVERGED:
+        passes = pool[P_REFINEMENTS]
+        status = _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, node_forces,
+                                   body_forces, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, True)
+        pool[P_REFINEMENTS] = -passes  # negative: that many passes, then G(eta) factored
+    return status

@@ -1,7 +1,8 @@
-"""Per-body inertia and forces for the recursions: the rigid bias ``V x* I V``, a flexible body's
-``M(eta)`` blocks and gyroscopic, Coriolis and elastic forces (:func:`dynamics.flexible_kernels.modal_mass_and_bias`,
-TM-2020-5008164 eqs. E.2.2-E.2.6), and the generalized forces of node forces ``[X'; Psi' X'] f`` (a force in
-node axes at the deformed node).
+"""Per-body inertia and forces for the recursions: the rigid bias ``V x* I V``, a flexible body's ``M(eta)``
+blocks and gyroscopic, Coriolis and elastic forces (:func:`dynamics.flexible_kernels.modal_mass_and_bias`,
+TM-2020-5008164 eqs. E.2.2-E.2.6, with the terms of nodes with rotary inertia summed over the nodes by
+:mod:`dynamics.kernels.node_inertia`), products with its modal mass, and the generalized forces of node forces
+``[X'; Psi' X'] f`` (a force in node axes at the deformed node).
 """
 
 from __future__ import annotations
@@ -9,9 +10,11 @@ from __future__ import annotations
 from numba import njit
 
 from dynamics import flexible_kernels as FK
+from dynamics.kernels.node_inertia import node_inertia_modal_mass, node_inertia_terms, node_inertia_times
 from dynamics.layout import (
-    FLEX, FX_P_G, FX_P_MDRE, FX_P_MRE, FX_P_MRR, FX_P_VEC, INERTIA, MAT_IAP, NODE_BODY, NODE_FRAME, NODE_SHAPE,
-    NQ_HINGE, NU_HINGE, N_FX, N_MODES, PV_FORCE, P_L, P_R, P_TMP83, P_V1, Q_START, U_START, VEC_P, VEC_V, view)
+    FLEX, FX_NODES, FX_NODE_COUNT, FX_NODE_TERMS, FX_P_G, FX_P_MDRE, FX_P_MRE, FX_P_MRR, FX_P_NODES, FX_P_VEC,
+    FX_REFINE, INERTIA, MAT_IAP, NODE_BODY, NODE_FRAME, NODE_SHAPE, NQ_HINGE, NU_HINGE, N_FX, N_MODES, POOL_HEADER,
+    PV_FORCE, P_L, P_R, P_TMP83, P_V1, Q_START, U_START, VEC_P, VEC_V, view)
 from dynamics.spatial import force_to_parent_add
 
 
@@ -56,10 +59,32 @@ def flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, with_bi
         for b in range(6):
             Mrr[a, b] = params[o + 6 * a + b]
     pv = fx[FX_P_VEC]
+    Mre = view(pool, fx[FX_P_MRE], 6, n)
+    Gm = view(pool, fx[FX_P_G], n, n)
+    bm = pool[pv + PV_FORCE * n:pv + (PV_FORCE + 1) * n]
     FK.modal_mass_and_bias(fx, params, n, q[qe:qe + n], ws_vec[i, VEC_V], u[ue:ue + n], with_bias, form_G, Mrr,
-                           view(pool, fx[FX_P_MRE], 6, n), view(pool, fx[FX_P_G], n, n), ws_vec[i, VEC_P],
-                           pool[pv + PV_FORCE * n:pv + (PV_FORCE + 1) * n], ws_mat[i, MAT_IAP],
-                           view(pool, fx[FX_P_MDRE], 6, n))
+                           Mre, Gm, ws_vec[i, VEC_P], bm, ws_mat[i, MAT_IAP], view(pool, fx[FX_P_MDRE], 6, n))
+    if fx[FX_NODES] >= 0:
+        count = fx[FX_NODE_COUNT]
+        state = pool[fx[FX_P_NODES]:fx[FX_P_NODES] + 6 * count]
+        node_inertia_terms(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], q[qe:qe + n], ws_vec[i, VEC_V],
+                           u[ue:ue + n], with_bias, Mre, ws_vec[i, VEC_P], bm, state)
+        if form_G:
+            node_inertia_modal_mass(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], state, Gm,
+                                    pool[POOL_HEADER:POOL_HEADER + 3 * n])
+
+
+@njit(cache=True)
+def modal_mass_times(i, topology, params, pool, a, out):
+    """``out = G a`` with flexible body i's modal mass of this evaluation (after :func:`flexible_body_terms`):
+    ``G(eta)`` when formed, else ``G0`` plus the node terms of a refined body."""
+    n = topology[i, N_MODES]
+    fx = topology[i, FLEX:FLEX + N_FX]
+    FK.modal_mass_times(fx, params, n, view(pool, fx[FX_P_G], n, n), a, out)
+    if fx[FX_REFINE]:
+        count = fx[FX_NODE_COUNT]
+        node_inertia_times(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS],
+                           pool[fx[FX_P_NODES]:fx[FX_P_NODES] + 6 * count], a, out)
 
 
 @njit(cache=True)

@@ -6,12 +6,11 @@ from __future__ import annotations
 
 from numba import njit
 
-from dynamics import flexible_kernels as FK
-from dynamics.kernels.body_terms import flexible_body_terms
+from dynamics.kernels.body_terms import flexible_body_terms, modal_mass_times
 from dynamics.kernels.kinematics import accumulate_world_poses, body_kinematics
 from dynamics.layout import (
-    FLEX, FLEXIBLE, FX_GINV_KIND, FX_K, FX_P_G, FX_P_MRE, FX_P_MRR, FX_P_VEC, GINV_FACTORED, GROUND_ACCEL, INERTIA,
-    NQ_HINGE, NU_HINGE, N_FX, N_MODES, PV_TMP, Q_START, ROT_WB, U_START, VEC_AUX, VEC_V, VEC_WPOS, view)
+    FLEX, FLEXIBLE, FX_GINV_KIND, FX_K, FX_P_MRE, FX_P_MRR, FX_P_VEC, GINV_FACTORED, GROUND_ACCEL, INERTIA, NQ_HINGE,
+    NU_HINGE, N_FX, N_MODES, PV_TMP, Q_START, ROT_WB, U_START, VEC_AUX, VEC_V, VEC_WPOS, view)
 from dynamics.spatial import mat6_vec
 
 
@@ -77,7 +76,7 @@ def energy_momentum(topology, nodes, joint_rot, joint_vec, params, q, u, out, ws
                 ke += V[a] * s_
             pv = fx[FX_P_VEC]
             Ge = pool[pv + PV_TMP * n:pv + (PV_TMP + 1) * n]
-            FK.modal_mass_times(fx, params, n, view(pool, fx[FX_P_G], n, n), e, Ge)
+            modal_mass_times(i, topology, params, pool, e, Ge)
             for s in range(n):
                 t = Ge[s]
                 for a in range(6):

@@ -2,8 +2,10 @@
 Multibody Dynamics*, 2011, ch. 13): a body's modal DOFs are eliminated before its hinge DOFs by a Schur
 complement whose modal block ``E' = G + L' Q L`` is the modal mass ``G`` plus updates of rank 6 per node
 that children hang from (12 more for a hinge on a node of the body), inverted with a symmetric Woodbury
-identity (:func:`condense_modes`); the children's articulated inertias are summed per node
-(:func:`to_slot`) and the modal accelerations follow from the rigid acceleration (:func:`modal_accelerations`).
+identity (:func:`condense_inertia`, then :func:`condense_bias` for the forces: the split lets the forward
+dynamics solve again with other modal forces, as its refinement of an eta-dependent modal mass does); the
+children's articulated inertias and forces are summed per node (:func:`inertia_to_slot`, :func:`force_to_slot`)
+and the modal accelerations follow from the rigid acceleration (:func:`modal_accelerations`).
 """
 
 from __future__ import annotations
@@ -12,12 +14,12 @@ import numpy as np
 from numba import njit
 
 from dynamics import flexible_kernels as FK
-from dynamics.kernels.small_linalg import gauss_solve, psd_factor, symmetric_eigen
+from dynamics.kernels.small_linalg import lu_factor, lu_solve_column, psd_factor, symmetric_eigen
 from dynamics.layout import (
-    FIRST_SLOT, FLEX, FX_C1, FX_F2, FX_GINV_KIND, FX_P_BP, FX_P_G, FX_P_MRE, FX_P_SMALL, FX_P_VEC, FX_P_W, FX_P_ZM,
-    FX_RANK, FX_ZM0, GINV_FACTORED, MAT_IA, MAT_TMP, NODE_NEXT_SLOT, NODE_SLOT, NU_HINGE, N_FX, N_MODES,
-    OUTBOARD_NODE, PARENT_NODE, PV_FORCE, PV_RHS, PV_TMP, PV_Y, P_TMP83, ROT_PB, SL_G, SL_PSI, SL_Y, U_START, VEC_A,
-    VEC_P, VEC_POS, view)
+    FIRST_SLOT, FLEX, FX_C1, FX_F2, FX_GINV_KIND, FX_NODE_TERMS, FX_P_BP, FX_P_G, FX_P_MRE, FX_P_SMALL, FX_P_VEC,
+    FX_P_W, FX_P_ZM, FX_RANK, FX_REFINE, FX_ZM0, GINV_FACTORED, MAT_IA, MAT_TMP, NODE_F2, NODE_NEXT_SLOT, NODE_SLOT,
+    NU_HINGE, N_FX, N_MODES, OUTBOARD_NODE, PARENT_NODE, PV_DG, PV_FORCE, PV_RHS, PV_TMP, PV_Y, P_TMP83, ROT_PB, SL_G,
+    SL_PSI, SL_Y, U_START, VEC_A, VEC_P, VEC_POS, view)
 from dynamics.spatial import force_to_parent_add, inertia_to_parent_add
 
 
@@ -38,8 +40,9 @@ def _woodbury_rows(i, b, topology, nodes, pool, n, inverse):
 
 
 @njit(cache=True)
-def condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
-    """Eliminate the modal DOFs of flexible body i before its hinge DOFs (forward dynamics, pass 2).
+def condense_inertia(i, topology, nodes, params, factored, ws_mat, pool):
+    """Eliminate the modal DOFs of flexible body i before its hinge DOFs (forward dynamics, pass 2): the
+    inertia part, which the bias part :func:`condense_bias` (solved again by every refinement) reuses.
 
     With the articulated inertia ``IA = [[A, B], [B', E]]`` of the body and its children (A 6 x 6, B 6 x n,
     E n x n) and the modal subspace ``H_m = [-Pc; I]``: ``B' = B - A Pc``, ``E' = H_m' IA H_m``, and the
@@ -52,50 +55,48 @@ def condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
 
     (rank 6 m, plus 12 with Pc). Woodbury in symmetric form: with ``Q = V diag(lam) V'``,
     ``U = |lam|^1/2 V' L`` and ``S = sign(lam)``, ``E' = G + U' S U`` and
-    ``E'^-1 v = G^-1 v - Z' (S + U Z')^-1 U G^-1 v``, ``Z = U G^-1`` (r x r solve), where
-    ``Psi_j G^-1`` comes from the precomputed ``Pi G^-1`` in O(n)
+    ``E'^-1 v = G^-1 v - Z' (S + U Z')^-1 U G^-1 v``, ``Z = U G^-1`` (r x r solve, its LU kept for the bias
+    part), where ``Psi_j G^-1`` comes from the precomputed ``Pi G^-1`` in O(n)
     (:func:`dynamics.flexible_kernels.psi_times_inverse_modal_mass`). The symmetric form matters: with
     heavy children (``|Q K|`` >> 1) the textbook ``(I + Q K)^-1`` is ill-conditioned even when E' is not
     (a 500 kg mass on a beam tip: condition 6e5, Schur complement wrong in the 11th digit, against 60
-    and the 15th digit here). Writes ``A''`` into
-    ``ws_mat[i, MAT_IA]``, the rigid force after the modal elimination ``pA + sum g_j + B' E'^-1 d_m``
-    into ``ws_vec[i, VEC_P]`` (so that the rigid hinge step follows unchanged), and keeps
-    ``W' = B' E'^-1`` and ``y = E'^-1 d_m`` for the acceleration pass: ``etaddot = y - W' a``.
-    Returns False when the modal mass is singular."""
+    and the 15th digit here). ``G`` is the body's modal mass, or the constant ``G0`` of a body whose
+    ``G(eta) - G0`` the forward dynamics refines (``FX_REFINE``); ``factored`` treats such a body's ``G(eta)``
+    (formed in pass 1) as factored per call. Writes ``A''`` into ``ws_mat[i, MAT_IA]`` and keeps
+    ``W' = B' E'^-1``. Returns False when the modal mass is singular."""
     n = topology[i, N_MODES]
     A = ws_mat[i, MAT_IA]
-    pA = ws_vec[i, VEC_P]
     nd = topology[i, FIRST_SLOT]
     while nd >= 0:
         s = nodes[nd, NODE_SLOT]
         for a in range(6):
-            pA[a] += pool[s + SL_G + a]
             for b in range(6):
                 A[a, b] += pool[s + SL_Y + 6 * a + b]
         nd = nodes[nd, NODE_NEXT_SLOT]
     if n == 0:
         return True
     fx = topology[i, FLEX:FLEX + N_FX]
+    kind = modal_mass_kind(fx, factored)
     onode = topology[i, OUTBOARD_NODE]
     Mre = view(pool, fx[FX_P_MRE], 6, n)
     ZM = view(pool, fx[FX_P_ZM], 6, n)
     Gm = view(pool, fx[FX_P_G], n, n)
-    if fx[FX_GINV_KIND] == GINV_FACTORED:
+    if kind == GINV_FACTORED:
         if FK.cholesky_in_place(Gm, n) >= 0:
             return False
         nd = topology[i, FIRST_SLOT]
         while nd >= 0:
             s = nodes[nd, NODE_SLOT]
-            FK.modal_mass_solve_rows(fx, params, n, Gm, view(pool, s + SL_PSI, 6, n), 6,
+            FK.modal_mass_solve_rows(fx, kind, params, n, Gm, view(pool, s + SL_PSI, 6, n), 6,
                                      view(pool, s + SL_PSI + 6 * n, 6, n))
             nd = nodes[nd, NODE_NEXT_SLOT]
         if onode >= 0:
             s = nodes[onode, NODE_SLOT]
-            FK.modal_mass_solve_rows(fx, params, n, Gm, view(pool, s + SL_PSI, 6, n), 6,
+            FK.modal_mass_solve_rows(fx, kind, params, n, Gm, view(pool, s + SL_PSI, 6, n), 6,
                                      view(pool, s + SL_PSI + 6 * n, 6, n))
-        FK.modal_mass_solve_rows(fx, params, n, Gm, Mre, 6, ZM)
-    elif fx[FX_C1] >= 0 or fx[FX_F2] >= 0:
-        FK.modal_mass_solve_rows(fx, params, n, Gm, Mre, 6, ZM)
+        FK.modal_mass_solve_rows(fx, kind, params, n, Gm, Mre, 6, ZM)
+    elif fx[FX_C1] >= 0 or fx[FX_F2] >= 0 or (fx[FX_NODE_TERMS] & NODE_F2) != 0:
+        FK.modal_mass_solve_rows(fx, kind, params, n, Gm, Mre, 6, ZM)
     else:
         o = fx[FX_ZM0]
         for a in range(6):
@@ -130,31 +131,6 @@ def condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
                     Bp[a, s] += y_ * Psi[b, s]
                     W[a, s] += y_ * Z[b, s]
         nd = nodes[nd, NODE_NEXT_SLOT]
-    # G^-1 d_m, d_m = tau_m - (modal bias - applied modal forces) - sum_j Psi_j' g_j + Pc' pA
-    pv = fx[FX_P_VEC]
-    u_eta = topology[i, U_START] + topology[i, NU_HINGE]
-    rhs = view(pool, pv + PV_TMP * n, 1, n)
-    Gd = view(pool, pv + PV_RHS * n, 1, n)
-    for s in range(n):
-        rhs[0, s] = tau[u_eta + s] - pool[pv + PV_FORCE * n + s]
-    FK.modal_mass_solve_rows(fx, params, n, Gm, rhs, 1, Gd)
-    nd = topology[i, FIRST_SLOT]
-    while nd >= 0:
-        so = nodes[nd, NODE_SLOT]
-        Z = view(pool, so + SL_PSI + 6 * n, 6, n)
-        for b in range(6):
-            g = pool[so + SL_G + b]
-            for s in range(n):
-                Gd[0, s] -= Z[b, s] * g
-        nd = nodes[nd, NODE_NEXT_SLOT]
-    if onode >= 0:
-        Zc = view(pool, nodes[onode, NODE_SLOT] + SL_PSI + 6 * n, 6, n)
-        for b in range(6):
-            for s in range(n):
-                Gd[0, s] += Zc[b, s] * pA[b]
-    y = pool[pv + PV_Y * n:pv + (PV_Y + 1) * n]
-    for s in range(n):
-        y[s] = Gd[0, s]
     r = fx[FX_RANK]
     if r > 0:
         # E' = G + L' Q L = G + U' S U with Q = V diag(lam) V' (Jacobi), U = |lam|^1/2 V' L, S = sign(lam);
@@ -240,21 +216,16 @@ def condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
                 for s in range(n):
                     t += Ut[a, s] * W[c, s]
                 Aug[a, r + c] = t
-            t = 0.0
-            for s in range(n):
-                t += Ut[a, s] * Gd[0, s]
-            Aug[a, r + 6] = t
-        if not gauss_solve(Aug, r, 7):
+        piv = Q[0]  # Q is not needed past this point: its first row keeps the LU pivots for the bias part
+        if not lu_factor(Aug, r, piv):
             return False
-        for k in range(r):
-            for c in range(6):
+        for c in range(6):
+            lu_solve_column(Aug, r, piv, r + c)
+            for k in range(r):
                 x_ = Aug[k, r + c]
                 for s in range(n):
                     W[c, s] -= x_ * Zt[k, s]
-            x_ = Aug[k, r + 6]
-            for s in range(n):
-                y[s] -= x_ * Zt[k, s]
-    # A'' = A - B' W'' (symmetric by construction), pA + B' y
+    # A'' = A - B' W'' (symmetric by construction)
     for a in range(6):
         for b in range(a, 6):
             t = 0.0
@@ -263,19 +234,105 @@ def condense_modes(i, topology, nodes, params, tau, ws_mat, ws_vec, pool):
             v = A[a, b] - t
             A[a, b] = v
             A[b, a] = v
-        t = 0.0
-        for s in range(n):
-            t += Bp[a, s] * y[s]
-        pA[a] += t
     return True
 
 
 @njit(cache=True)
-def to_slot(i, topology, nodes, Ia, pa, ws_rot, ws_vec, ws_mat, pool):
-    """Add body i's articulated inertia and force to the slot of the flexible parent's node it hangs from
-    (summed there per node for :func:`condense_modes`)."""
+def condense_bias(i, topology, nodes, params, tau, factored, ws_vec, pool):
+    """The bias part of the modal elimination of flexible body i (after :func:`condense_inertia`): the rigid
+    force after the modal elimination ``pA + sum g_j + B' E'^-1 d_m`` into ``ws_vec[i, VEC_P]`` (so that the
+    rigid hinge step follows unchanged), and ``y = E'^-1 d_m`` kept for the acceleration pass
+    (``etaddot = y - W' a``), with ``d_m = tau_m - (modal bias - applied modal forces) - (G(eta) - G0) etaddot
+    - sum_j Psi_j' g_j + Pc' pA`` (the third term: the refinement's, zero on a first pass)."""
+    n = topology[i, N_MODES]
+    pA = ws_vec[i, VEC_P]
+    nd = topology[i, FIRST_SLOT]
+    while nd >= 0:
+        s = nodes[nd, NODE_SLOT]
+        for a in range(6):
+            pA[a] += pool[s + SL_G + a]
+        nd = nodes[nd, NODE_NEXT_SLOT]
+    if n == 0:
+        return
+    fx = topology[i, FLEX:FLEX + N_FX]
+    kind = modal_mass_kind(fx, factored)
+    onode = topology[i, OUTBOARD_NODE]
+    Gm = view(pool, fx[FX_P_G], n, n)
+    pv = fx[FX_P_VEC]
+    u_eta = topology[i, U_START] + topology[i, NU_HINGE]
+    rhs = view(pool, pv + PV_TMP * n, 1, n)
+    Gd = view(pool, pv + PV_RHS * n, 1, n)
+    for s in range(n):
+        rhs[0, s] = tau[u_eta + s] - pool[pv + PV_FORCE * n + s]
+    if fx[FX_REFINE] and not factored:
+        for s in range(n):
+            rhs[0, s] -= pool[pv + PV_DG * n + s]
+    FK.modal_mass_solve_rows(fx, kind, params, n, Gm, rhs, 1, Gd)
+    nd = topology[i, FIRST_SLOT]
+    while nd >= 0:
+        so = nodes[nd, NODE_SLOT]
+        Z = view(pool, so + SL_PSI + 6 * n, 6, n)
+        for b in range(6):
+            g = pool[so + SL_G + b]
+            for s in range(n):
+                Gd[0, s] -= Z[b, s] * g
+        nd = nodes[nd, NODE_NEXT_SLOT]
+    if onode >= 0:
+        Zc = view(pool, nodes[onode, NODE_SLOT] + SL_PSI + 6 * n, 6, n)
+        for b in range(6):
+            for s in range(n):
+                Gd[0, s] += Zc[b, s] * pA[b]
+    y = pool[pv + PV_Y * n:pv + (PV_Y + 1) * n]
+    for s in range(n):
+        y[s] = Gd[0, s]
+    r = fx[FX_RANK]
+    if r > 0:
+        so = fx[FX_P_SMALL]
+        piv = view(pool, so + r * r, r, r)[0]
+        Aug = view(pool, so + 2 * r * r, r, r + 7)
+        Ut = view(pool, so + 3 * r * r + 7 * r, r, n)
+        Zt = view(pool, so + 3 * r * r + 7 * r + r * n, r, n)
+        for a in range(r):
+            t = 0.0
+            for s in range(n):
+                t += Ut[a, s] * Gd[0, s]
+            Aug[a, r + 6] = t
+        lu_solve_column(Aug, r, piv, r + 6)
+        for k in range(r):
+            x_ = Aug[k, r + 6]
+            for s in range(n):
+                y[s] -= x_ * Zt[k, s]
+    Bp = view(pool, fx[FX_P_BP], 6, n)
+    for a in range(6):
+        t = 0.0
+        for s in range(n):
+            t += Bp[a, s] * y[s]
+        pA[a] += t
+
+
+@njit(cache=True, inline="always")
+def modal_mass_kind(fx, factored):
+    """How the modal elimination applies ``G^-1`` to body ``fx``: its ``FX_GINV_KIND``, or ``GINV_FACTORED`` for
+    a refined body when ``factored`` (the fall-back of :func:`dynamics.kernels.articulated_body.forward_dynamics`
+    when the refinement does not converge)."""
+    if factored and fx[FX_REFINE]:
+        return GINV_FACTORED
+    return fx[FX_GINV_KIND]
+
+
+@njit(cache=True)
+def inertia_to_slot(i, topology, nodes, Ia, ws_rot, ws_vec, ws_mat, pool):
+    """Add body i's articulated inertia to the slot of the flexible parent's node it hangs from (summed there
+    per node for :func:`condense_inertia`)."""
     slot = nodes[topology[i, PARENT_NODE], NODE_SLOT]
     inertia_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], Ia, view(pool, slot + SL_Y, 6, 6), ws_mat[i, MAT_TMP])
+
+
+@njit(cache=True)
+def force_to_slot(i, topology, nodes, pa, ws_rot, ws_vec, pool):
+    """Add body i's articulated force to the slot of the flexible parent's node it hangs from (summed there per
+    node for :func:`condense_bias`)."""
+    slot = nodes[topology[i, PARENT_NODE], NODE_SLOT]
     force_to_parent_add(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], pa, pool[slot + SL_G:slot + SL_G + 6])
 
 

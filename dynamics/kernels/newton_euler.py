@@ -6,11 +6,10 @@ from __future__ import annotations
 
 from numba import njit
 
-from dynamics import flexible_kernels as FK
-from dynamics.kernels.body_terms import apply_node_forces, flexible_body_terms, rigid_bias_add
+from dynamics.kernels.body_terms import apply_node_forces, flexible_body_terms, modal_mass_times, rigid_bias_add
 from dynamics.kernels.kinematics import add_hinge_acceleration, body_kinematics, parent_acceleration
 from dynamics.layout import (
-    FLEX, FLEXIBLE, FX_GINV_KIND, FX_P_G, FX_P_MRE, FX_P_MRR, FX_P_VEC, GINV_FACTORED, GROUND_ACCEL, INERTIA, MAT_S,
+    FLEX, FLEXIBLE, FX_GINV_KIND, FX_P_MRE, FX_P_MRR, FX_P_VEC, GINV_FACTORED, GROUND_ACCEL, INERTIA, MAT_S,
     NODE_SLOT, NU_HINGE, N_FX, N_MODES, OUTBOARD_NODE, PARENT, PARENT_NODE, PV_FORCE, PV_TMP, P_V1, ROT_PB, SL_PSI,
     U_START, VEC_A, VEC_P, VEC_POS, VEC_V, view)
 from dynamics.spatial import force_to_parent_add
@@ -48,7 +47,7 @@ def inverse_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, udot, 
                 f[a] += s_ - body_forces[i, a]
             pv = fx[FX_P_VEC]
             Ga = pool[pv + PV_TMP * n:pv + (PV_TMP + 1) * n]
-            FK.modal_mass_times(fx, params, n, view(pool, fx[FX_P_G], n, n), am, Ga)
+            modal_mass_times(i, topology, params, pool, am, Ga)
             for s in range(n):
                 t = Ga[s]
                 for a in range(6):

@@ -2,8 +2,8 @@
 
 * :func:`spd_inverse` - inverse of a symmetric positive definite block by Cholesky (the hinge's
   ``D = S' IA S`` of the articulated-body algorithm, RBDA Table 7.1);
-* :func:`gauss_solve` - Gaussian elimination with partial pivoting (the Woodbury capacitance system of
-  :mod:`dynamics.kernels.modal_condensation`);
+* :func:`lu_factor`, :func:`lu_solve_column` - LU with partial pivoting kept for later right-hand sides (the
+  Woodbury capacitance system of :mod:`dynamics.kernels.modal_condensation`, solved again by each refinement);
 * :func:`psd_factor` - pivoted Cholesky of a symmetric positive semidefinite 6 x 6 (an articulated inertia
   that may be rank deficient);
 * :func:`symmetric_eigen` - cyclic Jacobi eigen-decomposition (Golub and Van Loan, *Matrix Computations*,
@@ -57,39 +57,58 @@ def spd_inverse(D, n, tol, L, out):
 
 
 @njit(cache=True)
-def gauss_solve(Aug, r, m):
-    """Solve ``Aug[:, :r] X = Aug[:, r:r + m]`` in place (Gaussian elimination with partial pivoting, the
-    solution left in ``Aug[:, r:]``); False when a pivot is negligible against the matrix."""
+def lu_factor(A, r, piv):
+    """LU factorization with partial pivoting of ``A[:r, :r]`` in place (``P A = L U``: the unit lower
+    triangle's multipliers below the diagonal, U on and above it; ``piv[k]`` the row exchanged with row k at
+    step k, as a float). The other columns of ``A`` are left alone. False when a pivot is negligible against
+    the matrix."""
     scale = 0.0
     for a in range(r):
         for b in range(r):
-            scale = max(scale, abs(Aug[a, b]))
+            scale = max(scale, abs(A[a, b]))
     for col in range(r):
-        piv = col
-        big = abs(Aug[col, col])
+        p = col
+        big = abs(A[col, col])
         for row in range(col + 1, r):
-            if abs(Aug[row, col]) > big:
-                big = abs(Aug[row, col])
-                piv = row
+            if abs(A[row, col]) > big:
+                big = abs(A[row, col])
+                p = row
         if not big > 1e-14 * scale:
             return False
-        if piv != col:
-            for b in range(col, r + m):
-                t = Aug[col, b]
-                Aug[col, b] = Aug[piv, b]
-                Aug[piv, b] = t
+        piv[col] = p
+        if p != col:
+            for b in range(r):
+                t = A[col, b]
+                A[col, b] = A[p, b]
+                A[p, b] = t
         for row in range(col + 1, r):
-            f = Aug[row, col] / Aug[col, col]
+            f = A[row, col] / A[col, col]
+            A[row, col] = f
             if f != 0.0:
-                for b in range(col, r + m):
-                    Aug[row, b] -= f * Aug[col, b]
-    for col in range(r - 1, -1, -1):
-        for b in range(r, r + m):
-            s_ = Aug[col, b]
-            for k in range(col + 1, r):
-                s_ -= Aug[col, k] * Aug[k, b]
-            Aug[col, b] = s_ / Aug[col, col]
+                for b in range(col + 1, r):
+                    A[row, b] -= f * A[col, b]
     return True
+
+
+@njit(cache=True)
+def lu_solve_column(A, r, piv, col):
+    """Solve ``A[:r, :r] x = A[:r, col]`` in place, with ``A[:r, :r]`` and ``piv`` from :func:`lu_factor`."""
+    for k in range(r):
+        p = int(piv[k])
+        if p != k:
+            t = A[k, col]
+            A[k, col] = A[p, col]
+            A[p, col] = t
+    for row in range(r):
+        t = A[row, col]
+        for k in range(row):
+            t -= A[row, k] * A[k, col]
+        A[row, col] = t
+    for row in range(r - 1, -1, -1):
+        t = A[row, col]
+        for k in range(row + 1, r):
+            t -= A[row, k] * A[k, col]
+        A[row, col] = t / A[row, row]
 
 
 @njit(cache=True)

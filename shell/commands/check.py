@@ -40,4 +40,6 @@ def check(args) -> int:
     print(f"  stop: {f'{scenario.t_final:g} s' if scenario.t_final else 'no stop time'}"
           f"{', events ' + ', '.join(scenario.stop_events) if scenario.stop_events else ''}")
     print(f"  logged signals: {len(scenario.log_signals)}")
+    for note in (note for m in simulation.models for note in getattr(m, "notes", ())):
+        print(f"  note: {note}")  # choices made for the user (engine solver, modal-integral orders), as `run` says
     return 0

@@ -517,7 +517,7 @@ class MultibodyModel(Model):
         from dynamics.modal_linear_part import modal_linear_part
 
         system = self.system if system is None else system
-        return modal_linear_part(system, x[:system.nq])
+        return modal_linear_part(system, x[:system.nq], x[system.nq:])
 
     def quaternion_w_indices(self) -> list[int]:
         """Positions in this model's state of each hinge quaternion's w (for the integrator's error norm)."""

@@ -20,6 +20,7 @@ import numpy as np
 
 from dynamics import ModelDefinitionError, Multibody, MultibodySystem
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
+from dynamics.modal_order import resolve_modal_orders
 from dynamics.mode_selection import select_modes
 from dynamics.spatial import quaternion_to_rotation
 from shell.diagnostics import located
@@ -42,7 +43,9 @@ BODY_KEYS = {
     "modes": "indices of the body file's modes to keep (default all)",
     "max_frequency": "keep the body file's modes at or below this frequency, e.g. 100 Hz (with modes: the listed "
                      "modes below it)",
-    "modal_integrals_order": "0, 1 or 2: order of the deformation-dependent modal integrals (default 2)",
+    "modal_integrals_order": "0, 1, 2 or auto: order of the deformation-dependent modal integrals (default auto: "
+                             "the order the scene needs at its initial state, dynamics.modal_order)",
+    "omit_terms": "terms of the nodes' rotary inertia to leave out: a list of G1, F2, G2 (auto chooses otherwise)",
     "damping_ratio": "modal damping ratio overriding the body file's",
     "integrals": "general or point_mass modal integrals (default general)",
     "child_grid": "grid of this flexible body that the hinge holds (its deforming interface grid)",
@@ -50,8 +53,8 @@ BODY_KEYS = {
                             "file has them, fem2modal --geometric-stiffness)",
     "preload": "mapping preload name -> scale of the body file's named preloads (fem2modal --preload)",
 }
-FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "damping_ratio", "integrals", "child_grid",
-                 "geometric_stiffening", "preload")
+FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "omit_terms", "damping_ratio", "integrals",
+                 "child_grid", "geometric_stiffening", "preload")
 INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
     "q": ("", "all"), "u": ("", "all"),
     "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
@@ -100,6 +103,9 @@ def read_multibody(description, where: Where) -> MultibodySection:
         raise where.error(str(exc)) from None
     written, u0 = initial_state(system, initial)
     q0 = system.normalize_quaternions(written.copy())
+    places = {body.get("name"): here for _, here, body in initial}  # the stiffening warning names its body
+    with located(lambda text: next((h for b, h in places.items() if f"body '{b}'" in text), where)):
+        system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto
     return MultibodySection(name, system, q0, u0, written)
 
 
@@ -248,11 +254,15 @@ def _flexible_options(body, where) -> dict:
         options["modes"] = list(modes)
     if "max_frequency" in body:
         options.update(_max_frequency_options(body, where, path, options.get("modes")))
-    if "modal_integrals_order" in body:
-        order = body["modal_integrals_order"]
-        if order not in (0, 1, 2):
-            raise where.child(body, "modal_integrals_order").error(f"expected 0, 1 or 2, given {order!r}")
-        options["order"] = order
+    order = body.get("modal_integrals_order", "auto")
+    if isinstance(order, bool) or order not in (0, 1, 2, "auto"):
+        raise where.child(body, "modal_integrals_order").error(f"expected 0, 1, 2 or auto, given {order!r}")
+    options["order"] = order
+    if "omit_terms" in body:
+        omit = body["omit_terms"]
+        if not isinstance(omit, list) or not set(omit) <= {"G1", "F2", "G2"}:
+            raise where.child(body, "omit_terms").error(f"expected a list of G1, F2, G2, given {omit!r}")
+        options["omit_terms"] = tuple(omit)
     if "damping_ratio" in body:
         options["damping_ratio"] = float(_vector(body, "damping_ratio", "", (), where))
     if "integrals" in body:

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from dynamics.flex.modal_integrals import modal_integrals
-from dynamics.flexible_body import FlexibleBodyData, mass_matrix_polynomial
+from dynamics.flexible_body import (FlexibleBodyData, mass_matrix_polynomial, mass_terms_from_integrals,
+                                    node_inertia_from_nodes, rigid_mass_block)
 
 
 @dataclass
@@ -50,12 +51,20 @@ def random_node_model(n_nodes, n_modes, seed, point_masses=False, scale=0.3):
     return NodeModel(mass, cg, inertia, position, shapes, K, C)
 
 
-def flexible_body_data(model: NodeModel, order):
+def flexible_body_data(model: NodeModel, order, nodal=False):
+    """The body as polynomial coefficients M1, M2 (all terms as tables), or with ``nodal`` the terms G1, F2, G2
+    summed over the nodes (``FlexibleBodyData.node_inertia``) and the others as tables."""
+    n = model.shapes.shape[2]
+    common = dict(n_modes=n, order=order, stiffness=model.stiffness, damping=model.damping,
+                  grid_ids=np.arange(1, len(model.mass) + 1), grid_positions=model.position,
+                  grid_shapes=model.shapes, frequencies_hz=np.sqrt(np.diag(model.stiffness)) / (2 * np.pi))
+    if nodal:
+        mi = modal_integrals(model.mass, model.cg, model.inertia, model.position, model.shapes[:, :3, :],
+                             model.shapes[:, 3:, :], order=order, omit=("G1", "F2", "G2"))
+        nodes = node_inertia_from_nodes(model.mass, model.cg, model.inertia, model.shapes, order)
+        return FlexibleBodyData(M0=rigid_mass_block(mi), M1=None, M2=None, terms=mass_terms_from_integrals(mi, order),
+                                node_inertia=nodes, **common)
     mi = modal_integrals(model.mass, model.cg, model.inertia, model.position, model.shapes[:, :3, :],
                          model.shapes[:, 3:, :])
     M0, M1, M2 = mass_matrix_polynomial(mi, order)
-    n = model.shapes.shape[2]
-    return FlexibleBodyData(n_modes=n, order=order, M0=M0, M1=M1, M2=M2, stiffness=model.stiffness,
-                            damping=model.damping, grid_ids=np.arange(1, len(model.mass) + 1),
-                            grid_positions=model.position, grid_shapes=model.shapes,
-                            frequencies_hz=np.sqrt(np.diag(model.stiffness)) / (2 * np.pi))
+    return FlexibleBodyData(M0=M0, M1=M1, M2=M2, **common)

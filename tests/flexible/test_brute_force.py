@@ -117,11 +117,12 @@ def rel(a, b):
 
 
 @pytest.mark.parametrize("order", [0, 1, 2])
-@pytest.mark.parametrize("point_masses", [False, True])
-def test_free_free_body_matches_nodal_reference(order, point_masses):
+@pytest.mark.parametrize("point_masses, nodal", [(False, False), (True, False), (False, True)])
+def test_free_free_body_matches_nodal_reference(order, point_masses, nodal):
+    """``nodal``: G1, F2, G2 summed over the nodes (dynamics.kernels.node_inertia) instead of tables."""
     model = random_node_model(8, 4, seed=10 + order, point_masses=point_masses)
     mb = Multibody()
-    mb.add_flexible_body("beam", None, modal=flexible_body_data(model, order), hinge="free")
+    mb.add_flexible_body("beam", None, modal=flexible_body_data(model, order, nodal=nodal), hinge="free")
     system = mb.compile()
     rng = np.random.default_rng(order)
     for _ in range(3):
@@ -138,12 +139,13 @@ def test_free_free_body_matches_nodal_reference(order, point_masses):
 
 
 @pytest.mark.parametrize("order", [0, 1, 2])
-def test_pinned_free_body_matches_lagrange(order):
+@pytest.mark.parametrize("nodal", [False, True])
+def test_pinned_free_body_matches_lagrange(order, nodal):
     model = random_node_model(7, 3, seed=20 + order)
     axis = np.array([0.3, -0.5, 0.8])
     axis /= np.linalg.norm(axis)
     mb = Multibody()
-    mb.add_flexible_body("beam", None, modal=flexible_body_data(model, order), hinge="revolute", axis=axis,
+    mb.add_flexible_body("beam", None, modal=flexible_body_data(model, order, nodal=nodal), hinge="revolute", axis=axis,
                          inboard_rotation=[np.cos(0.4), 0.0, np.sin(0.4), 0.0])
     system = mb.compile()
     n = 3

@@ -175,30 +175,37 @@ def fe_beam_body():
     return fem2modal("configs/fem/single_length_beam.dat", Fem2ModalOptions(n_modes=6, modal_integrals=True))
 
 
-def test_default_order_is_the_highest_the_body_file_supports(fe_beam_body):
-    # a file written without G2 (what fem2modal does above 40 modes for nodes with rotational inertia)
+def test_order_2_without_the_g2_table_sums_over_the_nodes(fe_beam_body):
+    """A file written without G2 (what fem2modal does above 40 modes for nodes with rotational inertia) gives
+    order 2 by default, with G1, F2, G2 summed over its grids (issue 28: order 2 at any mode count; until
+    then the default fell back to order 1 with a warning and order 2 was refused): silently, and the same
+    dynamics as the file with the table (1e-12: the same sums in another order)."""
     without_g2 = dataclasses.replace(
         fe_beam_body, modal_integrals=dataclasses.replace(fe_beam_body.modal_integrals, G2=None))
     assert np.any(fe_beam_body.node_inertia)
-    mb = Multibody()
-    with pytest.warns(UserWarning, match=r"body 'beam': modal integrals order 1 \(the body file has no G2 for "
-                                         r"its 6 modes\)"):
-        mb.add_flexible_body("beam", None, modal=without_g2, hinge="free")
-    system = mb.compile()
-    assert mb.bodies[0].flexible.order == 1
-    assert system.notes == ("body 'beam': modal integrals order 1 (the body file has no G2 for its 6 modes)",)
-    assert "note: body 'beam': modal integrals order 1" in system.summary()
-    with pytest.raises(ModelDefinitionError, match="order-2 modal integrals need G2, which the body file omits"):
-        Multibody().add_flexible_body("beam", None, modal=without_g2, hinge="free", order=2)
-    # order 2 without G2 is allowed when the user leaves the term out; with G2 the default is 2, silently
-    Multibody().add_flexible_body("beam", None, modal=without_g2, hinge="free", order=2, omit_terms=("G2",))
-    full = Multibody()
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        full.add_flexible_body("beam", None, modal=fe_beam_body, hinge="free")
-    assert full.bodies[0].flexible.order == 2 and full.compile().notes == ()
+    systems = []
+    for body in (without_g2, fe_beam_body):
+        mb = Multibody()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            mb.add_flexible_body("beam", None, modal=body, hinge="free")
+        assert mb.bodies[0].flexible.order == 2
+        systems.append(mb.compile())
+    assert systems[0].notes == () and mb_terms(systems[0]) == ("G1", "F2", "G2")
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        q, u, tau = random_state(systems[0], rng)
+        a, b = systems[0].forward_dynamics(q, u, tau), systems[1].forward_dynamics(q, u, tau)
+        assert np.linalg.norm(a - b) <= 1e-12 * np.linalg.norm(b)
     # the point-mass integrals need no G2: order 2 by default
     assert flexible_body_from_modal_body(without_g2, integrals="point_mass").order == 2
+
+
+def mb_terms(system):
+    """The terms of M(eta) body 0 sums over its nodes."""
+    fx = system.topology[0, L.FLEX:]
+    return tuple(t for t, bit in (("G1", L.NODE_G1), ("F2", L.NODE_F2), ("G2", L.NODE_G2))
+                 if fx[L.FX_NODES] >= 0 and fx[L.FX_NODE_TERMS] & bit)
 
 
 def test_body_file_terms_equal_the_polynomial_form(fe_beam_body):

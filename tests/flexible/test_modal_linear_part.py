@@ -18,7 +18,7 @@ import pytest
 from dynamics import Multibody, SingularConfigurationError
 from dynamics.flex.body_file import read_body_file
 from dynamics.modal_analysis import system_modes
-from dynamics.modal_linear_part import modal_indices, modal_linear_part
+from dynamics.modal_linear_part import modal_indices, modal_linear_part, spin_averaged_inertia
 from dynamics.mode_selection import select_modes
 from shell.integrators import make_integrator
 
@@ -79,6 +79,64 @@ def test_linear_part_is_the_engine_jacobian_at_rest(structure):
     scale = np.abs(L[n_eta:]).max()
     # eta columns: O(delta^2 |d3 f|) of the order-2 modal integrals (delta = 1e-6) and round-off; measured 9.5e-16
     assert np.abs(J - L[n_eta:]).max() <= 1e-11 * scale, np.abs(J - L[n_eta:]).max() / scale
+
+
+def test_an_unbalanced_rotor_does_not_move_the_linear_part(structure):
+    """A wheel with products of inertia and its centre of mass 2 cm off its axis (a real imbalance) on the
+    structure: L is the same at every wheel angle (the wheel enters with its spin-averaged inertia, so the
+    exponential integrator never rebuilds for it), and it is the engine Jacobian of the same scene with that
+    averaged wheel (the definition: round-off between the two L, central differences against the engine)."""
+    def scene(com, inertia):
+        mb = Multibody()
+        mb.add_flexible_body("structure", None, modal=structure, hinge="free", modes=range(12), order=2)
+        mb.add_node("tip", "structure", grid=101)
+        mb.add_body("wheel", "structure", mass=5.0, com=com, inertia=inertia, hinge="revolute", axis=(1.0, 0.0, 0.0),
+                    inboard_position=(0.2, 0.1, 0.0), parent_node="tip")
+        return mb.compile()
+
+    com, inertia = np.array([0.01, 0.02, 0.0]), np.array([[0.3, 0.01, 0.02], [0.01, 0.2, 0.015], [0.02, 0.015, 0.25]])
+    unbalanced = scene(com, inertia)
+    q = unbalanced.neutral_configuration()
+    indices, L = modal_linear_part(unbalanced, q)
+    wheel = unbalanced.q_slices[1].start
+    for angle in (0.9, 2.5, -1.7):
+        q[wheel] = angle
+        np.testing.assert_allclose(modal_linear_part(unbalanced, q)[1], L, rtol=0, atol=1e-13 * np.abs(L).max())
+    mass, com_mean, inertia_mean = spin_averaged_inertia(5.0, com, inertia, np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    np.testing.assert_allclose(com_mean, [0.01, 0.0, 0.0], atol=1e-16)
+    averaged = scene(com_mean, inertia_mean)
+    n_eta = modal_indices(averaged)[0].size
+    J = engine_jacobian(averaged, averaged.neutral_configuration(), indices)
+    assert np.abs(J - L[n_eta:]).max() <= 1e-11 * np.abs(L[n_eta:]).max()
+    assert np.abs(modal_linear_part(averaged, q)[1] - L).max() <= 1e-13 * np.abs(L).max()
+
+
+def test_a_spinning_rotor_on_a_deforming_node_is_in_the_linear_part(structure):
+    """With the wheel spinning (u = its spin rate only), L's columns for the modal rates are the engine's
+    Jacobian there: the wheel's gyroscopic coupling with the node's rotation rates (central differences are
+    exact for the quadratic velocity terms; the coupling with the structure's rigid rates stays in N)."""
+    mb = Multibody()
+    mb.add_flexible_body("structure", None, modal=structure, hinge="free", modes=range(12), order=2)
+    mb.add_node("tip", "structure", grid=101, rotation=[np.cos(0.3), 0.0, 0.0, np.sin(0.3)])
+    mb.add_body("wheel", "structure", mass=5.0, inertia=np.diag([0.3, 0.2, 0.2]), com=(0.05, 0.0, 0.0),
+                hinge="revolute", axis=(1.0, 0.0, 0.0), inboard_position=(0.2, 0.1, 0.0), parent_node="tip",
+                inboard_rotation=[np.cos(0.2), np.sin(0.2), 0.0, 0.0])
+    system = mb.compile()
+    q, u = system.neutral_configuration(), np.zeros(system.nu)
+    u[system.u_slices[1].start] = 300.0
+    indices, L = modal_linear_part(system, q, u)
+    _, rest = modal_linear_part(system, q)
+    eta_q, eta_u = modal_indices(system)
+    n_eta, free = eta_q.size, np.flatnonzero(~system.prescribed_dofs)
+    columns = n_eta + np.searchsorted(free, eta_u)
+    J = np.empty((free.size, eta_u.size))
+    for k, i in enumerate(eta_u):
+        plus, minus = u.copy(), u.copy()
+        plus[i] += 1e-2
+        minus[i] -= 1e-2
+        J[:, k] = (system.forward_dynamics(q, plus) - system.forward_dynamics(q, minus))[free] / 2e-2
+    assert np.abs(L[n_eta:, columns] - rest[n_eta:, columns]).max() > 1e-3 * np.abs(L[n_eta:, columns]).max()
+    np.testing.assert_allclose(L[n_eta:, columns], J, rtol=0, atol=1e-9 * np.abs(J).max())
 
 
 def test_eigenvalues_are_the_system_modes(structure):

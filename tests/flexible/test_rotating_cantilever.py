@@ -127,6 +127,29 @@ def test_command_line_linearize_gives_the_stiffened_frequencies(body_file, capsy
     np.testing.assert_allclose(got_chord, chord, rtol=1e-3)
 
 
+def test_a_default_body_file_spun_is_warned_about(body_file, capsys):
+    """Issue 28 item 4 through the user's path: the same beam from a default ``fem2modal`` (no
+    ``--geometric-stiffness``), spun at lambda 5, through ``flexshell linearize``: the frequencies are the
+    known wrong ones (23 % off chordwise) and the command says why, naming the body, the ratio (Omega /
+    omega_1)^2 = (5 / 3.516)^2 = 2.02 and the flag."""
+    tmp = body_file.parent
+    assert main(["fem2modal", str(tmp / "beam.dat"), "--modes", "24", "--aset", "1:123456", "--modal-integrals",
+                 "-q", "-o", str(tmp / "default.h5")]) == 0
+    scene = tmp / "scene_default.yaml"
+    scene.write_text(spinning_scene("default.h5", 5.0, tip_grid=TIP).replace("      geometric_stiffening: true\n", ""))
+    out = tmp / "lin_default.h5"
+    assert main(["linearize", str(scene), "--inputs", "multibody.beam.modal_force", "--outputs",
+                 "multibody.tip.position", "--points", "2", "--no-richardson", "--tolerance", "1e-12",
+                 "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert ("body 'beam' spins at 5 rad/s, (Omega/omega_1)^2 = 2.02 above 0.001, without the centrifugal "
+            "stiffening (its body file has no geometric stiffness: regenerate it with `flexshell fem2modal ... "
+            "--geometric-stiffness`)") in err
+    assert f"{scene}:" in err.split("spins at")[0].splitlines()[-1]  # with the scene's file and line
+    frequencies, _ = modal_frequencies(read_linear_model(out).A)
+    np.testing.assert_allclose(frequencies[:2], [3.145, 5.907], atol=2e-3)
+
+
 @pytest.mark.parametrize("hub", [0.0, 1.0])
 def test_whole_table_lambda_0_to_12(body_file, hub):
     worst = 0.0

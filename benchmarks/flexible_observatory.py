@@ -1,0 +1,197 @@
+"""The observatory-size flexible scene of issue 28, general mass: cost, accuracy and linearization at order 1.
+
+The structure is a real deck's kind of body: a 9 m aluminium tube (100 CBAR, PARAM COUPMASS -1) with a CONM2
+carrying rotary inertia on every grid (0.5 kg, I = [0.002, 0.01, 0.01] kg m^2: every grid has rotary inertia,
+so its modal mass depends on the deformation at order 1), through ``flexshell fem2modal --modes 196
+--modal-integrals``: 196 free-free modes, 3.56 Hz to 1.4 kHz. The scene (YAML, the user's path): the structure on
+a free hinge, four reaction wheels as engine bodies on revolute hinges at its middle grid (a deforming node; axes
+x, y, z and (1, 1, 1)/sqrt(3), spin inertia 0.1 kg m^2, transverse 0.06, 50 rad/s), an IMU on grid 30, a 10 Hz
+PD attitude controller at the middle grid (bandwidth about 0.01 Hz: a rate gain at that node, whose rotation
+the 196 modes resolve with a large compliance, destabilizes a loop sampled at 1 kHz once kd h sum(lambda^2)
+exceeds about 2), ``etdrk4`` at 1 ms, modal-integral order 1 (the must-show; ``auto``
+chooses order 0 at this scene's rates and says so), IMU noise off (the outputs are then smooth functions of the
+integration).
+
+Reported:
+
+* cost: CPU seconds per simulated second of ``flexshell run`` (process time of ``Simulation.run``, compilation
+  excluded: a first short run compiles), real-time factor = 1 / that, median of ``--repeat`` runs of
+  ``--duration`` s, at orders 0, 1 and 2 and at 1 and 2 without the terms of the nodes' rotary inertia, with the
+  machine's load average;
+* accuracy at order 1: the IMU's rate and the controller node's attitude (angle from the command) over the run,
+  etdrk4 at 1 ms against RK4 at 0.05 ms, largest difference relative to the peak of the reference;
+* the same scene with an unbalanced wheel (products of inertia 0.005 kg m^2, centre of mass 1 mm off the axis):
+  how many times the exponential integrator rebuilt its linear part (it counts ``_set_linear_part`` calls: 1 is
+  the build at the start), and its cost;
+* linearization: 20 inputs (the four wheels' torques and sixteen node forces along z at grids 5, 11, ..., 95)
+  by 5 outputs (IMU rate, the controller node's angular velocity and attitude, the tip position, the wheels'
+  rates), 4-point central differences with Richardson (``shell.analysis.linearize``), wall time.
+
+    python3 benchmarks/flexible_observatory.py [--duration 1] [--repeat 3] [--skip-reference]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.flexible_scaling import beam_deck  # noqa: E402
+from shell.cli import main as cli  # noqa: E402
+from shell.integrators.exponential import ExponentialRK4  # noqa: E402
+from shell.log_file import MemoryLog  # noqa: E402
+from shell.scenario import build_simulation, load_scenario  # noqa: E402
+
+WHEEL_AXES = [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), tuple(float(a) for a in np.ones(3) / np.sqrt(3.0))]
+THRUSTER_GRIDS = list(range(5, 100, 6))[:16]
+COMMAND = [float(c) for c in np.array([1.0, 5e-4, 5e-4, 0.0]) / np.linalg.norm([1.0, 5e-4, 5e-4, 0.0])]
+
+
+def wheel_inertia(axis, spin=0.1, transverse=0.06):
+    a = np.asarray(axis)
+    return transverse * np.eye(3) + (spin - transverse) * np.outer(a, a)
+
+
+def scene(body_file, order, method, step, duration, unbalanced=False, log_rate=1000, omit=()):
+    wheels = []
+    for k, axis in enumerate(WHEEL_AXES):
+        J = wheel_inertia(axis)
+        com = [0.0, 0.0, 0.0]
+        if unbalanced and k == 0:
+            J = J + 0.005 * (np.ones((3, 3)) - np.eye(3))
+            com = [0.0, 0.001, 0.0]
+        wheels.append(f"    - {{name: w{k + 1}, parent: structure, parent_node: bus, hinge: revolute, "
+                      f"axis: {list(axis)}, mass: 5 kg, com: '{com} m', inertia: '{J.tolist()} kg*m^2', "
+                      f"initial: {{angle_rate: 50 rad/s}}}}")
+    thrusters = "\n".join(f"    - {{name: t{k + 1}, body: structure, grid: {g}}}" for k, g in enumerate(THRUSTER_GRIDS))
+    return f"""name: flexible_observatory
+multibody:
+  bodies:
+    - name: structure
+      hinge: free
+      body_file: {body_file}
+      modal_integrals_order: {order}
+      omit_terms: {list(omit)}
+      initial: {{angular_velocity: "[0.002, -0.001, 0.003] deg/s"}}
+{chr(10).join(wheels)}
+  nodes:
+    - {{name: bus, body: structure, grid: 51}}
+    - {{name: imu, body: structure, grid: 30}}
+    - {{name: tip, body: structure, grid: 101}}
+{thrusters}
+models:
+  imu:
+    type: Imu
+    rate: 1 kHz
+    attach: {{node: imu}}
+  controller:
+    type: PdAttitudeController
+    rate: 10 Hz
+    attach: {{node: bus}}
+    parameters: {{kp: "[0.001, 2, 2] N*m/rad", kd: "[0.03, 40, 40] N*m*s/rad",
+                  attitude_command: {COMMAND}}}
+integrator: {{method: {method}, step: {step} s}}
+stop: {{time: {duration} s}}
+log:
+  rate: {log_rate} Hz
+  signals: [imu.angular_rate, multibody.bus.attitude, multibody.tip.position]
+"""
+
+
+def build(tmp, text, name):
+    path = Path(tmp) / name
+    path.write_text(text)
+    return build_simulation(load_scenario(str(path)))
+
+
+def timed_run(sim, duration):
+    """CPU seconds of Simulation.run for ``duration`` s after a 2 ms run (compilation, matrix functions)."""
+    sim.run(2e-3)
+    c0 = time.process_time()
+    result = sim.run(2e-3 + duration)
+    return time.process_time() - c0, result
+
+
+def series(sim, duration):
+    log = MemoryLog(sim.log_groups())
+    sim.run(duration, log_path=log)
+    signals = log.signals()
+    rate = np.asarray(signals["imu.angular_rate"][1])
+    q = np.asarray(signals["multibody.bus.attitude"][1])
+    w = np.abs(q @ np.array(COMMAND))
+    return rate, 2.0 * np.arccos(np.clip(w, -1.0, 1.0))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--duration", type=float, default=1.0)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--skip-reference", action="store_true")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "beam.dat").write_text(beam_deck())
+        assert cli(["fem2modal", str(Path(tmp) / "beam.dat"), "--modes", "196", "--modal-integrals", "-q",
+                    "-o", str(Path(tmp) / "beam.h5")]) == 0
+        print(f"load average {os.getloadavg()[0]:.2f}")
+        for order, omit in ((0, ()), (1, ()), (2, ()), (1, ("G1",)), (2, ("G1", "F2", "G2"))):
+            costs = []
+            for r in range(args.repeat):
+                sim = build(tmp, scene("beam.h5", order, "etdrk4", 1e-3, args.duration + 0.01, omit=omit),
+                            f"o{order}.yaml")
+                cpu, _ = timed_run(sim, args.duration)
+                costs.append(cpu / args.duration)
+            print(f"order {order}{' without ' + ', '.join(omit) if omit else ''}: etdrk4 1 ms, {np.median(costs):.3f} "
+                  f"CPU s per simulated s (real-time factor {1 / np.median(costs):.2f}; runs "
+                  f"{', '.join(f'{c:.3f}' for c in costs)})", flush=True)
+        sim = build(tmp, scene("beam.h5", "auto", "etdrk4", 1e-3, 0.01), "auto.yaml")
+        print("auto: " + "; ".join(next(m for m in sim.models if m.path == "multibody").notes))
+        if not args.skip_reference:
+            fine = build(tmp, scene("beam.h5", 1, "rk4", 5e-5, args.duration, log_rate=1000), "ref.yaml")
+            coarse = build(tmp, scene("beam.h5", 1, "etdrk4", 1e-3, args.duration, log_rate=1000), "etd.yaml")
+            (r_rate, r_att), (e_rate, e_att) = series(fine, args.duration), series(coarse, args.duration)
+            print(f"order 1 accuracy, etdrk4 1 ms vs RK4 0.05 ms over {args.duration} s: IMU rate "
+                  f"{np.abs(e_rate - r_rate).max() / np.abs(r_rate).max():.2e} of its peak "
+                  f"({np.abs(r_rate).max():.3e} rad/s), "
+                  f"attitude {np.abs(e_att - r_att).max() / np.abs(r_att).max():.2e} "
+                  f"of its peak ({np.abs(r_att).max():.3e} rad)", flush=True)
+        builds = []
+        original = ExponentialRK4._set_linear_part
+
+        def counting(self, *a, **k):
+            builds.append(1)
+            return original(self, *a, **k)
+
+        ExponentialRK4._set_linear_part = counting
+        try:
+            sim = build(tmp, scene("beam.h5", 1, "etdrk4", 1e-3, args.duration + 0.01, unbalanced=True), "unb.yaml")
+            cpu, _ = timed_run(sim, args.duration)
+        finally:
+            ExponentialRK4._set_linear_part = original
+        print(f"unbalanced wheel, order 1: {len(builds)} build(s) of the linear part in {args.duration} s, "
+              f"{cpu / args.duration:.3f} CPU s per simulated s", flush=True)
+        from shell.analysis.linearize import linearize
+
+        sim = build(tmp, scene("beam.h5", 1, "etdrk4", 1e-3, 0.01), "lin.yaml")
+        inputs = [f"multibody.w{k + 1}.torque" for k in range(4)] + [f"multibody.t{k + 1}.force[2]" for k in range(16)]
+        outputs = ["imu.angular_rate", "multibody.bus.angular_velocity", "multibody.bus.attitude",
+                   "multibody.tip.position", "multibody.u"]
+        linearize(sim, inputs[:1], outputs[:1])  # compiles what the evaluations need
+        t0 = time.perf_counter()
+        model = linearize(sim, inputs, outputs)
+        print(f"linearization 20 x 5 at order 1: {time.perf_counter() - t0:.2f} s wall, A {model.A.shape}, "
+              f"load average {os.getloadavg()[0]:.2f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,101 @@
+"""The terms G1, F2, G2 summed over the nodes (dynamics.kernels.node_inertia) and the refined modal mass
+(dynamics.kernels.articulated_body) against the tables and the brute-force nodal formulation.
+
+References: the same body with every term of M(eta) as tables (the modal integrals of TM-2020-5008164 App. E,
+themselves checked against the nodal product E.1.34 in tests/flex/test_modal_integrals.py), and the dense
+Lagrange / Euler-Poincare solve of tests/flexible/test_brute_force.py with the node-by-node mass matrix
+differentiated by complex steps. Tolerances: 1e-12 relative between the two engine representations (the
+same quantities summed in another order: round-off, observed <= 1e-14) and 1e-10 against the brute force (as
+in test_brute_force.py, observed <= 1e-14); the refinement stops at 4 eps of the modal accelerations.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import dynamics.system
+from dynamics import Multibody
+from dynamics.kernels import articulated_body as AB
+
+from .random_flexible import flexible_body_data, random_node_model
+from .test_brute_force import reference_free_free, rel
+
+
+def _body(model, order, nodal, wheel=False, solver="aba"):
+    mb = Multibody()
+    mb.add_flexible_body("body", None, modal=flexible_body_data(model, order, nodal=nodal), hinge="free")
+    if wheel:  # a child on a deforming node: the Woodbury path of the modal elimination
+        mb.add_node("mount", "body", grid=3)
+        mb.add_body("wheel", "body", mass=4.0, inertia=[0.08, 0.05, 0.05], com=(0.01, 0.0, 0.02), hinge="revolute",
+                    axis=(1.0, 0.0, 0.0), parent_node="mount")
+    return mb.compile(solver=solver)
+
+
+def _state(system, n, rng, size=0.1):
+    q = system.neutral_configuration()
+    q[:4] = rng.standard_normal(4)
+    q[:4] /= np.linalg.norm(q[:4])
+    q[4:7] = rng.standard_normal(3)
+    q[7:7 + n] = size * rng.standard_normal(n)
+    return q, rng.standard_normal(system.nu), rng.standard_normal(system.nu)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("refine", [False, True])
+def test_node_terms_equal_the_tables(order, refine, monkeypatch):
+    """Every algorithm on a body with rotary node inertia and CG offsets, and a wheel on one of its nodes:
+    the node sums (refined or factored modal mass) against the same body with all terms as tables."""
+    monkeypatch.setattr(dynamics.system, "refinement_budget", lambda n, count: 60 if refine else 0)
+    model = random_node_model(9, 6, seed=50 + order)
+    tables = _body(model, order, nodal=False, wheel=True)
+    nodes = _body(model, order, nodal=True, wheel=True)
+    fx = nodes.topology[0, dynamics.system.L.FLEX:]
+    assert fx[dynamics.system.L.FX_NODES] >= 0 and bool(fx[dynamics.system.L.FX_REFINE]) == refine
+    rng = np.random.default_rng(order)
+    for _ in range(3):
+        q, u, tau = _state(nodes, 6, rng)
+        udot = tables.forward_dynamics(q, u, tau)
+        assert rel(nodes.forward_dynamics(q, u, tau), udot) < 1e-12
+        assert rel(nodes.inverse_dynamics(q, u, udot), tables.inverse_dynamics(q, u, udot)) < 1e-12
+        assert rel(nodes.mass_matrix(q), tables.mass_matrix(q)) < 1e-12
+        assert abs(nodes.kinetic_energy(q, u) - tables.kinetic_energy(q, u)) < 1e-12 * tables.kinetic_energy(q, u)
+        assert rel(nodes.angular_momentum(q, u), tables.angular_momentum(q, u)) < 1e-12
+
+
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("refine", [False, True])
+def test_node_terms_match_the_nodal_reference(order, refine, monkeypatch):
+    """A free-free body through the refined (and the factored) modal mass against the brute-force nodal
+    formulation, at modal deformations from 1e-3 (two or three refinements) to 4 at order 2 (node rotations of
+    several radians, far past any modal model's validity: the refinement stops contracting and the forward
+    dynamics factors G(eta); order 1's truncated mass matrix is no longer positive definite there)."""
+    monkeypatch.setattr(dynamics.system, "refinement_budget", lambda n, count: 60 if refine else 0)
+    model = random_node_model(8, 4, seed=60 + order)
+    system = _body(model, order, nodal=True)
+    rng = np.random.default_rng(7 + order)
+    fell_back = []
+    for size in (1e-3, 1e-1, 0.5) + ((4.0, 8.0, 16.0) if order == 2 else ()):
+        q, u, tau = _state(system, 4, rng, size)
+        ref = reference_free_free(model, order, u, q[7:], tau)
+        assert rel(system.forward_dynamics(q, u, tau), ref) < 1e-10
+        if refine:
+            udot, out = np.zeros(system.nu), np.zeros(system.nu)
+            status = AB._forward_dynamics(system.topology, system.nodes, system.joint_rot, system.joint_vec,
+                                          system.params, q, u, tau, np.zeros((system.nnodes, 6)),
+                                          np.zeros((system.nbodies, 6)), udot, out, system.ws_rot, system.ws_vec,
+                                          system.ws_mat, system.pool, False)
+            assert status in (0, AB.NOT_CONVERGED) and (status == 0 or size > 1.0)
+            fell_back.append(status == AB.NOT_CONVERGED)
+    assert not refine or order == 1 or any(fell_back)  # the factored fall-back was exercised
+
+
+def test_dense_solver_with_node_terms():
+    """The dense solve (composite-inertia mass matrix with G(eta) formed over the nodes) equals the ABA."""
+    model = random_node_model(9, 5, seed=71)
+    aba = _body(model, 2, nodal=True, wheel=True)
+    dense = _body(model, 2, nodal=True, wheel=True, solver="dense")
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        q, u, tau = _state(aba, 5, rng)
+        assert rel(dense.forward_dynamics(q, u, tau), aba.forward_dynamics(q, u, tau)) < 1e-11
