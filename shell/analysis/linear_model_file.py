@@ -16,12 +16,15 @@ HDF5 layout (one file, read and written here):
 /steps/states, /steps/inputs                              the finite-difference steps used
 ```
 
+A sampled closed-loop model (:mod:`shell.analysis.sampled_loop`) has the root attribute ``sample_time`` (s), no
+inputs or outputs, and ``operating_point/drift`` (how far the reference run moved over one period).
+
 As in the G.4 delivery file, the index maps say which rows/columns belong to which named signal
 (``input_index/.thruster_force`` there, ``input_index/multibody.bus.torque`` here).
 
 ``write_mat`` writes the same content for MATLAB (``scipy.io.savemat``: A, B, C, D, state/input/output
-names and units as cell arrays, the operating point). ``to_statespace`` returns a python-control
-``StateSpace`` carrying the state, input and output names (needs the ``control`` package; python-control
+names and units as cell arrays, the operating point, ``sample_time`` of a sampled model). ``to_statespace``
+returns a python-control ``StateSpace`` carrying the state, input and output names (needs the ``control`` package; python-control
 reserves '.', so dots become '/': ``multibody/bus/torque[2]``).
 """
 
@@ -111,7 +114,9 @@ def write_mat(path, model: LinearModel) -> None:
         out[:, 0] = strings
         return out
 
+    sampled = {"sample_time": float(model.metadata["sample_time"])} if "sample_time" in model.metadata else {}
     savemat(path, {
+        **sampled,
         "A": model.A, "B": model.B, "C": model.C, "D": model.D,
         "state_names": cells(model.state_names), "state_units": cells(model.state_units),
         "input_names": cells(model.input_names), "input_units": cells(model.input_units),

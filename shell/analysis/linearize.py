@@ -106,6 +106,18 @@ def _quat_multiply(a, b):
                      w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
 
 
+def quaternion_log(q):
+    """Rotation vector phi of the unit quaternion q (scalar first): q = Exp(phi), |phi| <= pi (the inverse of
+    :func:`quaternion_exp`; q and -q give the same phi)."""
+    q = np.asarray(q, dtype=float)
+    if q[0] < 0.0:
+        q = -q
+    s = float(np.linalg.norm(q[1:]))
+    if s < 1e-8:  # 2 atan2(s, w) / s = (2 / w) (1 - s^2 / (3 w^2) + ...): the first term is exact to 1e-16 here
+        return 2.0 * q[1:] / q[0]
+    return 2.0 * np.arctan2(s, q[0]) / s * q[1:]
+
+
 def quaternion_exp(phi):
     """Unit quaternion of the rotation vector phi (scalar first)."""
     angle = float(np.linalg.norm(phi))
@@ -241,6 +253,16 @@ class TangentStates:
         for t, k, q0 in self.quaternions:
             x[k:k + 4] = _quat_multiply(q0, quaternion_exp(xi[t:t + 3]))
         return x
+
+    def between(self, x, reference):
+        """Tangent coordinates of the full state x relative to the full state ``reference`` (the inverse of
+        :meth:`retract` when ``reference`` is x0): differences, and ``Log(q_ref^* (x) q)`` for quaternions."""
+        out = np.empty(self.n)
+        out[self._plain_t] = x[self._plain_x] - reference[self._plain_x]
+        for t, k, _ in self.quaternions:
+            q_ref = reference[k:k + 4]
+            out[t:t + 3] = quaternion_log(_quat_multiply(q_ref * np.array([1.0, -1.0, -1.0, -1.0]), x[k:k + 4]))
+        return out
 
     def tangent_rate(self, xi, x, xdot):
         """Rates of the tangent coordinates from the full state derivative."""

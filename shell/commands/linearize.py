@@ -5,7 +5,10 @@ Builds the scenario, optionally runs it to ``--at`` seconds, optionally trims it
 are held open at their values), linearizes between the named input ports
 and outputs (:func:`shell.analysis.linearize.linearize`) and writes the HDF5 linear-model file
 (:mod:`shell.analysis.linear_model_file`, TM-2020-5008164 App. G.4 layout) and, with ``--mat``, a
-MATLAB file.
+MATLAB file. With ``--sampled`` it writes the sampled closed-loop model instead
+(:func:`shell.analysis.sampled_loop.sampled_linearize`: the period map of the scene's sampled models, ``--period``
+a multiple of their periods, default the least) with its ``sample_time``, and prints its spectral radius and
+least-stable eigenvalues.
 """
 
 from __future__ import annotations
@@ -28,10 +31,21 @@ def register(subparsers) -> None:
                     "Richardson extrapolation; writes A, B, C, D, index maps, units, operating point and "
                     "error estimates to an HDF5 linear-model file.")
     parser.add_argument("scenario", help="scenario file (YAML)")
-    parser.add_argument("--inputs", action="append", required=True, metavar="PORT[,PORT...]",
-                        help="input ports or elements, e.g. multibody.bus.torque or multibody.acs.torque[2]")
-    parser.add_argument("--outputs", action="append", required=True, metavar="SIGNAL[,SIGNAL...]",
-                        help="output ports, input ports or states, e.g. multibody.acs.angular_velocity")
+    parser.add_argument("--inputs", action="append", default=[], metavar="PORT[,PORT...]",
+                        help="input ports or elements, e.g. multibody.bus.torque or multibody.acs.torque[2] "
+                             "(required, except with --sampled)")
+    parser.add_argument("--outputs", action="append", default=[], metavar="SIGNAL[,SIGNAL...]",
+                        help="output ports, input ports or states, e.g. multibody.acs.angular_velocity "
+                             "(required, except with --sampled)")
+    parser.add_argument("--sampled", action="store_true",
+                        help="the sampled closed-loop model instead: the map of the whole scene over one period of "
+                             "its sampled models (ZOH, their updates, delays), from a sample instant; its "
+                             "eigenvalues say the loop's stability (spectral radius < 1)")
+    parser.add_argument("--period", type=float, default=None, metavar="SECONDS",
+                        help="with --sampled: the period of the map, a multiple of every sampled model's period "
+                             "(default the least such)")
+    parser.add_argument("--eigenvalues", type=int, default=6, metavar="N",
+                        help="with --sampled: print the N least-stable eigenvalues (default 6)")
     parser.add_argument("-o", "--output", required=True, help="linear-model file to write (HDF5)")
     parser.add_argument("--mat", help="also write a MATLAB .mat file")
     parser.add_argument("--at", type=float, default=None, metavar="SECONDS",
@@ -61,6 +75,7 @@ def linearize_command(args) -> int:
     from shell.analysis.linear_model_file import write_linear_model, write_mat
     from shell.outputs import LINEAR_MODEL, MAT, guard_output
     from shell.analysis.linearize import linearize
+    from shell.analysis.sampled_loop import sampled_linearize
     from shell.analysis.trim import trim
     from shell.model import ModelError
     from shell.scenario import ScenarioError, build_simulation, load_scenario
@@ -73,10 +88,17 @@ def linearize_command(args) -> int:
                              overwrite=args.overwrite, others=(other,))
         if args.at is not None and not (math.isfinite(args.at) and args.at >= 0):
             raise ValueError(f"--at {args.at}: expected a finite time >= 0 (s)")
+        _check_options(args)
         scenario = load_scenario(args.scenario, args.overrides)
         simulation = build_simulation(scenario)
         if args.at is not None:
             simulation.run(args.at)
+        metadata = {"scenario": str(args.scenario), "scenario_name": scenario.name, "overrides": list(args.overrides),
+                    "created": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+        if args.sampled:
+            model = sampled_linearize(simulation, period=args.period, tolerance=args.tolerance, points=args.points,
+                                      richardson=not args.no_richardson, metadata=metadata)
+            return _write_sampled(args, model)
         inputs, input_values, trimmed = _names(args.inputs), None, None
         if args.trim:
             loose = [name for name in _names(args.free) if name not in inputs]
@@ -90,10 +112,7 @@ def linearize_command(args) -> int:
             raise ValueError("--hold, --free and --zero-rates need --trim")
         model = linearize(simulation, inputs, _names(args.outputs), tolerance=args.tolerance,
                           input_values=input_values,
-                          points=args.points, richardson=not args.no_richardson,
-                          metadata={"scenario": str(args.scenario), "scenario_name": scenario.name,
-                                    "overrides": list(args.overrides),
-                                    "created": datetime.now(timezone.utc).isoformat(timespec="seconds")})
+                          points=args.points, richardson=not args.no_richardson, metadata=metadata)
     except (ScenarioError, UnitError, ModelError, ValueError, OSError) as exc:
         print(f"flexshell linearize: {exc}", file=sys.stderr)
         return 1
@@ -108,5 +127,48 @@ def linearize_command(args) -> int:
     if args.mat:
         write_mat(args.mat, model)
     print(f"{args.scenario}: {model}")
+    print(f"  written {args.output}{' and ' + args.mat if args.mat else ''}")
+    return 0
+
+
+def _check_options(args) -> None:
+    """The options that go together: --inputs/--outputs or --sampled (with --period, --eigenvalues)."""
+    if args.sampled:
+        given = [option for option, value in (("--inputs", args.inputs), ("--outputs", args.outputs),
+                                              ("--trim", args.trim)) if value]
+        if given:
+            raise ValueError(f"{', '.join(given)}: not taken with --sampled (the sampled closed-loop model is the "
+                             "whole scene's period map: no inputs, outputs or trim)")
+        if args.period is not None and not (math.isfinite(args.period) and args.period > 0):
+            raise ValueError(f"--period {args.period}: expected a time > 0 (s)")
+        if args.eigenvalues < 0:
+            raise ValueError(f"--eigenvalues {args.eigenvalues}: expected a count >= 0")
+        return
+    if args.period is not None:
+        raise ValueError("--period is taken with --sampled only")
+    missing = [option for option, value in (("--inputs", args.inputs), ("--outputs", args.outputs)) if not value]
+    if missing:
+        raise ValueError(f"{' and '.join(missing)} required (or --sampled for the sampled closed-loop model)")
+
+
+def _write_sampled(args, model) -> int:
+    """Write the sampled closed-loop model and print its spectral radius and least-stable eigenvalues."""
+    from shell.analysis.linear_model_file import write_linear_model, write_mat
+    from shell.analysis.sampled_loop import loop_eigenvalues
+
+    write_linear_model(args.output, model)
+    if args.mat:
+        write_mat(args.mat, model)
+    rows = loop_eigenvalues(model)
+    radius = rows[0][1] if rows else 0.0
+    verdict = "stable" if radius < 1.0 else "NOT asymptotically stable"
+    print(f"{args.scenario}: sampled closed-loop model at t = {model.operating_point['t']:.9g} s over "
+          f"T = {model.metadata['sample_time']:.9g} s: {model.A.shape[0]} states; largest estimated entry error "
+          f"{model.max_error:.3g}")
+    print(f"  spectral radius {radius:.12g} ({verdict})")
+    if rows[:args.eigenvalues]:
+        print(f"  least-stable eigenvalues:{'':10}|z|    decay rate ln|z|/T (1/s)  frequency (Hz)  largest in")
+        for lam, magnitude, rate, frequency, state in rows[:args.eigenvalues]:
+            print(f"    {lam.real:+.9f}{lam.imag:+.9f}j  {magnitude:.9f}  {rate:+.6g}  {frequency:.6g}  {state}")
     print(f"  written {args.output}{' and ' + args.mat if args.mat else ''}")
     return 0

@@ -455,6 +455,15 @@ class Delay(SignalBlock):
         self.use_declarations(DELAY.replace(u=self.port, y=self.port,
                                             buffer={"unit": self.unit, "shape": rows}))
 
+    def sampled_coordinates(self, z):
+        """Positions in the discrete state ``z`` of its time-invariant coordinates (the sampled closed-loop model,
+        :mod:`shell.analysis.sampled_loop`): the held output, then the buffer's samples oldest first; the head
+        (the ring buffer's row pointer, not a signal) left out."""
+        m = self.size
+        head = int(z[m])
+        rows = [(head + r) % self.samples for r in range(self.samples)]
+        return np.concatenate([np.arange(m)] + [m + 1 + row * m + np.arange(m) for row in rows]).astype(np.int64)
+
 
 class _Limits(SignalBlock):
     """Lower and upper limits in the port unit, per element; lower <= upper."""

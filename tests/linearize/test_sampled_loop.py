@@ -1,0 +1,223 @@
+"""Issue 30 item 3: the sampled closed-loop linear model (``flexshell linearize --sampled``,
+:mod:`shell.analysis.sampled_loop`) against independent references.
+
+* A linear plant and a linear sampled controller (a rigid bus on a revolute hinge, a sampled StateSpace PD by
+  backward difference, a two-sample delay line): the model equals the one built by hand from python-control's
+  ``c2d`` (zero-order hold) of J theta'' = tau composed with the controller's and the delay line's updates.
+  The period map is linear here and RK4 integrates a constant torque exactly, so central differences are exact
+  up to round-off (the entries are ~3e3, the steps ~2e-2: 16 eps 3e3 / 2e-2 ~ 5e-11); tolerance 1e-9 relative to
+  the largest entry.
+* configs/sampled/pd_axis.yaml (the demo's quaternion PD at 10 Hz behind a one-sample delay): the least-stable
+  eigenvalue pair against the decay of the nonlinear loop's logged angle from 1 deg, fitted independently of the
+  model (Prony: theta[k+2] = a1 theta[k+1] + a0 theta[k] by least squares over samples 30..280, the roots of
+  z^2 - a1 z - a0). Measured: decay rate to 1.1e-6 relative, which scales with the square of the amplitude
+  (1.1e-8 at 0.1 deg, 2.7e-5 at 5 deg): the PD's error 2 sin(theta/2) departs from theta by theta^2/24 =
+  1.3e-5 at 1 deg; tolerance 1e-5.
+* The gain sweep: kp scaled by ``--set``; the critical kp where the spectral radius crosses 1 (bisection on the
+  model) within 1 % of the nonlinear loop's stability boundary (bisection on runs from 1 deg: the late envelope
+  growing or shrinking); measured 1887.23 against 1887.21..1887.33 (6e-5); and through the command line: at
+  0.99 and 1.01 times the critical gain the printed spectral radius is below and above 1 and the logged angle
+  decays and grows.
+* Refusals: no sampled model, a period that is not a multiple of every rate, a time that is no sample instant,
+  options that do not go together.
+"""
+
+from __future__ import annotations
+
+import re
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from shell.analysis.linear_model_file import read_linear_model
+from shell.analysis.linearize import LinearizationError
+from shell.analysis.sampled_loop import loop_eigenvalues, sampled_linearize, spectral_radius
+from shell.cli import main
+from shell.log_file import read_log
+from shell.scenario import build_simulation, load_scenario
+
+REPO = Path(__file__).resolve().parents[2]
+PD_AXIS = REPO / "configs/sampled/pd_axis.yaml"
+T, J = 0.1, 250.0
+KP, KD = 100.0, 300.0  # the linear scene's PD: tau = -KP theta - KD (theta_k - theta_k-1) / T
+
+
+
+def linear_scene(path):
+    """configs/sampled/pd_axis.yaml's plant (J = 250 kg m^2 about the hinge) under a linear sampled controller:
+    a StateSpace PD by backward difference behind a two-sample delay line."""
+    scene = yaml.safe_load(PD_AXIS.read_text())
+    scene["models"] = {
+        "controller": {"type": "StateSpace", "rate": "10 Hz",
+                       "config": {"A": [[0.0]], "B": [[1.0]], "C": [[KD / T]], "D": [[-(KP + KD / T)]],
+                                  "input_unit": "rad", "output_unit": "N*m"}},
+        "delay": {"type": "Delay", "rate": "10 Hz", "config": {"samples": 2, "unit": "N*m", "shape": [1]}}}
+    scene["connections"] = ["multibody.bus.q -> controller.u", "controller.y -> delay.u",
+                            "delay.y -> multibody.bus.torque"]
+    scene["log"]["signals"] = ["multibody.bus.q"]
+    path.write_text(yaml.safe_dump(scene))
+    return path
+
+
+def linearize_cli(capsys, *arguments) -> tuple[int, str, str]:
+    capsys.readouterr()
+    code = main(["linearize", *map(str, arguments)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def hand_model():
+    """The period map of the linear scene from python-control's c2d, in the model's coordinates
+    (theta, omega, controller x, x_sampled, u_sampled, delay y, buffer oldest, buffer newest), just after the
+    updates at t_k: the plant under the held delay output over [t_k, t_k+1), then at t_k+1 the controller
+    (x_s = x, u_s = theta, x = theta, y = C x_s + D u_s) and the delay line (y = oldest, oldest = newest,
+    newest = the controller's y)."""
+    control = pytest.importorskip("control")
+    plant = control.c2d(control.ss([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0 / J]], np.eye(2), np.zeros((2, 1))),
+                        T, method="zoh")
+    Ad, Bd = np.asarray(plant.A), np.asarray(plant.B)[:, 0]
+    a, b, c, d = 0.0, 1.0, KD / T, -(KP + KD / T)
+    M = np.zeros((8, 8))
+    M[0:2, 0:2], M[0:2, 5] = Ad, Bd               # theta, omega at t_k+1
+    theta = M[0].copy()                           # theta(t_k+1) as a row
+    M[3, 2] = 1.0                                 # x_sampled <- x
+    M[4] = theta                                  # u_sampled <- theta(t_k+1)
+    M[2] = b * theta
+    M[2, 2] += a                                  # x <- a x + b theta
+    M[5, 6] = 1.0                                 # delay y <- oldest
+    M[6, 7] = 1.0                                 # oldest <- newest
+    M[7] = d * theta
+    M[7, 2] += c                                  # newest <- c x + d theta (the controller's new output)
+    return M
+
+
+def test_linear_loop_equals_the_zero_order_hold_model_built_by_hand(tmp_path, capsys):
+    scene = linear_scene(tmp_path / "linear.yaml")
+    code, out, err = linearize_cli(capsys, scene, "--sampled", "-o", tmp_path / "m.h5", "--mat", tmp_path / "m.mat")
+    assert code == 0, err
+    model = read_linear_model(tmp_path / "m.h5")
+    assert model.metadata["sample_time"] == pytest.approx(T, abs=1e-15)
+    assert model.state_names == ["multibody.q", "multibody.u", "controller.x", "controller.x_sampled",
+                                 "controller.u_sampled", "delay.y", "delay.buffer[0]", "delay.buffer[1]"]
+    M = hand_model()
+    assert np.max(np.abs(model.A - M)) < 1e-9 * np.max(np.abs(M))
+    radius = np.max(np.abs(np.linalg.eigvals(M)))
+    assert float(re.search(r"spectral radius (\S+) \(stable\)", out).group(1)) == pytest.approx(radius, abs=1e-11)
+    from scipy.io import loadmat
+
+    assert float(loadmat(tmp_path / "m.mat")["sample_time"].squeeze()) == pytest.approx(T, abs=1e-15)
+    # later in the run (the delay line's ring buffer turned): the same map (time-invariant coordinates)
+    sim = build_simulation(load_scenario(scene, ["multibody.bus.initial.angle=1 deg"]))
+    sim.run(0.3)
+    with pytest.warns(UserWarning, match="not at a fixed point of its sampled loop: .* moves by"):
+        later = sampled_linearize(sim)
+    assert sim.t == pytest.approx(0.3, abs=1e-15)  # left where it was found
+    assert np.max(np.abs(later.A - M)) < 1e-9 * np.max(np.abs(M))
+
+
+def fitted_decay(theta, first=30, last=280):
+    """The dominant pair of the logged samples by Prony's method (module docstring)."""
+    k = np.arange(first, last)
+    a1, a0 = np.linalg.lstsq(np.column_stack((theta[k + 1], theta[k])), theta[k + 2], rcond=None)[0]
+    return np.roots([1.0, -a1, -a0])
+
+
+def test_eigenvalues_predict_the_nonlinear_decay(tmp_path, capsys):
+    code, out, err = linearize_cli(capsys, PD_AXIS, "--sampled", "-o", tmp_path / "m.h5")
+    assert code == 0, err
+    (lam, magnitude, rate, frequency, _), *rest = loop_eigenvalues(read_linear_model(tmp_path / "m.h5"))
+    assert abs(lam.imag) > 0.1 and all(r[1] < 0.2 for r in rest[1:])  # one oscillatory pair dominates
+    assert f"{magnitude:.9f}" in out
+    assert main(["run", str(PD_AXIS), "-o", str(tmp_path / "log.h5"), "--set", "multibody.bus.initial.angle=1 deg",
+                 "--set", "stop.time=30 s"]) == 0
+    theta = read_log(tmp_path / "log.h5")["multibody.bus.q"][:, 0]
+    fitted = fitted_decay(theta)
+    fitted_rate = np.log(np.abs(fitted[0])) / T
+    assert abs(fitted_rate / rate - 1.0) < 1e-5
+    assert abs(np.abs(np.angle(fitted[0])) / (2 * np.pi * T) - frequency) < 1e-5 * frequency
+
+
+def growth(sim, start, kp, t_final=80.0, log=None):
+    """ln of the ratio of the angle's envelope over the last 20 s to that over [20, 40] s of a run from ``start``."""
+    sim.restore(start)
+    sim.context.set("controller.kp", [0.0, 0.0, kp])
+    sim.run(t_final, log_path=log)
+    data = read_log(log)
+    t, theta = data["time"], np.abs(data["multibody.bus.q"][:, 0])
+    return float(np.log(np.max(theta[t > t_final - 20.0]) / np.max(theta[(t > 20.0) & (t <= 40.0)])))
+
+
+def bisect(stable, low, high, relative):
+    while high - low > relative * high:
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if stable(middle) else (low, middle)
+    return low, high
+
+
+def test_gain_sweep_critical_gain_matches_the_nonlinear_boundary(tmp_path, capsys):
+    plant = build_simulation(load_scenario(PD_AXIS, []))
+
+    def radius(kp):
+        plant.context.set("controller.kp", [0.0, 0.0, kp])
+        return spectral_radius(sampled_linearize(plant))
+
+    predicted = bisect(lambda kp: radius(kp) < 1.0, 1000.0, 3000.0, 1e-5)
+    loop = build_simulation(load_scenario(PD_AXIS, ["multibody.bus.initial.angle=1 deg"]))
+    start = loop.snapshot()
+    boundary = bisect(lambda kp: growth(loop, start, kp, log=tmp_path / "g.h5") < 0.0, 1000.0, 3000.0, 1e-4)
+    critical = 0.5 * sum(predicted)
+    assert abs(critical / (0.5 * sum(boundary)) - 1.0) < 0.01
+    assert boundary[0] - 1e-3 * critical <= critical <= boundary[1] + 1e-3 * critical  # measured: inside
+    # the command line at 0.99 and 1.01 times the critical gain: the printed radius and the logged angle
+    for factor, verdict in ((0.99, "(stable)"), (1.01, "(NOT asymptotically stable)")):
+        gain = f"controller.parameters.kp=[0, 0, {factor * critical}] N*m/rad"
+        code, out, err = linearize_cli(capsys, PD_AXIS, "--sampled", "--set", gain, "-o", tmp_path / "m.h5",
+                                       "--overwrite")
+        assert code == 0, err
+        assert verdict in out
+        radius_printed = float(re.search(r"spectral radius (\S+)", out).group(1))
+        assert (radius_printed < 1.0) == (factor < 1.0)
+        assert main(["run", str(PD_AXIS), "-o", str(tmp_path / "run.h5"), "--overwrite", "--set", gain,
+                     "--set", "multibody.bus.initial.angle=1 deg", "--set", "stop.time=80 s"]) == 0
+        theta = np.abs(read_log(tmp_path / "run.h5")["multibody.bus.q"][:, 0])
+        assert (np.max(theta[-200:]) < np.max(theta[200:400])) == (factor < 1.0)
+
+
+STATIC = """
+name: no_sampled_model
+multibody:
+  gravity: "[0, 0, 0] m/s^2"
+  bodies:
+    - {name: bus, parent: world, hinge: revolute, axis: [0, 0, 1], mass: 1 kg, com: "[0, 0, 0] m",
+       inertia: "[1, 1, 1] kg*m^2"}
+stop: {time: 1 s}
+"""
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--period", "0.15"], "period (--period) 0.15 s is not a multiple of the period 0.1 s of controller"),
+    (["--period", "-1"], "--period -1.0: expected a time > 0"),
+    (["--at", "0.05"], "t = 0.05 s, not a sample instant of any sampled model (controller every 0.1 s from 0 s"),
+    (["--inputs", "multibody.bus.torque"], "--inputs: not taken with --sampled"),
+    (["--trim"], "--trim: not taken with --sampled"),
+])
+def test_refusals_name_the_option(tmp_path, capsys, arguments, message):
+    code, out, err = linearize_cli(capsys, PD_AXIS, "--sampled", "-o", tmp_path / "m.h5", *arguments)
+    assert code == 1 and message in err, err
+    assert not (tmp_path / "m.h5").exists()
+
+
+def test_refusals_without_a_sampled_model_or_without_sampled(tmp_path, capsys):
+    scene = tmp_path / "static.yaml"
+    scene.write_text(textwrap.dedent(STATIC))
+    code, _, err = linearize_cli(capsys, scene, "--sampled", "-o", tmp_path / "m.h5")
+    assert code == 1 and "the scene has no sampled model" in err, err
+    code, _, err = linearize_cli(capsys, PD_AXIS, "--period", "0.1", "-o", tmp_path / "m.h5")
+    assert code == 1 and "--period is taken with --sampled only" in err, err
+    code, _, err = linearize_cli(capsys, PD_AXIS, "-o", tmp_path / "m.h5")
+    assert code == 1 and "--inputs and --outputs required (or --sampled" in err, err
+    with pytest.raises(LinearizationError, match="period .* is not a multiple"):
+        sampled_linearize(build_simulation(load_scenario(PD_AXIS, [])), period=0.25)
