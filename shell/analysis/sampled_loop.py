@@ -30,6 +30,7 @@ one chooses its steps from the state, and the differences then carry its toleran
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from fractions import Fraction
 
@@ -209,11 +210,50 @@ def sampled_linearize(sim, *, period=None, tolerance: float = 1e-10, points: int
                        metadata={**dict(metadata or {}), "sample_time": float(T), "model": "sampled closed loop"})
 
 
-def loop_eigenvalues(model: LinearModel):
+_SLICE = re.compile(r"^(.*)\[(\d+):(\d+)\]$")
+
+
+def kept_states(model: LinearModel, leave_out=()) -> np.ndarray:
+    """Indices of the states that stay in the stability verdict when the states ``leave_out`` (state names,
+    ``name[a:b]`` ranges of them, or index keys such as ``multibody.bus.hinge_q``) are left out: a free body's
+    translation, say, which no feedback reaches. The eigenvalues of the kept block are eigenvalues of the whole
+    model only when the kept states do not depend on the ones left out (the matrix is block triangular), so a
+    coupling entry beyond ten times its error estimate (and 1e-12 of the largest entry) is refused."""
+    position = {name: i for i, name in enumerate(model.state_names)}
+    out = set()
+    for name in leave_out:
+        match = _SLICE.match(name.strip())
+        if match:
+            rows = [position.get(f"{match.group(1)}[{k}]") for k in range(int(match.group(2)), int(match.group(3)))]
+        elif name in position:
+            rows = [position[name]]
+        else:
+            rows = list(model.state_index.get(name, [None]))
+        if not rows or None in rows:
+            raise LinearizationError(f"states left out (--leave-out) {name!r}: not a state of the model; states: "
+                                     f"{', '.join(model.state_names)}")
+        out.update(int(r) for r in rows)
+    kept = np.array([i for i in range(model.A.shape[0]) if i not in out], dtype=np.int64)
+    out = np.array(sorted(out), dtype=np.int64)
+    if out.size and kept.size:
+        coupling = np.abs(model.A[np.ix_(kept, out)])
+        bound = 10.0 * model.errors["A"][np.ix_(kept, out)] + 1e-12 * np.max(np.abs(model.A))
+        if np.any(coupling > bound):
+            i, j = np.unravel_index(np.argmax(coupling - bound), coupling.shape)
+            raise LinearizationError(
+                f"states left out (--leave-out): {model.state_names[kept[i]]} depends on "
+                f"{model.state_names[out[j]]} (entry {model.A[kept[i], out[j]]:.3g}, estimated error "
+                f"{model.errors['A'][kept[i], out[j]]:.3g}): leaving it out would change the other eigenvalues")
+    return kept
+
+
+def loop_eigenvalues(model: LinearModel, leave_out=()):
     """[(eigenvalue, |eigenvalue|, decay rate ln|lambda|/T (1/s), frequency (Hz), the state with the largest
-    eigenvector component)] of a sampled closed-loop model, least stable first."""
+    eigenvector component)] of a sampled closed-loop model, least stable first; ``leave_out``: states left out
+    (:func:`kept_states`)."""
     T = float(model.metadata["sample_time"])
-    values, vectors = np.linalg.eig(model.A)
+    kept = kept_states(model, leave_out)
+    values, vectors = np.linalg.eig(model.A[np.ix_(kept, kept)])
     order = np.argsort(-np.abs(values), kind="stable")
     rows = []
     for k in order:
@@ -221,9 +261,11 @@ def loop_eigenvalues(model: LinearModel):
         magnitude = abs(lam)
         rate = math.log(magnitude) / T if magnitude > 0 else -math.inf
         rows.append((lam, magnitude, rate, abs(np.angle(lam)) / (2.0 * math.pi * T),
-                     model.state_names[int(np.argmax(np.abs(vectors[:, k])))]))
+                     model.state_names[kept[int(np.argmax(np.abs(vectors[:, k])))]]))
     return rows
 
 
-def spectral_radius(model: LinearModel) -> float:
-    return float(np.max(np.abs(np.linalg.eigvals(model.A)), initial=0.0))
+def spectral_radius(model: LinearModel, leave_out=()) -> float:
+    """Largest eigenvalue magnitude of the sampled closed-loop model (the states ``leave_out`` left out)."""
+    kept = kept_states(model, leave_out)
+    return float(np.max(np.abs(np.linalg.eigvals(model.A[np.ix_(kept, kept)])), initial=0.0))

@@ -44,6 +44,10 @@ def register(subparsers) -> None:
     parser.add_argument("--period", type=float, default=None, metavar="SECONDS",
                         help="with --sampled: the period of the map, a multiple of every sampled model's period "
                              "(default the least such)")
+    parser.add_argument("--leave-out", action="append", default=[], metavar="STATE[,STATE...]",
+                        help="with --sampled: states left out of the stability verdict (a free body's translation, "
+                             "which no feedback reaches: e.g. multibody.q[4:7],multibody.u[3:6]); refused when the "
+                             "other states depend on them")
     parser.add_argument("--eigenvalues", type=int, default=6, metavar="N",
                         help="with --sampled: print the N least-stable eigenvalues (default 6)")
     parser.add_argument("-o", "--output", required=True, help="linear-model file to write (HDF5)")
@@ -144,8 +148,8 @@ def _check_options(args) -> None:
         if args.eigenvalues < 0:
             raise ValueError(f"--eigenvalues {args.eigenvalues}: expected a count >= 0")
         return
-    if args.period is not None:
-        raise ValueError("--period is taken with --sampled only")
+    if args.period is not None or args.leave_out:
+        raise ValueError(f"{'--period' if args.period is not None else '--leave-out'} is taken with --sampled only")
     missing = [option for option, value in (("--inputs", args.inputs), ("--outputs", args.outputs)) if not value]
     if missing:
         raise ValueError(f"{' and '.join(missing)} required (or --sampled for the sampled closed-loop model)")
@@ -159,7 +163,11 @@ def _write_sampled(args, model) -> int:
     write_linear_model(args.output, model)
     if args.mat:
         write_mat(args.mat, model)
-    rows = loop_eigenvalues(model)
+    try:
+        rows = loop_eigenvalues(model, _names(args.leave_out))
+    except ValueError as exc:  # a state not in the model, or one the others depend on
+        print(f"flexshell linearize: {exc} (the model is written to {args.output})", file=sys.stderr)
+        return 1
     radius = rows[0][1] if rows else 0.0
     verdict = "stable" if radius < 1.0 else "NOT asymptotically stable"
     print(f"{args.scenario}: sampled closed-loop model at t = {model.operating_point['t']:.9g} s over "
@@ -170,5 +178,7 @@ def _write_sampled(args, model) -> int:
         print(f"  least-stable eigenvalues:{'':10}|z|    decay rate ln|z|/T (1/s)  frequency (Hz)  largest in")
         for lam, magnitude, rate, frequency, state in rows[:args.eigenvalues]:
             print(f"    {lam.real:+.9f}{lam.imag:+.9f}j  {magnitude:.9f}  {rate:+.6g}  {frequency:.6g}  {state}")
+    if args.leave_out:
+        print(f"  left out of the verdict: {', '.join(_names(args.leave_out))}")
     print(f"  written {args.output}{' and ' + args.mat if args.mat else ''}")
     return 0
