@@ -89,25 +89,21 @@ class _DiscreteCoordinates:
     def __init__(self, sim):
         self.sim = sim
         self.names, self.units, self.index, self.parts = [], [], {}, []
-        for i, m in enumerate(sim.models):
-            block = sim.diagram.z_block[i]
+        entries = sim.diagram.state_entries("z")
+        for i, block in enumerate(sim.diagram.z_block):
             if block.stop == block.start:
                 continue
-            local = self._local(i, sim.z)
-            self.parts.append((i, block))
-            for key, sl, decl in sim.diagram.state_entries("z"):
-                if key[0] != m.path:
-                    continue
-                rows = []
-                for position in local:
-                    if sl.start <= block.start + position < sl.stop:
-                        element = len(rows)  # the coordinate's place in this state (a buffer: 0 the oldest)
-                        rows.append(len(self.names))
-                        self.names.append(f"{key[0]}.{key[1]}[{element}]" if sl.stop - sl.start > 1
-                                          else f"{key[0]}.{key[1]}")
-                        self.units.append(format_unit(decl.unit))
-                if rows:
-                    self.index[f"{key[0]}.{key[1]}"] = np.asarray(rows, dtype=np.int64)
+            self.parts.append(i)
+            rows = {}
+            for position in block.start + self._local(i, sim.z):  # in the coordinates' order
+                key, sl, decl = next(entry for entry in entries if entry[1].start <= position < entry[1].stop)
+                label = f"{key[0]}.{key[1]}"
+                members = rows.setdefault(label, [])
+                # the coordinate's place in its state (a delay line's buffer: 0 the oldest sample)
+                self.names.append(f"{label}[{len(members)}]" if sl.stop - sl.start > 1 else label)
+                self.units.append(format_unit(decl.unit))
+                members.append(len(self.names) - 1)
+            self.index.update({label: np.asarray(members, dtype=np.int64) for label, members in rows.items()})
         self.n = len(self.names)
 
     def _local(self, i, z):
@@ -119,7 +115,7 @@ class _DiscreteCoordinates:
 
     def positions(self, z):
         """Positions in z of the coordinates (in :attr:`names` order) for the discrete state z."""
-        parts = [self.sim.diagram.z_block[i].start + self._local(i, z) for i, _ in self.parts]
+        parts = [self.sim.diagram.z_block[i].start + self._local(i, z) for i in self.parts]
         return np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
 
 

@@ -4,9 +4,10 @@
 * A linear plant and a linear sampled controller (a rigid bus on a revolute hinge, a sampled StateSpace PD by
   backward difference, a two-sample delay line): the model equals the one built by hand from python-control's
   ``c2d`` (zero-order hold) of J theta'' = tau composed with the controller's and the delay line's updates.
-  The period map is linear here and RK4 integrates a constant torque exactly, so central differences are exact
-  up to round-off (the entries are ~3e3, the steps ~2e-2: 16 eps 3e3 / 2e-2 ~ 5e-11); tolerance 1e-9 relative to
-  the largest entry.
+  One rate, and the delay line at twice the controller's rate (multi-rate); over two periods the square. The
+  period map is linear here and RK4 integrates a constant torque exactly, so central differences are exact up to
+  round-off (the bound on it: entries ~3e3, steps ~2e-2, 16 eps 3e3 / 2e-2 ~ 5e-11); tolerance 1e-9 relative to
+  the largest entry, measured 1.4e-17 absolute (4.5e-21 relative).
 * configs/sampled/pd_axis.yaml (the demo's quaternion PD at 10 Hz behind a one-sample delay): the least-stable
   eigenvalue pair against the decay of the nonlinear loop's logged angle from 1 deg, fitted independently of the
   model (Prony: theta[k+2] = a1 theta[k+1] + a0 theta[k] by least squares over samples 30..280, the roots of
@@ -69,40 +70,47 @@ def linearize_cli(capsys, *arguments) -> tuple[int, str, str]:
     return code, out.out, out.err
 
 
-def hand_model():
-    """The period map of the linear scene from python-control's c2d, in the model's coordinates
-    (theta, omega, controller x, x_sampled, u_sampled, delay y, buffer oldest, buffer newest), just after the
-    updates at t_k: the plant under the held delay output over [t_k, t_k+1), then at t_k+1 the controller
-    (x_s = x, u_s = theta, x = theta, y = C x_s + D u_s) and the delay line (y = oldest, oldest = newest,
-    newest = the controller's y)."""
+def hand_model(delay_period=T):
+    """The period map of the linear scene by hand, in the model's coordinates (theta, omega, controller x,
+    x_sampled, u_sampled, delay y, buffer oldest, buffer newest), from just after the updates at t_k: products of
+    the plant's flow over each stretch between samples (python-control's ``c2d``, zero-order hold of
+    J theta'' = tau under the delay's held output) and the updates at its end, the controller first (dataflow
+    order: x_sampled = x, u_sampled = theta, x = a x + b theta; its output c x_sampled + d u_sampled, held) then
+    the delay line (y = oldest, oldest = newest, newest = the controller's output)."""
     control = pytest.importorskip("control")
-    plant = control.c2d(control.ss([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0 / J]], np.eye(2), np.zeros((2, 1))),
-                        T, method="zoh")
-    Ad, Bd = np.asarray(plant.A), np.asarray(plant.B)[:, 0]
     a, b, c, d = 0.0, 1.0, KD / T, -(KP + KD / T)
-    M = np.zeros((8, 8))
-    M[0:2, 0:2], M[0:2, 5] = Ad, Bd               # theta, omega at t_k+1
-    theta = M[0].copy()                           # theta(t_k+1) as a row
-    M[3, 2] = 1.0                                 # x_sampled <- x
-    M[4] = theta                                  # u_sampled <- theta(t_k+1)
-    M[2] = b * theta
-    M[2, 2] += a                                  # x <- a x + b theta
-    M[5, 6] = 1.0                                 # delay y <- oldest
-    M[6, 7] = 1.0                                 # oldest <- newest
-    M[7] = d * theta
-    M[7, 2] += c                                  # newest <- c x + d theta (the controller's new output)
+
+    def flow(h):
+        plant = control.c2d(control.ss([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0 / J]], np.eye(2), np.zeros((2, 1))),
+                            h, method="zoh")
+        F = np.eye(8)
+        F[0:2, 0:2], F[0:2, 5] = np.asarray(plant.A), np.asarray(plant.B)[:, 0]
+        return F
+
+    controller = np.eye(8)
+    controller[2:5] = 0.0
+    controller[3, 2], controller[4, 0], controller[2, 2], controller[2, 0] = 1.0, 1.0, a, b
+    delay = np.eye(8)
+    delay[5:8] = 0.0
+    delay[5, 6], delay[6, 7], delay[7, 3], delay[7, 4] = 1.0, 1.0, c, d
+    M = np.eye(8)
+    for k in range(round(T / delay_period)):  # the delay's samples in (t_k, t_k + T]; the controller's at the end
+        M = delay @ (controller if k == round(T / delay_period) - 1 else np.eye(8)) @ flow(delay_period) @ M
     return M
 
 
-def test_linear_loop_equals_the_zero_order_hold_model_built_by_hand(tmp_path, capsys):
+@pytest.mark.parametrize("delay_rate", ["10 Hz", "20 Hz"])
+def test_linear_loop_equals_the_zero_order_hold_model_built_by_hand(tmp_path, capsys, delay_rate):
+    """One rate, and the delay line at twice the controller's rate (multi-rate: two stretches per period)."""
     scene = linear_scene(tmp_path / "linear.yaml")
-    code, out, err = linearize_cli(capsys, scene, "--sampled", "-o", tmp_path / "m.h5", "--mat", tmp_path / "m.mat")
+    code, out, err = linearize_cli(capsys, scene, "--sampled", "-o", tmp_path / "m.h5", "--mat", tmp_path / "m.mat",
+                                   "--set", f"delay.rate={delay_rate}")
     assert code == 0, err
     model = read_linear_model(tmp_path / "m.h5")
     assert model.metadata["sample_time"] == pytest.approx(T, abs=1e-15)
     assert model.state_names == ["multibody.q", "multibody.u", "controller.x", "controller.x_sampled",
                                  "controller.u_sampled", "delay.y", "delay.buffer[0]", "delay.buffer[1]"]
-    M = hand_model()
+    M = hand_model(1.0 / float(delay_rate.split()[0]))
     assert np.max(np.abs(model.A - M)) < 1e-9 * np.max(np.abs(M))
     radius = np.max(np.abs(np.linalg.eigvals(M)))
     assert float(re.search(r"spectral radius (\S+) \(stable\)", out).group(1)) == pytest.approx(radius, abs=1e-11)
@@ -110,12 +118,17 @@ def test_linear_loop_equals_the_zero_order_hold_model_built_by_hand(tmp_path, ca
 
     assert float(loadmat(tmp_path / "m.mat")["sample_time"].squeeze()) == pytest.approx(T, abs=1e-15)
     # later in the run (the delay line's ring buffer turned): the same map (time-invariant coordinates)
-    sim = build_simulation(load_scenario(scene, ["multibody.bus.initial.angle=1 deg"]))
+    sim = build_simulation(load_scenario(scene, ["multibody.bus.initial.angle=1 deg", f"delay.rate={delay_rate}"]))
     sim.run(0.3)
     with pytest.warns(UserWarning, match="not at a fixed point of its sampled loop: .* moves by"):
         later = sampled_linearize(sim)
     assert sim.t == pytest.approx(0.3, abs=1e-15)  # left where it was found
     assert np.max(np.abs(later.A - M)) < 1e-9 * np.max(np.abs(M))
+    # over two periods: the square of the map
+    with pytest.warns(UserWarning, match="not at a fixed point"):
+        twice = sampled_linearize(sim, period=2 * T)
+    assert twice.metadata["sample_time"] == pytest.approx(2 * T, abs=1e-15)
+    assert np.max(np.abs(twice.A - M @ M)) < 1e-9 * np.max(np.abs(M @ M))
 
 
 def fitted_decay(theta, first=30, last=280):
