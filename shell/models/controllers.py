@@ -92,6 +92,11 @@ class PidAttitudeController(Model):
         self.discrete_states = tuple(replace(s, initial=period) if s.name == "period" else s
                                      for s in PID_DISCRETE)
 
+    def sampled_coordinates(self, z):
+        """Positions in ``z`` of its coordinates in the sampled closed-loop model (:mod:`shell.analysis.sampled_loop`):
+        the held torque and the integral; the stored period (a constant, not a signal) left out."""
+        return np.array([k for k in range(z.shape[0]) if k != Z_PID.period], dtype=np.int64)
+
 
 def read_gain_matrix(path, dataset: str = "K") -> np.ndarray:
     """The gain matrix in ``path`` (.npy, .csv, .txt, .h5) as a 2-D float array."""

@@ -527,3 +527,8 @@ class RateLimiter(SignalBlock):
         period = float(parse_period(self._given_period, f"model {self.path}: period"))
         self.discrete_states = tuple(replace(s, initial=period) if s.name == "period" else s
                                      for s in self.discrete_states)
+
+    def sampled_coordinates(self, z):
+        """Positions in ``z`` of its coordinates in the sampled closed-loop model (:mod:`shell.analysis.sampled_loop`):
+        the output; the stored period (a constant, not a signal: it would be a unit eigenvalue) left out."""
+        return np.arange(self.size, dtype=np.int64)

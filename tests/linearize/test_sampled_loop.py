@@ -288,3 +288,32 @@ def test_gallery_14_notch_sampled_model_against_the_zero_order_hold_of_its_linea
         assert code == 0, err
         radius = float(re.search(r"spectral radius (\S+)", out).group(1))
         assert abs(radius - expected) < bound and (radius < 1.0) == (gain == "0.02")
+
+
+def test_constant_discrete_states_are_not_coordinates(tmp_path):
+    """A PID's and a rate limiter's stored period (constants, not signals) are left out of the coordinates: kept,
+    each would be an eigenvalue of exactly 1. pd_axis with a PID (its integral a coordinate) and a rate limiter
+    (not limiting at rest: the sampled PID's output passes) in place of the delay line: every eigenvalue of the
+    loop inside the unit circle but the integral's about the axes the hinge does not turn, the same nonzero ones as
+    with a zero-sample delay line (the same map)."""
+    scene = yaml.safe_load(PD_AXIS.read_text())
+    controller = scene["models"]["controller"]
+    controller["type"] = "PidAttitudeController"
+    controller["parameters"]["ki"] = "[0, 0, 50] N*m/(rad*s)"
+    scene["models"]["delay"] = {"type": "RateLimiter", "rate": "10 Hz", "config": {"unit": "N*m", "shape": [3]},
+                                "parameters": {"rising_rate": "[1e3, 1e3, 1e3] N*m/s",
+                                               "falling_rate": "[1e3, 1e3, 1e3] N*m/s"}}
+    (tmp_path / "limited.yaml").write_text(yaml.safe_dump(scene))
+    scene["models"]["delay"] = {"type": "Delay", "rate": "10 Hz", "config": {"samples": 0, "unit": "N*m",
+                                                                               "shape": [3]}}
+    (tmp_path / "passed.yaml").write_text(yaml.safe_dump(scene))
+    limited = sampled_linearize(build_simulation(load_scenario(tmp_path / "limited.yaml", [])))
+    passed = sampled_linearize(build_simulation(load_scenario(tmp_path / "passed.yaml", [])))
+    assert not any("period" in name for name in limited.state_names)
+    assert "controller.integral[2]" in limited.state_names and "delay.y[2]" in limited.state_names
+    # the integral about x and y integrates an error the revolute hinge keeps at zero: neutral, left out
+    assert spectral_radius(limited) == pytest.approx(1.0, abs=1e-12)
+    assert spectral_radius(limited, ["controller.integral[0:2]"]) < 1.0
+    ours, reference = (np.sort_complex(v[np.abs(v) > 1e-9]) for v in (np.linalg.eigvals(limited.A),
+                                                                          np.linalg.eigvals(passed.A)))
+    assert ours.size == reference.size >= 3 and np.max(np.abs(ours - reference)) < 1e-9
