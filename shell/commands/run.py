@@ -187,6 +187,17 @@ def _raise_terminated(signum, frame) -> None:
         raise Terminated("terminated (SIGTERM)")
 
 
+def _dropped_sigterm_unprinted(hook):
+    """``sys.unraisablehook`` that leaves out a Terminated that Python dropped (raised by the handler inside a weakref
+    callback or a __del__): it is recorded in _SIGTERMS and raised at the next progress call, so the printed
+    "Exception ignored ... Traceback" would only alarm (a user, and tests/safety/test_logs.py, which failed on it
+    once under two pytest workers); every other unraisable exception goes to ``hook``."""
+    def unraisable(record) -> None:
+        if not isinstance(record.exc_value, Terminated):
+            hook(record)
+    return unraisable
+
+
 def _watching_sigterm(progress):
     """``progress`` that first raises Terminated if a SIGTERM arrived (its handler's exception may have been
     dropped or deferred, see _SIGTERMS and _raise_terminated)."""
@@ -272,6 +283,7 @@ def _build_and_run(args, scenario, t_final, output, notice: CompileNotice) -> in
     in_main_thread = threading.current_thread() is threading.main_thread()  # signal handlers live there
     _SIGTERMS.clear()
     previous_handler = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
+    previous_hook, sys.unraisablehook = sys.unraisablehook, _dropped_sigterm_unprinted(sys.unraisablehook)
     try:
         summary = simulation.run(t_final, log_path=output, progress=_watching_sigterm(progress),
                                  log_attributes={"scenario": scenario.text, "scenario_file": str(args.scenario)})
@@ -288,6 +300,7 @@ def _build_and_run(args, scenario, t_final, output, notice: CompileNotice) -> in
               + (f"; the log {output} keeps every sample up to there" if output else ""), file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
     finally:
+        sys.unraisablehook = previous_hook
         if in_main_thread:
             signal.signal(signal.SIGTERM, previous_handler)
     close()
