@@ -107,8 +107,8 @@ def _quat_multiply(a, b):
 
 
 def quaternion_log(q):
-    """Rotation vector phi of the unit quaternion q (scalar first): q = Exp(phi), |phi| <= pi (the inverse of
-    :func:`quaternion_exp`; q and -q give the same phi)."""
+    """Rotation vector phi of the unit quaternion q (scalar first): ``q = Exp(phi)``, ``norm(phi) <= pi`` (the
+    inverse of :func:`quaternion_exp`; q and -q give the same phi)."""
     q = np.asarray(q, dtype=float)
     if q[0] < 0.0:
         q = -q

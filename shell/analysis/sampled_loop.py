@@ -244,9 +244,9 @@ def kept_states(model: LinearModel, leave_out=()) -> np.ndarray:
 
 
 def loop_eigenvalues(model: LinearModel, leave_out=()):
-    """[(eigenvalue, |eigenvalue|, decay rate ln|lambda|/T (1/s), frequency (Hz), the state with the largest
-    eigenvector component)] of a sampled closed-loop model, least stable first; ``leave_out``: states left out
-    (:func:`kept_states`)."""
+    """[(eigenvalue, ``abs(eigenvalue)``, decay rate ``ln(abs(lambda)) / T`` (1/s), frequency (Hz), the state with
+    the largest eigenvector component)] of a sampled closed-loop model, least stable first; ``leave_out``: states
+    left out (:func:`kept_states`)."""
     T = float(model.metadata["sample_time"])
     kept = kept_states(model, leave_out)
     values, vectors = np.linalg.eig(model.A[np.ix_(kept, kept)])
