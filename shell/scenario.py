@@ -39,7 +39,8 @@ def build_root(scenario: Scenario) -> Assembly:
         try:
             section = read_multibody(document["multibody"], where)
             root.add(MultibodyModel(section.name, section.system, initial_q=section.initial_q,
-                                    initial_u=section.initial_u, written_q=section.written_q))
+                                    initial_u=section.initial_u, written_q=section.written_q,
+                                    constrained=section.constrained, assembly=section.assembly))
         except (ModelError, UnitError, ValueError) as exc:
             if isinstance(exc, ScenarioError):
                 raise

@@ -156,6 +156,7 @@ class TangentStates:
     """Tangent coordinates of the simulation's continuous state (quaternions -> rotation vectors)."""
 
     def __init__(self, sim, x0, scales):
+        refuse_closure_constraints(sim)
         quaternion_starts = {int(k) for k in sim.diagram.quaternion_w_indices()}
         self.x0 = np.array(x0, dtype=float)
         self.plain = []          # (tangent index, x index)
@@ -426,6 +427,19 @@ class NamedParameters:
                     moved[cell[::-1]] = moved[cell]
             models[entry.model].assign_named([(entry.leaf, moved)], context.hosts[entry.model],
                                              context.x[self.sim.diagram.x_block[entry.model]])
+
+
+def refuse_closure_constraints(sim) -> None:
+    """Refuse a scene with closure constraints: its linear model on the constraint manifold (minimal coordinates,
+    :meth:`dynamics.constraints.ConstrainedSystem.tangent_basis`) is not wired into the scene's analyses yet,
+    and the unrestricted one has spurious zero modes (issue 29). Linearize, sampled linearize and trim all take
+    their states through :class:`TangentStates`, which calls this."""
+    for m in sim.diagram.models:
+        if getattr(m, "constrained", None) is not None:
+            raise LinearizationError(f"model {m.path} has closure constraints "
+                                     f"({', '.join(c.label for c in m.constrained.constraints)}): linearization and "
+                                     "trim on the constraint manifold are not implemented for scenes yet (the "
+                                     "tree's coordinates would give spurious modes)")
 
 
 def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4, richardson: bool = True,

@@ -6,6 +6,15 @@ the generalized coordinates ``q`` and velocities ``u`` (docs/conventions.md orde
 ``[q_dot(q, u); forward_dynamics(q, u, tau, node forces, prescribed accelerations)]`` and hinge
 quaternions are renormalized by the integrator's ``normalize`` hook after every step.
 
+A scene with closure ``constraints:`` (a :class:`dynamics.constraints.ConstrainedSystem`) takes a fourth path,
+``"constrained"``: its accelerations are the constrained forward dynamics of :mod:`dynamics.constraint_kernels`
+(index-1 form, multipliers from ``G M^-1 G'``, no Baumgarte terms), and its drift is removed by projection after
+every accepted step in the same ``normalize`` hook: the quaternions renormalized, then the positions projected
+onto ``phi(q) = 0`` (Newton along ``M^-1 G'``, to :data:`PROJECTION_TOLERANCE`) and the velocities onto ``G u = 0``
+(M-orthogonal), the choice docs/closure_constraints.md measures (benchmarks/closure_drift.py). Its per-run data
+carry the constraint data and loads besides the engine's, so a constrained scene compiles the loop once more
+(for that data type); scenes without constraints keep theirs.
+
 Ports (``<body>`` a body name, i.e. its inboard hinge; ``<node>`` a node name):
 
 inputs (all optional, zero when unconnected; they feed through to the accelerations)
@@ -25,6 +34,8 @@ outputs
   ``<node>.linear_velocity``   (3,) m/s, node axes
   ``<node>.angular_acceleration``, ``<node>.linear_acceleration`` node axes (feedthrough: they need
                                the forward dynamics of the current inputs)
+  ``<constraint>.load``        (6,) [torque N m; force N]: the wrench node A exerts on node B through the
+                               constraint, A's axes, about B's origin (feedthrough; constrained scenes)
 
 Attaching a model to node N binds its inputs named attitude, rotation, position, angular_velocity,
 linear_velocity, angular_acceleration, linear_acceleration to N's outputs, and its outputs named torque
@@ -41,6 +52,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from dynamics import constraint_kernels as CK
 from dynamics import engine as E
 from dynamics import kernels as K
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
@@ -166,6 +178,18 @@ def _copy_blocks(source, blocks, y):
             y[y0 + k] = source[s0 + k]
 
 
+@njit(cache=True, inline="always")
+def _coordinate_outputs(x, ports, out):
+    """``q``, ``u`` and the per-body coordinate outputs from the state ``x``."""
+    nq, nu = ports.nq, ports.nu
+    for k in range(nq):
+        out[ports.q_out + k] = x[k]
+    for k in range(nu):
+        out[ports.u_out + k] = x[nq + k]
+    _copy_blocks(x, ports.hinge_q, out)
+    _copy_blocks(x[nq:], ports.hinge_u, out)
+
+
 def _engine_kernel(path):
     """The engine model's kernel for the systems of one path (:data:`dynamics.engine.PATHS`): it contains that
     path's code only, so a rigid single-body scene compiles neither the articulated-body recursion nor the
@@ -185,12 +209,7 @@ def _engine_kernel(path):
         engine, ports, work = d
         nq, nu = ports.nq, ports.nu
         if op == STATE_OUTPUTS:
-            for k in range(nq):
-                out[ports.q_out + k] = x[k]
-            for k in range(nu):
-                out[ports.u_out + k] = x[nq + k]
-            _copy_blocks(x, ports.hinge_q, out)
-            _copy_blocks(x[nq:], ports.hinge_u, out)
+            _coordinate_outputs(x, ports, out)
             if ports.node_offsets.shape[0]:
                 node_kinematics(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
                                 work.acceleration)
@@ -225,8 +244,79 @@ def _engine_kernel(path):
     return njit(cache=True)(engine_kernel)
 
 
-#: path name -> the engine model's kernel for systems of that path (each compiled on first use)
+PROJECTION_TOLERANCE = 1e-10
+"""Largest constraint residual (m or rad) left by the projection after each step of a constrained scene."""
+PROJECTION_ITERATIONS = 20
+
+
+class ConstraintPorts(NamedTuple):
+    """What a constrained scene's data carry besides the engine's: the constraints and their loads."""
+
+    data: CK.ConstraintData     # constraints, force elements, scratch (dynamics.constraints.ConstrainedSystem)
+    loads: np.ndarray           # (nc, 6) each constraint's wrench of the last forward dynamics
+    load_out: np.ndarray        # (nc,) y start of <constraint>.load
+
+
+@njit(cache=True)
+def engine_kernel_constrained(op, t, x, z, u, p, d, out):
+    """The engine model's op kernel for a scene with closure constraints (module docstring): the kernels of
+    :func:`_engine_kernel` with the constrained forward dynamics, node accelerations from a full kinematics pass
+    (the constrained solve leaves the tree's workspace changed), the constraint loads, and the projection of
+    ``x`` onto the constraints after the quaternion normalization. A projection that does not converge records
+    status 2 in ``work.status[1]`` and makes the velocities NaN (the simulation stops and reports it)."""
+    d = E.borrowed(d)
+    engine, ports, work, closure = d
+    tree = (engine, ports, work)
+    c = closure.data
+    nq, nu = ports.nq, ports.nu
+    if op == STATE_OUTPUTS:
+        _coordinate_outputs(x, ports, out)
+        if ports.node_offsets.shape[0]:
+            E.node_kinematics_tree(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
+                                   work.acceleration)
+            _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets)
+    elif op == FEEDTHROUGH_OUTPUTS or op == DERIVATIVES:
+        _gather_inputs(x, u, tree)
+        _record_status(CK.forward_dynamics(engine, c, x[:nq], x[nq:], work.tau, work.node_forces, work.udot,
+                                           work.tau_out, closure.loads), tree)
+        if op == FEEDTHROUGH_OUTPUTS:
+            _copy_blocks(work.udot, ports.hinge_udot, out)
+            for i in range(closure.load_out.shape[0]):
+                for k in range(6):
+                    out[closure.load_out[i] + k] = closure.loads[i, k]
+            if ports.accel_offsets.shape[0]:
+                E.node_kinematics_tree(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
+                                       work.velocity, work.acceleration)
+                for n in range(ports.accel_offsets.shape[0]):
+                    a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
+                    for k in range(3):
+                        out[a + k] = work.acceleration[n, k]
+                        out[b + k] = work.acceleration[n, 3 + k]
+        else:
+            _constrained_rates(engine, ports, work, x, out)
+    elif op == DERIVATIVES_AFTER_FEEDTHROUGH:
+        _constrained_rates(engine, ports, work, x, out)
+    else:
+        E.normalize_quaternions(engine, x)
+        if (CK.project_positions(engine, c, x[:nq], PROJECTION_TOLERANCE, PROJECTION_ITERATIONS) < 0
+                or CK.project_velocities(engine, c, x[:nq], x[nq:]) < 0):
+            work.status[1] = 2
+            for k in range(nu):
+                x[nq + k] = np.nan
+
+
+@njit(cache=True, inline="always")
+def _constrained_rates(engine, ports, work, x, out):
+    nq, nu = ports.nq, ports.nu
+    for k in range(nu):
+        out[nq + k] = work.udot[k]
+    E.coordinate_rates(engine, x[:nq], x[nq:], out[:nq])
+
+
+#: path name -> the engine model's kernel for systems of that path (each compiled on first use); "constrained":
+#: a scene with closure constraints (its data type differs: one more compilation of the loop, for such scenes only)
 ENGINE_KERNELS = {name: _engine_kernel(path) for name, path in E.PATHS.items()}
+ENGINE_KERNELS["constrained"] = engine_kernel_constrained
 
 
 @njit(cache=True)
@@ -267,10 +357,15 @@ class MultibodyModel(Model):
         "continuous states: q, u (docs/scenario_schema.md, section multibody)",
     )
 
-    def __init__(self, name: str, system, *, initial_q=None, initial_u=None, written_q=None):
+    def __init__(self, name: str, system, *, initial_q=None, initial_u=None, written_q=None, constrained=None,
+                 assembly=None):
         self.system = system
+        #: the closure constraints (a dynamics.constraints.ConstrainedSystem on ``system``), or None
+        self.constrained = constrained
+        #: how far the initial state was moved onto the constraints (dynamics.constraints.AssemblyReport), or None
+        self.assembly = assembly
         #: the engine's path for this system (its kernel compiles that path only)
-        self.engine_path = E.path_of(system)
+        self.engine_path = "constrained" if constrained is not None else E.path_of(system)
         self._initial_q = system.neutral_configuration() if initial_q is None else np.asarray(initial_q, float)
         self._initial_u = np.zeros(system.nu) if initial_u is None else np.asarray(initial_u, float)
         #: the initial coordinates as written, before their quaternions were normalized: a run that changes a
@@ -287,6 +382,15 @@ class MultibodyModel(Model):
         notes = [f"{self.path}: {note}" for note in s.notes]
         if s.topology[:, K.FLEXIBLE].any():
             notes.insert(0, f"{self.path}: forward dynamics by {s.solver_reason}")
+        if self.constrained is not None:
+            names = ", ".join(f"{c.label} ({c.kind})" for c in self.constrained.constraints)
+            notes.append(f"{self.path}: closure constraints {names}; drift removed by projection after each step "
+                         f"(to {PROJECTION_TOLERANCE:g})")
+            a = self.assembly
+            if a is not None and a.residual > 0.0:
+                notes.append(f"{self.path}: initial state assembled onto the constraints: residual {a.residual:.3e} "
+                             f"({a.worst}), coordinates moved by at most {a.moved:.3e}, velocities by "
+                             f"{a.velocity_change:.3e}")
         return tuple(notes)
 
     # -- declarations ----------------------------------------------------------------------------------
@@ -343,6 +447,10 @@ class MultibodyModel(Model):
             for signal, (unit, shape, description) in NODE_INPUTS.items():
                 inputs.append(InputPort(f"{node}.{signal}", unit, shape, description, feedthrough=True,
                                         required=False))
+        for c in self.constrained.constraints if self.constrained is not None else ():
+            outputs.append(OutputPort(f"{c.label}.load", "", (6,), f"[torque N*m; force N] of node {c.node_a} on "
+                                      f"node {c.node_b or 'world'} through {c.label}, {c.node_a} axes, about "
+                                      f"{c.node_b or 'world'}'s origin", feedthrough=True))
         self.inputs = tuple(inputs)
         self.outputs = tuple(outputs)
         self.continuous_states = (State("q", "", (s.nq,), self._initial_q, "generalized coordinates"),
@@ -380,22 +488,38 @@ class MultibodyModel(Model):
             as_index([[y_layout.offsets[f"{node}.angular_acceleration"],
                        y_layout.offsets[f"{node}.linear_acceleration"]] for node in s.node_names]).reshape(-1, 2),
             blocks("q"), blocks("u"), blocks("u_dot"))
+        self._load_out = as_index([y_layout.offsets[f"{c.label}.load"] for c in
+                                   (self.constrained.constraints if self.constrained is not None else ())])
 
     def create_data(self, own: bool = False):
         """(the engine system of the run, (EngineData, EnginePorts, EngineWork)); ``own``: a private copy
         of the system (own workspace and mass properties) for an additional context."""
-        system = _private_system(self.system) if own else self.system
+        constrained = self.constrained
+        if constrained is not None:
+            constrained = constrained.copy() if own else constrained
+            system = constrained.system
+        else:
+            system = _private_system(self.system) if own else self.system
         nu, nn = system.nu, system.nnodes
         work = EngineWork(np.zeros(nu), np.zeros(nu), np.zeros(nu), np.zeros(nu), np.zeros((nn, 6)),
                           np.zeros((nn, 3, 3)), np.zeros((nn, 3)), np.zeros((nn, 6)), np.zeros((nn, 6)),
-                          np.zeros(1, dtype=np.int64))
-        return system, (E.engine_data(system), self.ports, work)
+                          np.zeros(1 if constrained is None else 2, dtype=np.int64))
+        if constrained is None:
+            return system, (E.engine_data(system), self.ports, work)
+        loads = np.zeros((len(constrained.constraints), 6))
+        return system, (constrained.engine, self.ports, work, ConstraintPorts(constrained.data, loads, self._load_out))
 
     def failure_message(self, data) -> str | None:
         """Why the last forward dynamics failed (singular articulated inertia), or None."""
+        if data[2].status.shape[0] > 1 and data[2].status[1]:
+            return (f"the projection onto the closure constraints did not converge in {PROJECTION_ITERATIONS} "
+                    f"iterations (to {PROJECTION_TOLERANCE:g}): the constraints cannot be met near this configuration "
+                    "(a singular position of the mechanism, or a step too large)")
         status = int(data[2].status[0])
         if status == 0:
             return None
+        if status < 0:
+            return "the mass matrix of the constrained system is not positive definite"
         s = self.system
         return (f"articulated inertia of hinge '{s.joint_names[status - 1]}' (body '{s.body_names[status - 1]}') "
                 "is singular: the subtree it moves has no inertia along a free DOF (massless subtree, or a "
@@ -454,6 +578,10 @@ class MultibodyModel(Model):
                 system.set_mass_properties(body, mass, com, inertia)
             except ValueError as exc:
                 raise ModelError(f"{self.path}.{body}: {exc}") from None
+        if initial and self.constrained is not None:
+            raise ModelError(f"{self.path}.{initial[0][0]}.initial.{initial[0][1]}: the initial state of a scene with "
+                             "closure constraints is assembled once, from the scenario; a run cannot change it "
+                             "(not implemented)")
         if initial:
             q, u = self.written_q.copy(), self._initial_u.copy()
             for body, key, value in initial:

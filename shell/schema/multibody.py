@@ -3,9 +3,12 @@
 The section (docs/scenario_schema.md, section multibody) lists bodies in order, each with its parent, hinge
 (locked, revolute, prismatic, ujoint, spherical, free; docs/conventions.md for their coordinates), rigid
 mass properties or a flexible body file (``flexshell fem2modal``), the placement of its inboard and outboard
-frames, and an optional ``initial:`` hinge state; then nodes fixed on bodies. :func:`read_multibody` checks it
-key by key (every refusal names file, line and key path), builds the :class:`dynamics.Multibody` and compiles
-it. The runtime side, the engine as a shell model with its ports, is :mod:`shell.models.multibody`; Monte
+frames, and an optional ``initial:`` hinge state; then nodes fixed on bodies; then closure ``constraints:``
+between nodes (weld, ball, revolute, prismatic, distance: :mod:`dynamics.constraints`), which close loops
+or hold a node to the world. :func:`read_multibody` checks it key by key (every refusal names file, line and
+key path), builds the :class:`dynamics.Multibody` and compiles it; a scene with constraints gets a
+:class:`dynamics.constraints.ConstrainedSystem` and its initial state assembled onto the constraints (moved
+by at most ``assembly_tolerance``, refused beyond it, naming the constraint). The runtime side, the engine as a shell model with its ports, is :mod:`shell.models.multibody`; Monte
 Carlo runs read a body's dispersed mass properties again with :func:`rigid_mass_properties` and
 :func:`initial_state`.
 """
@@ -19,7 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from dynamics import ModelDefinitionError, Multibody, MultibodySystem
+from dynamics.constraints import (CONSTRAINT_KINDS, DEFAULT_ASSEMBLY_TOLERANCE, AssemblyReport, ClosureConstraint,
+                                  ConstrainedSystem)
+from dynamics.definitions import suggest
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
+from dynamics.layout import N_MODES
 from dynamics.modal_order import resolve_modal_orders
 from dynamics.mode_selection import select_modes
 from dynamics.spatial import quaternion_to_rotation
@@ -28,7 +35,15 @@ from shell.schema.validation import Where, expect_list, expect_mapping, expect_n
 from shell.units import UnitError, to_magnitude, ureg
 
 SECTION_KEYS = {"name": "engine model name (default multibody)", "gravity": "uniform gravity, world axes (m/s^2)",
-                "bodies": "list of bodies", "nodes": "list of nodes"}
+                "bodies": "list of bodies", "nodes": "list of nodes",
+                "constraints": "closure constraints between nodes (weld, ball, revolute, prismatic, distance)",
+                "assembly_tolerance": "largest constraint residual of the initial state that is projected away "
+                                      "(m or rad, default 1e-6); beyond it the scene is refused"}
+CONSTRAINT_KEYS = {"name": "constraint name (its load port: <name>.load)", "kind": "weld, ball, revolute, prismatic "
+                   "or distance", "node_a": "node frame A (axes of the axis and the load)",
+                   "node_b": "node frame B (omitted: the world, at A's initial pose)",
+                   "axis": "revolute or prismatic axis, unit vector in A's axes",
+                   "length": "distance constraint's length (m; default: the initial distance)"}
 NODE_KEYS = {"name": "node name", "body": "body it is fixed on", "position": "in the body frame (m)",
              "rotation": "node -> body", "grid": "FE grid id (nodes on flexible bodies)"}
 BODY_KEYS = {
@@ -69,13 +84,17 @@ INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
 class MultibodySection:
     """What the ``multibody:`` section describes: the engine model's name, its compiled system and initial
     state (hinge quaternions normalized; ``written_q`` the coordinates as written, from which a run that changes
-    a body's initial value normalizes, as the scene built with that value does)."""
+    a body's initial value normalizes, as the scene built with that value does). With ``constraints:``,
+    ``constrained`` holds the system with its closures and ``assembly`` how far the initial state was moved onto
+    them (``initial_q``, ``initial_u`` are the assembled state)."""
 
     name: str
     system: MultibodySystem
     initial_q: np.ndarray
     initial_u: np.ndarray
     written_q: np.ndarray
+    constrained: ConstrainedSystem | None = None
+    assembly: AssemblyReport | None = None
 
 
 def read_multibody(description, where: Where) -> MultibodySection:
@@ -106,7 +125,97 @@ def read_multibody(description, where: Where) -> MultibodySection:
     places = {body.get("name"): here for _, here, body in initial}  # the stiffening warning names its body
     with located(lambda text: next((h for b, h in places.items() if f"body '{b}'" in text), where)):
         system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto
-    return MultibodySection(name, system, q0, u0, written)
+    if not description.get("constraints"):
+        if "constraints" in description:
+            expect_list(description["constraints"], where.child(description, "constraints"), "constraints")
+        if "assembly_tolerance" in description:
+            raise where.child(description, "assembly_tolerance").error("applies to a scene with constraints:")
+        return MultibodySection(name, system, q0, u0, written)
+    constrained, q0, u0, report = _constrained(system, description, where, q0, u0)
+    return MultibodySection(name, system, q0, u0, written, constrained, report)
+
+
+def _constrained(system, description, where: Where, q0, u0):
+    """(ConstrainedSystem, assembled q0, u0, AssemblyReport) of the section's ``constraints:``; the initial
+    configuration supplies the world pose of a constraint without node_b and a distance's default length."""
+    here_list = where.child(description, "constraints")
+    entries = expect_list(description["constraints"], here_list, "constraints")
+    tolerance = float(_vector(description, "assembly_tolerance", "", (), where, DEFAULT_ASSEMBLY_TOLERANCE))
+    if not tolerance > 0.0:
+        raise where.child(description, "assembly_tolerance").error(f"expected a positive residual (m or rad), "
+                                                                   f"given {tolerance!r}")
+    constraints, places = [], {}
+    for k, entry in enumerate(entries):
+        here = here_list.child(entries, k)
+        constraint = _constraint(system, entry, here)
+        here = here.named(constraint.label)
+        if constraint.label in places:
+            raise here.child(entry, "name").error(f"duplicate constraint name {constraint.label!r} (first at "
+                                                  f"{places[constraint.label]})")
+        places[constraint.label] = here
+        constraints.append(constraint)
+    try:
+        constrained = ConstrainedSystem(system, constraints, q_reference=q0)
+    except ModelDefinitionError as exc:
+        raise here_list.error(str(exc)) from None
+    worst, label = constrained.worst_residual(q0)
+    if worst > tolerance:
+        raise places[label].error(f"the initial state violates this constraint by {worst:.3e} (m or rad), more than "
+                                  f"assembly_tolerance {tolerance:g}: give an initial state that closes it (or "
+                                  f"raise assembly_tolerance to have it projected)")
+    try:
+        q0, u0, report = constrained.assemble(q0, u0, tolerance)
+    except ModelDefinitionError as exc:
+        raise here_list.error(str(exc)) from None
+    return constrained, q0, u0, report
+
+
+def _constraint(system, entry, here: Where) -> ClosureConstraint:
+    """One ``constraints:`` entry, checked key by key against the system's nodes."""
+    expect_mapping(entry, here, CONSTRAINT_KEYS, required=("kind", "node_a"))
+    kind = expect_name(entry["kind"], here.child(entry, "kind"), "a constraint kind")
+    if kind not in CONSTRAINT_KINDS:
+        raise here.child(entry, "kind").error(f"unknown constraint kind {kind!r}; expected one of "
+                                              f"{sorted(CONSTRAINT_KINDS)}" + suggest(kind, list(CONSTRAINT_KINDS)))
+    nodes = {}
+    for role in ("node_a", "node_b"):
+        if role not in entry:
+            continue
+        node = expect_name(entry[role], here.child(entry, role), "a node name")
+        if node not in system.node_names:
+            raise here.child(entry, role).error(f"unknown node {node!r}; nodes: {list(system.node_names)}"
+                                                + suggest(node, system.node_names))
+        nodes[role] = node
+    if "node_b" in nodes:
+        body = system.node_bodies[system.node_index(nodes["node_a"])]
+        if body == system.node_bodies[system.node_index(nodes["node_b"])] and not system.topology[
+                system.body_index(body), N_MODES]:
+            raise here.child(entry, "node_b").error(f"nodes {nodes['node_a']!r} and {nodes['node_b']!r} are both on "
+                                                    f"the rigid body {body!r}: a constraint between two frames of one "
+                                                    f"rigid body holds nothing")
+    axis = None
+    if kind in ("revolute", "prismatic"):
+        if "axis" not in entry:
+            raise here.error(f"missing required key 'axis': a {kind} constraint turns or slides about an axis (unit "
+                             f"vector in node_a's axes), e.g. axis: [0, 0, 1]")
+        axis = _vector(entry, "axis", "", (3,), here)
+        if abs(np.linalg.norm(axis) - 1.0) > 1e-9:
+            raise here.child(entry, "axis").error(f"expected a unit vector, given norm {np.linalg.norm(axis):.12g}")
+    elif "axis" in entry:
+        raise here.child(entry, "axis").error(f"a {kind} constraint takes no axis (only revolute and prismatic do)")
+    length = None
+    if "length" in entry:
+        if kind != "distance":
+            raise here.child(entry, "length").error(f"a {kind} constraint takes no length (only distance does)")
+        length = float(_vector(entry, "length", "m", (), here))
+        if not length > 0.0:
+            raise here.child(entry, "length").error(f"expected a positive length, given {entry['length']!r}")
+    name = expect_name(entry["name"], here.child(entry, "name"), "a constraint name") if "name" in entry else ""
+    try:
+        return ClosureConstraint(nodes["node_a"], nodes.get("node_b"), kind, axis=None if axis is None else
+                                 tuple(axis), name=name, length=length)
+    except ModelDefinitionError as exc:
+        raise here.error(str(exc)) from None
 
 
 def _node_adders(builder: Multibody, description, where: Where) -> dict:
