@@ -17,11 +17,14 @@ import sys
 import time
 import warnings
 
-#: seconds each part takes to compile on an empty cache, one core of this 2-core machine without other load
-#: (benchmarks/compile_time.py --profile, 2026-11-27 at load 7.7: engine 424 s and loop 75 s of 505 s compiling,
-#: 160 s CPU; scaled to the 106 s the demo compiled on a quiet machine); model kernels 1-3 s each
-ENGINE_SECONDS = 90
-LOOP_SECONDS = 20
+#: seconds each part takes to compile on an empty cache, one core of this 2-core machine without other load: the
+#: engine per solver path (the single-body kernel 6 s in the demo, benchmarks/compile_time.py --profile,
+#: 2026-11-28 at load 3; the articulated-body and dense paths from the 2026-11-27 profile of the whole engine, 424 s
+#: of 505 s compiling at load 7.7, scaled to the 106 s the demo then compiled on a quiet machine), the loop of one
+#: stepper family (~40 s in the 2026-11-28 profile: the scene's evaluation is inlined into the stepper); model
+#: kernels 1-3 s each
+ENGINE_SECONDS = {"single_body": 10, "articulated": 60, "dense": 60}
+LOOP_SECONDS = 45
 MODEL_SECONDS = 3
 
 _MODEL_KERNELS = ("state_outputs", "feedthrough_outputs", "derivatives", "zero_crossing_values", "update")
@@ -48,7 +51,11 @@ def describe(dispatcher) -> tuple[str, float]:
     if module.startswith("dynamics.flex."):
         return "the FEM-to-modal pipeline", MODEL_SECONDS
     if module == "shell.models.multibody" or module.startswith("dynamics"):
-        return "the multibody engine", ENGINE_SECONDS
+        name = getattr(dispatcher.py_func, "__name__", "")
+        path = next((p for p in ENGINE_SECONDS if name == f"engine_kernel_{p}"), None)
+        if path is None:  # a function of the engine compiled on its own (the system's set-up): small
+            return "the multibody engine's set-up", MODEL_SECONDS
+        return f"the multibody engine ({path.replace('_', ' ')} path)", ENGINE_SECONDS[path]
     if module.startswith(("shell.compiled_loop", "shell.integrators")):
         return "the simulation loop", LOOP_SECONDS
     return "model kernels", MODEL_SECONDS
