@@ -313,10 +313,10 @@ def _constrained_rates(engine, ports, work, x, out):
     E.coordinate_rates(engine, x[:nq], x[nq:], out[:nq])
 
 
-#: path name -> the engine model's kernel for systems of that path (each compiled on first use); "constrained":
-#: a scene with closure constraints (its data type differs: one more compilation of the loop, for such scenes only)
+#: path name -> the engine model's kernel for systems of that path (each compiled on first use); a scene with
+#: closure constraints takes :func:`engine_kernel_constrained` (its data type differs: one more compilation of the
+#: loop, for such scenes only)
 ENGINE_KERNELS = {name: _engine_kernel(path) for name, path in E.PATHS.items()}
-ENGINE_KERNELS["constrained"] = engine_kernel_constrained
 
 
 @njit(cache=True)
@@ -619,7 +619,9 @@ class MultibodyModel(Model):
     def compiled_kernel(self):
         """The op kernel serving every kernel below in the compiled loop (:mod:`shell.kernel_protocol`): the one for
         this model's system (:data:`ENGINE_KERNELS`, by :func:`dynamics.engine.path_of`; a copy of the system, as a
-        run's own, takes the same path)."""
+        run's own, takes the same path), or :func:`engine_kernel_constrained` for a scene with closure constraints."""
+        if self.constrained is not None:
+            return engine_kernel_constrained
         return ENGINE_KERNELS[self.engine_path]
 
     def state_outputs(self, t, x, z, u, p, d, y):

@@ -161,3 +161,22 @@ def test_linearization_of_a_constrained_scene_is_refused_not_given_with_spurious
     for analysis in (lambda: linearize(sim, [], ["multibody.crank.q"]), lambda: trim(sim)):
         with pytest.raises(LinearizationError, match="multibody has closure constraints \\(pin\\)"):
             analysis()
+
+
+def test_a_projection_that_cannot_close_the_loop_stops_the_run_with_the_reason(tmp_path):
+    """A distance constraint whose length no configuration reaches (set in the run's data after assembly): the
+    projection after a step fails, the velocities become NaN and the model says why (the simulation reports it)."""
+    from dynamics import constraint_kernels as CK
+
+    text = FOUR_BAR.replace(PIN, "    - {name: rod, kind: distance, node_a: coupler_end, node_b: rocker_end, "
+                                 "length: 0.5 m}\n").replace("  constraints:\n", "  assembly_tolerance: 10\n"
+                                                                                   "  constraints:\n")
+    model = _scene(tmp_path, text).children["multibody"]
+    model.configure()
+    _, data = model.create_data(own=True)
+    assert model.failure_message(data) is None
+    data[3].data.c_float[0, CK.C_LENGTH] = 100.0  # farther than the two ends can be apart
+    x = model.initial_continuous_state().copy()
+    model.normalize_state(x, data)
+    assert np.isnan(x[3:]).all() and "projection onto the closure constraints did not converge" in \
+        model.failure_message(data)
