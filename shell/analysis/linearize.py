@@ -430,14 +430,15 @@ class NamedParameters:
 
 
 def refuse_closure_constraints(sim) -> None:
-    """Refuse a scene with closure constraints: its linear model on the constraint manifold (minimal coordinates,
-    :meth:`dynamics.constraints.ConstrainedSystem.tangent_basis`) is not wired into the scene's analyses yet,
-    and the unrestricted one has spurious zero modes (issue 29). Linearize, sampled linearize and trim all take
-    their states through :class:`TangentStates`, which calls this."""
+    """Refuse a scene with closure constraints or force elements (they take the constrained path): its linear model on
+    the constraint manifold (minimal coordinates, :meth:`dynamics.constraints.ConstrainedSystem.tangent_basis`) is
+    not wired into the scene's analyses yet, and the unrestricted one has spurious zero modes (issue 29). Linearize,
+    sampled linearize and trim all take their states through :class:`TangentStates`, which calls this."""
     for m in sim.diagram.models:
         if getattr(m, "constrained", None) is not None:
-            raise LinearizationError(f"model {m.path} has closure constraints "
-                                     f"({', '.join(c.label for c in m.constrained.constraints)}): linearization and "
+            what = ", ".join([c.label for c in m.constrained.constraints] + [f.name for f in m.constrained.forces])
+            raise LinearizationError(f"model {m.path} has closure constraints or force elements ({what}): "
+                                     "linearization and "
                                      "trim on the constraint manifold are not implemented for scenes yet (the "
                                      "tree's coordinates would give spurious modes)")
 

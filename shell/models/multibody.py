@@ -6,13 +6,14 @@ the generalized coordinates ``q`` and velocities ``u`` (docs/conventions.md orde
 ``[q_dot(q, u); forward_dynamics(q, u, tau, node forces, prescribed accelerations)]`` and hinge
 quaternions are renormalized by the integrator's ``normalize`` hook after every step.
 
-A scene with closure ``constraints:`` (a :class:`dynamics.constraints.ConstrainedSystem`) takes a fourth path,
-``"constrained"``: its accelerations are the constrained forward dynamics of :mod:`dynamics.constraint_kernels`
-(index-1 form, multipliers from ``G M^-1 G'``, no Baumgarte terms), and its drift is removed by projection after
-every accepted step in the same ``normalize`` hook: the quaternions renormalized, then the positions projected
-onto ``phi(q) = 0`` (Newton along ``M^-1 G'``, to :data:`PROJECTION_TOLERANCE`) and the velocities onto ``G u = 0``
-(M-orthogonal), the choice docs/closure_constraints.md measures (benchmarks/closure_drift.py). Its per-run data
-carry the constraint data and loads besides the engine's, so a constrained scene compiles the loop once more
+A scene with closure ``constraints:`` or ``forces:`` (spring-dampers between nodes; a
+:class:`dynamics.constraints.ConstrainedSystem`) takes a fourth path, ``"constrained"``: its accelerations are the
+constrained forward dynamics of :mod:`dynamics.constraint_kernels` (the force elements' node forces added to the
+applied ones; index-1 form, multipliers from ``G M^-1 G'``, no Baumgarte terms), and its drift is removed by
+projection after every accepted step in the same ``normalize`` hook: the quaternions renormalized, then the positions
+projected onto ``phi(q) = 0`` (Newton along ``M^-1 G'``, to :data:`PROJECTION_TOLERANCE`) and the velocities onto ``G
+u = 0`` (M-orthogonal), the choice docs/closure_constraints.md measures (benchmarks/closure_drift.py). Its per-run
+data carry the constraint data and loads besides the engine's, so a constrained scene compiles the loop once more
 (for that data type); scenes without constraints keep theirs.
 
 Ports (``<body>`` a body name, i.e. its inboard hinge; ``<node>`` a node name):
@@ -360,7 +361,7 @@ class MultibodyModel(Model):
     def __init__(self, name: str, system, *, initial_q=None, initial_u=None, written_q=None, constrained=None,
                  assembly=None):
         self.system = system
-        #: the closure constraints (a dynamics.constraints.ConstrainedSystem on ``system``), or None
+        #: the closure constraints and force elements (a dynamics.constraints.ConstrainedSystem on ``system``), or None
         self.constrained = constrained
         #: how far the initial state was moved onto the constraints (dynamics.constraints.AssemblyReport), or None
         self.assembly = assembly
@@ -382,7 +383,10 @@ class MultibodyModel(Model):
         notes = [f"{self.path}: {note}" for note in s.notes]
         if s.topology[:, K.FLEXIBLE].any():
             notes.insert(0, f"{self.path}: forward dynamics by {s.solver_reason}")
-        if self.constrained is not None:
+        if self.constrained is not None and self.constrained.forces:
+            notes.append(f"{self.path}: force elements {', '.join(f.name for f in self.constrained.forces)} "
+                         "(spring-dampers)")
+        if self.constrained is not None and self.constrained.constraints:
             names = ", ".join(f"{c.label} ({c.kind})" for c in self.constrained.constraints)
             notes.append(f"{self.path}: closure constraints {names}; drift removed by projection after each step "
                          f"(to {PROJECTION_TOLERANCE:g})")

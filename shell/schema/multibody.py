@@ -1,16 +1,16 @@
 """The ``multibody:`` section of a scenario: bodies, hinges, nodes and initial state, read into an engine system.
 
-The section (docs/scenario_schema.md, section multibody) lists bodies in order, each with its parent, hinge
-(locked, revolute, prismatic, ujoint, spherical, free; docs/conventions.md for their coordinates), rigid
-mass properties or a flexible body file (``flexshell fem2modal``), the placement of its inboard and outboard
-frames, and an optional ``initial:`` hinge state; then nodes fixed on bodies; then closure ``constraints:``
-between nodes (weld, ball, revolute, prismatic, distance: :mod:`dynamics.constraints`), which close loops
-or hold a node to the world. :func:`read_multibody` checks it key by key (every refusal names file, line and
-key path), builds the :class:`dynamics.Multibody` and compiles it; a scene with constraints gets a
-:class:`dynamics.constraints.ConstrainedSystem` and its initial state assembled onto the constraints (moved
-by at most ``assembly_tolerance``, refused beyond it, naming the constraint). The runtime side, the engine as a shell model with its ports, is :mod:`shell.models.multibody`; Monte
-Carlo runs read a body's dispersed mass properties again with :func:`rigid_mass_properties` and
-:func:`initial_state`.
+The section (docs/scenario_schema.md, section multibody) lists bodies in order, each with its parent, hinge (locked,
+revolute, prismatic, ujoint, spherical, free; docs/conventions.md for their coordinates), rigid mass properties or a
+flexible body file (``flexshell fem2modal``), the placement of its inboard and outboard frames, and an optional
+``initial:`` hinge state; then nodes fixed on bodies; then closure ``constraints:`` between nodes (weld, ball,
+revolute, prismatic, distance: :mod:`dynamics.constraints`), which close loops or hold a node to the world.
+:func:`read_multibody` checks it key by key (every refusal names file, line and key path), builds the
+:class:`dynamics.Multibody` and compiles it; a scene with constraints gets a
+:class:`dynamics.constraints.ConstrainedSystem` and its initial state assembled onto the constraints (moved by at
+most ``assembly_tolerance``, refused beyond it, naming the constraint). The runtime side, the engine as a shell model
+with its ports, is :mod:`shell.models.multibody`; Monte Carlo runs read a body's dispersed mass properties again with
+:func:`rigid_mass_properties` and :func:`initial_state`.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from dynamics import ModelDefinitionError, Multibody, MultibodySystem
 from dynamics.constraints import (CONSTRAINT_KINDS, DEFAULT_ASSEMBLY_TOLERANCE, AssemblyReport, ClosureConstraint,
                                   ConstrainedSystem)
 from dynamics.definitions import suggest
+from dynamics.force_elements import ACTS, SpringDamper
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 from dynamics.layout import N_MODES
 from dynamics.modal_order import resolve_modal_orders
@@ -37,6 +38,7 @@ from shell.units import UnitError, to_magnitude, ureg
 SECTION_KEYS = {"name": "engine model name (default multibody)", "gravity": "uniform gravity, world axes (m/s^2)",
                 "bodies": "list of bodies", "nodes": "list of nodes",
                 "constraints": "closure constraints between nodes (weld, ball, revolute, prismatic, distance)",
+                "forces": "force elements between nodes (spring_damper)",
                 "assembly_tolerance": "largest constraint residual of the initial state that is projected away "
                                       "(m or rad, default 1e-6); beyond it the scene is refused"}
 CONSTRAINT_KEYS = {"name": "constraint name (its load port: <name>.load)", "kind": "weld, ball, revolute, prismatic "
@@ -44,6 +46,11 @@ CONSTRAINT_KEYS = {"name": "constraint name (its load port: <name>.load)", "kind
                    "node_b": "node frame B (omitted: the world, at A's initial pose)",
                    "axis": "revolute or prismatic axis, unit vector in A's axes",
                    "length": "distance constraint's length (m; default: the initial distance)"}
+FORCE_KEYS = {"name": "force element name", "kind": "spring_damper", "node_a": "node at one end",
+              "node_b": "node at the other end (or world_point)", "world_point": "fixed end, world (m; default origin)",
+              "stiffness": "N/m", "damping": "N*s/m", "free_length": "m (default: the initial length)",
+              "acts": "both, compression or tension (default both)"}
+FORCE_KINDS = ("spring_damper",)
 NODE_KEYS = {"name": "node name", "body": "body it is fixed on", "position": "in the body frame (m)",
              "rotation": "node -> body", "grid": "FE grid id (nodes on flexible bodies)"}
 BODY_KEYS = {
@@ -125,9 +132,10 @@ def read_multibody(description, where: Where) -> MultibodySection:
     places = {body.get("name"): here for _, here, body in initial}  # the stiffening warning names its body
     with located(lambda text: next((h for b, h in places.items() if f"body '{b}'" in text), where)):
         system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto
-    if not description.get("constraints"):
-        if "constraints" in description:
-            expect_list(description["constraints"], where.child(description, "constraints"), "constraints")
+    if not description.get("constraints") and not description.get("forces"):
+        for key in ("constraints", "forces"):
+            if key in description:
+                expect_list(description[key], where.child(description, key), key)
         if "assembly_tolerance" in description:
             raise where.child(description, "assembly_tolerance").error("applies to a scene with constraints:")
         return MultibodySection(name, system, q0, u0, written)
@@ -139,7 +147,7 @@ def _constrained(system, description, where: Where, q0, u0):
     """(ConstrainedSystem, assembled q0, u0, AssemblyReport) of the section's ``constraints:``; the initial
     configuration supplies the world pose of a constraint without node_b and a distance's default length."""
     here_list = where.child(description, "constraints")
-    entries = expect_list(description["constraints"], here_list, "constraints")
+    entries = expect_list(description.get("constraints") or [], here_list, "constraints")
     tolerance = float(_vector(description, "assembly_tolerance", "", (), where, DEFAULT_ASSEMBLY_TOLERANCE))
     if not tolerance > 0.0:
         raise where.child(description, "assembly_tolerance").error(f"expected a positive residual (m or rad), "
@@ -154,10 +162,13 @@ def _constrained(system, description, where: Where, q0, u0):
                                                   f"{places[constraint.label]})")
         places[constraint.label] = here
         constraints.append(constraint)
+    forces = _forces(system, description, where)
     try:
-        constrained = ConstrainedSystem(system, constraints, q_reference=q0)
+        constrained = ConstrainedSystem(system, constraints, forces, q_reference=q0)
     except ModelDefinitionError as exc:
-        raise here_list.error(str(exc)) from None
+        raise (here_list if constraints else where.child(description, "forces")).error(str(exc)) from None
+    if not constraints:
+        return constrained, q0, u0, None
     worst, label = constrained.worst_residual(q0)
     if worst > tolerance:
         raise places[label].error(f"the initial state violates this constraint by {worst:.3e} (m or rad), more than "
@@ -168,6 +179,49 @@ def _constrained(system, description, where: Where, q0, u0):
     except ModelDefinitionError as exc:
         raise here_list.error(str(exc)) from None
     return constrained, q0, u0, report
+
+
+def _forces(system, description, where: Where) -> list:
+    """The section's ``forces:`` entries as force elements (:mod:`dynamics.force_elements`), checked key by key."""
+    here_list = where.child(description, "forces")
+    entries = expect_list(description.get("forces") or [], here_list, "forces")
+    out, names = [], set()
+    for k, entry in enumerate(entries):
+        here = here_list.child(entries, k)
+        expect_mapping(entry, here, FORCE_KEYS, required=("name", "kind", "node_a", "stiffness"))
+        name = expect_name(entry["name"], here.child(entry, "name"), "a force element name")
+        here = here.named(name)
+        if name in names:
+            raise here.child(entry, "name").error(f"duplicate force element name {name!r}")
+        names.add(name)
+        kind = expect_name(entry["kind"], here.child(entry, "kind"), "a force element kind")
+        if kind not in FORCE_KINDS:
+            raise here.child(entry, "kind").error(f"unknown force element kind {kind!r}; expected one of "
+                                                  f"{list(FORCE_KINDS)} (bushings, hinge stops and contact are not "
+                                                  f"in scenarios yet)" + suggest(kind, FORCE_KINDS))
+        nodes = {}
+        for role in ("node_a", "node_b"):
+            if role in entry:
+                node = expect_name(entry[role], here.child(entry, role), "a node name")
+                if node not in system.node_names:
+                    raise here.child(entry, role).error(f"unknown node {node!r}; nodes: {list(system.node_names)}"
+                                                        + suggest(node, system.node_names))
+                nodes[role] = node
+        if "node_b" in nodes and "world_point" in entry:
+            raise here.child(entry, "world_point").error("give node_b or world_point, not both")
+        values = {}
+        for key, unit in (("stiffness", "N/m"), ("damping", "N*s/m"), ("free_length", "m")):
+            if key in entry:
+                values[key] = float(_vector(entry, key, unit, (), here))
+                if not values[key] >= 0.0:
+                    raise here.child(entry, key).error(f"expected a value >= 0, given {entry[key]!r}")
+        acts = entry.get("acts", "both")
+        if acts not in ACTS:
+            raise here.child(entry, "acts").error(f"expected one of {sorted(ACTS)}, given {acts!r}")
+        world_point = tuple(_vector(entry, "world_point", "m", (3,), here)) if "world_point" in entry else None
+        out.append(SpringDamper(name, nodes["node_a"], nodes.get("node_b"), acts=acts, world_point=world_point,
+                                **values))
+    return out
 
 
 def _constraint(system, entry, here: Where) -> ClosureConstraint:

@@ -38,9 +38,9 @@ def _run(config, tmp_path):
 
 
 def test_four_bar_config_equals_the_absolute_coordinate_dae(tmp_path):
-    """configs/four_bar.yaml through ``flexshell run``: crank, coupler and rocker angles equal the DAE's to
-    1e-6 rad over 2 s while the crank turns 2.1 times; the loop stays closed to 1e-9 m; the pin's load port
-    satisfies the rocker's moment balance about its ground pivot (with the DAE's acceleration) to 1e-5 N m (measured 8e-7 N m
+    """configs/four_bar.yaml through ``flexshell run``: crank, coupler and rocker angles equal the DAE's to 1e-6 rad
+    over 2 s while the crank turns 2.1 times; the loop stays closed to 1e-9 m; the pin's load port satisfies the
+    rocker's moment balance about its ground pivot (with the DAE's acceleration) to 1e-5 N m (measured 8e-7 N m
     for moments up to ~300 N m: the two solutions' states differ by ~2e-9 rad; angles measured 1.8e-9 rad)."""
     log, out = _run("four_bar", tmp_path)
     assert "closure constraints pin (revolute)" in out
@@ -159,7 +159,7 @@ def test_linearization_of_a_constrained_scene_is_refused_not_given_with_spurious
 
     sim = build_simulation(load_scenario(CONFIGS / "four_bar.yaml"))
     for analysis in (lambda: linearize(sim, [], ["multibody.crank.q"]), lambda: trim(sim)):
-        with pytest.raises(LinearizationError, match="multibody has closure constraints \\(pin\\)"):
+        with pytest.raises(LinearizationError, match="multibody has closure constraints or force elements \\(pin\\)"):
             analysis()
 
 
@@ -180,3 +180,52 @@ def test_a_projection_that_cannot_close_the_loop_stops_the_run_with_the_reason(t
     model.normalize_state(x, data)
     assert np.isnan(x[3:]).all() and "projection onto the closure constraints did not converge" in \
         model.failure_message(data)
+
+
+SPRING_SCENE = """\
+name: spring_mass
+multibody:
+  bodies:
+    - {name: cart, hinge: prismatic, axis: [1, 0, 0], mass: 2 kg, inertia: [1, 1, 1],
+       initial: {displacement: 1.5 m, displacement_rate: 0.3 m/s}}
+  nodes:
+    - {name: hook, body: cart}
+  forces:
+    - {name: spring, kind: spring_damper, node_a: hook, world_point: [0, 0, 0], stiffness: 50 N/m,
+       damping: 1.2 N*s/m, free_length: 1 m}
+integrator: {method: rk4, step: 1 ms}
+stop: {time: 3 s}
+log: {rate: 20 Hz, signals: [multibody.cart.q, multibody.cart.u]}
+"""
+
+
+def test_a_spring_damper_in_a_scenario_is_the_damped_oscillator(tmp_path):
+    """A 2 kg cart on a prismatic hinge tied to the world origin by a spring-damper (50 N/m, 1.2 N s/m, free
+    length 1 m), run by ``flexshell run``: its displacement is the analytic damped oscillation about 1 m to 1e-9 m."""
+    scene = tmp_path / "spring.yaml"
+    scene.write_text(SPRING_SCENE)
+    result = subprocess.run([sys.executable, "-m", "shell.cli", "run", str(scene), "-o", str(tmp_path / "s.h5")],
+                            cwd=ROOT, capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr + result.stdout
+    assert "force elements spring" in result.stdout + result.stderr
+    log = read_log(tmp_path / "s.h5")
+    t, x = log["time"], log["multibody.cart.q"][:, 0]
+    m, k, c, x0, v0 = 2.0, 50.0, 1.2, 0.5, 0.3
+    zeta_w, wd = c / (2 * m), np.sqrt(k / m - (c / (2 * m)) ** 2)
+    exact = 1.0 + np.exp(-zeta_w * t) * (x0 * np.cos(wd * t) + (v0 + zeta_w * x0) / wd * np.sin(wd * t))
+    assert np.abs(x - exact).max() < 1e-9
+
+
+@pytest.mark.parametrize("change, key, message", [
+    ("kind: spring_damper", "kind", "unknown force element kind 'bushing'"),
+    ("node_a: hook", "node_a", "unknown node 'hock'"),
+    ("damping: 1.2 N*s/m", "damping", "expected a value >= 0"),
+])
+def test_bad_force_elements_are_refused_with_file_line_and_key(tmp_path, change, key, message):
+    wrong = {"kind": "kind: bushing", "node_a": "node_a: hock", "damping": "damping: -1 N*s/m"}[key]
+    text = SPRING_SCENE.replace(change, wrong)
+    with pytest.raises(ScenarioError) as caught:
+        _scene(tmp_path, text)
+    assert f"multibody.forces[0](spring).{key}: {message}" in str(caught.value)
+    line = next(n for n, row in enumerate(text.splitlines(), 1) if wrong in row)
+    assert f"scene.yaml:{line}:" in str(caught.value)
