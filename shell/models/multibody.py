@@ -191,6 +191,16 @@ def _coordinate_outputs(x, ports, out):
     _copy_blocks(x[nq:], ports.hinge_u, out)
 
 
+@njit(cache=True, inline="always")
+def _acceleration_outputs(ports, work, out):
+    """The nodes' angular and linear accelerations (left in ``work.acceleration``) into the output block."""
+    for n in range(ports.accel_offsets.shape[0]):
+        a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
+        for k in range(3):
+            out[a + k] = work.acceleration[n, k]
+            out[b + k] = work.acceleration[n, 3 + k]
+
+
 def _engine_kernel(path):
     """The engine model's kernel for the systems of one path (:data:`dynamics.engine.PATHS`): it contains that
     path's code only, so a rigid single-body scene compiles neither the articulated-body recursion nor the
@@ -223,11 +233,7 @@ def _engine_kernel(path):
             if ports.accel_offsets.shape[0]:  # reusing the workspace the forward dynamics just left
                 node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
                                                work.velocity, work.acceleration)
-                for n in range(ports.accel_offsets.shape[0]):
-                    a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
-                    for k in range(3):
-                        out[a + k] = work.acceleration[n, k]
-                        out[b + k] = work.acceleration[n, 3 + k]
+                _acceleration_outputs(ports, work, out)
         elif op == DERIVATIVES or op == DERIVATIVES_AFTER_FEEDTHROUGH:
             if op == DERIVATIVES:
                 _gather_inputs(x, u, d)
@@ -288,11 +294,7 @@ def engine_kernel_constrained(op, t, x, z, u, p, d, out):
             if ports.accel_offsets.shape[0]:
                 E.node_kinematics_tree(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
                                        work.velocity, work.acceleration)
-                for n in range(ports.accel_offsets.shape[0]):
-                    a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
-                    for k in range(3):
-                        out[a + k] = work.acceleration[n, k]
-                        out[b + k] = work.acceleration[n, 3 + k]
+                _acceleration_outputs(ports, work, out)
         else:
             _constrained_rates(engine, ports, work, x, out)
     elif op == DERIVATIVES_AFTER_FEEDTHROUGH:
