@@ -308,21 +308,6 @@ def constraint_jacobian(d, c, q, m):
 
 
 @njit(cache=True)
-def cholesky_solve(L, n, y):
-    """``y <- (L L')^-1 y`` in place for the lower Cholesky factor in ``L[:n, :n]``."""
-    for s in range(n):
-        t = y[s]
-        for j in range(s):
-            t -= L[s, j] * y[j]
-        y[s] = t / L[s, s]
-    for s in range(n - 1, -1, -1):
-        t = y[s]
-        for j in range(s + 1, n):
-            t -= L[j, s] * y[j]
-        y[s] = t / L[s, s]
-
-
-@njit(cache=True)
 def _factor_and_solve_rows(d, c, q, m):
     """Mass matrix (prescribed rows and columns replaced by the identity; the original kept in ``M_full``
     when there are prescribed DOFs), its Cholesky factor, ``Yt = (M^-1 G')'`` (zero at prescribed DOFs) and
@@ -355,7 +340,7 @@ def _factor_and_solve_rows(d, c, q, m):
         for i in range(topology.shape[0]):
             for kk in range(topology[i, N_PRESCRIBED]):
                 y[topology[i, U_START] + topology[i, PRESCRIBED_DOFS + kk]] = 0.0
-        cholesky_solve(M, nu, y)
+        FK.cholesky_solve(M, nu, y)
     for r in range(m):
         for s in range(r + 1):
             t = 0.0
@@ -416,7 +401,7 @@ def _minimum_norm_solve(c, m):
     y = c.gu
     for j in range(m):
         y[j] = c.rhs[int(order[j])] if j < rank else 0.0
-    cholesky_solve(A, rank, y)
+    FK.cholesky_solve(A, rank, y)
     nullity = m - rank
     if nullity > 0:
         # null-space basis in permuted order: N = [X; I] with L11' X = -L21' (rank x nullity), into c.V
@@ -445,7 +430,7 @@ def _minimum_norm_solve(c, m):
                     t += N[j, a] * N[j, b]
                 G[a, b] = t
         FK.cholesky_in_place(G, nullity)  # N'N = I + X'X: well conditioned
-        cholesky_solve(G, nullity, z)
+        FK.cholesky_solve(G, nullity, z)
         for j in range(m):
             t = 0.0
             for a in range(nullity):

@@ -588,6 +588,22 @@ def cholesky_in_place(G, n):
     return -1
 
 
+@njit(cache=True)
+def cholesky_solve(L, n, y):
+    """``y <- (L L')^-1 y`` in place for the lower Cholesky factor in ``L[:n, :n]`` (:func:`cholesky_in_place`):
+    forward, then backward substitution."""
+    for s in range(n):
+        t = y[s]
+        for j in range(s):
+            t -= L[s, j] * y[j]
+        y[s] = t / L[s, s]
+    for s in range(n - 1, -1, -1):
+        t = y[s]
+        for j in range(s + 1, n):
+            t -= L[j, s] * y[j]
+        y[s] = t / L[s, s]
+
+
 @njit(cache=True, fastmath=FAST_SUMS)
 def modal_mass_solve_rows(fx, kind, params, n, L, X, rows, out):
     """``out[:rows] = X[:rows] G^-1`` (each row a vector of length n; ``out`` must not be ``X``): with the

@@ -58,16 +58,7 @@ def forward_dynamics_dense(topology, nodes, joint_rot, joint_vec, params, q, u, 
         for i in range(nb):
             if bad < topology[i, U_START] + topology[i, NU_HINGE] + topology[i, N_MODES]:
                 return 1 + i
-    for s in range(nu):
-        t = h[s]
-        for k in range(s):
-            t -= M[s, k] * h[k]
-        h[s] = t / M[s, s]
-    for s in range(nu - 1, -1, -1):
-        t = h[s]
-        for k in range(s + 1, nu):
-            t -= M[k, s] * h[k]
-        h[s] = t / M[s, s]
+    FK.cholesky_solve(M, nu, h)
     for k in range(nu):
         udot[k] = h[k]
         tau_out[k] = tau[k]
