@@ -151,19 +151,6 @@ def test_an_initial_state_near_the_loop_is_assembled_and_one_far_from_it_refused
     assert _scene(tmp_path, lifted).children["multibody"].assembly.residual > 1e-3
 
 
-def test_linearization_of_a_constrained_scene_is_refused_not_given_with_spurious_modes():
-    """Linearize, trim and the sampled linearization on the constraint manifold are not wired into scenes yet:
-    each refuses the scene (the unrestricted linear model would have the constraint directions as zero modes)."""
-    from shell.analysis.linearize import LinearizationError, linearize
-    from shell.analysis.trim import trim
-    from shell.scenario import build_simulation
-
-    sim = build_simulation(load_scenario(CONFIGS / "four_bar.yaml"))
-    for analysis in (lambda: linearize(sim, [], ["multibody.crank.q"]), lambda: trim(sim)):
-        with pytest.raises(LinearizationError, match="multibody has closure constraints or force elements \\(pin\\)"):
-            analysis()
-
-
 def test_a_projection_that_cannot_close_the_loop_stops_the_run_with_the_reason(tmp_path):
     """A distance constraint whose length no configuration reaches (set in the run's data after assembly): the
     projection after a step fails, the velocities become NaN and the model says why (the simulation reports it)."""
