@@ -56,6 +56,7 @@ from numba import njit
 from dynamics import constraint_kernels as CK
 from dynamics import engine as E
 from dynamics import kernels as K
+from dynamics.errors import ModelDefinitionError
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
 
 from shell.kernel_protocol import (DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, FEEDTHROUGH_OUTPUTS, NORMALIZE,
@@ -584,10 +585,12 @@ class MultibodyModel(Model):
                 system.set_mass_properties(body, mass, com, inertia)
             except ValueError as exc:
                 raise ModelError(f"{self.path}.{body}: {exc}") from None
-        if initial and self.constrained is not None:
-            raise ModelError(f"{self.path}.{initial[0][0]}.initial.{initial[0][1]}: the initial state of a scene with "
-                             "closure constraints is assembled once, from the scenario; a run cannot change it "
-                             "(not implemented)")
+        if initial and self.constrained is not None and self.constrained.takes_reference():
+            from shell.names import StructuralChange
+
+            raise StructuralChange(f"{self.path}.{initial[0][0]}.initial.{initial[0][1]}: a constraint or force "
+                                   "element of this scene takes its pose or length from the initial state (none "
+                                   "given), so a run with another initial state is another scene")
         if initial:
             q, u = self.written_q.copy(), self._initial_u.copy()
             for body, key, value in initial:
@@ -602,6 +605,13 @@ class MultibodyModel(Model):
                                      f"given norm {np.linalg.norm(value_si):.12g}")
                 (q if target == "q" else u)[sl] = value_si
             system.normalize_quaternions(q)
+            if self.assembly is not None:  # onto the closure constraints, as the scene built with these values
+                try:
+                    q, u, _ = self.constrained.on(system).assemble(q, u, self.assembly.tolerance)
+                except ModelDefinitionError as exc:
+                    changed = ", ".join(f"{body}.initial.{key}" for body, key, _ in initial)
+                    raise ModelError(f"{self.path}: the initial state with {changed} cannot be assembled: "
+                                     f"{exc}") from None
             x[:system.nq] = q
             x[system.nq:] = u
 
