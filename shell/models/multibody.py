@@ -6,7 +6,7 @@ the generalized coordinates ``q`` and velocities ``u`` (docs/conventions.md orde
 ``[q_dot(q, u); forward_dynamics(q, u, tau, node forces, prescribed accelerations)]`` and hinge
 quaternions are renormalized by the integrator's ``normalize`` hook after every step.
 
-A scene with closure ``constraints:`` or ``forces:`` (spring-dampers between nodes; a
+A scene with closure ``constraints:`` or ``forces:`` (force elements between nodes and on hinges; a
 :class:`dynamics.constraints.ConstrainedSystem`) takes a fourth path, ``"constrained"``: its accelerations are the
 constrained forward dynamics of :mod:`dynamics.constraint_kernels` (the force elements' node forces added to the
 applied ones; index-1 form, multipliers from ``G M^-1 G'``, no Baumgarte terms), and its drift is removed by
@@ -387,8 +387,11 @@ class MultibodyModel(Model):
         if s.topology[:, K.FLEXIBLE].any():
             notes.insert(0, f"{self.path}: forward dynamics by {s.solver_reason}")
         if self.constrained is not None and self.constrained.forces:
-            notes.append(f"{self.path}: force elements {', '.join(f.name for f in self.constrained.forces)} "
-                         "(spring-dampers)")
+            from dynamics.force_elements import ELEMENT_TYPES
+
+            kinds = {cls: kind for kind, cls in ELEMENT_TYPES.items()}
+            notes.append(f"{self.path}: force elements "
+                         + ", ".join(f"{f.name} ({kinds[type(f)]})" for f in self.constrained.forces))
         if self.constrained is not None and self.constrained.constraints:
             names = ", ".join(f"{c.label} ({c.kind})" for c in self.constrained.constraints)
             notes.append(f"{self.path}: closure constraints {names}; drift removed by projection after each step "

@@ -205,12 +205,12 @@ def test_a_spring_damper_in_a_scenario_is_the_damped_oscillator(tmp_path):
 
 
 @pytest.mark.parametrize("change, key, message", [
-    ("kind: spring_damper", "kind", "unknown force element kind 'bushing'"),
+    ("kind: spring_damper", "kind", "unknown force element kind 'spring'"),
     ("node_a: hook", "node_a", "unknown node 'hock'"),
     ("damping: 1.2 N*s/m", "damping", "expected a value >= 0"),
 ])
 def test_bad_force_elements_are_refused_with_file_line_and_key(tmp_path, change, key, message):
-    wrong = {"kind": "kind: bushing", "node_a": "node_a: hock", "damping": "damping: -1 N*s/m"}[key]
+    wrong = {"kind": "kind: spring", "node_a": "node_a: hock", "damping": "damping: -1 N*s/m"}[key]
     text = SPRING_SCENE.replace(change, wrong)
     with pytest.raises(ScenarioError) as caught:
         _scene(tmp_path, text)
