@@ -86,6 +86,8 @@ SECTION_KEYS = {"name": "engine model name (default multibody)", "gravity": "uni
                 "bodies": "list of bodies", "nodes": "list of nodes",
                 "constraints": "closure constraints between nodes (weld, ball, revolute, prismatic, distance)",
                 "forces": "force elements: " + ", ".join(FORCE_KINDS),
+                "outputs": "optional outputs, computed only when asked for: hinge_load (<body>.hinge_load of every "
+                           "body) and energy",
                 "assembly_tolerance": "largest constraint residual of the initial state that is projected away "
                                       "(m or rad, default 1e-6); beyond it the scene is refused"}
 NODE_KEYS = {"name": "node name", "body": "body it is fixed on", "position": "in the body frame (m)",
@@ -114,6 +116,9 @@ BODY_KEYS = {
 }
 FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "omit_terms", "damping_ratio", "integrals",
                  "child_grid", "geometric_stiffening", "preload")
+OPTIONAL_OUTPUTS = {"hinge_load": "<body>.hinge_load of every body", "energy": "energy (kinetic, potential, force "
+                    "elements', total)"}
+"""Outputs a scene asks for (``multibody.outputs:``): computed on the constrained path only (its kernel has them)."""
 INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
     "q": ("", "all"), "u": ("", "all"),
     "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
@@ -139,6 +144,7 @@ class MultibodySection:
     written_q: np.ndarray
     constrained: ConstrainedSystem | None = None
     assembly: AssemblyReport | None = None
+    outputs: tuple = ()  # the optional outputs asked for (shell.models.multibody.OPTIONAL_OUTPUTS)
 
 
 def read_multibody(description, where: Where) -> MultibodySection:
@@ -169,15 +175,30 @@ def read_multibody(description, where: Where) -> MultibodySection:
     places = {body.get("name"): here for _, here, body in initial}  # the stiffening warning names its body
     with located(lambda text: next((h for b, h in places.items() if f"body '{b}'" in text), where)):
         system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto
+    outputs = _optional_outputs(description, where)
     if not description.get("constraints") and not description.get("forces"):
         for key in ("constraints", "forces"):
             if key in description:
                 expect_list(description[key], where.child(description, key), key)
         if "assembly_tolerance" in description:
             raise where.child(description, "assembly_tolerance").error("applies to a scene with constraints:")
+        if outputs:  # the constrained path computes them: a ConstrainedSystem without constraints or elements
+            return MultibodySection(name, system, q0, u0, written, ConstrainedSystem(system), None, outputs)
         return MultibodySection(name, system, q0, u0, written)
     constrained, q0, u0, report = _constrained(system, description, where, q0, u0)
-    return MultibodySection(name, system, q0, u0, written, constrained, report)
+    return MultibodySection(name, system, q0, u0, written, constrained, report, outputs)
+
+
+def _optional_outputs(description, where: Where) -> tuple:
+    """The section's ``outputs:`` list, each one of :data:`OPTIONAL_OUTPUTS`, none twice."""
+    here = where.child(description, "outputs")
+    entries = expect_list(description.get("outputs") or [], here, "optional outputs")
+    for k, entry in enumerate(entries):
+        if entry not in OPTIONAL_OUTPUTS or entry in entries[:k]:
+            raise here.child(entries, k).error(f"expected one of {list(OPTIONAL_OUTPUTS)}, each once, given "
+                                               f"{entry!r}" + (suggest(entry, OPTIONAL_OUTPUTS) if isinstance(
+                                                   entry, str) else ""))
+    return tuple(entries)
 
 
 def _constrained(system, description, where: Where, q0, u0):
