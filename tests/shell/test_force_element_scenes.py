@@ -52,7 +52,8 @@ def test_a_bouncing_ball_rebounds_to_e_squared_times_its_drop(tmp_path):
     """Dropped from 1 m with e = 0.8 asked at the impact speed: after the bounce the ball flies as the independent
     integration says (apex to 1e-5 m, measured 3.1e-6 m: RK4 at 20 us through a 1.2 ms contact whose force has an
     unbounded second derivative at its onset, delta^1.5, converges there at a lower order) and rebounds to 0.64 m within the
-    gravity impulse of the contact (measured 0.13 % low, bound 2 g T_c / v = 0.5 %)."""
+    gravity impulse of the contact (measured 0.13 % low, bound 2 g T_c / v = 0.5 %). Its logged energy is m g (h + r)
+    before the bounce (1e-9 J) and the independent exit speed's after (1e-4 J, the apex's 1e-5 m)."""
     log, out = _run("bouncing_ball", tmp_path)
     assert "force elements ground (plane_contact)" in out
     t, z, w = log["time"], log["multibody.ball.q"][:, 0], log["multibody.ball.u"][:, 0]
@@ -81,6 +82,13 @@ def test_a_bouncing_ball_rebounds_to_e_squared_times_its_drop(tmp_path):
     assert np.abs(apex - (r + v_out ** 2 / (2 * g))).max() < 1e-5
     assert 0.0 < contact_time < 2e-3 and np.count_nonzero(z < r) <= 2  # the log at 1 kHz sees it once or twice
     assert abs((apex.mean() - r) / (0.8 ** 2 * h) - 1.0) < 2 * g * contact_time / v
+    # the energy output: m g z + m w^2 / 2 before and after; the contact's own only while it touches; what the
+    # bounce lost is what the independent integration's exit speed says
+    energy = log["multibody.energy"]
+    before, after = t < t[np.argmin(z)] - 0.05, flight
+    assert np.abs(energy[before, 3] - m * g * (r + h)).max() < 1e-9
+    assert np.abs(energy[after, 3] - m * g * (r + v_out ** 2 / (2 * g))).max() < 1e-4
+    assert np.all(energy[z >= r, 2] == 0.0) and np.all(energy[z < r, 2] > 0.0)
 
 
 def test_a_bushing_rings_at_its_analytic_frequencies(tmp_path):
