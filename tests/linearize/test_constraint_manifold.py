@@ -152,3 +152,47 @@ def test_a_spring_damper_linearizes_to_its_frequency_and_damping_ratio(tmp_path)
     assert abs(modes.frequencies_hz[0] * 2 * np.pi - np.sqrt(k / m)) < 1e-10
     assert abs(modes.damping_ratios[0] - c / (2 * np.sqrt(k * m))) < 1e-10
     assert abs(model.B[1, 0] - 1 / m) < 1e-12
+
+
+SAMPLED = """\
+name: four_bar_sampled
+multibody:
+  gravity: "[0, -9.81, 0] m/s^2"
+  bodies:
+    - {{name: crank, hinge: revolute, axis: [0, 0, 1], mass: 1 kg, com: "[0.5, 0, 0] m",
+       inertia: "[0.001, 0.08333333333333333, 0.08433333333333333] kg*m^2", initial: {{angle: {0!r} rad}}}}
+    - {{name: coupler, parent: crank, hinge: revolute, axis: [0, 0, 1], inboard_position: "[1, 0, 0] m", mass: 2 kg,
+       com: "[1.5, 0, 0] m", inertia: "[0.001, 1.5, 1.501] kg*m^2", initial: {{angle: {1!r} rad}}}}
+    - {{name: rocker, parent: world, hinge: revolute, axis: [0, 0, 1], inboard_position: "[3, 0, 0] m", mass: 1.5 kg,
+       com: "[1.25, 0, 0] m", inertia: "[0.001, 0.78125, 0.78225] kg*m^2", initial: {{angle: {2!r} rad}}}}
+  nodes:
+    - {{name: coupler_end, body: coupler, position: "[3, 0, 0] m"}}
+    - {{name: rocker_end, body: rocker, position: "[2.5, 0, 0] m"}}
+  constraints:
+    - {{name: pin, kind: revolute, node_a: coupler_end, node_b: rocker_end, axis: [0, 0, 1]}}
+models:
+  hold: {{type: SampleHold, rate: 10 Hz, config: {{unit: rad, shape: [1]}}}}
+  gain: {{type: Gain, config: {{unit: rad, output_unit: N*m, shape: [1]}}, parameters: {{k: 0 N*m/rad}}}}
+connections:
+  - multibody.crank.q -> hold.u
+  - hold.y -> gain.u
+  - gain.y -> multibody.crank.torque
+integrator: {{method: rk4, step: 1 ms}}
+stop: {{time: 1 s}}
+"""
+
+
+def test_the_sampled_map_of_a_closed_loop_has_its_minimal_coordinates_only(tmp_path):
+    """The four-bar at rest at its hanging equilibrium with a 10 Hz sample-and-hold of the crank angle (the loop's
+    gain zero): ``flexshell linearize --sampled`` gives the period map in the crank's angle and rate and the hold's
+    states, the mechanism's pair of eigenvalues ``exp(+-i omega T)`` with the SymPy omega (1e-8; RK4 at 1 ms over
+    0.1 s) and no eigenvalue of the constraint directions."""
+    theta, omega2, _, angles, _ = _one_dof("four_bar", -1.8)
+    scene = tmp_path / "sampled.yaml"
+    scene.write_text(SAMPLED.format(theta, *angles))
+    model, _ = _linearize(tmp_path, scene, "--sampled")
+    assert model.state_names == ["multibody.q[0]", "multibody.u[0]", "hold.held", "hold.samples"]
+    mechanism = np.linalg.eigvals(model.A[:2, :2])
+    expected = np.exp(1j * np.sqrt(omega2) * 0.1)
+    assert np.abs(np.sort_complex(mechanism) - np.sort_complex([expected.conjugate(), expected])).max() < 1e-8
+    assert np.abs(model.A[:2, 2:]).max() == 0.0  # the held angle reaches the crank through a zero gain
