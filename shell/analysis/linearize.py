@@ -204,6 +204,11 @@ class TangentStates:
         self._plain_x = np.array([x for _, x in self.plain], dtype=np.int64)
         self.value = np.zeros(self.n)           # tangent coordinates of x0 (rotation vectors are 0)
         self.value[self._plain_t] = self.x0[self._plain_x]
+        #: index in the full state x of each tangent row (a quaternion's three rows: its w)
+        self.x_rows = np.zeros(self.n, dtype=np.int64)
+        self.x_rows[self._plain_t] = self._plain_x
+        for t, k, _ in self.quaternions:
+            self.x_rows[t:t + 3] = k
         self.scale = np.maximum(np.abs(self.value), typical)
         #: the constrained models' manifolds (:class:`ConstraintManifold`); empty: every tangent coordinate is one
         self.manifolds = [ConstraintManifold(self, sim, m) for m in sim.diagram.models if _closes_loops(m)]
@@ -226,6 +231,7 @@ class TangentStates:
         self.index = {name: row_of[rows][row_of[rows] >= 0] for name, rows in self.index.items()}
         self.index = {name: rows for name, rows in self.index.items() if rows.size}
         self.value, self.scale, self.n = self.value[self.kept], self.scale[self.kept], self.kept.size
+        self.x_rows = self.x_rows[self.kept]
         self.x0 = self.retract(np.zeros(self.n))  # on the manifold to the chart's tolerance
 
     def _modal_sizes(self, system, model_path) -> None:
@@ -383,25 +389,31 @@ class ConstraintManifold:
     def complete(self, x) -> None:
         """Dependent positions and velocities of the model's block of ``x`` (in place) from its independent ones."""
         cs, nq = self.constrained, self.nq
-        q = x[self.start:self.start + nq].copy()
-        for _ in range(CHART_ITERATIONS):
-            phi = cs.residual(q)
-            if np.max(np.abs(phi), initial=0.0) <= CHART_TOLERANCE:
-                break
-            Gt = cs.jacobian(q) @ np.linalg.inv(cs.tangent_map(q))
-            step = np.zeros(self.nu)
-            step[self.dependent_q] = -np.linalg.lstsq(Gt[:, self.dependent_q], phi, rcond=None)[0]
-            q = cs.retract(q, step)
-        else:
-            raise LinearizationError(f"the closure constraints of {self.constrained.system.body_names} cannot be met "
-                                     f"near this state (|phi| = {np.max(np.abs(cs.residual(q))):.3g} after "
-                                     f"{CHART_ITERATIONS} Newton steps on the dependent coordinates): a step or trim "
-                                     "move too large for the mechanism, or a singular position")
+        q = close_loops(cs, x[self.start:self.start + nq], self.dependent_q)
         u = x[self.start + nq:self.start + nq + self.nu]
         G = cs.jacobian(q)
         u[self.dependent_u] = -np.linalg.lstsq(G[:, self.dependent_u], G[:, self.independent_u] @ u[self.independent_u],
                                                rcond=None)[0]
         x[self.start:self.start + nq] = q
+
+
+def close_loops(constrained, q, dependent):
+    """The configuration ``q`` with its ``dependent`` tangent coordinates (indices in u's order, :meth:`dynamics.
+    constraints.ConstrainedSystem.tangent_map`) moved by Newton until the closure constraints hold to
+    :data:`CHART_TOLERANCE`, the others kept; :class:`LinearizationError` when it does not converge."""
+    q = np.array(q, dtype=float)
+    for _ in range(CHART_ITERATIONS):
+        phi = constrained.residual(q)
+        if np.max(np.abs(phi), initial=0.0) <= CHART_TOLERANCE:
+            return q
+        Gt = constrained.jacobian(q) @ np.linalg.inv(constrained.tangent_map(q))
+        step = np.zeros(constrained.system.nu)
+        step[dependent] = -np.linalg.lstsq(Gt[:, dependent], phi, rcond=None)[0]
+        q = constrained.retract(q, step)
+    raise LinearizationError(f"the closure constraints of {list(constrained.system.body_names)} cannot be met near "
+                             f"this state (|phi| = {np.max(np.abs(constrained.residual(q))):.3g} after "
+                             f"{CHART_ITERATIONS} Newton steps on the dependent coordinates): a step or trim move too "
+                             "large for the mechanism, or a singular position")
 
 
 CHART_TOLERANCE = 1e-14
@@ -661,7 +673,8 @@ def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4
     A, B = jac[:n, :n], jac[:n, n:]
     C, D = jac[n:, :n], jac[n:, n:]
     errors = {"A": err[:n, :n], "B": err[:n, n:], "C": err[n:, :n], "D": err[n:, n:]}
-    op = {"t": t0, "x": x0, "z": sim.z.copy(), "u": u0, "y": F0[n:], "xdot": F0[:n], "tangent": states.value}
+    op = {"t": t0, "x": x0, "z": sim.z.copy(), "u": u0, "y": F0[n:], "xdot": F0[:n], "tangent": states.value,
+          "x_rows": states.x_rows}
     return LinearModel(A, B, C, D, states.names, states.units, ins.names, ins.units, outs.names, outs.units,
                        errors, op, states.index, ins.index, outs.index,
                        method={"points": points, "richardson": bool(richardson), "tolerance": tolerance,

@@ -99,7 +99,8 @@ def test_a_closed_loop_linearizes_to_its_one_dof_small_oscillation(tmp_path, con
     derivation's angles: the slider's guide is horizontal because it takes the slider's initial pose), trimmed (``--trim``) and linearized from the crank's torque to the other hinges'
     angles: two states (the crank's angle and rate, no spurious zero or constraint modes), ``omega`` equal to the
     SymPy derivation to 1e-8 relative (module docstring; measured 4e-10), the other hinges' output rows the loop
-    closure's ``d angle / d theta`` and the torque's input column ``1 / m(theta*)`` (1e-8 relative)."""
+    closure's ``d angle / d theta`` and the torque's input column ``1 / m(theta*)`` (1e-8 relative). The 3D view of
+    the four-bar's mode moves the dependent hinges with the crank: the loop is closed in every frame (1e-12 m)."""
     theta, omega2, ratios, angles, mass = _one_dof(config, guess)
     start = [option for body, angle in zip(bodies, [theta] + angles) for option in _at_rest(body, angle)]
     model, out = _linearize(tmp_path, CONFIGS / f"{config}.yaml", *start, "--trim", "--tolerance", "1e-12",
@@ -116,6 +117,14 @@ def test_a_closed_loop_linearizes_to_its_one_dof_small_oscillation(tmp_path, con
     assert modes.n_rigid == 0 and modes.real_eigenvalues.size == 0 and modes.frequencies_hz.size == 1
     assert np.abs(C[:, 0] - ([1.0] + ratios)).max() < 1e-8 and np.abs(C[:, 1]).max() < 1e-9
     assert abs(B[0, 0]) < 1e-9 and abs(B[1, 0] * mass - 1.0) < 1e-8
+    if config == "four_bar":  # flexshell view LIN.h5 --mode 1: the loop stays closed in every frame
+        from shell.view.scene import from_linear_model
+
+        view = from_linear_model(tmp_path / "lin.h5", 1)
+        ends = {node["name"]: node["position"] for node in view.nodes}
+        assert np.abs(ends["coupler_end"] - ends["rocker_end"]).max() < 1e-12
+        assert np.ptp(ends["rocker_end"], axis=0).max() > 1e-2
+        assert view.time[1] * len(view.time) == pytest.approx(2 * np.pi / np.sqrt(omega2), rel=1e-8)
 
 
 def test_trim_of_a_moving_four_bar_finds_the_mirror_equilibrium(tmp_path):
