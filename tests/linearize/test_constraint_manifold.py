@@ -130,7 +130,8 @@ def test_a_closed_loop_linearizes_to_its_one_dof_small_oscillation(tmp_path, con
 def test_trim_of_a_moving_four_bar_finds_the_mirror_equilibrium(tmp_path):
     """configs/four_bar.yaml as written (the crank at 60 deg turning at 6 rad/s) trimmed: the rates vanish at the
     inverted equilibrium, the mirror image of the lower branch's hanging one (theta = +1.4554 rad), whose linear
-    model is the saddle ``A21 = +omega^2`` of that SymPy equilibrium; the loop is closed at the trim state."""
+    model is the saddle ``A21 = +omega^2`` of that SymPy equilibrium; the loop is closed at the trim state. Holding a
+    dependent coordinate is refused, naming the minimal ones."""
     from shell.scenario import build_simulation, load_scenario
 
     model, out = _linearize(tmp_path, CONFIGS / "four_bar.yaml", "--trim", "--tolerance", "1e-12",
@@ -140,9 +141,15 @@ def test_trim_of_a_moving_four_bar_finds_the_mirror_equilibrium(tmp_path):
     x = model.operating_point["x"]
     assert abs(x[0] + theta) < 1e-9
     assert abs(model.A[1, 0] / omega2 - 1.0) < 1e-8
-    constrained = build_simulation(load_scenario(CONFIGS / "four_bar.yaml")).diagram.models[0].constrained
+    sim = build_simulation(load_scenario(CONFIGS / "four_bar.yaml"))
+    constrained = sim.diagram.models[0].constrained
     assert np.abs(constrained.residual(x[:3])).max() < 1e-13 and np.abs(constrained.velocity_residual(
         x[:3], x[3:])).max() < 1e-13
+    from shell.analysis.linearize import LinearizationError
+    from shell.analysis.trim import trim
+
+    with pytest.raises(LinearizationError, match=r"'multibody.q\[2\]' is a dependent coordinate of a closed loop"):
+        trim(sim, hold=["multibody.q[2]"])
 
 
 def test_a_spring_damper_linearizes_to_its_frequency_and_damping_ratio(tmp_path):
