@@ -392,7 +392,8 @@ class MultibodyModel(Model):
         "outputs: <node>.attitude (4,) node->world, <node>.rotation (3,3), <node>.position [m], "
         "<node>.angular_velocity [rad/s], <node>.linear_velocity [m/s], <node>.angular_acceleration, "
         "<node>.linear_acceleration (feedthrough), <body>.q, <body>.u, <body>.u_dot (hinge), <body>.modal_q, "
-        "<body>.modal_u [1/s], <body>.modal_u_dot [1/s^2] (flexible bodies), q, u",
+        "<body>.modal_u [1/s], <body>.modal_u_dot [1/s^2] (flexible bodies), q, u; <constraint>.load (constraints:); "
+        "<body>.hinge_load, energy [J] (outputs: [hinge_load, energy])",
         "continuous states: q, u (docs/scenario_schema.md, section multibody)",
     )
 
