@@ -44,7 +44,7 @@ CONSTRAINT_KEYS = {"name": "constraint name (its load port: <name>.load)", "kind
 _LAW_KEYS = {"stiffness": "Hunt-Crossley k: N/m^n (contacts), N*m/rad^n or N/m^n (stops), n the exponent",
              "exponent": "Hunt-Crossley n (default 1.5 for contacts, 1 for stops)",
              "damping": "Hunt-Crossley D (s/m, s/rad): F = k delta^n (1 + D delta_dot)",
-             "restitution": "coefficient of restitution e in [0, 1] at impact_speed (instead of damping)",
+             "restitution": "coefficient of restitution e in (0, 1] at impact_speed (instead of damping)",
              "impact_speed": "the impact speed e holds at (m/s, rad/s)"}
 _HINGE_KEYS = {"body": "body whose inboard hinge it acts on", "dof": "the hinge's DOF (default 0; 1: a U-joint's "
                "second angle)"}
@@ -304,7 +304,8 @@ class _ForceEntry:
         value = float(_vector(self.entry, key, unit, (), self.here))
         if not np.isfinite(value) or (low is not None and not value >= low) or (positive and not value > 0.0) or \
                 (high is not None and not value <= high):
-            bound = "> 0" if positive else (f"in [{low:g}, {high:g}]" if high is not None else f">= {low:g}")
+            bound = (f"in (0, {high:g}]" if high is not None else "> 0") if positive else \
+                (f"in [{low:g}, {high:g}]" if high is not None else f">= {low:g}")
             raise self.error(key, f"expected a value {bound if low is not None or positive else 'finite'}, given "
                                   f"{self.entry[key]!r}")
         return value
@@ -353,7 +354,7 @@ class _ForceEntry:
             raise self.error("impact_speed", "impact_speed goes with restitution")
         return dict(stiffness=self.number("stiffness", f"{force}/{length}**{n!r}", low=0.0), exponent=exponent,
                     damping=self.number("damping", f"s/{length}", low=0.0),
-                    restitution=self.number("restitution", "", low=0.0, high=1.0),
+                    restitution=self.number("restitution", "", positive=True, high=1.0),
                     impact_speed=self.number("impact_speed", f"{length}/s", positive=True))
 
     def six_by_six(self, key, rotation_unit, translation_unit):

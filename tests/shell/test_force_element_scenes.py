@@ -153,7 +153,7 @@ ENTRY = ("    - {name: ground, kind: plane_contact, node: center, radius: 0.1 m,
 @pytest.mark.parametrize("entry, key, message", [
     ("{name: ground, kind: plane_contact, node: centre, stiffness: 1e8}", "node", "unknown node 'centre'"),
     ("{name: ground, kind: plane_contact, node: center, stiffness: 1e8, restitution: 1.2, impact_speed: 1 m/s}",
-     "restitution", "expected a value in [0, 1]"),
+     "restitution", "expected a value in (0, 1]"),
     ("{name: ground, kind: plane_contact, node: center, stiffness: 1e8, restitution: 0.5}", "restitution",
      "needs the impact_speed"),
     ("{name: ground, kind: plane_contact, node: center, stiffness: 1e8, normal: [0, 0, 2]}", "normal",
