@@ -33,7 +33,7 @@ from dynamics import layout as L
 from dynamics.definitions import rigid_mass_properties
 from dynamics.engine import borrowed
 from dynamics.errors import ModelDefinitionError, SingularConfigurationError
-from dynamics.hinges import FREE, HINGE_NQ, HINGE_NU, HINGE_TYPES, SPHERICAL
+from dynamics.hinges import HINGE_TYPES, HINGES
 from dynamics.reconfigure import reconfigure
 from dynamics.spatial import spatial_inertia as _spatial_inertia
 
@@ -258,7 +258,7 @@ class MultibodySystem:
         self.u_slices = tuple(slice(int(t[L.U_START]), int(t[L.U_START] + t[L.NU_HINGE] + t[L.N_MODES]))
                               for t in self.topology)
         self.quaternion_q_indices = np.array(
-            [t[L.Q_START] for t in self.topology if t[L.HINGE_TYPE] in (SPHERICAL, FREE)], dtype=np.int64)
+            [t[L.Q_START] for t in self.topology if HINGES[t[L.HINGE_TYPE]].quaternion], dtype=np.int64)
         prescribed = np.zeros(self.nu, dtype=bool)
         for t in self.topology:
             for kk in range(t[L.N_PRESCRIBED]):
@@ -292,7 +292,7 @@ class MultibodySystem:
         child_nodes = [[] for _ in bodies]  # nodes of each flexible body that children hang from
         for i, b in enumerate(bodies):
             code = HINGE_TYPES[b.hinge]
-            nq, nu = int(HINGE_NQ[code]), int(HINGE_NU[code])
+            nq, nu = HINGES[code].nq, HINGES[code].nu
             free = np.flatnonzero(~b.prescribed)
             pres = np.flatnonzero(b.prescribed)
             outboard_identity = (np.array_equal(b.outboard_rotation, np.eye(3))
