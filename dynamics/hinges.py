@@ -6,16 +6,17 @@ A hinge connects an inboard frame F, fixed on the parent body (or the ground), t
 fixed on the child body. The hinge coordinates ``q`` give the pose of M relative to F and the velocity
 coordinates ``u`` the relative spatial velocity of M with respect to F, expressed in M:
 
-=========  ==  ==  ================================================================================
-type       nq  nu  coordinates (docs/conventions.md)
-=========  ==  ==  ================================================================================
-locked      0   0  none
-revolute    1   1  angle about the unit axis a1 (same in F and M)
-prismatic   1   1  displacement along the unit axis a1
-ujoint      2   2  angles about a1 (in F) then a2 (in the intermediate frame = in M): R_FM = R(a1,q1) R(a2,q2)
-spherical   4   3  quaternion [w,x,y,z] of M in F; u = angular velocity of M relative to F, in M
-free        7   6  quaternion of M in F, then position of M's origin in F; u = [omega; v] of M, in M
-=========  ==  ==  ================================================================================
+===========  ==  ==  ================================================================================
+type         nq  nu  coordinates (docs/conventions.md)
+===========  ==  ==  ================================================================================
+locked        0   0  none
+revolute      1   1  angle about the unit axis a1 (same in F and M)
+prismatic     1   1  displacement along the unit axis a1
+ujoint        2   2  angles about a1 (in F) then a2 (in the intermediate frame = in M): R_FM = R(a1,q1) R(a2,q2)
+spherical     4   3  quaternion [w,x,y,z] of M in F; u = angular velocity of M relative to F, in M
+free          7   6  quaternion of M in F, then position of M's origin in F; u = [omega; v] of M, in M
+translation   3   3  position of M's origin in F, M parallel to F; u = its velocity (in M = in F)
+===========  ==  ==  ================================================================================
 
 The motion subspace in M is ``S_M`` (``V_rel = S_M u``); its apparent derivative ``c_J = dS_M/dt u`` is
 non-zero only for the U-joint, ``c_J = [(R2^T a1 u1) x (a2 u2); 0]`` (Featherstone, RBDA, sec. 4.4).
@@ -72,12 +73,14 @@ HINGES = (
     Hinge("free", 7, 6, 0, "free", True, 0, ("", "", "", ""),
           (("qw", "qx", "qy", "qz", "x", "y", "z"), ("ωx", "ωy", "ωz", "vx", "vy", "vz")),
           _ATTITUDE + (("position", "q", 4, 7, "m"), ("velocity", "u", 3, 6, "m/s")), (1.0, 0.0, 0.0, 0.0, 0, 0, 0)),
+    Hinge("translation", 3, 3, 0, "none", False, 3, _LENGTH, (("x", "y", "z"), ("vx", "vy", "vz")),
+          (("position", "q", 0, 3, "m"), ("velocity", "u", 0, 3, "m/s")), (0.0, 0.0, 0.0)),
 )
 
 HINGE_TYPES = {h.name: code for code, h in enumerate(HINGES)}
 # the codes the kernels branch on
-LOCKED, REVOLUTE, PRISMATIC, UJOINT, SPHERICAL, FREE = (
-    HINGE_TYPES[name] for name in ("locked", "revolute", "prismatic", "ujoint", "spherical", "free"))
+LOCKED, REVOLUTE, PRISMATIC, UJOINT, SPHERICAL, FREE, TRANSLATION = (
+    HINGE_TYPES[name] for name in ("locked", "revolute", "prismatic", "ujoint", "spherical", "free", "translation"))
 HINGE_NQ = np.array([h.nq for h in HINGES], dtype=np.int64)
 HINGE_NU = np.array([h.nu for h in HINGES], dtype=np.int64)
 
@@ -117,13 +120,16 @@ def hinge_transform(hinge_type, q, q0, axes, R_FM, p_FM, R1, R2):
             p_FM[0] = q[q0 + 4]
             p_FM[1] = q[q0 + 5]
             p_FM[2] = q[q0 + 6]
-    else:  # locked, prismatic
+    else:  # locked, prismatic, translation
         for i in range(3):
             for j in range(3):
                 R_FM[i, j] = 1.0 if i == j else 0.0
         if hinge_type == PRISMATIC:
             for i in range(3):
                 p_FM[i] = axes[0, i] * q[q0]
+        elif hinge_type == TRANSLATION:
+            for i in range(3):
+                p_FM[i] = q[q0 + i]
 
 
 @njit(cache=True)
@@ -152,17 +158,24 @@ def hinge_motion_subspace(hinge_type, axes, R2, S_M):
     elif hinge_type == FREE:
         for k in range(6):
             S_M[k, k] = 1.0
+    elif hinge_type == TRANSLATION:
+        for k in range(3):
+            S_M[3 + k, k] = 1.0
 
 
 @njit(cache=True)
 def hinge_coordinate_rates(hinge_type, q, q0, u, u0, qdot):
     """``q_dot = f(q, u)`` for one hinge: identity for angles/displacements, quaternion kinematics
-    ``dq/dt = 1/2 q (x) [0, omega]`` (omega in the child frame) and ``dp/dt = R_FM v`` for the free hinge."""
+    ``dq/dt = 1/2 q (x) [0, omega]`` (omega in the child frame) and ``dp/dt = R_FM v`` for the free hinge
+    (``R_FM = 1`` for the translation)."""
     if hinge_type == REVOLUTE or hinge_type == PRISMATIC:
         qdot[q0] = u[u0]
     elif hinge_type == UJOINT:
         qdot[q0] = u[u0]
         qdot[q0 + 1] = u[u0 + 1]
+    elif hinge_type == TRANSLATION:
+        for k in range(3):
+            qdot[q0 + k] = u[u0 + k]
     elif hinge_type == SPHERICAL or hinge_type == FREE:
         w, x, y, z = q[q0], q[q0 + 1], q[q0 + 2], q[q0 + 3]
         ox, oy, oz = u[u0], u[u0 + 1], u[u0 + 2]

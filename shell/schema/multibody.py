@@ -1,7 +1,8 @@
 """The ``multibody:`` section of a scenario: bodies, hinges, nodes and initial state, read into an engine system.
 
 The section (docs/scenario_schema.md, section multibody) lists bodies in order, each with its parent, hinge (locked,
-revolute, prismatic, ujoint, spherical, free; docs/conventions.md for their coordinates), rigid mass properties or a
+revolute, prismatic, ujoint, spherical, free, translation: dynamics.hinges.HINGES; docs/conventions.md for their
+coordinates), rigid mass properties or a
 flexible body file (``flexshell fem2modal``), the placement of its inboard and outboard frames, and an optional
 ``initial:`` hinge state; then nodes fixed on bodies; then closure ``constraints:`` between nodes (weld, ball,
 revolute, prismatic, distance: :mod:`dynamics.constraints`), which close loops or hold a node to the world.
@@ -54,8 +55,8 @@ FORCE_KINDS = ("spring_damper",)
 NODE_KEYS = {"name": "node name", "body": "body it is fixed on", "position": "in the body frame (m)",
              "rotation": "node -> body", "grid": "FE grid id (nodes on flexible bodies)"}
 BODY_KEYS = {
-    "name": "body name", "parent": "parent body name or world", "hinge": "locked, revolute, prismatic, "
-    "ujoint, spherical or free", "mass": "mass (kg)", "com": "center of mass in the body frame (m)",
+    "name": "body name", "parent": "parent body name or world", "hinge": ", ".join(HINGE_TYPES),
+    "mass": "mass (kg)", "com": "center of mass in the body frame (m)",
     "inertia": "inertia about the center of mass, 3x3 or 3 principal moments (kg m^2)",
     "axis": "hinge axis (unit vector)", "axes": "two U-joint axes", "inboard_position": "m",
     "inboard_rotation": "3x3 or quaternion", "outboard_position": "m", "outboard_rotation": "3x3 or quaternion",
