@@ -25,6 +25,7 @@ from shell.schema import Scenario, ScenarioError, Where, connection_ends, find, 
 from shell.schema import (apply_override, apply_value, check_sample_counts, check_time, decode_scenario,  # noqa: F401
                           load_scenario, load_yaml, parse_scenario)
 from shell.schema.multibody import read_multibody
+from shell.scene_events import add_scene_events
 from shell.simulation import Simulation
 from shell.units import UnitError, written_numbers
 
@@ -48,6 +49,7 @@ def build_root(scenario: Scenario) -> Assembly:
     classes = {name: _assembly_class(name, spec, here, scenario) for name, (spec, here) in scenario.templates.items()}
     scenario.template_classes = classes
     _add_members(root, document, root_where, classes)
+    add_scene_events(root, scenario)
     return root
 
 
