@@ -216,7 +216,10 @@ class SceneEvents(Model):
                                  f"{self.tolerance:g}: the frames are not together when the event happens")
             energy = system.kinetic_energy(q, u)
             u_before = u.copy()
-            if (CK.project_positions(engine, c, q, PROJECTION_TOLERANCE, PROJECTION_ITERATIONS) < 0
+            # as ConstrainedSystem.switch_on: the plastic impact where the state is, then the gap closed and the
+            # velocity defect the move leaves removed
+            if (CK.project_velocities(engine, c, q, u) < 0
+                    or CK.project_positions(engine, c, q, PROJECTION_TOLERANCE, PROJECTION_ITERATIONS) < 0
                     or CK.project_velocities(engine, c, q, u) < 0):
                 raise ModelError(f"event {self.events[k].name}: the constraints {switched_on} cannot be met here")
             lost = energy - system.kinetic_energy(q, u)
