@@ -149,7 +149,7 @@ class Simulation:
         self.counters = {"steps": 0, "nfev": 0, "events": 0, "updates": 0}
         #: (time, "model.zero_crossing") of every handled event, in order
         self.events: list[tuple[float, str]] = []
-        #: (time, event, what changed) of every event of events: on: (shell.scene_events), in order
+        #: what every event of events: on: changed (shell.scene_events), in order: (t, event name, description)
         self.scene_changes: list[tuple[float, str, str]] = []
         #: the model of the scene's events: on: (shell.scene_events.SceneEvents), or None
         self.scene_events = next((m for m in self.models if isinstance(m, SceneEvents)), None)
