@@ -33,6 +33,7 @@ with it the switches and parameters of the events that happened (:meth:`SceneEve
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 from numba import njit
@@ -252,9 +253,11 @@ def add_scene_events(root, scenario) -> None:
     operations = [[_operation(action, engine, e) for action in e.actions] for e in events]
     sources = {}
     for e in events:
-        if e.signal is None:
-            continue
-        sources[e.name] = _source(children, e)
+        if e.signal is not None:
+            sources[e.name] = _source(children, e)
+        elif scenario.t_final is not None and e.time > scenario.t_final:
+            warnings.warn(f"{e.where}: event {e.name} at t = {e.time:g} s is after the stop time {scenario.t_final:g} s: "
+                          f"it will not happen in this run", UserWarning, stacklevel=2)
     tolerance = DEFAULT_ASSEMBLY_TOLERANCE
     section = scenario.document.get("multibody")
     if isinstance(section, dict) and "assembly_tolerance" in section:

@@ -133,8 +133,9 @@ def event_time(value, where: Where) -> float:
         seconds = float(to_magnitude(value, "s", (), "time"))
     except UnitError as exc:
         raise where.error(f"expected a time, given {show(value)} ({exc})") from None
-    if not seconds == seconds or abs(seconds) == float("inf") or seconds < 0.0:
-        raise where.error(f"expected a finite time >= 0, given {show(value)}")
+    if not seconds == seconds or abs(seconds) == float("inf") or seconds <= 0.0:
+        raise where.error(f"expected a finite time after the start (> 0 s), given {show(value)}: a change at the start "
+                          f"is the scene as written")
     return seconds
 
 

@@ -218,6 +218,7 @@ WHEN = "      when: {time: 2 s}"
     (ON, "      do: [{set: {upper.gain: 2}}]", "events.on[0](separation).do[0].set.upper.gain",
      "'upper.gain' is not a parameter of the scene"),
     (WHEN, "      when: {time: 2}", "events.on[0](separation).when.time", "bare number 2"),
+    (WHEN, "      when: {time: 0 s}", "events.on[0](separation).when.time", "after the start (> 0 s)"),
     (WHEN, "      when: {crosses: 2 s}", "events.on[0](separation).when", "either time: "),
     (WHEN, "      when: {signal: multibody.upper.w, crosses: 1 m}", "events.on[0](separation).when.signal",
      "no output port 'upper.w'"),
@@ -309,19 +310,23 @@ def test_the_view_of_a_separation_shows_the_released_stage_flying_away(tmp_path)
 
 
 def test_a_latch_runs_compiled_and_interpreted_identically(tmp_path):
-    """The array latch from 80 deg: the crossing located on the dense output, the impact applied between two calls of
-    the compiled loop; the interpreted reference ends in the same state, log and counters bit for bit."""
+    """The array latch from 80 deg: the loop returns to Python once, at the step with the crossing, which is located
+    on the dense output; the impact is applied between two calls of the compiled loop; the interpreted reference ends
+    in the same state, log and counters bit for bit."""
     from tests.shell.test_compiled_loop import _assert_same_run, _build
 
     scenario = parse_scenario(LATCH, str(CONFIGS / "gallery" / "16_array_latch.yaml"),
                               ["multibody.array.initial.angle=80 deg", "stop.time=0.5 s"])
-    runs = {}
+    runs, returns = {}, []
     for mode in ("interpreted", "compiled"):
         sim = _build(scenario, mode)
+        located = sim.compiled_run._event
+        sim.compiled_run._event = lambda *args: returns.append(args) or located(*args)
         sim.run(scenario.t_final, log_path=tmp_path / f"{mode}.h5")
         runs[mode] = sim
     assert runs["compiled"].mode == "compiled", runs["compiled"].interpreted_reason
     assert len(runs["compiled"].scene_changes) == 1
+    assert len(returns) == 1            # 500 steps in the compiled loop, one return to Python: the latch
     assert runs["compiled"].scene_changes == runs["interpreted"].scene_changes
     _assert_same_run(runs["interpreted"], runs["compiled"], tmp_path / "interpreted.h5", tmp_path / "compiled.h5")
 
@@ -355,26 +360,32 @@ events:
     - name: caught
       when: {signal: "multibody.pendulum.q[0]", crosses: -120 deg, direction: falling}
       do: [{constraint: {add: catch}}]
+    - name: let_go
+      when: {time: 1.5 s}
+      do: [{constraint: {remove: catch}}]
 integrator: {method: rk4, step: 1 ms}
-stop: {time: 2 s}
+stop: {time: 2.5 s}
 log: {rate: 100 Hz, signals: [multibody.pendulum.q, multibody.pendulum.u]}
 """
 
 
 def test_unlock_and_a_catch_follow_the_pendulum_equation_and_lose_its_kinetic_energy(tmp_path):
     """Held at -30 deg by the weld `hold` until ``unlock`` at 0.2 s, the pendulum swings down; ``constraint: {add:
-    catch}`` when it crosses -120 deg falling stops it there. Against the pendulum's own equation solved here,
+    catch}`` when it crosses -120 deg falling stops it there; ``constraint: {remove: catch}`` at 1.5 s lets it swing
+    back from rest. Against the pendulum's own equation solved here,
     I_p theta'' = -m g d cos(theta) (DOP853, 1e-12): the catch time to 1e-8 s (measured 3e-13 s), the angle before
     it to 1e-8 rad (measured 8e-12 rad); the energy the catch reports equal to m g d (sin(-30 deg) - sin(-120 deg))
     to 1e-7 relative (the summary prints 9 digits; measured 3e-10) (the base is fixed to the world: the whole kinetic
-    energy is lost); afterwards the pendulum at rest at -120 deg."""
+    energy is lost); afterwards the pendulum at rest at -120 deg until 1.5 s, then on the equation's swing from
+    there (1e-8 rad)."""
     from scipy.integrate import solve_ivp
 
     path = tmp_path / "pendulum.yaml"
     path.write_text(PENDULUM)
     sim = build_simulation(load_scenario(path))
-    summary = sim.run(2.0, log_path=tmp_path / "p.h5")
-    (t_release, first, what_first), (t_catch, second, what_second) = summary.changes
+    summary = sim.run(2.5, log_path=tmp_path / "p.h5")
+    (t_release, first, what_first), (t_catch, second, what_second), let_go = summary.changes
+    assert let_go == (1.5, "let_go", "catch off")
     assert (t_release, first, what_first) == (0.2, "release", "hold off")
     assert second == "caught" and what_second.startswith("catch on (gap ")
     m, d, g, inertia = 2.0, 1.0, 9.81, 0.5 + 2.0
@@ -391,6 +402,10 @@ def test_unlock_and_a_catch_follow_the_pendulum_equation_and_lose_its_kinetic_en
     swinging = (t > 0.2) & (t < t_catch)
     assert np.abs(q[t <= 0.2] - theta0).max() < 1e-12
     assert np.abs(q[swinging] - ode.sol(t[swinging])[0]).max() < 1e-8
-    assert np.abs(q[t > t_catch] - theta1).max() < 1e-9 and np.abs(u[t > t_catch]).max() < 1e-12
+    caught = (t > t_catch) & (t <= 1.5)
+    assert np.abs(q[caught] - theta1).max() < 1e-9 and np.abs(u[caught]).max() < 1e-12
+    again = solve_ivp(lambda t, y: [y[1], -m * g * d * np.cos(y[0]) / inertia], (1.5, 2.5), [q[t == 1.5][0], 0.0],
+                      method="DOP853", rtol=1e-12, atol=1e-12, dense_output=True)
+    assert np.abs(q[t > 1.5] - again.sol(t[t > 1.5])[0]).max() < 1e-8 and q[-1] > theta1 + 0.5
     lost = float(what_second.split("kinetic energy lost ")[1].split(" J")[0])
     assert lost == pytest.approx(m * g * d * (np.sin(theta0) - np.sin(theta1)), rel=1e-7)   # printed to 8 digits
