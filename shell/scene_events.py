@@ -123,7 +123,11 @@ class SceneEvents(Model):
             layout += [TIME_EVENT, 0.0] if e.time is not None else [SIGNAL_EVENT, offsets[e.name] + e.element]
         self.parameters = tuple(parameters) + (
             Parameter("layout", "", np.array(layout), (len(layout),), None,
-                      "per event: kind (0 time, 1 signal) and the element of the inputs it watches"),)
+                      "per event: kind (0 time, 1 signal) and the element of the inputs it watches (from the "
+                      "events: on: section; the scene's structure, not a value a run changes)"),)
+
+    def configure(self):
+        self.parameter("layout")  # read here: a structural value (shell.names refuses to change it in a run)
 
     # -- a run --------------------------------------------------------------------------------------------
     def _engine(self, simulation):

@@ -160,6 +160,9 @@ def _actions(items, where: Where) -> tuple:
             for key in ("body", "to"):
                 expect_name(target[key], there.child(target, key), "a body name")
         elif verb == "constraint":
+            if isinstance(target, dict) and (True in target or False in target):
+                raise there.error("expected add: NAME or remove: NAME (YAML reads the keys on and off as true and "
+                                  "false)")
             expect_mapping(target, there, {"add": "constraint switched on (plastic impact)",
                                            "remove": "constraint switched off"})
             if len(target) != 1:
