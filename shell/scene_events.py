@@ -9,7 +9,9 @@ the loop continues. (The engine's :meth:`dynamics.constraints.ConstrainedSystem.
 itself, and with it the state's size and the kernels' data: a scene that needs it is a new scene.)
 
 * ``detach: BODY`` (BODY on a free hinge): every active constraint with a node on BODY switched off; the body goes
-  on with its state (the free hinge carries it);
+  on with its state (the free hinge carries it). A BODY written on a locked hinge is built that way for the user
+  (:func:`free_detached_bodies`: a free hinge at its initial pose and velocity, a weld to its parent), as the
+  engine's :func:`dynamics.reconfigure.reconfigure` detaches a body: on a free hinge from the world;
 * ``unlock: BODY``: the active constraints between BODY's nodes and its parent's (or the world) switched off;
 * ``lock: BODY`` / ``attach: {body: A, to: B}`` / ``constraint: {add: NAME}``: constraints switched on, then the
   gap closed by the position projection (refused beyond the scene's ``assembly_tolerance``) and the perfectly
@@ -75,6 +77,8 @@ class SceneEvents(Model):
 
     summary = "events that change the scene (events: on:): time events and signal crossings, and their actions"
     zero_crossing_values = staticmethod(event_functions)
+    #: what the scene's builder chose for the events (said in the run summary)
+    notes: tuple = ()
 
     def __init__(self, events, sources: dict, engine: str | None, operations: list, tolerance: float):
         #: the scenario's events (shell.schema.events.SceneEvent), in order
@@ -242,10 +246,11 @@ class SceneEvents(Model):
         return [f"{name} = {show(value)}" for name, value in items]
 
 
-def add_scene_events(root, scenario) -> None:
+def add_scene_events(root, scenario, notes=()) -> None:
     """The :class:`SceneEvents` of ``scenario``'s ``events: on:`` into the scene ``root`` (built by
     :func:`shell.scenario.build_root`): each action's bodies and constraints, each event's signal checked against
-    the scene (refused at the action's or the signal's place), the signals connected."""
+    the scene (refused at the action's or the signal's place), the signals connected; ``notes``: what the scene's
+    builder chose for the events (:func:`free_detached_bodies`), said in the run summary."""
     events = scenario.scene_events
     if not events:
         return
@@ -268,6 +273,7 @@ def add_scene_events(root, scenario) -> None:
         tolerance = float(to_magnitude(section["assembly_tolerance"], "", (), "assembly_tolerance"))
     monitor = SceneEvents(events, {name: (unit, shape) for name, (unit, shape, _) in sources.items()},
                           None if engine is None else engine.name, operations, tolerance)
+    monitor.notes = tuple(f"{MODEL_NAME}: {note}" for note in notes)
     root.add(monitor)
     for name, (_, _, signal_where) in sources.items():
         event = next(e for e in events if e.name == name)
@@ -375,3 +381,81 @@ def _bodies(system, constraint) -> tuple:
 def changes_json(changes) -> str:
     """The scene changes of a run ((time, event, what changed) triples) as the log's ``scene_events`` attribute."""
     return json.dumps([{"time": t, "event": name, "changes": what} for t, name, what in changes])
+
+
+#: the keys of a body entry that place it on its parent (replaced when it is built on a free hinge)
+_MOUNT_KEYS = ("parent", "hinge", "inboard_position", "inboard_rotation", "outboard_position", "outboard_rotation",
+               "parent_node", "axis", "axes", "prescribed", "initial")
+
+
+def free_detached_bodies(description, where, events):
+    """The ``multibody:`` section with each body that a ``detach:`` releases and that is written on a ``locked`` hinge
+    (a stage stacked on another) built instead on a free hinge from the world, at its initial pose and velocity,
+    held to its parent by a weld ``<body>_mount`` between the nodes ``<body>_seat`` (on the parent, at the body's
+    frame) and ``<body>_mount`` (the body's frame), which the event switches off: the state keeps its layout through
+    the release. Returns (section, notes saying so); the section as written when no such body is released."""
+    chosen = {}
+    for e in events:
+        for a in e.actions:
+            if a.verb == "detach" and isinstance(a.target, str):
+                chosen.setdefault(a.target, (e.name, a.where))
+    bodies = description.get("bodies") if isinstance(description, dict) else None
+    if not isinstance(bodies, list):
+        return description, ()
+    locked = {b.get("name"): k for k, b in enumerate(bodies) if isinstance(b, dict) and b.get("hinge") == "locked"}
+    chosen = {name: place for name, place in chosen.items() if name in locked}
+    if not chosen:
+        return description, ()
+    from dynamics.spatial import rotation_to_quaternion
+    from shell.schema.document import LineDict, LineList
+    from shell.schema.multibody import read_multibody
+
+    written = read_multibody(description, where)
+    system = written.system
+    rotations, origins = system.body_poses(written.initial_q)
+    velocities = system.body_velocities(written.initial_q, written.initial_u)
+    section = _like(description, LineDict(description))
+    section["bodies"] = _like(bodies, LineList(bodies))
+    for key in ("nodes", "constraints"):
+        section[key] = _like(description.get(key), LineList(description.get(key) or []))
+    taken = {n.get("name") for n in section["nodes"] if isinstance(n, dict)}
+    taken |= {c.get("name") for c in section["constraints"] if isinstance(c, dict)}
+    notes = []
+    for name, (event, here) in chosen.items():
+        body = bodies[locked[name]]
+        if "body_file" in body or "parent_node" in body:
+            raise here.error(f"body {name!r} is {'flexible' if 'body_file' in body else 'on a node of its parent'}: "
+                             f"write it on a free hinge held by a weld constraint, which detach switches off")
+        mount, seat = f"{name}_mount", f"{name}_seat"
+        for label in (mount, seat):
+            if label in taken:
+                raise here.error(f"detach {name!r} builds the body on a free hinge held by the weld {mount!r} between "
+                                 f"nodes {seat!r} and {mount!r}; the scene already has the name {label!r}")
+        b = system.body_index(name)
+        entry = _like(body, LineDict((k, v) for k, v in body.items() if k not in _MOUNT_KEYS))
+        entry.update(parent="world", hinge="free", initial={
+            "attitude": rotation_to_quaternion(rotations[b]).tolist(), "position": origins[b].tolist(),
+            "angular_velocity": velocities[b, :3].tolist(), "velocity": velocities[b, 3:].tolist()})
+        section["bodies"][locked[name]] = entry
+        section["nodes"].append({"name": mount, "body": name})
+        parent = system.parents[b]
+        weld = {"name": mount, "kind": "weld", "node_a": mount}
+        if parent >= 0:
+            R = rotations[parent].T
+            section["nodes"].append({"name": seat, "body": system.body_names[parent],
+                                     "position": (R @ (origins[b] - origins[parent])).tolist(),
+                                     "rotation": rotation_to_quaternion(R @ rotations[b]).tolist()})
+            weld.update(node_a=seat, node_b=mount)
+        section["constraints"].append(weld)
+        held_by = system.body_names[parent] if parent >= 0 else "the world"
+        notes.append(f"body {name} (written on a locked hinge to {held_by}) is built on a free hinge held by the weld "
+                     f"{mount}, which event {event} switches off")
+    return section, tuple(notes)
+
+
+def _like(original, copy):
+    """``copy`` with the line numbers of ``original`` (a LineDict or LineList of the scenario)."""
+    copy.line = getattr(original, "line", 0)
+    copy.lines = type(getattr(original, "lines", None) or ({} if isinstance(copy, dict) else []))(
+        getattr(original, "lines", None) or ({} if isinstance(copy, dict) else []))
+    return copy

@@ -108,8 +108,16 @@ def test_a_tumbling_stack_released_without_a_spring_flies_off_on_the_tangent(tmp
     (measured 5e-14 m, RK4 5 ms); the lower stage likewise; the total momentum stays zero (1e-9 of m v)."""
     log, changes, _ = _run(CONFIGS / "stage_separation_coast.yaml", tmp_path)
     assert [c["time"] for c in changes] == [2.0]
-    t = log["time"]
-    w, release = 0.2, 2.0
+    _assert_on_tangents(log)
+    P, H, _, _, _, _ = _momenta(log, STAGES)
+    assert np.abs(P).max() < 1e-9 * 300.0 * 0.7
+    assert np.abs(H - H[0]).max() <= 1e-9 * np.linalg.norm(H[0])
+
+
+def _assert_on_tangents(log, release=2.0):
+    """Both stages of the tumbling stack (0.2 rad/s about z through c) on their circles until ``release``, on the
+    tangents after it, to 1e-9 m."""
+    t, w = log["time"], 0.2
     c = np.array([300.0 * 4.5 / 1300.0, 0.0, 0.0])
     for stage, x in (("upper", 4.5), ("lower", 0.0)):
         angle = w * np.minimum(t, release)
@@ -117,9 +125,54 @@ def test_a_tumbling_stack_released_without_a_spring_flies_off_on_the_tangent(tmp
         tangent = w * (x - c[0]) * np.column_stack([-np.sin(angle), np.cos(angle), 0 * t])
         expected = c + rho + np.maximum(t - release, 0.0)[:, None] * tangent
         assert np.abs(log[f"multibody.{stage}_cm.position"] - expected).max() < 1e-9
-    P, H, _, _, _, _ = _momenta(log, STAGES)
-    assert np.abs(P).max() < 1e-9 * 300.0 * 0.7
-    assert np.abs(H - H[0]).max() <= 1e-9 * np.linalg.norm(H[0])
+
+
+STACK = """\
+name: stack
+multibody:
+  bodies:
+    - name: lower
+      parent: world
+      hinge: free
+      mass: 1000 kg
+      inertia: "[450, 3225, 3225] kg*m^2"
+      initial: {velocity: "[0, -0.20769230769230773, 0] m/s", angular_velocity: "[0, 0, 0.2] rad/s"}
+    - name: upper
+      parent: lower
+      hinge: locked
+      inboard_position: "[4.5, 0, 0] m"
+      mass: 300 kg
+      inertia: "[60, 255, 255] kg*m^2"
+  nodes:
+    - {name: lower_cm, body: lower}
+    - {name: upper_cm, body: upper}
+events:
+  on:
+    - name: separation
+      when: {time: 2 s}
+      do: [{detach: upper}]
+integrator: {method: rk4, step: 5 ms}
+stop: {time: 4 s}
+log: {rate: 50 Hz, signals: [multibody.upper_cm.position, multibody.lower_cm.position]}
+"""
+
+
+def test_a_stage_written_on_a_locked_hinge_is_detached_as_the_engine_detaches_it(tmp_path):
+    """The stack of the coast scene written as a user writes a stack (the upper stage a child of the lower on a
+    locked hinge): ``detach: upper`` builds it on a free hinge from the world at its initial pose and velocity, held
+    by the weld upper_mount that the event switches off, and says so; both stages on their tangents after the
+    release (1e-9 m; equal to the explicitly written scene to 9e-16 m)."""
+    path = tmp_path / "stack.yaml"
+    path.write_text(STACK)
+    sim = build_simulation(load_scenario(path))
+    summary = sim.run(4.0, log_path=tmp_path / "stack.h5")
+    assert summary.changes == ((2.0, "separation", "upper_mount off"),)
+    assert ("events: body upper (written on a locked hinge to lower) is built on a free hinge held by the weld "
+            "upper_mount, which event separation switches off") in summary.notes
+    _assert_on_tangents(read_log(tmp_path / "stack.h5"))
+    path.write_text(STACK.replace("nodes:\n", "nodes:\n    - {name: upper_seat, body: lower}\n"))
+    with pytest.raises(ScenarioError, match="the scene already has the name 'upper_seat'"):
+        build_simulation(load_scenario(path))
 
 
 def test_array_latch_conserves_momenta_and_loses_the_plastic_impact_energy(tmp_path):
