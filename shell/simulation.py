@@ -338,16 +338,11 @@ class Simulation:
                           tuple(self.scene_changes[len_before:]))
 
     def _record_changes(self, writer, start: int) -> None:
-        """The scene changes of this run into the log: its ``scene_events`` attribute (JSON: time, event, what
-        changed) of an HDF5 log, the ``scene_events`` list of an in-memory one."""
-        changes = self.scene_changes[start:]
-        if self.scene_events is None:
-            return
+        """The scene changes of this run into an HDF5 log: its ``scene_events`` attribute (JSON: time, event, what
+        changed). A Monte Carlo run's in-memory log keeps its signals only."""
         file = getattr(writer, "file", None)
-        if file is None:
-            writer.scene_events = list(changes)
-        elif file.id.valid:
-            file.attrs["scene_events"] = changes_json(changes)
+        if self.scene_events is not None and file is not None and file.id.valid:
+            file.attrs["scene_events"] = changes_json(self.scene_changes[start:])
 
     def _single_threaded_blas(self):
         """BLAS limited to one thread for a run whose integrator multiplies small dense matrices at every step

@@ -16,7 +16,8 @@ VALUE, ...}`` (parameters by name, :mod:`shell.names`). What the actions do to t
 :mod:`shell.scene_events`; the names of bodies, constraints, signals and parameters are checked there, when the
 scene exists, with the place of the action. Here: the keys, units, directions and the uniqueness of the names.
 
-YAML 1.1 reads the key ``on`` as the boolean true: the section's reader takes that key as ``on``.
+YAML 1.1 reads the key ``on`` as the boolean true: the section's reader takes that key as ``on``. Inside a flow
+mapping ``{...}`` a signal with an index is quoted (``[`` and ``]`` are flow indicators).
 """
 
 from __future__ import annotations
@@ -103,7 +104,8 @@ def _event(entry, name: str, here: Where) -> SceneEvent:
     actions = _actions(entry["do"], here.child(entry, "do"))
     if ("time" in when) == ("signal" in when):
         raise when_where.error(f"expected either time: (e.g. {{time: 2 s}}) or signal: with crosses: (e.g. {{signal: "
-                               f"multibody.array.q[0], crosses: 90 deg}}), given {show(dict(when))}")
+                               f"'multibody.array.q[0]', crosses: 90 deg}}: quoted inside {{ }}), given "
+                               f"{show(dict(when))}")
     if "time" in when:
         for key in ("crosses", "direction"):
             if key in when:
