@@ -43,7 +43,7 @@ from numba import njit
 from dynamics import constraint_kernels as CK
 from dynamics.constraints import DEFAULT_ASSEMBLY_TOLERANCE
 from dynamics.definitions import suggest
-from shell.model import InputPort, Model, ModelError, Parameter, State, ZeroCrossing
+from shell.model import InputPort, Model, ModelError, Parameter, State, ZeroCrossing, convert_parameters
 from shell.models.multibody import PROJECTION_ITERATIONS, PROJECTION_TOLERANCE, MultibodyModel
 from shell.schema.document import show
 from shell.schema.validation import find, is_bare_number
@@ -172,8 +172,10 @@ class SceneEvents(Model):
                                 "a parameter that shapes its model (read when it is built), which a run cannot change")
                         raise here.error(f"{name!r} is {what}; an event sets model parameters by name (e.g. "
                                          f"controller.kp)")
-                    try:
-                        names._parameter(entry, value)
+                    model = simulation.models[entry.model]
+                    try:  # converted as NameIndex.assign will at the event
+                        convert_parameters((entry.declaration,), {entry.leaf: value}, f"model {model.path}",
+                                           type(model).__name__)
                     except (ModelError, UnitError) as exc:
                         raise here.error(str(exc)) from None
 
@@ -256,8 +258,9 @@ def add_scene_events(root, scenario, notes=()) -> None:
         return
     children = root.children
     if MODEL_NAME in children:
-        raise find(scenario.document, scenario.file, ("models", MODEL_NAME)).error(f"the name {MODEL_NAME!r} is taken by the model of "
-                             "the events: on: section (its values: events.<event>.time, events.<event>.crosses)")
+        here = find(scenario.document, scenario.file, ("models", MODEL_NAME))
+        raise here.error(f"the name {MODEL_NAME!r} is taken by the model of the events: on: section (its values: "
+                         "events.<event>.time, events.<event>.crosses)")
     engine = next((m for m in children.values() if isinstance(m, MultibodyModel)), None)
     operations = [[_operation(action, engine, e) for action in e.actions] for e in events]
     sources = {}
@@ -265,8 +268,8 @@ def add_scene_events(root, scenario, notes=()) -> None:
         if e.signal is not None:
             sources[e.name] = _source(children, e)
         elif scenario.t_final is not None and e.time > scenario.t_final:
-            warnings.warn(f"{e.where}: event {e.name} at t = {e.time:g} s is after the stop time {scenario.t_final:g} s: "
-                          f"it will not happen in this run", UserWarning, stacklevel=2)
+            warnings.warn(f"{e.where}: event {e.name} at t = {e.time:g} s is after the stop time "
+                          f"{scenario.t_final:g} s: it will not happen in this run", UserWarning, stacklevel=2)
     tolerance = DEFAULT_ASSEMBLY_TOLERANCE
     section = scenario.document.get("multibody")
     if isinstance(section, dict) and "assembly_tolerance" in section:

@@ -3,7 +3,6 @@ each run separates the stages at its drawn time (the upper stage's final positio
 that release, to 1e-9 m), and the runs made as new contexts of one diagram equal the runs rebuilt from their --set
 overrides bit for bit."""
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
