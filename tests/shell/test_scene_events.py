@@ -33,6 +33,7 @@ from shell.cli import main
 from shell.log_file import read_log
 from shell.scenario import build_simulation, load_scenario, parse_scenario
 from shell.schema.document import ScenarioError
+from tests.shell.test_closure_scenes import SPRING_SCENE
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = ROOT / "configs"
@@ -465,27 +466,16 @@ def test_unlock_and_a_catch_follow_the_pendulum_equation_and_lose_its_kinetic_en
     assert lost == pytest.approx(m * g * d * (np.sin(theta0) - np.sin(theta1)), rel=1e-7)   # printed to 8 digits
 
 
-CART = """\
-name: caught_cart
-multibody:
-  bodies:
-    - {name: cart, hinge: prismatic, axis: [1, 0, 0], mass: 2 kg, inertia: [1, 1, 1],
-       initial: {displacement: 0 m, displacement_rate: 0.3 m/s}}
-  nodes:
-    - {name: hook, body: cart}
-  constraints:
-    - {name: dock, kind: weld, node_a: hook, active: false}     # the world, at the hook's initial pose
-  forces:
-    - {name: spring, kind: spring_damper, node_a: hook, world_point: [-1, 0, 0], stiffness: 50 N/m, free_length: 1 m}
-events:
+# the spring-mass cart of tests/shell/test_closure_scenes.py, undamped, leaving x = 0, with a latch to the world
+CART = (SPRING_SCENE.replace("displacement: 1.5 m", "displacement: 0 m").replace("damping: 1.2 N*s/m, ", "")
+        .replace("world_point: [0, 0, 0]", "world_point: [-1, 0, 0]").replace("stop: {time: 3 s}", "stop: {time: 1 s}")
+        .replace("  forces:", "  constraints:\n    - {name: dock, kind: weld, node_a: hook, active: false}\n  forces:")
+        + """events:
   on:
     - name: back
       when: {signal: "multibody.cart.q[0]", crosses: 0 m, direction: falling}
       do: [{attach: {body: cart, to: world}}]
-integrator: {method: rk4, step: 1 ms}
-stop: {time: 1 s}
-log: {rate: 100 Hz, signals: [multibody.cart.q, multibody.cart.u]}
-"""
+""")
 
 
 def test_attach_to_the_world_catches_a_cart_where_it_started():
