@@ -17,7 +17,8 @@ VALUE, ...}`` (parameters by name, :mod:`shell.names`). What the actions do to t
 scene exists, with the place of the action. Here: the keys, units, directions and the uniqueness of the names.
 
 YAML 1.1 reads the key ``on`` as the boolean true: the section's reader takes that key as ``on``. Inside a flow
-mapping ``{...}`` a signal with an index is quoted (``[`` and ``]`` are flow indicators).
+mapping ``{...}`` a signal with an index, ``{signal: multibody.array.q[0], ...}``, is read as one text by the
+scenario loader (:class:`shell.schema.document.LineLoader`; plain YAML refuses it).
 """
 
 from __future__ import annotations
@@ -104,7 +105,7 @@ def _event(entry, name: str, here: Where) -> SceneEvent:
     actions = _actions(entry["do"], here.child(entry, "do"))
     if ("time" in when) == ("signal" in when):
         raise when_where.error(f"expected either time: (e.g. {{time: 2 s}}) or signal: with crosses: (e.g. {{signal: "
-                               f"'multibody.array.q[0]', crosses: 90 deg}}: quoted inside {{ }}), given "
+                               f"multibody.array.q[0], crosses: 90 deg}}), given "
                                f"{show(dict(when))}")
     if "time" in when:
         for key in ("crosses", "direction"):

@@ -318,7 +318,7 @@ def test_a_latch_whose_frames_are_apart_stops_the_run_naming_the_event(tmp_path)
     """The latch switched on by time at 1 s, where the array is 30 deg short of its seat: the run stops with the
     gap, the event and the tolerance, and the log says so."""
     path = tmp_path / "latch.yaml"
-    path.write_text(LATCH.replace('when: {signal: "multibody.array.q[0]", crosses: 90 deg, direction: rising}',
+    path.write_text(LATCH.replace("when: {signal: multibody.array.q[0], crosses: 90 deg, direction: rising}",
                                   "when: {time: 1 s}"))
     assert main(["run", str(path), "-o", str(tmp_path / "l.h5"), "--quiet"]) == 1
     with h5py.File(tmp_path / "l.h5") as f:
@@ -413,7 +413,7 @@ events:
       when: {time: 200 ms}
       do: [{unlock: pendulum}]
     - name: caught
-      when: {signal: "multibody.pendulum.q[0]", crosses: -120 deg, direction: falling}
+      when: {signal: multibody.pendulum.q[0], crosses: -120 deg, direction: falling}
       do: [{constraint: {add: catch}}]
     - name: let_go
       when: {time: 1.5 s}
