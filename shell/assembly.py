@@ -147,8 +147,8 @@ def resolve_output(assembly: Assembly, endpoint: str) -> tuple[Model, str]:
     if isinstance(member, Model):
         if rest not in {p.name for p in member.outputs}:
             kind = "an input" if rest in {p.name for p in member.inputs} else "not a port"
-            raise ModelError(f"output {member.path}.{rest}: {kind} of {type(member).__name__}; outputs: "
-                             f"{[p.name for p in member.outputs]}")
+            raise ModelError(f"output {member.path}.{rest}: {kind} of {type(member).__name__}"
+                             f"{member.missing_port_hint(rest)}; outputs: {[p.name for p in member.outputs]}")
         return member, rest
     if member is assembly:
         return resolve_output(assembly, assembly.exposed_outputs[rest])

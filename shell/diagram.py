@@ -349,7 +349,8 @@ class Diagram:
         model = self.models[self.model_index[model_path]]
         names = [p.name for p in model.outputs + model.inputs] + [s.name for s in model.continuous_states
                                                                   + model.discrete_states]
-        raise ModelError(f"signal {name!r}: model {model_path} has no port or state {leaf!r}; it has {names}")
+        raise ModelError(f"signal {name!r}: model {model_path} has no port or state {leaf!r}"
+                         f"{model.missing_port_hint(leaf)}; it has {names}")
 
     def split_name(self, name: str):
         """(model path, ".", leaf) of a dotted port or state name; the longest model path wins."""

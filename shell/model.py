@@ -611,5 +611,10 @@ class Model:
         "force", ...) to this model's port names for node/hinge ``target``. Others refuse."""
         raise ModelError(f"model {self.path}: {type(self).__name__} has no nodes or hinges to attach to")
 
+    def missing_port_hint(self, name: str) -> str:
+        """What a refusal of the port or state ``name``, which this model does not have, should add (a port
+        the model can have when the scene asks for it); empty when there is nothing to say."""
+        return ""
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.path!r})"

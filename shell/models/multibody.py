@@ -670,6 +670,17 @@ class MultibodyModel(Model):
             x[:system.nq] = q
             x[system.nq:] = u
 
+    def missing_port_hint(self, name: str) -> str:
+        """The optional outputs are ports only when the scene asks for them: name the ``outputs:`` entry that would
+        make ``name`` one."""
+        body, _, leaf = name.rpartition(".")
+        wanted = "hinge_load" if leaf == "hinge_load" and body in self.system.body_names else \
+            "energy" if name == "energy" else None
+        if wanted is None or wanted in self.optional_outputs:
+            return ""
+        return (f" ({wanted} is an optional output, computed only when asked for: add it to the section, "
+                f"{self.name}: outputs: [{wanted}])")
+
     def attachment_ports(self, kind: str, target: str):
         s = self.system
         if kind == "node":
