@@ -8,7 +8,9 @@ shipped files. From the repository root (scenes name files relative to it, as ev
 
 Each entry runs the way a user would: ``flexshell fem2modal`` when a scene needs a body file made from a
 deck, ``flexshell run`` with ``--set`` overrides that point at the prepared files, ``flexshell plot`` of
-the signals its page shows. ``outcome(entry, log)`` computes the page's numbers from the log; the slow
+the signals its page shows, and ``flexshell linearize`` when its page shows a linear model. A few entries
+show a mechanism config of configs/ (the four-bar, the slider-crank, Andrews' squeezer): their scene is
+named relative to this folder, so that the scene a test and the page name is the one file. ``outcome(entry, log)`` computes the page's numbers from the log; the slow
 test tests/docs/test_gallery.py checks them against their analytic or documented values.
 """
 
@@ -32,10 +34,16 @@ class Entry:
     key: str                     # "01"
     name: str                    # page and file stem
     title: str
-    scene: str                   # file in configs/gallery/
+    scene: str                   # file, relative to configs/gallery/
     plot: tuple                  # signals of its figure
     prepare: str = ""            # name of a preparation step (PREPARATIONS)
     overrides: tuple = field(default_factory=tuple)
+    linearize: tuple = ()        # arguments of a `flexshell linearize` of the scene its page shows, or none
+
+    @property
+    def path(self) -> str:
+        """The scene's path from the repository root (what its page names)."""
+        return (HERE / self.scene).resolve().relative_to(ROOT).as_posix()
 
 
 GALLERY = (
@@ -81,8 +89,22 @@ GALLERY = (
           ("multibody.lower_cm.position", "multibody.upper_cm.position", "multibody.upper_cm.linear_velocity")),
     Entry("16", "array_latch", "Solar-array deployment ending in a latch", "16_array_latch.yaml",
           ("multibody.array.q", "multibody.array.u", "multibody.bus_cm.angular_velocity", "multibody.latch.load")),
-    Entry("17", "docking", "Docking through a probe and a latch", "17_docking.yaml",
+    Entry("17", "docking", "Docking through contact and a latch", "17_docking.yaml",
           ("gap.y", "multibody.chaser_cm.linear_velocity", "multibody.target_cm.linear_velocity")),
+    Entry("18", "four_bar", "Planar four-bar under gravity, closed by a revolute constraint", "../four_bar.yaml",
+          ("multibody.crank.q", "multibody.coupler.q", "multibody.rocker.q", "multibody.pin.load"),
+          linearize=("--trim", "--tolerance", "1e-12",
+                     "--set", "multibody.crank.initial={angle: -1.795724535564115 rad, angle_rate: 0 rad/s}",
+                     "--set", "multibody.coupler.initial={angle: 2.888572360978077 rad, angle_rate: 0 rad/s}",
+                     "--set", "multibody.rocker.initial={angle: 2.399808437332614 rad, angle_rate: 0 rad/s}",
+                     "--inputs", "multibody.crank.torque", "--outputs", "multibody.crank.q,multibody.rocker.q")),
+    Entry("19", "slider_crank", "Slider-crank under gravity, the slider on a prismatic constraint",
+          "../slider_crank.yaml",
+          ("multibody.crank.q", "multibody.rod.q", "multibody.slider_pin.position", "multibody.guide.load")),
+    Entry("20", "andrews_squeezer", "Andrews' squeezing mechanism (Hairer & Wanner's benchmark)",
+          "../mechanisms/andrews_squeezer.yaml", ("multibody.q", "multibody.E3.load")),
+    Entry("21", "hinge_loads", "Hinge reaction loads of a three-body chain", "21_hinge_loads.yaml",
+          ("multibody.a.hinge_load", "multibody.b.hinge_load", "multibody.c.hinge_load", "multibody.energy")),
 )
 
 
@@ -126,6 +148,11 @@ def run_entry(entry: Entry, work, figures=None) -> tuple[Path, list[Path]]:
     if code:
         raise RuntimeError(f"gallery {entry.key}: flexshell plot failed (exit {code})")
     pages = sorted(work.glob(f"{entry.name}-*.png")) or [figure]
+    if entry.linearize:
+        code = main(["linearize", str(HERE / entry.scene), "-o", str(work / f"{entry.name}_linear.h5"),
+                     *entry.linearize])
+        if code:
+            raise RuntimeError(f"gallery {entry.key}: flexshell linearize failed (exit {code})")
     if figures is not None:
         Path(figures).mkdir(parents=True, exist_ok=True)
         shutil.copyfile(pages[0], Path(figures) / f"{entry.name}.png")
@@ -216,6 +243,39 @@ def outcome(entry: Entry, log) -> dict:
     if entry.key == "15":
         v = data["multibody.upper_cm.linear_velocity"][-1, 0] - data["multibody.lower_cm.linear_velocity"][-1, 0]
         result["separation_speed_m_s"] = float(v)
+    if entry.linearize:
+        from shell.analysis.linear_model_file import read_linear_model
+
+        model = read_linear_model(Path(log).parent / f"{entry.name}_linear.h5")
+        result["linear_states"] = len(model.state_names)
+        result["omega_rad_s"] = float(np.sqrt(-model.A[1, 0]))
+    if entry.key == "18":  # the loop closes: the coupler's end on the rocker's, from the logged angles
+        crank, coupler, rocker = (data[f"multibody.{b}.q"][:, 0] for b in ("crank", "coupler", "rocker"))
+        end = np.column_stack([np.cos(crank) + 3 * np.cos(crank + coupler), np.sin(crank) + 3 * np.sin(crank + coupler)])
+        rocker_end = np.column_stack([3 + 2.5 * np.cos(rocker), 2.5 * np.sin(rocker)])
+        result["loop_gap_m"] = float(np.abs(end - rocker_end).max())
+        result["crank_turns"] = float((crank[-1] - crank[0]) / (2 * np.pi))
+    if entry.key == "19":  # the slider's pin where the crank's angle puts it: cos(theta) + sqrt(9 - sin(theta)^2)
+        crank, pin = data["multibody.crank.q"][:, 0], data["multibody.slider_pin.position"]
+        result["slider_error_m"] = float(np.abs(pin[:, 0] - np.cos(crank) - np.sqrt(9 - np.sin(crank) ** 2)).max())
+        result["off_axis_m"] = float(np.abs(pin[:, 1:]).max())
+        result["crank_turns"] = float((crank[-1] - crank[0]) / (2 * np.pi))
+    if entry.key == "20":
+        result["final_q"] = data["multibody.q"][-1]
+        result["t_end"] = float(t[-1])
+    if entry.key == "21":  # each hinge load on its axis = inverse_dynamics at the logged (q, u, u_dot)
+        from shell.scenario import build_root, load_scenario
+
+        system = build_root(load_scenario(HERE / entry.scene)).children["multibody"].system
+        udot = np.column_stack([data[f"multibody.{b}.u_dot"] for b in "abc"])
+        axes = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
+        loads = np.stack([data[f"multibody.{b}.hinge_load"] for b in "abc"], axis=1)
+        tau = np.array([system.inverse_dynamics(q, u, a) for q, u, a in zip(data["multibody.q"], data["multibody.u"],
+                                                                            udot)])
+        result["hinge_load_vs_inverse_dynamics"] = float(np.abs(np.einsum("nbi,bi->nb", loads[:, :, :3], axes)
+                                                                - tau).max())
+        result["motor_torque_n_m"] = float(np.abs(tau[:, 1] - 0.7).max())
+        result["peak_hinge_force_n"] = float(np.linalg.norm(loads[:, :, 3:], axis=2).max())
     for key in ("rw1.wheel_speed", "wheels.rw1.wheel_speed"):
         if key in data:
             speeds = [data[k] for k in data if k.endswith("wheel_speed")]
@@ -225,7 +285,7 @@ def outcome(entry: Entry, log) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="run, plot and check the example gallery")
-    parser.add_argument("keys", nargs="*", help="entries to run (01 .. 17; default all)")
+    parser.add_argument("keys", nargs="*", help="entries to run (01 .. 21; default all)")
     parser.add_argument("--output-directory", default="gallery_out", help="working directory (default gallery_out)")
     parser.add_argument("--figures", help="also copy each entry's figure into this folder (docs/gallery)")
     args = parser.parse_args(argv)

@@ -23,31 +23,7 @@ from shell.scenario import build_root, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 
-CHAIN = """\
-name: chain
-multibody:
-  gravity: "[0, -9.81, 0] m/s^2"
-  outputs: [hinge_load, energy]
-  bodies:
-    - {name: a, hinge: revolute, axis: [0, 0, 1], mass: 1 kg, com: "[0.5, 0, 0] m", inertia: [0.01, 0.1, 0.1],
-       initial: {angle: 0.3 rad}}
-    - {name: b, parent: a, hinge: revolute, axis: [0, 0, 1], inboard_position: "[1, 0, 0] m", mass: 2 kg,
-       com: "[0.5, 0.1, 0] m", inertia: [0.02, 0.2, 0.2], initial: {angle: -0.5 rad, angle_rate: 1 rad/s}}
-    - {name: c, parent: b, hinge: revolute, axis: [0, 1, 0], inboard_position: "[1, 0, 0] m", mass: 0.5 kg,
-       com: "[0.3, 0, 0.1] m", inertia: [0.01, 0.02, 0.03], initial: {angle: 0.2 rad}}
-  nodes:
-    - {name: c_cg, body: c, position: "[0.3, 0, 0.1] m"}
-models:
-  motor: {type: Constant, config: {unit: N*m, shape: [1]}, parameters: {value: "[0.7] N*m"}}
-connections:
-  - motor.y -> multibody.b.torque
-integrator: {method: rk4, step: 1 ms}
-stop: {time: 0.5 s}
-log:
-  rate: 100 Hz
-  signals: [multibody.q, multibody.u, multibody.a.u_dot, multibody.b.u_dot, multibody.c.u_dot, multibody.a.hinge_load,
-            multibody.b.hinge_load, multibody.c.hinge_load, multibody.energy]
-"""
+CHAIN = ROOT / "configs" / "gallery" / "21_hinge_loads.yaml"   # the gallery's scene (docs/gallery/hinge_loads.md)
 
 
 def _run(scene, tmp_path, *options):
@@ -63,8 +39,7 @@ def _skew(v):
 
 
 def test_hinge_loads_of_a_chain_equal_inverse_dynamics_and_the_tip_body_balance(tmp_path):
-    scene = tmp_path / "chain.yaml"
-    scene.write_text(CHAIN)
+    scene = CHAIN
     log, out = _run(scene, tmp_path)
     assert "hinge_load and energy asked for: the constrained path computes them" in out
     system = build_root(load_scenario(scene)).children["multibody"].system
