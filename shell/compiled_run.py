@@ -187,7 +187,7 @@ class CompiledRun:
         budget, integrate = 64, n_x > 0
         while True:
             started = _time.perf_counter()
-            status = CL.advance(plan.kernels, plan.slots, plan.rngs, plan.buffers, current[0], events, schedule, ints,
+            status = CL.advance(plan.kernels, plan.rngs, plan.buffers, current[0], events, schedule, ints,
                                 reals, budget, writer is not None, integrate)
             elapsed = _time.perf_counter() - started
             if status == CL.DONE:

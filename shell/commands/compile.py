@@ -52,6 +52,8 @@ def describe(dispatcher) -> tuple[str, float]:
     module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
     if module.startswith("dynamics.flex."):
         return "the FEM-to-modal pipeline", MODEL_SECONDS
+    if module == "shell.kernel_protocol":  # an op kernel's by-reference form (a few lines around the kernel's call)
+        return "an op kernel's by-reference form", MODEL_SECONDS
     if module == "shell.models.multibody" or module.startswith("dynamics"):
         name = getattr(dispatcher.py_func, "__name__", "")
         path = next((p for p in ENGINE_SECONDS if name == f"engine_kernel_{p}"), None)
@@ -72,27 +74,34 @@ def work_items() -> list[tuple[str, object]]:
     return items
 
 
-def engine_signature():
-    """The op-kernel signature of the engine model (:mod:`shell.kernel_protocol`) for the numba type of every engine
-    model's data (a one-body probe's)."""
+def engine_data_type():
+    """The numba type of every engine model's data without closure constraints (a one-body probe's)."""
     from numba import typeof
 
     from dynamics import Multibody
-    from shell.kernel_protocol import op_kernel_signature
     from shell.models.multibody import MultibodyModel
 
     builder = Multibody()
     builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
     builder.add_node("probe_node", "probe")
-    return op_kernel_signature(typeof(MultibodyModel("probe", builder.compile()).create_data()[1]))
+    return typeof(MultibodyModel("probe", builder.compile()).create_data()[1])
+
+
+def engine_signature():
+    """The op-kernel signature of the engine model (:mod:`shell.kernel_protocol`) for the numba type of its data."""
+    from shell.kernel_protocol import op_kernel_signature
+
+    return op_kernel_signature(engine_data_type())
 
 
 def _engine() -> None:
+    from shell.kernel_protocol import REFERENCE_KERNEL_SIGNATURE, by_reference, op_kernel_signature
     from shell.models.multibody import ENGINE_KERNELS
 
-    signature = engine_signature()
+    data_type = engine_data_type()
     for kernel in ENGINE_KERNELS.values():  # single body, articulated-body recursion, dense solve
-        kernel.compile(signature)
+        kernel.compile(op_kernel_signature(data_type))
+        by_reference(kernel, data_type).compile(REFERENCE_KERNEL_SIGNATURE)  # as the compiled loop calls it
 
 
 def _loop(method: str):
