@@ -180,10 +180,12 @@ class System(NamedTuple):
 
 
 class Events(NamedTuple):
-    """Zero-crossing detection: the mode, each function's direction, values at the ends of the last step
-    and at the subdivision samples, the last step's start (for its dense output)."""
+    """Zero-crossing detection: the mode, the check's function pointer (:func:`event_check`), each function's
+    direction, values at the ends of the last step and at the subdivision samples, the last step's start (for its
+    dense output)."""
 
     mode: int
+    check: np.ndarray        # (2,) int64: [cfunc wrapper address, numba entry address] of events_at (0: no events)
     direction: np.ndarray    # (m,) int64: +1 rising only, -1 falling only, 0 both
     g_old: np.ndarray        # (m,)
     g_new: np.ndarray        # (m,)
@@ -520,6 +522,60 @@ def _event_candidate(system, st, ev, t_old, t_new, search):
     return _samples_flag_candidate(ev, m, n, (t_new - t_old) / n, t_old, t_new)
 
 
+# phases of events_at
+EVENTS_START = 0         # the functions' values at the start of the steps
+EVENTS_STEP = 1          # after a step: a sign change of a function between the step's ends is a candidate
+EVENTS_SEARCH = 2        # after a step: the subdivided search of the step's dense output
+
+
+@njit(cache=True)
+def events_at(system_reference, stepper_reference, events_reference, phase, t_old, t):
+    """The zero-crossing checks of a run with events (the stepper at ``t``): the functions' values at the start
+    (EVENTS_START), or after a step from ``t_old``: their values at its end, and whether a crossing may lie inside it
+    (:func:`_event_candidate`; otherwise the end's values become the next step's start's). The loop calls it
+    through a function pointer (:func:`event_check`), so a scene without zero crossings does not compile it."""
+    system = _dereference(system_reference)
+    st = _dereference(stepper_reference)
+    ev = _dereference(events_reference)
+    if phase == EVENTS_START:
+        _zero_crossings_at(system, t, st.Y, ev.g_old)
+        return False
+    _zero_crossings_at(system, t, st.Y, ev.g_new)
+    if _event_candidate(system, st, ev, t_old, t, phase == EVENTS_SEARCH):
+        return True
+    copy_into(ev.g_old, ev.g_new)
+    return False
+
+
+def _events_signature(system_type, stepper_type, events_type):
+    return types.boolean(types.CPointer(system_type), types.CPointer(stepper_type), types.CPointer(events_type),
+                         types.int64, types.float64, types.float64)
+
+
+@intrinsic
+def _events_function(typingctx, c_address, jit_address, system_reference, stepper_reference, events_reference):
+    """:func:`events_at` at (cfunc wrapper address, numba entry address) for the types of the references."""
+    function_type = types.FunctionType(_events_signature(system_reference.dtype, stepper_reference.dtype,
+                                                         events_reference.dtype))
+
+    def codegen(context, builder, sig, args):
+        return _function_struct(function_type, context, builder, args)
+
+    return function_type(types.int64, types.int64, system_reference, stepper_reference, events_reference), codegen
+
+
+def event_check(kernels, buffers, stepper, events) -> np.ndarray:
+    """``Events.check`` of a run with zero crossings: :func:`events_at` compiled for the types of its system, its
+    stepper and ``events`` (compiled or loaded here, once per stepper type)."""
+    from numba import typeof
+    from numba.experimental.function_type import _get_jit_address, _get_wrapper_address
+
+    signature = _events_signature(typeof(System(kernels, buffers)), typeof(stepper), typeof(events))
+    events_at.compile(signature.args)
+    return np.array([_get_wrapper_address(events_at, signature), _get_jit_address(events_at, signature)],
+                    dtype=np.int64)
+
+
 @njit(cache=True)
 def _integrate(system, st, ev, target, ints, reals, skip_final):
     """Steps of the run's method from reals[R_T] to ``target`` (the Python loop's _advance, the same arithmetic);
@@ -530,8 +586,12 @@ def _integrate(system, st, ev, target, ints, reals, skip_final):
     status = IC.start(system, st, t, ints, reals)
     if status != 0:  # the context's state is untouched
         return status
-    if ev.mode != NO_EVENTS:
-        _zero_crossings_at(system, t, st.Y, ev.g_old)
+    events = ev.mode != NO_EVENTS
+    if events:
+        system_reference, stepper_reference, events_reference = (_by_reference(system), _by_reference(st),
+                                                                  _by_reference(ev))
+        check = _events_function(ev.check[0], ev.check[1], system_reference, stepper_reference, events_reference)
+        check(system_reference, stepper_reference, events_reference, EVENTS_START, t, t)
     h0 = st.h
     while t < target:
         remaining = target - t
@@ -547,7 +607,7 @@ def _integrate(system, st, ev, target, ints, reals, skip_final):
             else:  # the method stopped before its step: the run's state is its state
                 copy_into(X, st.Y)
             return status
-        if ev.mode != NO_EVENTS:
+        if events:
             IC.keep(st, ev)
         IC.accept(st, ints, skip)
         reals[R_T_OLD] = t
@@ -558,13 +618,13 @@ def _integrate(system, st, ev, target, ints, reals, skip_final):
             t = target
         if skip:
             break
-        if ev.mode != NO_EVENTS:
-            _zero_crossings_at(system, t, st.Y, ev.g_new)
-            if _event_candidate(system, st, ev, t_old, t, ev.mode == SUBDIVIDED or t_old == reals[R_LAST_EVENT]):
+        if events:
+            search = ev.mode == SUBDIVIDED or t_old == reals[R_LAST_EVENT]
+            if check(system_reference, stepper_reference, events_reference, EVENTS_SEARCH if search else EVENTS_STEP,
+                     t_old, t):
                 reals[R_T] = t
                 copy_into(X, st.Y)
                 return EVENT_CANDIDATE
-            copy_into(ev.g_old, ev.g_new)
     reals[R_T] = t
     copy_into(X, st.Y)
     return 0
