@@ -50,9 +50,9 @@ from dynamics import single_body as SB
 
 
 def strip_references(context, builder, typ, value):
-    """``value`` of numba type ``typ`` with every array's meminfo (and parent) set to null: see
+    """``value`` of numba type ``typ`` with every array's (and numpy Generator's) meminfo and parent set to null: see
     :func:`borrowed`."""
-    if isinstance(typ, types.Array):
+    if isinstance(typ, (types.Array, types.NumPyRandomGeneratorType)):
         model = context.data_model_manager[typ]
         for field in ("meminfo", "parent"):
             index = model.get_field_position(field)

@@ -14,7 +14,7 @@ dispatch per kernel, many per derivative. Here the same sequence runs inside num
   :mod:`shell.integrators.compiled`; the loop below owns the instants, the shortened last step, the counters, the
   zero-crossing checks on the method's dense output and the returns to Python), runs the sampled models' updates
   at integer ticks of a common time base (their noise drawn from each model's own ``numpy.random.Generator``,
-  bit-identical to the interpreted draws), writes log rows into preallocated buffers, and returns to Python only to
+  bit-identical to the interpreted draws; the generators by reference in ``R``), writes log rows into preallocated buffers, and returns to Python only to
   run Python-only models, flush full log buffers, report progress, locate a crossing, answer the integrator, or
   report a failure (:mod:`shell.compiled_run`).
 
@@ -28,8 +28,9 @@ stepper's combinations, the same quaternion normalization, instants ``k / den`` 
 Op table columns (int64): ``KIND, FN, G0, G1, X0, X1, Z0, Z1, U0, U1, P0, P1, O0, O1, N0, N1, RNG, D0, D1,
 OPCODE``: the kind of call, the function index, the feedthrough gather range, the model's slices of ``x``, ``z``,
 the signal buffer (inputs), the parameters, its output range (outputs in the signal buffer, derivatives in
-``xdot``, zero crossings in ``g``), the noise buffer range and random stream of a noisy update, its data slot
-range (for an op kernel: the range of its data's reference in ``R``), and an op kernel's op code.
+``xdot``, zero crossings in ``g``), the noise buffer range of a noisy update and where its generator's reference
+starts in ``R``, its data slot range (for an op kernel: the range of its data's reference in ``R``), and an op
+kernel's op code.
 """
 
 from __future__ import annotations
@@ -37,9 +38,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, types
+from numba import njit, typeof, types
 from numba.core import cgutils
 from numba.extending import intrinsic
+from numba.np.random import generator_core  # noqa: F401 (registers the numba data model of a numpy Generator)
 
 from dynamics.engine import borrowed, strip_references
 from shell import kernel_protocol as KP
@@ -50,9 +52,10 @@ from shell.integrators.kernels import all_finite, copy_into
 
 __all__ = ["N_INTS", "N_REALS", "START_FAILED", "STEP_FAILED", "FIRST_REQUEST"]
 
-#: random-stream slots come in multiples of this (a scene with more noisy models takes the next multiple: one loop
-#: compilation per multiple, not per scene)
-NOISY_MODELS_PER_BLOCK = 8
+#: a numpy Generator's numba type and the int64 words of its reference (:func:`shell.kernel_protocol.reference`)
+GENERATOR = typeof(np.random.default_rng(0))
+GENERATOR_WORDS = KP.reference_words(GENERATOR)
+_generator = KP.reader(GENERATOR)
 
 
 def _function_struct(function_type, context, builder, args):
@@ -117,7 +120,7 @@ PLAIN = 0                # fns[FN](t, x, z, u, p, out)
 DATA = 1                 # data_fns[FN](t, x, z, u, p, d, out), d = the model's data slot D[D0:D1]
 OP = 2                   # op_fns[FN](OPCODE, t, x, z, u, p, R[D0:D1], out): the model's data by reference
 UPDATE = 5               # update_fns[FN](t, x, z, u, p)
-UPDATE_NOISE = 6         # noise from rngs[RNG] into noise[N0:N1], then fns[FN](t, x, z, u, p, noise)
+UPDATE_NOISE = 6         # noise from the generator at R[RNG:] into noise[N0:N1], then fns[FN](t, x, z, u, p, noise)
 UPDATE_PYTHON = 7        # the update runs in Python: advance returns to the caller
 UPDATE_DATA = 8          # fns[FN](t, x, z, u, p, d)
 UPDATE_DATA_NOISE = 9    # noise as UPDATE_NOISE, then data_fns[FN](t, x, z, u, p, d, noise)
@@ -146,7 +149,7 @@ class Buffers(NamedTuple):
     S: np.ndarray
     P: np.ndarray
     D: np.ndarray               # the data slots of the models that have one
-    R: np.ndarray               # int64: the op-kernel models' data by reference (shell.kernel_protocol.reference)
+    R: np.ndarray               # int64: the op-kernel models' data and the noisy models' generators by reference
     XD: np.ndarray
     G: np.ndarray
     noise: np.ndarray
@@ -348,9 +351,9 @@ def zero_crossings(k, t, y, b):
 
 
 @njit(cache=True)
-def update_model_alone(i, system, rng, t):
+def update_model_alone(i, system, t):
     """Evaluate the outputs model ``i``'s inputs need, then run its compiled update, drawing its noise first from
-    its own random stream ``rng`` (any generator when it draws no noise)."""
+    its own random stream."""
     b, k = system.buffers, system.kernels
     ops = b.update_ops
     run_stages(b.input_stage_ops[ops[i, G0]:ops[i, G1]], ops[i, G1] - ops[i, G0], k, b, t, b.src, b.fac)
@@ -368,6 +371,7 @@ def update_model_alone(i, system, rng, t):
         _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, d)
     else:
         noise = _view(b.noise, ops[i, N0], ops[i, N1])
+        rng = _generator(_view(b.R, ops[i, RNG], ops[i, RNG] + GENERATOR_WORDS))
         for n in range(noise.shape[0]):
             noise[n] = rng.standard_normal()
         if kind == UPDATE_NOISE:
@@ -377,10 +381,9 @@ def update_model_alone(i, system, rng, t):
 
 
 @njit(cache=True)
-def update_model(i, k, rng, t, b):
-    """:func:`update_model_alone` for a Python caller (a loop whose integrator stays in Python), given the model's
-    own stream only: unboxing every model's stream costs more than most updates."""
-    update_model_alone(i, System(k, b), rng, t)
+def update_model(i, k, t, b):
+    """:func:`update_model_alone` for a Python caller (a loop whose integrator stays in Python)."""
+    update_model_alone(i, System(k, b), t)
 
 
 @njit(cache=True, inline="always")
@@ -659,7 +662,7 @@ def _log_instant(system, sc, ints, reals, write):
 
 
 @njit(cache=True)
-def advance(k, rngs, b, st, ev, sc, ints, reals, budget, write_logs, integrate):
+def advance(k, b, st, ev, sc, ints, reals, budget, write_logs, integrate):
     """Run instants until the end tick, a return to Python, or ``budget`` instants (see the module docstring).
 
     ``ints[I_PHASE]`` 1: the updates at the current instant were done by the caller; continue with its
@@ -698,7 +701,7 @@ def advance(k, rngs, b, st, ev, sc, ints, reals, budget, write_logs, integrate):
             updated = False
             for i in sc.order:
                 if sc.next_tick[i] == nxt:
-                    update_model_alone(i, system, rngs[b.update_ops[i, RNG]], target)
+                    update_model_alone(i, system, target)
                     sc.next_tick[i] += sc.period[i]
                     ints[I_UPDATES] += 1
                     updated = True

@@ -11,7 +11,7 @@ What runs compiled (:mod:`shell.kernel_protocol`): every model kernel that is a 
 signature ``kernel(t, x, z, u, p, out)`` (update: ``update(t, x, z, u, p)``, or ``update(t, x, z, u, p, noise)``
 with ``noise_size``), with the model's data slot after ``p`` when its per-run data is one float64 array, and the
 op kernel of a model whose per-run data is a typed tuple (``compiled_kernel``: the multibody engine; its data by
-reference). Any number of noisy models (their random streams in blocks of eight), of models with data slots, and of
+reference). Any number of noisy models (their random streams by reference too), of models with data slots, and of
 op-kernel models (with data of any types: the loop does not see them). A model whose output, derivative or zero-crossing kernel is plain Python makes the
 whole scene run interpreted (the message names it). A sampled model whose update is plain Python
 (``UserFunction``, the thruster cluster's minimum-fuel allocation, ``MassDepletion``) keeps the loop compiled: it
@@ -85,6 +85,8 @@ class _Kinds:
             else:
                 raise NotCompilable(f"model {m.path} ({type(m).__name__}) keeps per-run data that is neither one "
                                     "float64 array (a data slot) nor served by an op kernel (compiled_kernel)")
+        #: int64 words of the op-kernel models' references: the noisy models' generators' follow in Buffers.R
+        self.n_words = n_words
 
     def pointer(self, table, fn, signature, model, what) -> int:
         key = (table, id(fn), str(signature))
@@ -186,7 +188,8 @@ class _Tables:
                                                                  "update")
                 else:
                     kind, f = L.UPDATE_NOISE, kinds.pointer("fns", m.update, KP.KERNEL_SIGNATURE, m, "update")
-                updates.append(_op(kind, f, stages, *block, noise=noise, rng=len(self.noisy) - 1, data=data))
+                rng = kinds.n_words + L.GENERATOR_WORDS * (len(self.noisy) - 1)
+                updates.append(_op(kind, f, stages, *block, noise=noise, rng=rng, data=data))
             elif kinds.kind[i] == "data":
                 f = kinds.pointer("fns", m.update, KP.KERNEL_SIGNATURE, m, "update")
                 updates.append(_op(L.UPDATE_DATA, f, stages, *block, data=data))
@@ -208,15 +211,6 @@ def _tables(diagram, context) -> _Tables:
     return tables
 
 
-_PLACEHOLDER_RNG: list = []
-
-
-def _placeholder_rng():
-    if not _PLACEHOLDER_RNG:
-        _PLACEHOLDER_RNG.append(np.random.default_rng(0))
-    return _PLACEHOLDER_RNG[0]
-
-
 class CompiledPlan:
     """The compiled form of ``diagram`` bound to ``context``; see the module docstring."""
 
@@ -234,14 +228,12 @@ class CompiledPlan:
         if any(typeof(context.data[i]) != kinds.data_type[i] for i in op_models):
             raise NotCompilable("the op-kernel models' data differ in numba type from those of the diagram's first "
                                 "context")
-        #: the op-kernel models' per-run data (kept alive here: the loop reads them by reference) and their
-        #: references side by side (Buffers.R)
+        #: the op-kernel models' per-run data and the noisy models' generators (kept alive here: the loop reads
+        #: them by reference), and their references side by side (Buffers.R)
         self.op_data = tuple(context.data[i] for i in op_models)
-        self.references = (np.concatenate([KP.reference(d) for d in self.op_data]) if op_models
-                           else np.zeros(0, dtype=np.int64))
-        rngs = [context.rngs[i] for i in tables.noisy]
-        blocks = max(1, -(-len(rngs) // L.NOISY_MODELS_PER_BLOCK))
-        self.rngs = tuple(rngs) + (_placeholder_rng(),) * (blocks * L.NOISY_MODELS_PER_BLOCK - len(rngs))
+        self.rngs = tuple(context.rngs[i] for i in tables.noisy)
+        self.references = np.concatenate([np.zeros(0, dtype=np.int64)] + [KP.reference(d) for d in self.op_data]
+                                         + [KP.reference(rng) for rng in self.rngs])
         self.noise = np.zeros(tables.noise_size)
         self.buffers = L.Buffers(context.x, context.z, context.signals, context.p, context.flat_data,
                                  self.references, context.xdot, context.g, self.noise, diagram.gather_source, diagram.gather_destination,
@@ -274,8 +266,7 @@ class CompiledPlan:
         if not self.update_is_compiled(i):
             self.diagram.update(self.context, i, t)
             return
-        rng = self.rngs[int(self.buffers.update_ops[i, L.RNG])]  # its own stream (slot 0, unused, without noise)
-        L.update_model(i, self.kernels, rng, float(t), self.buffers)
+        L.update_model(i, self.kernels, float(t), self.buffers)
 
     def stage_table(self, stages):
         """The op table of ``stages`` (cached per stage tuple)."""

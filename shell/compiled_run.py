@@ -192,7 +192,7 @@ class CompiledRun:
                 checked = current[0]
                 events = events._replace(check=CL.event_check(plan.kernels, plan.buffers, checked, events))
             started = _time.perf_counter()
-            status = CL.advance(plan.kernels, plan.rngs, plan.buffers, current[0], events, schedule, ints,
+            status = CL.advance(plan.kernels, plan.buffers, current[0], events, schedule, ints,
                                 reals, budget, writer is not None, integrate)
             elapsed = _time.perf_counter() - started
             if status == CL.DONE:

@@ -91,7 +91,7 @@ def reference(data) -> np.ndarray:
     return words
 
 
-def _reader(data_type):
+def reader(data_type):
     @intrinsic
     def read(typingctx, reference):
         """The value of type ``data_type`` that :func:`reference` wrote into ``reference``."""
@@ -113,7 +113,7 @@ def by_reference(kernel, data_type):
     compiled once, shared with Python callers of the typed kernel)."""
     key = (kernel, data_type)
     if key not in _BY_REFERENCE:
-        read = _reader(data_type)
+        read = reader(data_type)
 
         def op_kernel(op, t, x, z, u, p, reference, out):
             kernel(op, t, x, z, u, p, read(reference), out)

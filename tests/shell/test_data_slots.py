@@ -3,7 +3,7 @@
 every run (context) has data of its own.
 
 The plant (tests.plants.TableTracker) keeps a table and a scratch entry in its data slot, reads it in its derivative
-kernel and in its noisy update; ten of them draw noise (more than one block of eight random streams). Two engine
+kernel and in its noisy update; ten of them draw noise (each generator by reference in the loop). Two engine
 models (two multibody systems, the engine's op kernel and typed data) share one scene.
 """
 
