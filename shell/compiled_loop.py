@@ -218,10 +218,12 @@ class Schedule(NamedTuple):
 
 
 # ----------------------------------------------------------------------------------------------------------
-# evaluation. The chain from a stepper's derivative to the model kernels is inlined (numba's inline="always") into
-# the stepper: every call level otherwise copies the scene's arrays (the engine's ~40 among them) by value, which
-# measured 40 % of an RK4 step of a free rigid body (6.4 against 3.6 us) and 8x the kernel calls of 200 trivial
-# models when each kernel call was a helper of its own.
+# evaluation. The chain from the derivative to the model kernels is inlined (numba's inline="always") into one
+# function, which the steppers call with the system by reference (_derivative_by_reference): a call level that copies
+# the scene's arrays by value measured 40 % of an RK4 step of a free rigid body (6.4 against 3.6 us, when the
+# engine's ~40 arrays were among them) and 8x the kernel calls of 200 trivial models when each kernel call was a
+# helper of its own; inlining the evaluation into every stepper's call site instead cost ~25 s of each loop's
+# compilation (issue 31).
 @njit(cache=True, inline="always")
 def _run_rows(k, b, ops, r0, r1, t, src, fac, out):
     """Rows ``r0:r1`` of an op table: gather each row's feedthrough inputs (its G0:G1 range of the gather arrays

@@ -21,12 +21,13 @@ import warnings
 #: engine per solver path (the single-body kernel 6 s in the demo, benchmarks/compile_time.py --profile,
 #: 2026-11-28 at load 3; the articulated-body and dense paths from the 2026-11-27 profile of the whole engine, 424 s
 #: of 505 s compiling at load 7.7, scaled to the 106 s the demo then compiled on a quiet machine), the loop of one
-#: stepper family (~40 s in the 2026-11-28 profile: the scene's evaluation is inlined into the stepper); model
-#: kernels 1-3 s each
-#: The constrained path (a scene with closure constraints; not in the common set `flexshell compile` compiles): the
-#: first run of configs/four_bar.yaml compiled engine and loop in 104 s at load 2 (2026-11-28), ~40 s of it the loop
+#: stepper family (~15 s CPU in the 2026-11-28 02:20 profile at load 4: one loop per stepper for every scene, the
+#: evaluation compiled once and called by reference; 40 s when it was inlined into the stepper); model kernels 1-3 s
+#: each. The constrained path (a scene with closure constraints; not in the common set `flexshell compile`
+#: compiles): the first run of configs/four_bar.yaml compiled engine and loop in 104 s at load 2 (2026-11-28), ~40 s
+#: of it the loop, which such scenes now share with the others
 ENGINE_SECONDS = {"single_body": 10, "articulated": 60, "dense": 60, "constrained": 70}
-LOOP_SECONDS = 45
+LOOP_SECONDS = 20
 MODEL_SECONDS = 3
 
 _MODEL_KERNELS = ("state_outputs", "feedthrough_outputs", "derivatives", "zero_crossing_values", "update")
