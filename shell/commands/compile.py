@@ -75,31 +75,36 @@ def work_items() -> list[tuple[str, object]]:
     return items
 
 
-def engine_data_type():
-    """The numba type of every engine model's data without closure constraints (a one-body probe's)."""
-    from numba import typeof
-
+def engine_data():
+    """The data of an engine model without closure constraints (a one-body probe's: every such model's have its
+    numba type)."""
     from dynamics import Multibody
     from shell.models.multibody import MultibodyModel
 
     builder = Multibody()
     builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
     builder.add_node("probe_node", "probe")
-    return typeof(MultibodyModel("probe", builder.compile()).create_data()[1])
+    return MultibodyModel("probe", builder.compile()).create_data()[1]
 
 
 def engine_signature():
     """The op-kernel signature of the engine model (:mod:`shell.kernel_protocol`) for the numba type of its data."""
+    from numba import typeof
+
     from shell.kernel_protocol import op_kernel_signature
 
-    return op_kernel_signature(engine_data_type())
+    return op_kernel_signature(typeof(engine_data()))
 
 
 def _engine() -> None:
-    from shell.kernel_protocol import REFERENCE_KERNEL_SIGNATURE, by_reference, op_kernel_signature
+    from numba import typeof
+
+    from shell.kernel_protocol import REFERENCE_KERNEL_SIGNATURE, by_reference, op_kernel_signature, reference
     from shell.models.multibody import ENGINE_KERNELS
 
-    data_type = engine_data_type()
+    data = engine_data()
+    data_type = typeof(data)
+    reference(data)  # how a run hands the data to the compiled loop
     for kernel in ENGINE_KERNELS.values():  # single body, articulated-body recursion, dense solve
         kernel.compile(op_kernel_signature(data_type))
         by_reference(kernel, data_type).compile(REFERENCE_KERNEL_SIGNATURE)  # as the compiled loop calls it
@@ -108,7 +113,10 @@ def _engine() -> None:
 def _loop(method: str):
     def compile_loop() -> None:
         """A first-order lag x' = -x run for two steps: the loop (or driver) of ``method`` and its kernels."""
+        import numpy as np
+
         from shell.assembly import Assembly
+        from shell.kernel_protocol import reference
         from shell.models.blocks import Gain, Integrator
         from shell.simulation import Simulation
 
@@ -121,6 +129,7 @@ def _loop(method: str):
         with warnings.catch_warnings():  # etdrk4 says that this scene has no linear part: expected here
             warnings.filterwarnings("ignore", "etdrk4: the linear part is empty", UserWarning)
             Simulation(root, integrator=method, step=1e-3).run(2e-3)
+        reference(np.random.default_rng(0))  # how a run hands a noisy model's generator to the loop
 
     return compile_loop
 
