@@ -25,6 +25,7 @@ from shell.schema import Scenario, ScenarioError, Where, connection_ends, find, 
 from shell.schema import (apply_override, apply_value, check_sample_counts, check_time, decode_scenario,  # noqa: F401
                           load_scenario, load_yaml, parse_scenario)
 from shell.schema.multibody import read_multibody
+from shell.scene_events import add_scene_events, free_detached_bodies
 from shell.simulation import Simulation
 from shell.units import UnitError, written_numbers
 
@@ -34,10 +35,12 @@ def build_root(scenario: Scenario) -> Assembly:
     document = scenario.document
     root_where = Where(scenario.file, 1, "")
     root = Assembly("scenario")
+    notes = ()
     if "multibody" in document:
         where = root_where.child(document, "multibody")
         try:
-            section = read_multibody(document["multibody"], where)
+            description, notes = free_detached_bodies(document["multibody"], where, scenario.scene_events)
+            section = read_multibody(description, where)
             root.add(MultibodyModel(section.name, section.system, initial_q=section.initial_q,
                                     initial_u=section.initial_u, written_q=section.written_q,
                                     constrained=section.constrained, assembly=section.assembly))
@@ -48,6 +51,7 @@ def build_root(scenario: Scenario) -> Assembly:
     classes = {name: _assembly_class(name, spec, here, scenario) for name, (spec, here) in scenario.templates.items()}
     scenario.template_classes = classes
     _add_members(root, document, root_where, classes)
+    add_scene_events(root, scenario, notes)
     return root
 
 

@@ -16,7 +16,8 @@ Running (TM-2020-5008164 App. D.1: multi-rate models, zero finding) is split int
   steps are searched for zero crossings and locates them, :mod:`shell.restart` saves and restores a run.
 
 This class holds what those pieces share (the run's time and states, counters, the Python integrator), handles
-what a crossing does (the state moved there, the models' handlers, a terminal stop), runs the sampled models'
+what a crossing does (the state moved there, the models' handlers, a terminal stop; the actions of the scene's
+``events: on:``, :mod:`shell.scene_events`, recorded in the run summary and the log), runs the sampled models'
 updates at an instant, and names the model and state of a failure.
 """
 
@@ -41,6 +42,7 @@ from shell.integrators import INTEGRATORS
 from shell.log_session import LogSession
 from shell.model import ModelError
 from shell.python_loop import PythonLoop
+from shell.scene_events import SceneEvents, changes_json
 
 
 class SimulationWarning(UserWarning):
@@ -77,6 +79,7 @@ class RunSummary:
     events: int
     discrete_updates: int
     notes: tuple = ()    # choices made for the user (models' ``notes``: engine solver, modal-integral order)
+    changes: tuple = ()  # (time, event, what changed) of the scene's events: on: during the run
 
     @property
     def real_time_factor(self) -> float:
@@ -86,7 +89,9 @@ class RunSummary:
         return (f"{self.status} at t = {self.t_end:.6g} s ({self.reason}); wall time {self.wall_time:.3f} s, "
                 f"{self.steps} steps, {self.derivative_evaluations} derivative evaluations, "
                 f"{self.discrete_updates} discrete updates, {self.events} events, "
-                f"real-time factor {self.real_time_factor:.3g}" + "".join(f"\n  note: {n}" for n in self.notes))
+                f"real-time factor {self.real_time_factor:.3g}"
+                + "".join(f"\n  event {name} at t = {t:.12g} s: {what}" for t, name, what in self.changes)
+                + "".join(f"\n  note: {n}" for n in self.notes))
 
 
 class Simulation:
@@ -144,6 +149,13 @@ class Simulation:
         self.counters = {"steps": 0, "nfev": 0, "events": 0, "updates": 0}
         #: (time, "model.zero_crossing") of every handled event, in order
         self.events: list[tuple[float, str]] = []
+        #: what every event of events: on: changed (shell.scene_events), in order: (t, event name, description)
+        self.scene_changes: list[tuple[float, str, str]] = []
+        #: the model of the scene's events: on: (shell.scene_events.SceneEvents), or None
+        self.scene_events = next((m for m in self.models if isinstance(m, SceneEvents)), None)
+        if self.scene_events is not None:
+            self.scene_events.check(self)
+            self.scene_events.establish(self)
 
     def _claim_models(self) -> None:
         """The first context shares the models' own data (the engine's workspace): one Simulation per scene."""
@@ -285,6 +297,7 @@ class Simulation:
             raise ValueError(f"t_final = {t_final} s is before the current time {self.t} s")
         writer = self.log_session.open(log_path, self.seed, log_attributes)
         start_counters = dict(self.counters)
+        len_before = len(self.scene_changes)
         t_start = self.t
         wall_start = _time.perf_counter()
         blas = self._single_threaded_blas()
@@ -304,6 +317,7 @@ class Simulation:
             known = isinstance(exc, (SimulationError, EvaluationError))
             message = str(exc) if known else f"{type(exc).__name__} at t = {self.t:.9g} s: {exc}"
             if writer is not None:
+                self._record_changes(writer, len_before)
                 writer.close("failed", message)
             if isinstance(exc, SimulationError):
                 raise
@@ -312,6 +326,7 @@ class Simulation:
             if blas is not None:
                 blas.restore_original_limits()
         if writer is not None:
+            self._record_changes(writer, len_before)
             writer.close(status, reason)
         self.evaluate()  # outputs consistent with the final state for signal() queries
         wall = _time.perf_counter() - wall_start
@@ -319,7 +334,15 @@ class Simulation:
                           self.counters["nfev"] - start_counters["nfev"],
                           self.counters["events"] - start_counters["events"],
                           self.counters["updates"] - start_counters["updates"],
-                          tuple(note for m in self.diagram.models for note in getattr(m, "notes", ())))
+                          tuple(note for m in self.diagram.models for note in getattr(m, "notes", ())),
+                          tuple(self.scene_changes[len_before:]))
+
+    def _record_changes(self, writer, start: int) -> None:
+        """The scene changes of this run into an HDF5 log: its ``scene_events`` attribute (JSON: time, event, what
+        changed). A Monte Carlo run's in-memory log keeps its signals only."""
+        file = getattr(writer, "file", None)
+        if self.scene_events is not None and file is not None and file.id.valid:
+            file.attrs["scene_events"] = changes_json(self.scene_changes[start:])
 
     def _single_threaded_blas(self):
         """BLAS limited to one thread for a run whose integrator multiplies small dense matrices at every step
@@ -369,7 +392,10 @@ class Simulation:
             i, k, zc = self.diagram.zero_crossing_owner[j]
             model, views = self.models[i], self.context.views[i]
             try:
-                model.on_event(k, t_event, views.x, views.z, views.p)
+                if model is self.scene_events:
+                    self.scene_changes.append((t_event, zc.name, model.happen(self, k, t_event)))
+                else:
+                    model.on_event(k, t_event, views.x, views.z, views.p)
             except Exception as exc:
                 raise SimulationError(f"model {model.path} failed handling event {zc.name} at t = {t_event:.12g} s: "
                                       f"{type(exc).__name__}: {exc}") from exc
@@ -433,6 +459,8 @@ class Simulation:
             except Exception as exc:
                 raise SimulationError(f"model {m.path} failed re-applying its restored state at t = "
                                       f"{self.t:.9g} s: {type(exc).__name__}: {exc}") from exc
+        if self.scene_events is not None:
+            self.scene_events.establish(self)  # the constraint switches of the events that happened before
         self._integrator_stale = True
         self._initialized = True
         self.context.unstarted = False

@@ -15,6 +15,7 @@ test tests/docs/test_gallery.py checks them against their analytic or documented
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 from dataclasses import dataclass, field
@@ -76,6 +77,12 @@ GALLERY = (
           "14_spacecraft_notch.yaml",
           ("multibody.bus_top.attitude", "multibody.spacecraft.modal_q", "controller.torque"),
           prepare="spacecraft_body"),
+    Entry("15", "stage_separation", "Stage separation with a separation spring", "15_stage_separation.yaml",
+          ("multibody.lower_cm.position", "multibody.upper_cm.position", "multibody.upper_cm.linear_velocity")),
+    Entry("16", "array_latch", "Solar-array deployment ending in a latch", "16_array_latch.yaml",
+          ("multibody.array.q", "multibody.array.u", "multibody.bus_cm.angular_velocity", "multibody.latch.load")),
+    Entry("17", "docking", "Docking through a probe and a latch", "17_docking.yaml",
+          ("gap.y", "multibody.chaser_cm.linear_velocity", "multibody.target_cm.linear_velocity")),
 )
 
 
@@ -195,6 +202,20 @@ def outcome(entry: Entry, log) -> dict:
     if entry.key == "12":
         result["max_imu_rate"] = float(np.max(np.abs(data["imu.angular_rate"])))
         result["finite"] = bool(all(np.isfinite(v).all() for v in data.values()))
+    if entry.key in ("15", "16", "17"):
+        changes = json.loads(str(info["attributes"]["scene_events"]))
+        result["event_time_s"] = float(changes[0]["time"])
+        bodies = {"15": ("lower", "upper"), "16": ("bus", "array"), "17": ("chaser", "target")}[entry.key]
+        masses = {"lower": 1000.0, "upper": 300.0, "bus": 500.0, "array": 30.0, "chaser": 800.0, "target": 1200.0}
+        momentum = sum(masses[b] * np.einsum("nij,nj->ni", data[f"multibody.{b}_cm.rotation"],
+                                             data[f"multibody.{b}_cm.linear_velocity"]) for b in bodies)
+        result["momentum_change_kg_m_s"] = float(np.abs(momentum - momentum[0]).max())
+        result["momentum_kg_m_s"] = float(np.linalg.norm(momentum[0]))
+        if "kinetic energy lost" in changes[0]["changes"]:
+            result["energy_lost_j"] = float(changes[0]["changes"].split("kinetic energy lost ")[1].split(" J")[0])
+    if entry.key == "15":
+        v = data["multibody.upper_cm.linear_velocity"][-1, 0] - data["multibody.lower_cm.linear_velocity"][-1, 0]
+        result["separation_speed_m_s"] = float(v)
     for key in ("rw1.wheel_speed", "wheels.rw1.wheel_speed"):
         if key in data:
             speeds = [data[k] for k in data if k.endswith("wheel_speed")]
@@ -204,7 +225,7 @@ def outcome(entry: Entry, log) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="run, plot and check the example gallery")
-    parser.add_argument("keys", nargs="*", help="entries to run (01 .. 14; default all)")
+    parser.add_argument("keys", nargs="*", help="entries to run (01 .. 17; default all)")
     parser.add_argument("--output-directory", default="gallery_out", help="working directory (default gallery_out)")
     parser.add_argument("--figures", help="also copy each entry's figure into this folder (docs/gallery)")
     args = parser.parse_args(argv)

@@ -6,9 +6,16 @@ A scenario is a short UTF-8 YAML text (docs/scenario_schema.md). :func:`load_yam
 later refusal can name ``file:line: key.path``), refuses duplicate keys and keys that are not names, and
 bounds what a hostile file can cost: nesting (``MAX_DEPTH``), expansion through aliases (``MAX_NODES``, a
 "billion laughs" document) and size (``MAX_BYTES``).
+
+One extension of YAML: inside a flow mapping or list (``{...}``, ``[...]``) a signal name with an element index,
+``{signal: multibody.array.q[0], crosses: 90 deg}``, reads as the text ``multibody.array.q[0]``. Plain YAML stops
+the text at ``[`` (a flow indicator) and refuses the document, so no valid YAML document changes meaning: the index
+is taken into the text only when ``[`` follows a name character directly and ``[digits]`` closes it.
 """
 
 from __future__ import annotations
+
+import re
 
 import yaml
 
@@ -52,11 +59,32 @@ def type_name(value) -> str:
             float: "number", bool: "boolean", type(None): "nothing"}.get(type(value), type(value).__name__)
 
 
+#: an element index written straight after a name inside a flow collection (module docstring)
+_FLOW_INDEX = re.compile(r"\[-?[0-9]+\]")
+#: what ends a plain text inside a flow collection (besides the indicators themselves)
+_FLOW_END = "\0 \t\r\n\x85\u2028\u2029,?[]{}#"
+
+
 class LineLoader(yaml.SafeLoader):
     """SafeLoader producing LineDict/LineList, refusing duplicate keys, keys that are not text or
-    numbers, nesting deeper than MAX_DEPTH and documents expanding to more than MAX_NODES nodes."""
+    numbers, nesting deeper than MAX_DEPTH and documents expanding to more than MAX_NODES nodes; inside a
+    flow collection, ``name[3]`` is one text (module docstring)."""
 
     depth = 0
+
+    def scan_plain(self):
+        token = super().scan_plain()
+        while self.flow_level and self.peek() == "[" and self.get_mark().index == token.end_mark.index:
+            index = _FLOW_INDEX.match(self.prefix(24))
+            if index is None:
+                break
+            self.forward(index.end())
+            text, end = token.value + index.group(), self.get_mark()
+            if self.peek() not in _FLOW_END and not (self.peek() == ":" and self.peek(1) in _FLOW_END):
+                rest = super().scan_plain()
+                text, end = text + rest.value, rest.end_mark
+            token = yaml.tokens.ScalarToken(text, True, token.start_mark, end)
+        return token
 
     def compose_node(self, parent, index):
         self.depth += 1

@@ -45,7 +45,8 @@ CONSTRAINT_KEYS = {"name": "constraint name (its load port: <name>.load)", "kind
                    "or distance", "node_a": "node frame A (axes of the axis and the load)",
                    "node_b": "node frame B (omitted: the world, at A's initial pose)",
                    "axis": "revolute or prismatic axis, unit vector in A's axes",
-                   "length": "distance constraint's length (m; default: the initial distance)"}
+                   "length": "distance constraint's length (m; default: the initial distance)",
+                   "active": "false: declared off until an event switches it on (a latch; events: on:); default true"}
 FORCE_KEYS = {"name": "force element name", "kind": "spring_damper", "node_a": "node at one end",
               "node_b": "node at the other end (or world_point)", "world_point": "fixed end, world (m; default origin)",
               "stiffness": "N/m", "damping": "N*s/m", "free_length": "m (default: the initial length)",
@@ -265,9 +266,12 @@ def _constraint(system, entry, here: Where) -> ClosureConstraint:
         if not length > 0.0:
             raise here.child(entry, "length").error(f"expected a positive length, given {entry['length']!r}")
     name = expect_name(entry["name"], here.child(entry, "name"), "a constraint name") if "name" in entry else ""
+    active = entry.get("active", True)
+    if not isinstance(active, bool):
+        raise here.child(entry, "active").error(f"expected true or false, given {active!r}")
     try:
         return ClosureConstraint(nodes["node_a"], nodes.get("node_b"), kind, axis=None if axis is None else
-                                 tuple(axis), name=name, length=length)
+                                 tuple(axis), name=name, length=length, active=active)
     except ModelDefinitionError as exc:
         raise here.error(str(exc)) from None
 

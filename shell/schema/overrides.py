@@ -2,7 +2,7 @@
 
 ``seed=7``, ``integrator.step=5 ms``, ``stop.time=30 s``, ``<model>.<parameter>=value`` (also
 ``<model>.parameters.<name>``, ``<model>.config.<key>``, ``<model>.initial.<state>``), ``<model>.rate=20 Hz``
-and ``multibody.<body or node>.<key>=value``. The value is read as YAML (a number, a list, a mapping) within
+and ``multibody.<body or node>.<key>=value``, ``events.<event>.time`` / ``.crosses`` (an ``events: on:`` entry). The value is read as YAML (a number, a list, a mapping) within
 the limits of a scenario file, else kept as text for the unit parser (``[1, 2] N*m/rad``). Overrides are
 applied before validation, so an overridden value is checked like a written one; Monte Carlo runs apply
 their drawn values the same way (:func:`apply_value`).
@@ -13,6 +13,7 @@ from __future__ import annotations
 import yaml
 
 from shell.schema.document import LineDict, LineLoader, ScenarioError
+from shell.schema.events import set_event_value
 from shell.schema.validation import Where
 
 
@@ -41,6 +42,8 @@ def _apply_value(document: dict, key: str, value, where: "Where") -> None:
         raise where.error("the scenario's models: section is not a mapping")
     if parts[0] in ("seed", "name", "description") and len(parts) == 1:
         document[parts[0]] = value
+    elif parts[0] == "events" and len(parts) == 3 and parts[1] not in ("detection", "tolerance", "on"):
+        set_event_value(document.get("events"), parts[1], parts[2], value, where)
     elif parts[0] in ("integrator", "stop", "log", "events"):
         section = document.setdefault(parts[0], LineDict())
         if not isinstance(section, dict):

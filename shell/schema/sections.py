@@ -10,7 +10,7 @@ A scenario file describes one scene::
     connections: ["a.port -> b.port", {from: a.port, to: b.port}, ...]
     integrator:  {method, step, options}
     stop:        {time, events}
-    events:      {detection, tolerance}
+    events:      {detection, tolerance, on: [{name, when, do}]}   (shell.schema.events)
     log:         {rate, signals: [name | {signal, rate}], file}
 
 :func:`parse_scenario` reads the text (:mod:`shell.schema.document`), applies the command-line overrides
@@ -31,6 +31,7 @@ from shell.graphs import Digraph, find_cycle
 from shell.integrators import INTEGRATORS
 from shell.registry import RegistryError, lookup
 from shell.schema.document import MAX_BYTES, LineDict, ScenarioError, decode_scenario, load_yaml, show, type_name
+from shell.schema.events import normalize_on_key, read_events_on
 from shell.schema.overrides import apply_override
 from shell.schema.validation import (Where, check_rate, check_time, expect_list, expect_mapping, expect_name, find,
                                      period_seconds, refuse_nan, seconds)
@@ -43,7 +44,8 @@ TOP_LEVEL = {
     "assemblies": "reusable assembly types defined in this file",
     "connections": "list of 'source.port -> destination.port'", "integrator": "method and step",
     "stop": "stop time and stop events", "log": "logged signals and rates",
-    "events": "zero-crossing search: detection (sign_change | subdivided), tolerance",
+    "events": "zero-crossing search: detection (sign_change | subdivided), tolerance; on: events that change "
+              "the scene",
 }
 MODEL_KEYS = {
     "type": "registered model or assembly type", "parameters": "parameter values (with units)",
@@ -84,6 +86,7 @@ class Scenario:
     log_file: str | None = None
     templates: dict = field(default_factory=dict)  # assemblies: section, name -> (spec, where)
     template_classes: dict = field(default_factory=dict)  # the Assembly subclasses built from them
+    scene_events: list = field(default_factory=list)  # events: on: (shell.schema.events.SceneEvent)
 
     @property
     def name(self) -> str:
@@ -338,10 +341,14 @@ def _validate_events(document, root: Where, scenario: Scenario) -> None:
     if "events" not in document:
         return
     where = root.child(document, "events")
+    normalize_on_key(document["events"])
     spec = expect_mapping(document["events"], where, {
         "detection": "subdivided (default: search every step, also two crossings inside one step) or "
                      "sign_change (search a step only when a function changes sign between its ends; cheaper)",
-        "tolerance": "time tolerance of located crossings, e.g. 1e-10 s"})
+        "tolerance": "time tolerance of located crossings, e.g. 1e-10 s",
+        "on": "events that change the scene: [{name, when, do}] (docs/scenario_schema.md)"})
+    if "on" in spec:
+        scenario.scene_events = read_events_on(spec["on"], where.child(spec, "on"))
     if "detection" in spec:
         if not isinstance(spec["detection"], str) or spec["detection"] not in ("sign_change", "subdivided"):
             raise where.child(spec, "detection").error(f"expected sign_change or subdivided, given {show(spec['detection'])}")

@@ -668,6 +668,8 @@ def from_log(path, *, signals=None, scenario=None, overrides=(), meshes=None, sc
         warnings.simplefilter("always", LogIncompleteWarning)
         data = read_log(path)
     notes.extend(str(w.message) for w in caught)
+    notes.extend(f"event {e['event']} at t = {e['time']:.9g} s: {e['changes']}"  # events: on: (shell.scene_events)
+                 for e in json.loads(info["attributes"].get("scene_events", "[]")))
     spec = _scenario_of_log(str(path), info, scenario, overrides)
     engine, models, connections = _build(spec)
     engine.description = spec.document.get("multibody")

@@ -113,3 +113,9 @@ def test_gallery_outcomes(outcomes):
     assert o["11"]["mass_used_kg"] == pytest.approx(300e3 / (300 * 9.80665) * 40.0, rel=1e-6)
     assert o["11"]["max_gimbal_deg"] <= 6.0 + 1e-9
     assert o["12"]["finite"]
+    for key in ("15", "16", "17"):                                              # events: on: (scene_events.py)
+        assert o[key]["momentum_change_kg_m_s"] <= 1e-9 * o[key]["momentum_kg_m_s"]
+    assert o["15"]["event_time_s"] == 2.0
+    assert o["15"]["separation_speed_m_s"] == pytest.approx(np.sqrt(2 * 100.0 / (1000 * 300 / 1300)), rel=1e-6)
+    assert o["16"]["energy_lost_j"] == pytest.approx(5.9117608, rel=1e-6)
+    assert o["17"]["energy_lost_j"] > 0.0

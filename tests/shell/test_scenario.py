@@ -167,3 +167,21 @@ def test_a_models_scalar_default_fills_a_configured_shape(tmp_path, capsys):
     assert main(["check", str(scene), "--set", "c.value=2 m"]) == 1
     assert ("shaped.yaml:2: models.c.parameters.value: model c: parameter value: expected shape (3,), "
             "given shape () ('2 m')") in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text, value", [
+    ("when: {signal: multibody.array.q[0], crosses: 90 deg, direction: rising}",
+     {"when": {"signal": "multibody.array.q[0]", "crosses": "90 deg", "direction": "rising"}}),
+    ("a: [x[1], y, [1, 2]]", {"a": ["x[1]", "y", [1, 2]]}),
+    ("a: {b: q[12][3] , c: q[2].x}", {"a": {"b": "q[12][3]", "c": "q[2].x"}}),
+])
+def test_an_indexed_signal_inside_a_flow_mapping_reads_as_one_text(text, value):
+    """Issue 29's `when: {signal: multibody.array.q[0], ...}` verbatim: plain YAML refuses it ([ is a flow
+    indicator), the scenario loader reads name[index] as one text; a list after a comma is still a list."""
+    import yaml
+
+    from shell.schema.document import LineLoader
+
+    with pytest.raises(yaml.YAMLError):
+        yaml.safe_load(text)
+    assert yaml.load(text, Loader=LineLoader) == value
