@@ -329,20 +329,27 @@ def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br
         _shapes_dot(params, gam, n, width, Z, bm)
 
 
+@njit(cache=True, inline="always")
+def _modal_mass_data(params, o, count, n, terms, state):
+    """What the node terms of the modal mass are made of: whether there are any (G1 or G2), whether CG offsets
+    enter them (G1), the params offsets of the masses, offsets, Lambda and Gamma, and each node's ``theta`` and
+    ``dJ`` of this evaluation."""
+    g1 = (terms & NODE_G1) != 0
+    N = count
+    ma, pa, _, lam, gam = _layout(o, N, n)
+    return (g1 or (terms & NODE_G2) != 0, g1 and params[o] != 0.0, ma, pa, lam, gam,
+            state[S_THETA * N:(S_THETA + 3) * N], state[S_D * N:(S_D + 9) * N])
+
+
 @njit(cache=True, fastmath=FAST_SUMS)
 def node_inertia_times(params, o, count, n, terms, state, x, out):
     """``out += (G(eta) - G0 - tabled terms) x``: the node terms of the modal mass times ``x`` (n), with the
     ``theta`` and ``u`` that :func:`node_inertia_terms` kept in ``state``. O(count n)."""
-    g1 = (terms & NODE_G1) != 0
-    g2 = (terms & NODE_G2) != 0
-    if not (g1 or g2):
+    varies, offset, ma, pa, lam, gam, th, D = _modal_mass_data(params, o, count, n, terms, state)
+    if not varies:
         return
     N = count
     width = 3 * N
-    offset = g1 and params[o] != 0.0
-    ma, pa, jb, lam, gam = _layout(o, N, n)
-    th = state[S_THETA * N:(S_THETA + 3) * N]
-    D = state[S_D * N:(S_D + 9) * N]
     A = state[S_A * N:(S_A + 3) * N]
     Z = state[S_Z * N:(S_Z + 3) * N]
     _shapes_times(params, lam, n, width, x, x, A, A, False)  # alpha = lambda x
@@ -379,16 +386,11 @@ def node_inertia_modal_mass(params, o, count, n, terms, state, G):
     """``G += sum_j lambda_j' dJ_j lambda_j + m_j (lambda_j' dP_j gamma_j + gamma_j' dP_j' lambda_j)`` (n x n):
     the node terms of the modal mass formed, O(count n^2) (for the composite-inertia mass matrix and a
     factored modal mass)."""
-    g1 = (terms & NODE_G1) != 0
-    g2 = (terms & NODE_G2) != 0
-    if not (g1 or g2):
+    varies, offset, ma, pa, lam, gam, th, D = _modal_mass_data(params, o, count, n, terms, state)
+    if not varies:
         return
     N = count
     width = 3 * N
-    offset = g1 and params[o] != 0.0
-    ma, pa, jb, lam, gam = _layout(o, N, n)
-    th = state[S_THETA * N:(S_THETA + 3) * N]
-    D = state[S_D * N:(S_D + 9) * N]
     Y = state[S_A * N:(S_A + 3) * N]
     for s in range(n):
         # Y = dJ lambda[:, s] (node-minor), then G[:, s] += Lambda Y
