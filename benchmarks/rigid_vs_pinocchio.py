@@ -4,7 +4,9 @@ For chains and random trees of N revolute/prismatic bodies (fixed base), time on
 ``MultibodySystem.forward_dynamics(q, u, tau)`` and of ``pinocchio.aba(model, data, q, v, tau)`` on the
 same URDF, report our time / Pinocchio's time, and fit the log-log slope of time versus N (1 = O(N)).
 The two calls are interleaved in many short alternating batches and the minimum over batches is kept,
-so load on this shared machine affects both sides alike.
+so load on this shared machine affects both sides alike. A third column times the engine's entry point
+called from compiled code on the engine data (what the shell's compiled loop pays per derivative: the
+recursion without the Python-to-numba boundary), so the difference to the Python call is its overhead.
 
 Pinocchio's ``Data`` grows faster than N^2 in memory for long chains (1.9 GB at N = 300, 8 GB at
 N = 500, measured with pin 4.1), so at N = 1000 it cannot be allocated on a 24 GB machine; above
@@ -22,9 +24,22 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
+from threadpoolctl import threadpool_limits
 
 from dynamics import Multibody
+from dynamics import engine as E
 from dynamics.samples import random_urdf
+
+
+@njit(cache=True)
+def compiled_calls(d, q, u, tau, node_forces, udot, tau_out, calls):
+    """``calls`` forward dynamics from compiled code, the engine data borrowed as the compiled loop does."""
+    d = E.borrowed(d)
+    status = 0
+    for _ in range(calls):
+        status |= E.forward_dynamics_articulated(d, q, u, tau, node_forces, udot, tau_out)
+    return status
 
 
 def batch_time(fn, batch):
@@ -45,8 +60,18 @@ def measure(n, topology, repeat, workdir, with_pinocchio):
     batch = max(2, 300 // n)
     rounds = 40 * repeat
     ours = lambda: system.forward_dynamics(q, u, tau)  # noqa: E731
+    d = E.engine_data(system)
+    node_forces, udot, tau_out = np.zeros((system.nnodes, 6)), np.zeros(system.nu), np.empty(system.nu)
+    compiled = lambda: compiled_calls(d, q, u, tau, node_forces, udot, tau_out, batch)  # noqa: E731
+    compiled()
+    if not np.array_equal(udot, ours()):
+        raise AssertionError("the compiled entry point and the Python call disagree")
     if not with_pinocchio:
-        return min(batch_time(ours, batch) for _ in range(rounds)), np.nan, np.nan
+        t_ours = t_compiled = np.inf
+        for _ in range(rounds):
+            t_ours = min(t_ours, batch_time(ours, batch))
+            t_compiled = min(t_compiled, batch_time(compiled, 1) / batch)
+        return t_ours, t_compiled, np.nan, np.nan
     model = pin.buildModelFromUrdf(str(path))
     data = model.createData()
     # same numbers in Pinocchio's order (all joints are 1-DOF, so only a permutation)
@@ -55,11 +80,12 @@ def measure(n, topology, repeat, workdir, with_pinocchio):
     qp[perm], vp[perm], taup[perm] = q, u, tau
     theirs = pin.aba(model, data, qp, vp, taup)[perm]
     rel = np.linalg.norm(ours() - theirs) / np.linalg.norm(theirs)
-    t_ours = t_pin = np.inf
+    t_ours = t_compiled = t_pin = np.inf
     for _ in range(rounds):  # interleave so drifts in machine load hit both
         t_ours = min(t_ours, batch_time(ours, batch))
+        t_compiled = min(t_compiled, batch_time(compiled, 1) / batch)
         t_pin = min(t_pin, batch_time(lambda: pin.aba(model, data, qp, vp, taup), batch))
-    return t_ours, t_pin, rel
+    return t_ours, t_compiled, t_pin, rel
 
 
 def main(argv=None):
@@ -70,24 +96,25 @@ def main(argv=None):
                         help="largest N for which Pinocchio's Data is allocated (memory, see above)")
     args = parser.parse_args(argv)
     rows = []
-    with tempfile.TemporaryDirectory() as workdir:
+    with tempfile.TemporaryDirectory() as workdir, threadpool_limits(1):
         measure(7, "chain", 1, workdir, True)  # load the numba cache before timing
         for topology in ("chain", "tree"):
             for n in args.sizes:
-                t_ours, t_pin, rel = measure(n, topology, args.repeat, workdir, n <= args.pinocchio_max_n)
-                rows.append((topology, n, t_ours, t_pin, rel))
+                rows.append((topology, n) + measure(n, topology, args.repeat, workdir, n <= args.pinocchio_max_n))
     print(f"Pinocchio {pin.__version__}; per-call forward dynamics from Python, minimum over "
           f"{40 * args.repeat} interleaved batches")
-    print("| topology | N | flexshell (us) | Pinocchio aba (us) | flexshell / Pinocchio | rel. diff. |")
-    print("| --- | ---: | ---: | ---: | ---: | ---: |")
-    for topology, n, t_ours, t_pin, rel in rows:
+    print("| topology | N | flexshell (us) | from compiled code (us) | Pinocchio aba (us) | flexshell / Pinocchio | "
+          "rel. diff. |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    for topology, n, t_ours, t_compiled, t_pin, rel in rows:
         if np.isnan(t_pin):
-            print(f"| {topology} | {n} | {t_ours * 1e6:.2f} | not allocatable (Data > 24 GB) | - | - |")
+            print(f"| {topology} | {n} | {t_ours * 1e6:.2f} | {t_compiled * 1e6:.2f} | not allocatable (Data > 24 GB) "
+                  f"| - | - |")
         else:
-            print(f"| {topology} | {n} | {t_ours * 1e6:.2f} | {t_pin * 1e6:.2f} | {t_ours / t_pin:.2f} | "
-                  f"{rel:.1e} |")
+            print(f"| {topology} | {n} | {t_ours * 1e6:.2f} | {t_compiled * 1e6:.2f} | {t_pin * 1e6:.2f} | "
+                  f"{t_ours / t_pin:.2f} | {rel:.1e} |")
     for topology in ("chain", "tree"):
-        sel = [(n, to, tp) for top, n, to, tp, _ in rows if top == topology and n >= 30]
+        sel = [(n, to, tp) for top, n, to, _, tp, _ in rows if top == topology and n >= 30]
         if len(sel) >= 2:
             n_arr = np.log([s[0] for s in sel])
             slope_ours = np.polyfit(n_arr, np.log([s[1] for s in sel]), 1)[0]

@@ -14,8 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dynamics.errors import ModelDefinitionError
-from dynamics.hinges import (FREE, HINGE_NAMES, HINGE_NAXES, HINGE_NU, HINGE_TYPES, LOCKED, PRISMATIC, REVOLUTE,
-                             SPHERICAL, UJOINT)
+from dynamics.hinges import FREE, HINGE_TYPES, HINGES, LOCKED
 from dynamics.spatial import quaternion_to_rotation
 
 _UNIT_TOLERANCE = 1e-9
@@ -129,19 +128,19 @@ def checked_inertia(inertia, where, code=FREE, hinge_axes=None, prescribed=None,
                 f"moments are {eig.tolist()} kg m^2")
         null = [np.round(vectors[:, k], 12).tolist() for k in range(3) if eig[k] <= 1e-12 * scale]
         fully_prescribed = prescribed is not None and len(prescribed) > 0 and all(prescribed)
-        if code in (LOCKED, PRISMATIC) or fully_prescribed:
+        rotation = HINGES[code].rotation
+        if rotation == "none" or fully_prescribed:
             ok = True
-        elif code in (REVOLUTE, UJOINT):
+        elif rotation == "axes":
             R = np.eye(3) if R_BM is None else R_BM
-            n_axes = 1 if code == REVOLUTE else 2
-            ok = all((R @ a) @ about_hinge @ (R @ a) > tol for a in hinge_axes[:n_axes])
-        elif code == SPHERICAL:
+            ok = all((R @ a) @ about_hinge @ (R @ a) > tol for a in hinge_axes[:HINGES[code].n_axes])
+        elif rotation == "point":
             ok = np.linalg.eigvalsh(about_hinge)[0] > tol
         else:
             ok = False
         if not ok:
-            need = ("a free hinge turns the body about its center of mass: it needs rotary inertia about "
-                    "every axis" if code == FREE else f"its {HINGE_NAMES[code]} hinge turns it about an "
+            need = (f"a {HINGES[code].name} hinge turns the body about its center of mass: it needs rotary inertia "
+                    "about every axis" if rotation == "free" else f"its {HINGES[code].name} hinge turns it about an "
                     "axis without inertia about the hinge point")
             raise ModelDefinitionError(
                 f"{where}: {need}; principal moments about the center of mass are {eig.tolist()} kg m^2, "
@@ -158,21 +157,22 @@ def checked_inertia(inertia, where, code=FREE, hinge_axes=None, prescribed=None,
     return J
 
 def checked_axes(code, axis, axes, where):
-    naxes = HINGE_NAXES[code]
+    naxes = HINGES[code].n_axes
+    name = HINGES[code].name
     result = np.zeros((2, 3))
     if naxes == 0:
         if axis is not None or axes is not None:
-            raise ModelDefinitionError(f"{where}: a {HINGE_NAMES[code]} hinge takes no axis")
+            raise ModelDefinitionError(f"{where}: a {name} hinge takes no axis")
         return result
     if naxes == 1:
         if axes is not None:
-            raise ModelDefinitionError(f"{where}: a {HINGE_NAMES[code]} hinge takes one 'axis', not 'axes'")
+            raise ModelDefinitionError(f"{where}: a {name} hinge takes one 'axis', not 'axes'")
         if axis is None:
-            raise ModelDefinitionError(f"{where}: a {HINGE_NAMES[code]} hinge needs an 'axis'")
+            raise ModelDefinitionError(f"{where}: a {name} hinge needs an 'axis'")
         given = [axis]
     else:
         if axes is None or len(axes) != 2:
-            raise ModelDefinitionError(f"{where}: a U-joint needs 'axes' = [axis1, axis2], got {axes!r}")
+            raise ModelDefinitionError(f"{where}: a {name} hinge needs 'axes' = [axis1, axis2], got {axes!r}")
         given = list(axes)
     for k, a in enumerate(given):
         v = vector3(a, f"{where}: hinge axis {k + 1}")
@@ -182,11 +182,11 @@ def checked_axes(code, axis, axes, where):
                                        f"(norm {norm:.12g}); normalize it explicitly")
         result[k] = v
     if naxes == 2 and np.linalg.norm(np.cross(result[0], result[1])) < 1e-6:
-        raise ModelDefinitionError(f"{where}: U-joint axes {result.tolist()} are parallel")
+        raise ModelDefinitionError(f"{where}: {name} hinge axes {result.tolist()} are parallel")
     return result
 
 def checked_prescribed(code, prescribed, where):
-    nu = int(HINGE_NU[code])
+    nu = HINGES[code].nu
     if prescribed is None or prescribed is False:
         return np.zeros(nu, dtype=bool)
     if prescribed is True:
@@ -194,7 +194,7 @@ def checked_prescribed(code, prescribed, where):
     flags = np.asarray(prescribed, dtype=bool).reshape(-1)
     if flags.shape != (nu,):
         raise ModelDefinitionError(f"{where}: 'prescribed' needs one flag per hinge DOF ({nu} for a "
-                                   f"{HINGE_NAMES[code]} hinge), got {prescribed!r}")
+                                   f"{HINGES[code].name} hinge), got {prescribed!r}")
     return flags
 
 

@@ -581,7 +581,7 @@ class _HingeElement(_Element):
         """q and u indices of the element's DOF into ``ints``; on a hinge locked by a run-time change
         (``allow_locked``) the element is switched off."""
         from dynamics.definitions import suggest
-        from dynamics.hinges import HINGE_TYPES, PRISMATIC, REVOLUTE, UJOINT
+        from dynamics.hinges import HINGES, hinge as hinge_record
 
         names = list(system.body_names)
         if self.body not in names:
@@ -596,14 +596,15 @@ class _HingeElement(_Element):
         if hinge == "locked" and allow_locked:
             ints[F_ACTIVE] = 0
             return
-        n = {REVOLUTE: 1, PRISMATIC: 1, UJOINT: 2}.get(HINGE_TYPES[hinge], 0)
+        n = hinge_record(hinge).element_dofs
         dof = int(self.dof)
         if not 0 <= dof < n:
+            kinds = ", ".join(h.name for h in HINGES if h.element_dofs)
             raise ModelDefinitionError(f"{self.where}: body '{system.body_names[k]}' has a {hinge} hinge; hinge "
-                                       f"elements act on revolute, prismatic or U-joint angles (dof 0"
-                                       f"{' or 1' if n == 2 else ''}), got dof {self.dof!r}" if n else
+                                       f"elements act on {kinds} coordinates (dof 0"
+                                       f"{f' to {n - 1}' if n > 1 else ''}), got dof {self.dof!r}" if n else
                                        f"{self.where}: body '{system.body_names[k]}' has a {hinge} hinge; hinge "
-                                       f"elements act on revolute, prismatic or U-joint coordinates")
+                                       f"elements act on {kinds} coordinates")
         ints[F_Q] = system.q_slices[k].start + dof
         ints[F_U] = system.u_slices[k].start + dof
 

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dynamics.hinges import FREE, HINGE_NU, HINGE_TYPES, LOCKED, PRISMATIC, REVOLUTE, SPHERICAL, UJOINT
+from dynamics.hinges import hinge
 
 TOLERANCE = 1e-3
 """The relative size below which a term of M(eta) is left out by ``order="auto"``."""
@@ -73,14 +73,14 @@ def _rates(system, q, u):
         j = i
         while j >= 0:
             sl = system.u_slices[j]
-            code = HINGE_TYPES[system.hinge_names[j]]
-            rates = np.asarray(u[sl.start:sl.start + int(HINGE_NU[code])], dtype=float)
-            if np.any(system.prescribed_dofs[sl.start:sl.start + int(HINGE_NU[code])]):
+            record = hinge(system.hinge_names[j])
+            rates = np.asarray(u[sl.start:sl.start + record.nu], dtype=float)
+            if np.any(system.prescribed_dofs[sl.start:sl.start + record.nu]):
                 prescribed.append(system.joint_names[j])
-            turns |= code not in (LOCKED, PRISMATIC)
-            if code in (REVOLUTE, UJOINT):
+            turns |= record.rotation != "none"
+            if record.rotation == "axes":
                 omega += float(np.abs(rates).sum())
-            elif code in (SPHERICAL, FREE):
+            elif record.rotation in ("point", "free"):
                 omega += float(np.linalg.norm(rates[:3]))
             j = system.parents[j]
         out.append((omega, prescribed, turns))

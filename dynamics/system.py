@@ -26,12 +26,14 @@ import dataclasses
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from dynamics import kernels as K
 from dynamics import layout as L
 from dynamics.definitions import rigid_mass_properties
+from dynamics.engine import borrowed
 from dynamics.errors import ModelDefinitionError, SingularConfigurationError
-from dynamics.hinges import FREE, HINGE_NQ, HINGE_NU, HINGE_TYPES, SPHERICAL
+from dynamics.hinges import HINGE_TYPES, HINGES
 from dynamics.kernels.node_inertia import NODE_STATE, node_params
 from dynamics.reconfigure import reconfigure
 from dynamics.spatial import spatial_inertia as _spatial_inertia
@@ -176,6 +178,42 @@ def choose_solver(topology):
                    f"dense M udot = tau - h)")
 
 
+# -- Python's calls into the kernels. The system owns its arrays for the whole call, so the kernels take them as
+# borrowed references (dynamics.engine.borrowed): otherwise numba increments and decrements an atomic reference count
+# for every view a kernel takes of them (ws_mat[i, MAT_IA], a node's slot, ...), which was 60 % of a rigid forward
+# dynamics (a random tree of 30 bodies 16.2 -> 6.5 us, of 300 bodies 155 -> 67 us, 2026-11-28;
+# benchmarks/rigid_vs_pinocchio.py). The compiled loop borrows the same arrays for the same reason.
+
+@njit(cache=True)
+def _borrowing_articulated_forward_dynamics(*arrays):
+    return K.forward_dynamics(*borrowed(arrays))
+
+
+@njit(cache=True)
+def _borrowing_dense_forward_dynamics(*arrays):
+    return K.forward_dynamics_dense(*borrowed(arrays))
+
+
+@njit(cache=True)
+def _borrowing_inverse_dynamics(*arrays):
+    K.inverse_dynamics(*borrowed(arrays))
+
+
+@njit(cache=True)
+def _borrowing_mass_matrix(*arrays):
+    K.mass_matrix(*borrowed(arrays))
+
+
+@njit(cache=True)
+def _borrowing_node_kinematics(*arrays):
+    K.node_kinematics(*borrowed(arrays))
+
+
+@njit(cache=True)
+def _borrowing_energy_momentum(*arrays):
+    K.energy_momentum(*borrowed(arrays))
+
+
 class MultibodySystem:
     """A compiled tree of bodies. Build with :class:`dynamics.Multibody`.
 
@@ -221,7 +259,7 @@ class MultibodySystem:
         self.u_slices = tuple(slice(int(t[L.U_START]), int(t[L.U_START] + t[L.NU_HINGE] + t[L.N_MODES]))
                               for t in self.topology)
         self.quaternion_q_indices = np.array(
-            [t[L.Q_START] for t in self.topology if t[L.HINGE_TYPE] in (SPHERICAL, FREE)], dtype=np.int64)
+            [t[L.Q_START] for t in self.topology if HINGES[t[L.HINGE_TYPE]].quaternion], dtype=np.int64)
         prescribed = np.zeros(self.nu, dtype=bool)
         for t in self.topology:
             for kk in range(t[L.N_PRESCRIBED]):
@@ -229,7 +267,8 @@ class MultibodySystem:
         self.prescribed_dofs = _frozen(prescribed, bool)
         self.solver, self.solver_reason = solver, solver_reason
         self.notes = tuple(notes)
-        self._forward_kernel = K.forward_dynamics_dense if self.solver == "dense" else K.forward_dynamics
+        self._forward_kernel = (_borrowing_dense_forward_dynamics if self.solver == "dense"
+                                else _borrowing_articulated_forward_dynamics)
         self._allocate_workspace()
 
     @classmethod
@@ -254,7 +293,7 @@ class MultibodySystem:
         child_nodes = [[] for _ in bodies]  # nodes of each flexible body that children hang from
         for i, b in enumerate(bodies):
             code = HINGE_TYPES[b.hinge]
-            nq, nu = int(HINGE_NQ[code]), int(HINGE_NU[code])
+            nq, nu = HINGES[code].nq, HINGES[code].nu
             free = np.flatnonzero(~b.prescribed)
             pres = np.flatnonzero(b.prescribed)
             outboard_identity = (np.array_equal(b.outboard_rotation, np.eye(3))
@@ -579,15 +618,16 @@ class MultibodySystem:
         u = self._vector(u, self.nu, "u")
         u_dot = self._vector(u_dot, self.nu, "u_dot")
         nf, bf = self._forces(node_forces, body_forces)
-        K.inverse_dynamics(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params, q, u, u_dot, nf,
-                           bf, tau, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
+        _borrowing_inverse_dynamics(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params, q, u, u_dot,
+                                    nf, bf, tau, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
         return tau
 
     def mass_matrix(self, q):
         """Joint-space mass matrix (composite-rigid-body algorithm), symmetric (nu, nu)."""
         M = np.empty((self.nu, self.nu))
-        K.mass_matrix(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
-                      self._vector(q, self.nq, "q"), self._zero_u, M, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
+        _borrowing_mass_matrix(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
+                               self._vector(q, self.nq, "q"), self._zero_u, M, self.ws_rot, self.ws_vec, self.ws_mat,
+                               self.pool)
         return M
 
     def bias_forces(self, q, u, node_forces=None, body_forces=None):
@@ -622,9 +662,9 @@ class MultibodySystem:
         velocity = np.empty((n, 6))
         acceleration = np.empty((n, 6))
         u_dot = self._zero_u if u_dot is None else self._vector(u_dot, self.nu, "u_dot")
-        K.node_kinematics(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
-                          self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), u_dot, rotation, position,
-                          velocity, acceleration, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
+        _borrowing_node_kinematics(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
+                                   self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), u_dot, rotation,
+                                   position, velocity, acceleration, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
         return NodeKinematics(rotation, position, velocity[:, :3], velocity[:, 3:], acceleration[:, :3],
                               acceleration[:, 3:])
 
@@ -640,9 +680,9 @@ class MultibodySystem:
 
     def _energy_momentum(self, q, u):
         out = np.empty(8)
-        K.energy_momentum(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
-                          self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), out, self.ws_rot,
-                          self.ws_vec, self.ws_mat, self.pool)
+        _borrowing_energy_momentum(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
+                                   self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), out, self.ws_rot,
+                                   self.ws_vec, self.ws_mat, self.pool)
         return out
 
     def kinetic_energy(self, q, u):

@@ -104,7 +104,7 @@ def coordinate_blocks(scenario_text: str, signal: str, size: int):
     plotted whole)."""
     import yaml
 
-    from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
+    from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES, hinge as hinge_record
     from shell.models.multibody import HINGE_UNITS
 
     engine, _, leaf = signal.rpartition(".")
@@ -128,16 +128,13 @@ def coordinate_blocks(scenario_text: str, signal: str, size: int):
     if len(flexible) > 1 or (not flexible and hinge_total != size) or hinge_total > size:
         return None  # several flexible bodies: their mode counts are in their body files
     blocks, start = [], 0
-    hinge_labels = {"free": (["qw", "qx", "qy", "qz", "x", "y", "z"], ["ωx", "ωy", "ωz", "vx", "vy", "vz"]),
-                    "spherical": (["qw", "qx", "qy", "qz"], ["ωx", "ωy", "ωz"]),
-                    "ujoint": (["angle1", "angle2"], ["rate1", "rate2"])}
     for b in bodies:
         hinge = b.get("hinge", "locked")
         if hinge not in HINGE_TYPES:
             return None
         n = int(counts[HINGE_TYPES[hinge]])
         if n:
-            labels = hinge_labels.get(hinge, ([hinge], [hinge]))[0 if leaf == "q" else 1]
+            labels = list(hinge_record(hinge).labels[0 if leaf == "q" else 1])
             blocks.append((f"{b['name']} {hinge} hinge", start, n, labels[:n] if len(labels) >= n else
                            [f"{hinge}[{k}]" for k in range(n)], HINGE_UNITS[hinge][column]))
             start += n

@@ -56,7 +56,7 @@ from numba import njit
 from dynamics import constraint_kernels as CK
 from dynamics import engine as E
 from dynamics import kernels as K
-from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
+from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES, HINGES
 
 from shell.kernel_protocol import (DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, FEEDTHROUGH_OUTPUTS, NORMALIZE,
                                    STATE_OUTPUTS)
@@ -67,14 +67,7 @@ from shell.schema.multibody import initial_targets
 from shell.units import UnitError, to_magnitude
 
 # unit of (q, u, u_dot, generalized force) per hinge type; "" = mixed or dimensionless (SI values)
-HINGE_UNITS = {
-    "locked": ("", "", "", ""),
-    "revolute": ("rad", "rad/s", "rad/s^2", "N*m"),
-    "prismatic": ("m", "m/s", "m/s^2", "N"),
-    "ujoint": ("rad", "rad/s", "rad/s^2", "N*m"),
-    "spherical": ("", "rad/s", "rad/s^2", "N*m"),
-    "free": ("", "", "", ""),
-}
+HINGE_UNITS = {h.name: h.units for h in HINGES}
 
 
 @njit(cache=True)

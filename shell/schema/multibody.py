@@ -1,7 +1,8 @@
 """The ``multibody:`` section of a scenario: bodies, hinges, nodes and initial state, read into an engine system.
 
 The section (docs/scenario_schema.md, section multibody) lists bodies in order, each with its parent, hinge (locked,
-revolute, prismatic, ujoint, spherical, free; docs/conventions.md for their coordinates), rigid mass properties or a
+revolute, prismatic, ujoint, spherical, free, translation: dynamics.hinges.HINGES; docs/conventions.md for their
+coordinates), rigid mass properties or a
 flexible body file (``flexshell fem2modal``), the placement of its inboard and outboard frames, and an optional
 ``initial:`` hinge state; then nodes fixed on bodies; then closure ``constraints:`` between nodes (weld, ball,
 revolute, prismatic, distance: :mod:`dynamics.constraints`), which close loops or hold a node to the world.
@@ -26,7 +27,7 @@ from dynamics.constraints import (CONSTRAINT_KINDS, DEFAULT_ASSEMBLY_TOLERANCE, 
                                   ConstrainedSystem)
 from dynamics.definitions import suggest
 from dynamics.force_elements import ACTS, SpringDamper
-from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES
+from dynamics.hinges import HINGE_TYPES, HINGES
 from dynamics.layout import N_MODES
 from dynamics.modal_order import resolve_modal_orders
 from dynamics.mode_selection import select_modes
@@ -55,8 +56,8 @@ FORCE_KINDS = ("spring_damper",)
 NODE_KEYS = {"name": "node name", "body": "body it is fixed on", "position": "in the body frame (m)",
              "rotation": "node -> body", "grid": "FE grid id (nodes on flexible bodies)"}
 BODY_KEYS = {
-    "name": "body name", "parent": "parent body name or world", "hinge": "locked, revolute, prismatic, "
-    "ujoint, spherical or free", "mass": "mass (kg)", "com": "center of mass in the body frame (m)",
+    "name": "body name", "parent": "parent body name or world", "hinge": ", ".join(HINGE_TYPES),
+    "mass": "mass (kg)", "com": "center of mass in the body frame (m)",
     "inertia": "inertia about the center of mass, 3x3 or 3 principal moments (kg m^2)",
     "axis": "hinge axis (unit vector)", "axes": "two U-joint axes", "inboard_position": "m",
     "inboard_rotation": "3x3 or quaternion", "outboard_position": "m", "outboard_rotation": "3x3 or quaternion",
@@ -78,14 +79,19 @@ BODY_KEYS = {
 }
 FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "omit_terms", "damping_ratio", "integrals",
                  "child_grid", "geometric_stiffening", "preload")
-INITIAL_KEYS = {  # key -> (unit, applies to, which slice)
-    "q": ("", "all"), "u": ("", "all"),
-    "angle": ("rad", "revolute ujoint"), "angle_rate": ("rad/s", "revolute ujoint"),
-    "displacement": ("m", "prismatic"), "displacement_rate": ("m/s", "prismatic"),
-    "attitude": ("", "spherical free"), "angular_velocity": ("rad/s", "spherical free"),
-    "position": ("m", "free"), "velocity": ("m/s", "free"),
-    "modal": ("", "flexible"), "modal_rate": ("1/s", "flexible"),
-}
+
+
+def _initial_keys():
+    """key -> (unit, what it applies to) of a body's ``initial:`` entry: q and u, the hinge types' own keys (their
+    records, dynamics.hinges.HINGES), a flexible body's modal coordinates."""
+    keys = {"q": ("", "all"), "u": ("", "all")}
+    for record in HINGES:
+        for key, _, _, _, unit in record.initial:
+            keys[key] = (unit, f"{keys[key][1]} {record.name}" if key in keys else record.name)
+    return keys | {"modal": ("", "flexible"), "modal_rate": ("1/s", "flexible")}
+
+
+INITIAL_KEYS = _initial_keys()
 
 
 @dataclass(frozen=True)
@@ -370,20 +376,13 @@ def initial_targets(system, b) -> dict:
     hinge = system.hinge_names[b]
     qs, us = system.q_slices[b], system.u_slices[b]
     nq, nu = qs.stop - qs.start, us.stop - us.start
-    hinge_nq, hinge_nu = int(HINGE_NQ[HINGE_TYPES[hinge]]), int(HINGE_NU[HINGE_TYPES[hinge]])
-    n_modes = nq - hinge_nq
-    kinds = set(hinge.split() + (["flexible"] if n_modes else []))
-    local = {
-        "q": ("q", 0, nq), "u": ("u", 0, nu), "angle": ("q", 0, hinge_nq), "angle_rate": ("u", 0, hinge_nu),
-        "displacement": ("q", 0, 1), "displacement_rate": ("u", 0, 1), "attitude": ("q", 0, 4),
-        "angular_velocity": ("u", 0, 3), "position": ("q", 4, 7), "velocity": ("u", 3, 6),
-        "modal": ("q", hinge_nq, nq), "modal_rate": ("u", hinge_nu, nu),
-    }
+    record = HINGES[HINGE_TYPES[hinge]]
+    local = [("q", "q", 0, nq, ""), ("u", "u", 0, nu, "")] + list(record.initial)
+    if nq > record.nq:
+        local += [("modal", "q", record.nq, nq, INITIAL_KEYS["modal"][0]),
+                  ("modal_rate", "u", record.nu, nu, INITIAL_KEYS["modal_rate"][0])]
     targets = {}
-    for key, (unit, applies) in INITIAL_KEYS.items():
-        if applies != "all" and not set(applies.split()) & kinds:
-            continue
-        target, start, stop = local[key]
+    for key, target, start, stop, unit in local:
         base = qs.start if target == "q" else us.start
         targets[key] = (target, slice(base + start, base + stop), (stop - start,), unit)
     if len(_INITIAL_TARGETS) > 1024:

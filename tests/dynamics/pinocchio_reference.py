@@ -5,7 +5,8 @@ Coordinate map (flexshell -> Pinocchio), per hinge:
 * spherical: our [w, x, y, z] -> Pinocchio [x, y, z, w]; the angular velocity (child frame) is the same;
 * free: our [w, x, y, z, px, py, pz] -> Pinocchio [px, py, pz, x, y, z, w]; our u = [omega; v] ->
   Pinocchio v = [v; omega] (both in the child frame); generalized forces [torque; force] -> [force; torque];
-* U-joint: the same two angles (R = R(a1, q1) R(a2, q2) in both).
+* U-joint: the same two angles (R = R(a1, q1) R(a2, q2) in both);
+* translation: the same position and velocity (Pinocchio's ``JointModelTranslation``).
 Pinocchio's joint frame is our hinge outboard frame M; inertias and child placements are re-expressed
 in M when a body's outboard frame is not its body frame.
 """
@@ -103,7 +104,8 @@ def pinocchio_from_builder(mb, system):
                  "prismatic": lambda: pin.JointModelPrismaticUnaligned(a[0]),
                  "ujoint": lambda: pin.JointModelUniversal(a[0], a[1]),
                  "spherical": lambda: pin.JointModelSpherical(),
-                 "free": lambda: pin.JointModelFreeFlyer()}[body.hinge]()
+                 "free": lambda: pin.JointModelFreeFlyer(),
+                 "translation": lambda: pin.JointModelTranslation()}[body.hinge]()
         jid = model.addJoint(parent_jid, joint, placement, body.joint_name)
         T_BM[body.name] = _se3(body.outboard_rotation, body.outboard_position)
         R_BM, p_BM = body.outboard_rotation, body.outboard_position
