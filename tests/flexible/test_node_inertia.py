@@ -43,15 +43,21 @@ def _state(system, n, rng, size=0.1):
 
 @pytest.mark.parametrize("order", [1, 2])
 @pytest.mark.parametrize("refine", [False, True])
-def test_node_terms_equal_the_tables(order, refine, monkeypatch):
-    """Every algorithm on a body with rotary node inertia and CG offsets, and a wheel on one of its nodes:
-    the node sums (refined or factored modal mass) against the same body with all terms as tables."""
+@pytest.mark.parametrize("offsets", ["all", "none", "some"])
+def test_node_terms_equal_the_tables(order, refine, offsets, monkeypatch):
+    """Every algorithm on a body with rotary node inertia and CG offsets on all, none or every other node (the node
+    sums skip the offset terms of a body without any and carry zero offsets through them where only some nodes have
+    one), and a wheel on one of its nodes: the node sums (refined or factored modal mass) against the same body with
+    all terms as tables."""
     monkeypatch.setattr(dynamics.system, "refinement_budget", lambda n, count: 60 if refine else 0)
     model = random_node_model(9, 6, seed=50 + order)
+    if offsets != "all":
+        model.cg[::1 if offsets == "none" else 2] = 0.0
     tables = _body(model, order, nodal=False, wheel=True)
     nodes = _body(model, order, nodal=True, wheel=True)
     fx = nodes.topology[0, dynamics.system.L.FLEX:]
     assert fx[dynamics.system.L.FX_NODES] >= 0 and bool(fx[dynamics.system.L.FX_REFINE]) == refine
+    assert nodes.params[fx[dynamics.system.L.FX_NODES]] == (0.0 if offsets == "none" else 1.0)
     rng = np.random.default_rng(order)
     for _ in range(3):
         q, u, tau = _state(nodes, 6, rng)
@@ -61,29 +67,6 @@ def test_node_terms_equal_the_tables(order, refine, monkeypatch):
         assert rel(nodes.mass_matrix(q), tables.mass_matrix(q)) < 1e-12
         assert abs(nodes.kinetic_energy(q, u) - tables.kinetic_energy(q, u)) < 1e-12 * tables.kinetic_energy(q, u)
         assert rel(nodes.angular_momentum(q, u), tables.angular_momentum(q, u)) < 1e-12
-
-
-@pytest.mark.parametrize("offsets", ["none", "some"])
-@pytest.mark.parametrize("refine", [False, True])
-def test_node_terms_without_offsets_on_some_or_all_nodes(offsets, refine, monkeypatch):
-    """The node sums skip the CG-offset terms of a body whose nodes have none and carry zero offsets through them
-    on a body where only some have one (the offsets are a body-level switch of the node-minor layout): against the
-    tables, order 2, the modal mass refined or factored, with a wheel on a node."""
-    monkeypatch.setattr(dynamics.system, "refinement_budget", lambda n, count: 60 if refine else 0)
-    model = random_node_model(9, 6, seed=81)
-    model.cg[::1 if offsets == "none" else 2] = 0.0
-    tables = _body(model, 2, nodal=False, wheel=True)
-    nodes = _body(model, 2, nodal=True, wheel=True)
-    fx = nodes.topology[0, dynamics.system.L.FLEX:]
-    assert nodes.params[fx[dynamics.system.L.FX_NODES]] == (0.0 if offsets == "none" else 1.0)
-    assert bool(fx[dynamics.system.L.FX_REFINE]) == refine
-    rng = np.random.default_rng(5)
-    for _ in range(3):
-        q, u, tau = _state(nodes, 6, rng)
-        udot = tables.forward_dynamics(q, u, tau)
-        assert rel(nodes.forward_dynamics(q, u, tau), udot) < 1e-12
-        assert rel(nodes.inverse_dynamics(q, u, udot), tables.inverse_dynamics(q, u, udot)) < 1e-12
-        assert rel(nodes.mass_matrix(q), tables.mass_matrix(q)) < 1e-12
 
 
 @pytest.mark.parametrize("order", [1, 2])
