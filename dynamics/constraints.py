@@ -142,6 +142,7 @@ class AssemblyReport(NamedTuple):
     moved: float  # largest change of a coordinate of q
     velocity_change: float  # largest change of a coordinate of u
     energy_lost: float  # kinetic energy removed by the plastic impact (and the small move that closes the gap) [J]
+    tolerance: float = DEFAULT_ASSEMBLY_TOLERANCE  # the largest residual that was allowed (m or rad)
 
 
 class ConstrainedSystem:
@@ -244,13 +245,28 @@ class ConstrainedSystem:
 
     def copy(self):
         """An independent copy (its own engine workspace and constraint switches): one per simulation."""
+        return self.on(self.system.copy(mass_properties=True))
+
+    def on(self, system):
+        """The same constraints, force elements and switches on ``system``, a copy of this tree (a run's own, with its
+        mass properties), with a workspace of its own."""
         other = object.__new__(ConstrainedSystem)
         other.__dict__.update(self.__dict__)
-        other.system = self.system.copy(mass_properties=True)
+        other.system = system
         other._c_int = self._c_int.copy()
-        other.data = other._allocate(other.system)
-        other.engine = engine_data(other.system)
+        other.data = other._allocate(system)
+        other.engine = engine_data(system)
         return other
+
+    def takes_reference(self) -> bool:
+        """Whether a constraint or force element takes a pose or a length from ``q_reference`` (a world pose, a
+        distance, a free length or relaxed pose it was not given): a scene whose initial state is the reference
+        defines them with it, so another initial state makes another scene."""
+        try:
+            ConstrainedSystem(self.system, self.constraints, self.forces)
+        except ModelDefinitionError:
+            return True
+        return False
 
     # ------------------------------------------------------------------ queries
     def index(self, name):
@@ -420,7 +436,7 @@ class ConstrainedSystem:
         q1, u1 = self.project(q0, u1)
         lost = self.system.kinetic_energy(q0, u0) - self.system.kinetic_energy(q1, u1)
         return q1, u1, AssemblyReport(worst, name, float(np.abs(q1 - q0).max(initial=0.0)),
-                                      float(np.abs(u1 - u0).max(initial=0.0)), float(lost))
+                                      float(np.abs(u1 - u0).max(initial=0.0)), float(lost), float(tolerance))
 
     # ------------------------------------------------------------------ switching constraints
     def impact(self, q, u):
@@ -510,7 +526,8 @@ class ConstrainedSystem:
                                       f"the latch tolerance {tolerance:.3g}")
             latch = ConstrainedSystem(self.system, constraints + welds)
             u_latched, lost = latch.impact(q, u)
-            report = AssemblyReport(gap, worst, 0.0, float(np.abs(u_latched - u).max(initial=0.0)), float(lost))
+            report = AssemblyReport(gap, worst, 0.0, float(np.abs(u_latched - u).max(initial=0.0)), float(lost),
+                                    float(tolerance))
             u = u_latched
         system, q, u = self.system.reconfigure(q, u, lock=lock, unlock=unlock, detach=detach, attach=attach,
                                                mass_properties=mass_properties)

@@ -32,14 +32,18 @@ there loads the deforming structure.
   tangential slip velocity at the contact point (mid-overlap). ``V = k delta^(n+1) / (n+1)``.
 
 The Hunt-Crossley damping ``D`` [s/m, s/rad] may be given through a coefficient of restitution ``e`` at an
-impact speed ``v``: ``D = 3 (1 - e^2) / (4 v)`` (Lankarani and Nikravesh, J. Mech. Des. 112, 1990: an energy
-balance that holds for ``e`` near 1; the tests measure the actual coefficient against an independent
-integration of the same force law).
+impact speed ``v``: the law's restitution depends on ``D v`` and the exponent only (:func:`restitution_of`), so
+``D`` is the root of ``restitution_of(D v, n) = e``, found once per element by Brent's method on a DOP853
+integration (:func:`hunt_crossley_damping`): an impact at ``v`` rebounds with exactly ``e`` (Lankarani and
+Nikravesh's closed form ``3 (1 - e^2) / (4 v)``, J. Mech. Des. 112, 1990, is an energy balance for ``e`` near 1:
+it rebounds at 0.845 for e = 0.8). The penalty keeps the impact finite: gravity or other loads acting during the
+contact change the rebound by about their impulse over the contact time.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
@@ -426,14 +430,51 @@ def _number(value, where, what, low=None, positive=False):
     return x
 
 
-def hunt_crossley_damping(restitution, impact_speed, where):
-    """``D = 3 (1 - e^2) / (4 v)`` (Lankarani and Nikravesh 1990) of a restitution coefficient e at the
-    impact speed v."""
-    e = _number(restitution, where, "restitution", low=0.0)
+def hunt_crossley_damping(restitution, impact_speed, where, exponent=1.5):
+    """The Hunt-Crossley damping ``D`` [s per unit penetration] whose impact at ``impact_speed`` rebounds with exactly
+    the coefficient of restitution ``e`` (module docstring): ``D = beta / v`` with ``beta`` the root of
+    ``restitution_of(beta, n) = e`` (:func:`restitution_of`; the restitution of the law depends on ``D v`` and the
+    exponent only, not on the stiffness or the mass)."""
+    e = _number(restitution, where, "restitution", positive=True)
     if e > 1.0:
-        raise ModelDefinitionError(f"{where}: restitution must be in [0, 1], got {restitution!r}")
+        raise ModelDefinitionError(f"{where}: restitution must be in (0, 1], got {restitution!r}")
     v = _number(impact_speed, where, "impact_speed", positive=True)
-    return 3.0 * (1.0 - e * e) / (4.0 * v)
+    n = _number(exponent, where, "exponent", low=1.0)
+    return _damping_number(e, n) / v
+
+
+def restitution_of(beta, exponent):
+    """Coefficient of restitution of the Hunt-Crossley impact ``X'' = -X^n max(1 + beta X', 0)`` entered at ``X' =
+    1`` (the law in units where the impact speed is 1 and ``m = k = 1``: ``x = a X``, ``t = tau s`` with ``a / tau =
+    v`` and ``m a / tau^2 = k a^n`` turn ``m x'' = -k x^n (1 + D x')`` into it with ``beta = D v``): the exit speed,
+    by DOP853 to 1e-12."""
+    from scipy.integrate import solve_ivp
+
+    def rates(t, y):
+        return [y[1], -max(y[0], 0.0) ** exponent * max(1.0 + beta * y[1], 0.0)]
+
+    def leaves(t, y):
+        return y[0] if y[1] < 0.0 else 1.0
+    leaves.terminal, leaves.direction = True, -1
+    sol = solve_ivp(rates, (0.0, 1e6), [0.0, 1.0], events=leaves, method="DOP853", rtol=1e-12, atol=1e-14)
+    if not sol.t_events[0].size:  # the damping held it: it never comes back out
+        return 0.0
+    return -float(sol.y_events[0][0][1])
+
+
+@lru_cache(maxsize=256)
+def _damping_number(e, n):
+    """``beta`` with :func:`restitution_of` ``(beta, n) = e`` (it falls from 1 at beta = 0): Brent's method."""
+    from scipy.optimize import brentq
+
+    if e == 1.0:
+        return 0.0
+    high = 1.0
+    while restitution_of(high, n) > e:
+        high *= 4.0
+        if high > 1e9:
+            raise ModelDefinitionError(f"restitution {e!r} is below what Hunt-Crossley damping reaches; give damping")
+    return brentq(lambda beta: restitution_of(beta, n) - e, 0.0, high, xtol=1e-14, rtol=1e-13)
 
 
 class _Element:
@@ -472,7 +513,8 @@ class _Element:
             if self.impact_speed is None:
                 raise ModelDefinitionError(f"{self.where}: restitution needs the impact_speed it holds at "
                                            f"(the Hunt-Crossley damping depends on it)")
-            floats[F_DAMPING] = hunt_crossley_damping(self.restitution, self.impact_speed, self.where)
+            floats[F_DAMPING] = hunt_crossley_damping(self.restitution, self.impact_speed, self.where,
+                                                      floats[F_EXPONENT])
         else:
             floats[F_DAMPING] = _number(self.damping or 0.0, self.where, "damping", low=0.0)
 

@@ -43,7 +43,8 @@ def build_root(scenario: Scenario) -> Assembly:
             section = read_multibody(description, where)
             root.add(MultibodyModel(section.name, section.system, initial_q=section.initial_q,
                                     initial_u=section.initial_u, written_q=section.written_q,
-                                    constrained=section.constrained, assembly=section.assembly))
+                                    constrained=section.constrained, assembly=section.assembly,
+                                    outputs=section.outputs))
         except (ModelError, UnitError, ValueError) as exc:
             if isinstance(exc, ScenarioError):
                 raise

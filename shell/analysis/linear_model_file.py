@@ -13,6 +13,7 @@ HDF5 layout (one file, read and written here):
 /units/states, /units/inputs, /units/outputs              one unit per row
 /errors/A ... /errors/D                                   estimated absolute error of every entry
 /operating_point/t, x, z, u, y, xdot                      where the model was linearized
+/operating_point/tangent, x_rows                          the states' values, and each one's index in x
 /steps/states, /steps/inputs                              the finite-difference steps used
 ```
 

@@ -33,6 +33,13 @@ with ``q = q0 (x) Exp(phi)`` (a right, body-frame perturbation), whose rate is
 ``Jr^-1(phi) = I + [phi x]/2 + (1/|phi|^2 - (1 + cos|phi|) / (2 |phi| sin|phi|)) [phi x]^2``.
 A therefore has no rank deficiency from the quaternion norm.
 
+In a scene with closure constraints (``multibody.constraints:``) the states are minimal coordinates of the
+constraint manifold ``{phi(q) = 0, G(q) u = 0}`` by coordinate partitioning (:class:`ConstraintManifold`): the
+independent hinge coordinates and rates keep their names, the dependent ones follow from the constraints at every
+evaluation (Newton on the positions, a linear solve for the rates), so A has neither the constraint directions' zero
+modes nor spurious ones, and trim moves on the manifold. Force elements alone (``multibody.forces:``) keep every
+coordinate: their stiffness and damping enter A through the derivatives.
+
 Inputs are input ports (or elements ``port[k]``) of the scene. A connected input is opened for the
 linearization: its value is held at the operating-point value plus the perturbation, and the model
 driving it no longer reaches it (the plant seen from that input, as for controller design).
@@ -45,6 +52,7 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg as sla
 
 from shell.model import ModelError
 from shell.units import format_unit
@@ -153,10 +161,10 @@ def _split_element(name: str):
 
 
 class TangentStates:
-    """Tangent coordinates of the simulation's continuous state (quaternions -> rotation vectors)."""
+    """Tangent coordinates of the simulation's continuous state (quaternions -> rotation vectors); on the constraint
+    manifold of a scene with closure constraints, its independent coordinates only (:class:`ConstraintManifold`)."""
 
     def __init__(self, sim, x0, scales):
-        refuse_closure_constraints(sim)
         quaternion_starts = {int(k) for k in sim.diagram.quaternion_w_indices()}
         self.x0 = np.array(x0, dtype=float)
         self.plain = []          # (tangent index, x index)
@@ -196,7 +204,35 @@ class TangentStates:
         self._plain_x = np.array([x for _, x in self.plain], dtype=np.int64)
         self.value = np.zeros(self.n)           # tangent coordinates of x0 (rotation vectors are 0)
         self.value[self._plain_t] = self.x0[self._plain_x]
+        #: index in the full state x of each tangent row (a quaternion's three rows: its w)
+        self.x_rows = np.zeros(self.n, dtype=np.int64)
+        self.x_rows[self._plain_t] = self._plain_x
+        for t, k, _ in self.quaternions:
+            self.x_rows[t:t + 3] = k
         self.scale = np.maximum(np.abs(self.value), typical)
+        #: the constrained models' manifolds (:class:`ConstraintManifold`); empty: every tangent coordinate is one
+        self.manifolds = [ConstraintManifold(self, sim, m) for m in sim.diagram.models if _closes_loops(m)]
+        #: tangent rows of the full coordinates that are minimal coordinates (None: all of them)
+        self.kept = None
+        if self.manifolds:
+            self._restrict_to_manifolds()
+
+    def _restrict_to_manifolds(self) -> None:
+        """Keep the independent coordinates only: names, units, index, values and scales of those rows."""
+        dependent = np.concatenate([mf.dependent_rows for mf in self.manifolds])
+        keep = np.ones(self.n, dtype=bool)
+        keep[dependent] = False
+        self.kept = np.flatnonzero(keep)
+        row_of = np.full(self.n, -1, dtype=np.int64)
+        row_of[self.kept] = np.arange(self.kept.size)
+        self.full_n, self.full_names = self.n, list(self.names)
+        self.names = [self.names[r] for r in self.kept]
+        self.units = [self.units[r] for r in self.kept]
+        self.index = {name: row_of[rows][row_of[rows] >= 0] for name, rows in self.index.items()}
+        self.index = {name: rows for name, rows in self.index.items() if rows.size}
+        self.value, self.scale, self.n = self.value[self.kept], self.scale[self.kept], self.kept.size
+        self.x_rows = self.x_rows[self.kept]
+        self.x0 = self.retract(np.zeros(self.n))  # on the manifold to the chart's tolerance
 
     def _modal_sizes(self, system, model_path) -> None:
         """Typical size of each flexible body's modal coordinates (the step rule's scale; module docstring):
@@ -248,7 +284,18 @@ class TangentStates:
             self._modal_sizes(system, m.path)
 
     def retract(self, xi):
-        """Full state for tangent coordinates ``xi`` (deviations from x0)."""
+        """Full state for tangent coordinates ``xi`` (deviations from x0); on a constraint manifold the dependent
+        coordinates follow from the independent ones (:meth:`ConstraintManifold.complete`)."""
+        if self.kept is None:
+            return self._retract_full(xi)
+        full = np.zeros(self.full_n)
+        full[self.kept] = xi
+        x = self._retract_full(full)
+        for manifold in self.manifolds:
+            manifold.complete(x)
+        return x
+
+    def _retract_full(self, xi):
         x = self.x0.copy()
         x[self._plain_x] += xi[self._plain_t]
         for t, k, q0 in self.quaternions:
@@ -258,7 +305,11 @@ class TangentStates:
     def between(self, x, reference):
         """Tangent coordinates of the full state x relative to the full state ``reference`` (the inverse of
         :meth:`retract` when ``reference`` is x0): differences, and ``Log(q_ref^* (x) q)`` for quaternions."""
-        out = np.empty(self.n)
+        out = self._between_full(x, reference)
+        return out if self.kept is None else out[self.kept]
+
+    def _between_full(self, x, reference):
+        out = np.empty(len(self._plain_t) + 3 * len(self.quaternions))
         out[self._plain_t] = x[self._plain_x] - reference[self._plain_x]
         for t, k, _ in self.quaternions:
             q_ref = reference[k:k + 4]
@@ -266,14 +317,135 @@ class TangentStates:
         return out
 
     def tangent_rate(self, xi, x, xdot):
-        """Rates of the tangent coordinates from the full state derivative."""
-        out = np.empty(self.n)
+        """Rates of the tangent coordinates from the full state derivative (on a constraint manifold the
+        independent coordinates' rates: the chart's, as the dependent coordinates follow them)."""
+        if self.kept is not None:
+            return self._tangent_rate_full(self._between_full(x, self.x0), x, xdot)[self.kept]
+        return self._tangent_rate_full(xi, x, xdot)
+
+    def _tangent_rate_full(self, xi, x, xdot):
+        out = np.empty(len(self._plain_t) + 3 * len(self.quaternions))
         out[self._plain_t] = xdot[self._plain_x]
         for t, k, _ in self.quaternions:
             q, qd = x[k:k + 4], xdot[k:k + 4]
             omega = 2.0 * _quat_multiply(np.array([q[0], -q[1], -q[2], -q[3]]), qd)[1:]
             out[t:t + 3] = inverse_right_jacobian(xi[t:t + 3]) @ omega
         return out
+
+
+def _closes_loops(model) -> bool:
+    """Whether ``model`` is an engine model with active closure constraints (force elements alone keep the tree's
+    coordinates minimal)."""
+    constrained = getattr(model, "constrained", None)
+    return constrained is not None and len(constrained.jacobian(_initial_q(model))) > 0
+
+
+def _initial_q(model):
+    return np.asarray(model.continuous_states[0].initial, dtype=float)
+
+
+class ConstraintManifold:
+    """Minimal coordinates of one engine model with closure constraints by coordinate partitioning (Wehage and Haug,
+    J. Mech. Design 104, 1982): of the model's tangent coordinates ``[dq; u]`` (:meth:`dynamics.constraints.
+    ConstrainedSystem.tangent_map`), ``nu - rank G`` positions and as many velocities are independent, the others
+    follow from ``phi(q) = 0`` (Newton on the dependent positions, to :data:`CHART_TOLERANCE`) and ``G(q) u = 0``
+    (solved for the dependent velocities). This is a chart of the state manifold ``{phi = 0, G u = 0}``, so the
+    rates of the independent coordinates are exactly the chart's equations: ``A`` of the minimal model is the
+    independent rows of the full Jacobian along the chart's tangent (no curvature term even away from an
+    equilibrium, which an orthonormal tangent basis ``V' A V`` would miss), has neither the constraints' zero modes
+    nor their Baumgarte modes, and its states keep their names and units.
+
+    The dependent coordinates are chosen from the last to the first (modified Gram-Schmidt on the columns of ``G
+    N^-1``, a column joining when its part outside the others' span exceeds :data:`PIVOT_TOLERANCE` of the largest
+    column): the earliest coordinates of the tree stay independent (a crank rather than its rocker), unless that
+    would leave the dependent ones ill-conditioned. The same choice serves the velocities when ``G`` restricted to
+    it is well conditioned, else its own by the same rule. A quaternion whose rotation vector is partly dependent is
+    corrected by right multiplication, so its independent components move at second order in the correction: the
+    chart is still smooth and its tangent the partition's."""
+
+    def __init__(self, states: TangentStates, sim, model):
+        self.constrained = cs = model.constrained
+        self.nq, self.nu = cs.system.nq, cs.system.nu
+        self.start = sim.diagram.x_block[sim.model_index[model.path]].start
+        q0 = states.x0[self.start:self.start + self.nq]
+        G = cs.jacobian(q0)
+        Gt = G @ np.linalg.inv(cs.tangent_map(q0))
+        self.rank = int(np.linalg.matrix_rank(Gt))
+        self.dependent_q = _dependent_columns(Gt, self.rank)
+        self.dependent_u = self.dependent_q if _well_conditioned(G[:, self.dependent_q]) else \
+            _dependent_columns(G, self.rank)
+        self.independent_u = np.setdiff1d(np.arange(self.nu), self.dependent_u)
+        rows = {}  # x index -> tangent rows
+        for t, k in states.plain:
+            rows[k] = [t]
+        for t, k, _ in states.quaternions:
+            rows[k] = [t, t + 1, t + 2]
+        q_rows = [r for k in range(self.start, self.start + self.nq) for r in rows.get(k, [])]
+        u_rows = [r for k in range(self.start + self.nq, self.start + self.nq + self.nu) for r in rows.get(k, [])]
+        #: tangent rows of the full coordinates that follow from the independent ones
+        self.dependent_rows = np.asarray([q_rows[j] for j in self.dependent_q] + [u_rows[j] for j in self.dependent_u],
+                                         dtype=np.int64)
+
+    def complete(self, x) -> None:
+        """Dependent positions and velocities of the model's block of ``x`` (in place) from its independent ones."""
+        cs, nq = self.constrained, self.nq
+        q = close_loops(cs, x[self.start:self.start + nq], self.dependent_q)
+        u = x[self.start + nq:self.start + nq + self.nu]
+        G = cs.jacobian(q)
+        u[self.dependent_u] = -np.linalg.lstsq(G[:, self.dependent_u], G[:, self.independent_u] @ u[self.independent_u],
+                                               rcond=None)[0]
+        x[self.start:self.start + nq] = q
+
+
+def close_loops(constrained, q, dependent):
+    """The configuration ``q`` with its ``dependent`` tangent coordinates (indices in u's order, :meth:`dynamics.
+    constraints.ConstrainedSystem.tangent_map`) moved by Newton until the closure constraints hold to
+    :data:`CHART_TOLERANCE`, the others kept; :class:`LinearizationError` when it does not converge."""
+    q = np.array(q, dtype=float)
+    for _ in range(CHART_ITERATIONS):
+        phi = constrained.residual(q)
+        if np.max(np.abs(phi), initial=0.0) <= CHART_TOLERANCE:
+            return q
+        Gt = constrained.jacobian(q) @ np.linalg.inv(constrained.tangent_map(q))
+        step = np.zeros(constrained.system.nu)
+        step[dependent] = -np.linalg.lstsq(Gt[:, dependent], phi, rcond=None)[0]
+        q = constrained.retract(q, step)
+    raise LinearizationError(f"the closure constraints of {list(constrained.system.body_names)} cannot be met near "
+                             f"this state (|phi| = {np.max(np.abs(constrained.residual(q))):.3g} after "
+                             f"{CHART_ITERATIONS} Newton steps on the dependent coordinates): a step or trim move too "
+                             "large for the mechanism, or a singular position")
+
+
+CHART_TOLERANCE = 1e-14
+"""Constraint residual (m or rad) the chart's Newton iteration reaches: below the round-off of the differences."""
+CHART_ITERATIONS = 30
+PIVOT_TOLERANCE = 1e-3
+"""Smallest part of a column of ``G N^-1`` outside the span of the dependent ones chosen before it, relative to the
+largest column, for it to be a dependent coordinate (:class:`ConstraintManifold`): a smaller one would make the
+dependent coordinates' solve ill-conditioned, and the column-pivoted QR choice is taken instead."""
+
+
+def _dependent_columns(G, rank):
+    """``rank`` columns of G, chosen from the last (modified Gram-Schmidt, :data:`PIVOT_TOLERANCE`), or else the
+    first ``rank`` pivots of G's column-pivoted QR (the best-conditioned choice); sorted."""
+    largest = float(np.max(np.linalg.norm(G, axis=0), initial=0.0))
+    chosen, basis = [], []
+    for j in range(G.shape[1] - 1, -1, -1):
+        v = G[:, j].copy()
+        for b in basis:
+            v -= (b @ v) * b
+        size = float(np.linalg.norm(v))
+        if size > PIVOT_TOLERANCE * largest:
+            chosen.append(j)
+            basis.append(v / size)
+            if len(chosen) == rank:
+                return np.sort(np.asarray(chosen, dtype=np.int64))
+    return np.sort(sla.qr(G, pivoting=True, mode="r")[1][:rank]).astype(np.int64)
+
+
+def _well_conditioned(columns) -> bool:
+    s = np.linalg.svd(columns, compute_uv=False)
+    return s.size > 0 and s[-1] > PIVOT_TOLERANCE * s[0]
 
 
 class NamedSignals:
@@ -429,20 +601,6 @@ class NamedParameters:
                                              context.x[self.sim.diagram.x_block[entry.model]])
 
 
-def refuse_closure_constraints(sim) -> None:
-    """Refuse a scene with closure constraints or force elements (they take the constrained path): its linear model on
-    the constraint manifold (minimal coordinates, :meth:`dynamics.constraints.ConstrainedSystem.tangent_basis`) is
-    not wired into the scene's analyses yet, and the unrestricted one has spurious zero modes (issue 29). Linearize,
-    sampled linearize and trim all take their states through :class:`TangentStates`, which calls this."""
-    for m in sim.diagram.models:
-        if getattr(m, "constrained", None) is not None:
-            what = ", ".join([c.label for c in m.constrained.constraints] + [f.name for f in m.constrained.forces])
-            raise LinearizationError(f"model {m.path} has closure constraints or force elements ({what}): "
-                                     "linearization and "
-                                     "trim on the constraint manifold are not implemented for scenes yet (the "
-                                     "tree's coordinates would give spurious modes)")
-
-
 def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4, richardson: bool = True,
               t=None, x=None, input_values=None, scales=None, metadata=None) -> LinearModel:
     """Linearize ``sim`` about its current (or the given) operating point.
@@ -515,7 +673,8 @@ def linearize(sim, inputs, outputs, *, tolerance: float = 1e-10, points: int = 4
     A, B = jac[:n, :n], jac[:n, n:]
     C, D = jac[n:, :n], jac[n:, n:]
     errors = {"A": err[:n, :n], "B": err[:n, n:], "C": err[n:, :n], "D": err[n:, n:]}
-    op = {"t": t0, "x": x0, "z": sim.z.copy(), "u": u0, "y": F0[n:], "xdot": F0[:n], "tangent": states.value}
+    op = {"t": t0, "x": x0, "z": sim.z.copy(), "u": u0, "y": F0[n:], "xdot": F0[:n], "tangent": states.value,
+          "x_rows": states.x_rows}
     return LinearModel(A, B, C, D, states.names, states.units, ins.names, ins.units, outs.names, outs.units,
                        errors, op, states.index, ins.index, outs.index,
                        method={"points": points, "richardson": bool(richardson), "tolerance": tolerance,

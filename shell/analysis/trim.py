@@ -60,6 +60,9 @@ def trim(sim, *, hold=(), free_inputs=(), inputs=(), input_values=None, derivati
             return states.index[name]
         if name in position:
             return np.array([position[name]], dtype=np.int64)
+        if states.kept is not None and name in states.full_names:
+            raise LinearizationError(f"trim: {name!r} is a dependent coordinate of a closed loop (it follows from the "
+                                     f"closure constraints); the minimal coordinates are {states.names}")
         raise LinearizationError(f"trim: {name!r} is neither a continuous state nor a state element; states: "
                                  f"{sorted(states.index)} (elements as in LinearModel.state_names, e.g. "
                                  f"{states.names[-1]!r})")

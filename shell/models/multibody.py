@@ -6,7 +6,7 @@ the generalized coordinates ``q`` and velocities ``u`` (docs/conventions.md orde
 ``[q_dot(q, u); forward_dynamics(q, u, tau, node forces, prescribed accelerations)]`` and hinge
 quaternions are renormalized by the integrator's ``normalize`` hook after every step.
 
-A scene with closure ``constraints:`` or ``forces:`` (spring-dampers between nodes; a
+A scene with closure ``constraints:`` or ``forces:`` (force elements between nodes and on hinges; a
 :class:`dynamics.constraints.ConstrainedSystem`) takes a fourth path, ``"constrained"``: its accelerations are the
 constrained forward dynamics of :mod:`dynamics.constraint_kernels` (the force elements' node forces added to the
 applied ones; index-1 form, multipliers from ``G M^-1 G'``, no Baumgarte terms), and its drift is removed by
@@ -37,6 +37,16 @@ outputs
                                the forward dynamics of the current inputs)
   ``<constraint>.load``        (6,) [torque N m; force N]: the wrench node A exerts on node B through the
                                constraint, A's axes, about B's origin (feedthrough; constrained scenes)
+  ``<body>.hinge_load``        (6,) [torque N m; force N]: the spatial force the body's hinge transmits from its
+                               parent (or the ground) to the body, about the origin of the hinge's outboard frame
+                               (the body side, M), in M's axes; its projection on the hinge's axes is
+                               ``inverse_dynamics``' generalized force (feedthrough; ``outputs: [hinge_load]``)
+  ``energy``                   (4,) J: kinetic, gravity and elastic potential, force elements' potential, total
+                               (``outputs: [energy]``)
+Asked-for outputs (``outputs:``) are computed by the constrained path's kernel (a scene without constraints or force
+elements takes it when it asks for them), in the stage their kind runs in: hinge loads with the feedthrough outputs
+(a Newton-Euler pass after the forward dynamics), the energy with the state outputs; a scene that does not ask has
+neither port and pays nothing.
 
 Attaching a model to node N binds its inputs named attitude, rotation, position, angular_velocity,
 linear_velocity, angular_acceleration, linear_acceleration to N's outputs, and its outputs named torque
@@ -56,6 +66,7 @@ from numba import njit
 from dynamics import constraint_kernels as CK
 from dynamics import engine as E
 from dynamics import kernels as K
+from dynamics.errors import ModelDefinitionError
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES, HINGES
 
 from shell.kernel_protocol import (DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, FEEDTHROUGH_OUTPUTS, NORMALIZE,
@@ -63,7 +74,7 @@ from shell.kernel_protocol import (DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, F
 from shell.model import InputPort, Model, ModelError, OutputPort, State
 from shell.ports import NODE_INPUTS, NODE_OUTPUTS
 from shell.registry import register_model
-from shell.schema.multibody import initial_targets
+from shell.schema.multibody import OPTIONAL_OUTPUTS, initial_targets
 from shell.units import UnitError, to_magnitude
 
 # unit of (q, u, u_dot, generalized force) per hinge type; "" = mixed or dimensionless (SI values)
@@ -250,11 +261,16 @@ PROJECTION_ITERATIONS = 20
 
 
 class ConstraintPorts(NamedTuple):
-    """What a constrained scene's data carry besides the engine's: the constraints and their loads."""
+    """What a constrained scene's data carry besides the engine's: the constraints and their loads, and the optional
+    outputs (``multibody.outputs:``) with their scratch."""
 
     data: CK.ConstraintData     # constraints, force elements, scratch (dynamics.constraints.ConstrainedSystem)
     loads: np.ndarray           # (nc, 6) each constraint's wrench of the last forward dynamics
     load_out: np.ndarray        # (nc,) y start of <constraint>.load
+    hinge_loads: np.ndarray     # (nb, 6) each hinge's spatial force of the last forward dynamics
+    hinge_load_out: np.ndarray  # (nb,) y start of <body>.hinge_load, or empty (not asked for)
+    energy: np.ndarray          # (8,) scratch of the energy and momentum kernel
+    energy_out: np.ndarray      # (1,) y start of energy, or empty (not asked for)
 
 
 @njit(cache=True)
@@ -275,6 +291,8 @@ def engine_kernel_constrained(op, t, x, z, u, p, d, out):
             E.node_kinematics_tree(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
                                    work.acceleration)
             _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets)
+        if closure.energy_out.shape[0]:
+            _energy_output(engine, c, x[:nq], x[nq:], closure, out)
     elif op == FEEDTHROUGH_OUTPUTS or op == DERIVATIVES:
         _gather_inputs(x, u, tree)
         _record_status(CK.forward_dynamics(engine, c, x[:nq], x[nq:], work.tau, work.node_forces, work.udot,
@@ -288,6 +306,11 @@ def engine_kernel_constrained(op, t, x, z, u, p, d, out):
                 E.node_kinematics_tree(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
                                        work.velocity, work.acceleration)
                 _acceleration_outputs(ports, work, out)
+            if closure.hinge_load_out.shape[0]:  # last: its Newton-Euler pass reuses the engine's workspace
+                CK.hinge_loads(engine, c, x[:nq], x[nq:], work.udot, closure.hinge_loads)
+                for i in range(closure.hinge_load_out.shape[0]):
+                    for k in range(6):
+                        out[closure.hinge_load_out[i] + k] = closure.hinge_loads[i, k]
         else:
             _constrained_rates(engine, ports, work, x, out)
     elif op == DERIVATIVES_AFTER_FEEDTHROUGH:
@@ -299,6 +322,19 @@ def engine_kernel_constrained(op, t, x, z, u, p, d, out):
             work.status[1] = 2
             for k in range(nu):
                 x[nq + k] = np.nan
+
+
+@njit(cache=True)
+def _energy_output(engine, c, q, u, closure, out):
+    """``energy`` = [kinetic, gravity and elastic potential, force elements' potential, total] (J)."""
+    K.energy_momentum(engine.topology, engine.nodes, engine.joint_rot, engine.joint_vec, engine.params, q, u,
+                      closure.energy, engine.ws_rot, engine.ws_vec, engine.ws_mat, engine.pool)
+    elements = CK.potential_energy(engine, c, q)
+    o = closure.energy_out[0]
+    out[o] = closure.energy[0]
+    out[o + 1] = closure.energy[1]
+    out[o + 2] = elements
+    out[o + 3] = closure.energy[0] + closure.energy[1] + elements
 
 
 @njit(cache=True, inline="always")
@@ -349,13 +385,21 @@ class MultibodyModel(Model):
         "outputs: <node>.attitude (4,) node->world, <node>.rotation (3,3), <node>.position [m], "
         "<node>.angular_velocity [rad/s], <node>.linear_velocity [m/s], <node>.angular_acceleration, "
         "<node>.linear_acceleration (feedthrough), <body>.q, <body>.u, <body>.u_dot (hinge), <body>.modal_q, "
-        "<body>.modal_u [1/s], <body>.modal_u_dot [1/s^2] (flexible bodies), q, u",
+        "<body>.modal_u [1/s], <body>.modal_u_dot [1/s^2] (flexible bodies), q, u; <constraint>.load (constraints:); "
+        "<body>.hinge_load, energy [J] (outputs: [hinge_load, energy])",
         "continuous states: q, u (docs/scenario_schema.md, section multibody)",
     )
 
     def __init__(self, name: str, system, *, initial_q=None, initial_u=None, written_q=None, constrained=None,
-                 assembly=None):
+                 assembly=None, outputs=()):
         self.system = system
+        #: the optional outputs asked for (:data:`OPTIONAL_OUTPUTS`); they are computed on the constrained path
+        self.optional_outputs = tuple(outputs)
+        unknown = [o for o in self.optional_outputs if o not in OPTIONAL_OUTPUTS]
+        if unknown or (self.optional_outputs and constrained is None):
+            raise ModelError(f"model {name}: optional outputs {unknown or list(self.optional_outputs)}: expected "
+                             f"some of {list(OPTIONAL_OUTPUTS)}, on a system with a ConstrainedSystem (the "
+                             "constrained path computes them)")
         #: the closure constraints and force elements (a dynamics.constraints.ConstrainedSystem on ``system``), or None
         self.constrained = constrained
         #: how far the initial state was moved onto the constraints (dynamics.constraints.AssemblyReport), or None
@@ -379,8 +423,14 @@ class MultibodyModel(Model):
         if s.topology[:, K.FLEXIBLE].any():
             notes.insert(0, f"{self.path}: forward dynamics by {s.solver_reason}")
         if self.constrained is not None and self.constrained.forces:
-            notes.append(f"{self.path}: force elements {', '.join(f.name for f in self.constrained.forces)} "
-                         "(spring-dampers)")
+            from dynamics.force_elements import ELEMENT_TYPES
+
+            kinds = {cls: kind for kind, cls in ELEMENT_TYPES.items()}
+            notes.append(f"{self.path}: force elements "
+                         + ", ".join(f"{f.name} ({kinds[type(f)]})" for f in self.constrained.forces))
+        if self.optional_outputs and not (self.constrained.constraints or self.constrained.forces):
+            notes.append(f"{self.path}: {' and '.join(self.optional_outputs)} asked for: the constrained path "
+                         "computes them (no constraints, no force elements)")
         if self.constrained is not None and self.constrained.constraints:
             names = ", ".join(f"{c.label} ({c.kind})" for c in self.constrained.constraints)
             notes.append(f"{self.path}: closure constraints {names}; drift removed by projection after each step "
@@ -450,6 +500,14 @@ class MultibodyModel(Model):
             outputs.append(OutputPort(f"{c.label}.load", "", (6,), f"[torque N*m; force N] of node {c.node_a} on "
                                       f"node {c.node_b or 'world'} through {c.label}, {c.node_a} axes, about "
                                       f"{c.node_b or 'world'}'s origin", feedthrough=True))
+        if "hinge_load" in self.optional_outputs:
+            for body in s.body_names:
+                outputs.append(OutputPort(f"{body}.hinge_load", "", (6,), f"[torque N*m; force N] the hinge of {body} "
+                                          "transmits from its parent (or the ground) to it, about and in the axes of "
+                                          "its outboard frame (the body-side hinge frame)", feedthrough=True))
+        if "energy" in self.optional_outputs:
+            outputs.append(OutputPort("energy", "J", (4,), "[kinetic, gravity and elastic potential, force elements' "
+                                      "potential, total] energy"))
         self.inputs = tuple(inputs)
         self.outputs = tuple(outputs)
         self.continuous_states = (State("q", "", (s.nq,), self._initial_q, "generalized coordinates"),
@@ -489,6 +547,9 @@ class MultibodyModel(Model):
             blocks("q"), blocks("u"), blocks("u_dot"))
         self._load_out = as_index([y_layout.offsets[f"{c.label}.load"] for c in
                                    (self.constrained.constraints if self.constrained is not None else ())])
+        self._hinge_load_out = as_index([y_layout.offsets[f"{body}.hinge_load"] for body in s.body_names
+                                         if "hinge_load" in self.optional_outputs])
+        self._energy_out = as_index([y_layout.offsets["energy"]] if "energy" in self.optional_outputs else [])
 
     def create_data(self, own: bool = False):
         """(the engine system of the run, (EngineData, EnginePorts, EngineWork)); ``own``: a private copy
@@ -506,7 +567,9 @@ class MultibodyModel(Model):
         if constrained is None:
             return system, (E.engine_data(system), self.ports, work)
         loads = np.zeros((len(constrained.constraints), 6))
-        return system, (constrained.engine, self.ports, work, ConstraintPorts(constrained.data, loads, self._load_out))
+        return system, (constrained.engine, self.ports, work,
+                        ConstraintPorts(constrained.data, loads, self._load_out, np.zeros((system.nbodies, 6)),
+                                        self._hinge_load_out, np.zeros(8), self._energy_out))
 
     def failure_message(self, data) -> str | None:
         """Why the last forward dynamics failed (singular articulated inertia), or None."""
@@ -577,10 +640,12 @@ class MultibodyModel(Model):
                 system.set_mass_properties(body, mass, com, inertia)
             except ValueError as exc:
                 raise ModelError(f"{self.path}.{body}: {exc}") from None
-        if initial and self.constrained is not None:
-            raise ModelError(f"{self.path}.{initial[0][0]}.initial.{initial[0][1]}: the initial state of a scene with "
-                             "closure constraints is assembled once, from the scenario; a run cannot change it "
-                             "(not implemented)")
+        if initial and self.constrained is not None and self.constrained.takes_reference():
+            from shell.names import StructuralChange
+
+            raise StructuralChange(f"{self.path}.{initial[0][0]}.initial.{initial[0][1]}: a constraint or force "
+                                   "element of this scene takes its pose or length from the initial state (none "
+                                   "given), so a run with another initial state is another scene")
         if initial:
             q, u = self.written_q.copy(), self._initial_u.copy()
             for body, key, value in initial:
@@ -595,6 +660,13 @@ class MultibodyModel(Model):
                                      f"given norm {np.linalg.norm(value_si):.12g}")
                 (q if target == "q" else u)[sl] = value_si
             system.normalize_quaternions(q)
+            if self.assembly is not None:  # onto the closure constraints, as the scene built with these values
+                try:
+                    q, u, _ = self.constrained.on(system).assemble(q, u, self.assembly.tolerance)
+                except ModelDefinitionError as exc:
+                    changed = ", ".join(f"{body}.initial.{key}" for body, key, _ in initial)
+                    raise ModelError(f"{self.path}: the initial state with {changed} cannot be assembled: "
+                                     f"{exc}") from None
             x[:system.nq] = q
             x[system.nq:] = u
 

@@ -26,7 +26,8 @@ from dynamics import ModelDefinitionError, Multibody, MultibodySystem
 from dynamics.constraints import (CONSTRAINT_KINDS, DEFAULT_ASSEMBLY_TOLERANCE, AssemblyReport, ClosureConstraint,
                                   ConstrainedSystem)
 from dynamics.definitions import suggest
-from dynamics.force_elements import ACTS, SpringDamper
+from dynamics.force_elements import (ACTS, Bushing, HingeFriction, HingeSpring, HingeStop, PlaneContact, SphereContact,
+                                      SpringDamper, element_tables)
 from dynamics.hinges import HINGE_TYPES, HINGES
 from dynamics.layout import N_MODES
 from dynamics.modal_order import resolve_modal_orders
@@ -36,23 +37,61 @@ from shell.diagnostics import located
 from shell.schema.validation import Where, expect_list, expect_mapping, expect_name
 from shell.units import UnitError, to_magnitude, ureg
 
-SECTION_KEYS = {"name": "engine model name (default multibody)", "gravity": "uniform gravity, world axes (m/s^2)",
-                "bodies": "list of bodies", "nodes": "list of nodes",
-                "constraints": "closure constraints between nodes (weld, ball, revolute, prismatic, distance)",
-                "forces": "force elements between nodes (spring_damper)",
-                "assembly_tolerance": "largest constraint residual of the initial state that is projected away "
-                                      "(m or rad, default 1e-6); beyond it the scene is refused"}
 CONSTRAINT_KEYS = {"name": "constraint name (its load port: <name>.load)", "kind": "weld, ball, revolute, prismatic "
                    "or distance", "node_a": "node frame A (axes of the axis and the load)",
                    "node_b": "node frame B (omitted: the world, at A's initial pose)",
                    "axis": "revolute or prismatic axis, unit vector in A's axes",
                    "length": "distance constraint's length (m; default: the initial distance)",
                    "active": "false: declared off until an event switches it on (a latch; events: on:); default true"}
-FORCE_KEYS = {"name": "force element name", "kind": "spring_damper", "node_a": "node at one end",
-              "node_b": "node at the other end (or world_point)", "world_point": "fixed end, world (m; default origin)",
-              "stiffness": "N/m", "damping": "N*s/m", "free_length": "m (default: the initial length)",
-              "acts": "both, compression or tension (default both)"}
-FORCE_KINDS = ("spring_damper",)
+_LAW_KEYS = {"stiffness": "Hunt-Crossley k: N/m^n (contacts), N*m/rad^n or N/m^n (stops), n the exponent",
+             "exponent": "Hunt-Crossley n (default 1.5 for contacts, 1 for stops)",
+             "damping": "Hunt-Crossley D (s/m, s/rad): F = k delta^n (1 + D delta_dot)",
+             "restitution": "coefficient of restitution e in (0, 1] at impact_speed (instead of damping)",
+             "impact_speed": "the impact speed e holds at (m/s, rad/s)"}
+_HINGE_KEYS = {"body": "body whose inboard hinge it acts on", "dof": "the hinge's DOF (default 0; 1: a U-joint's "
+               "second angle)"}
+FORCE_KEYS = {
+    "spring_damper": {"node_a": "node at one end", "node_b": "node at the other end (or world_point)",
+                      "world_point": "fixed end, world (m; default origin)", "stiffness": "N/m", "damping": "N*s/m",
+                      "free_length": "m (default: the initial length)",
+                      "acts": "both, compression or tension (default both)"},
+    "bushing": {"node_a": "node frame A (the axes of K and C)", "node_b": "node frame B (omitted: the world)",
+                "world_position": "B's world position when node_b is omitted (m; default A's initial)",
+                "world_rotation": "B's world rotation, 3x3 or [w, x, y, z] (default A's initial)",
+                "stiffness": "6 diagonal entries or 6x6, rows [rotation; translation], SI (N*m/rad, N/m), or "
+                             "{rotation: N*m/rad, translation: N/m} (3 or 3x3 each)",
+                "damping": "as stiffness, SI (N*m*s/rad, N*s/m) or {rotation: N*m*s/rad, translation: N*s/m}"},
+    "hinge_spring": {**_HINGE_KEYS, "stiffness": "N*m/rad or N/m", "damping": "N*m*s/rad or N*s/m",
+                     "neutral": "coordinate where it is relaxed (rad or m, default 0)"},
+    "hinge_stop": {**_HINGE_KEYS, "lower": "lower limit (rad or m)", "upper": "upper limit (rad or m)",
+                   **_LAW_KEYS},
+    "hinge_friction": {**_HINGE_KEYS, "level": "Coulomb friction torque or force (N*m or N)",
+                       "slip_speed": "regularization speed (rad/s or m/s, default 1e-3)"},
+    "plane_contact": {"node": "node at the sphere's centre", "radius": "sphere radius (m, default 0: a point)",
+                      "plane_node": "node the plane goes through (omitted: a world plane)",
+                      "normal": "unit normal, plane_node's axes or the world's (default [0, 0, 1])",
+                      "world_point": "a point of a world plane (m, default origin)", **_LAW_KEYS,
+                      "friction": "Coulomb coefficient mu (default 0)",
+                      "slip_speed": "friction regularization speed (m/s, default 1e-3)"},
+    "sphere_contact": {"node_a": "node at sphere A's centre", "node_b": "node at sphere B's centre",
+                       "radius_a": "m", "radius_b": "m", **_LAW_KEYS,
+                       "friction": "Coulomb coefficient mu (default 0)",
+                       "slip_speed": "friction regularization speed (m/s, default 1e-3)"},
+}
+"""Keys of each force element kind (:mod:`dynamics.force_elements`), besides name and kind."""
+FORCE_KINDS = tuple(FORCE_KEYS)
+_FORCE_REQUIRED = {"spring_damper": ("node_a", "stiffness"), "bushing": ("node_a",),
+                   "hinge_spring": ("body", "stiffness"), "hinge_stop": ("body", "stiffness"),
+                   "hinge_friction": ("body", "level"), "plane_contact": ("node", "stiffness"),
+                   "sphere_contact": ("node_a", "node_b", "stiffness")}
+SECTION_KEYS = {"name": "engine model name (default multibody)", "gravity": "uniform gravity, world axes (m/s^2)",
+                "bodies": "list of bodies", "nodes": "list of nodes",
+                "constraints": "closure constraints between nodes (weld, ball, revolute, prismatic, distance)",
+                "forces": "force elements: " + ", ".join(FORCE_KINDS),
+                "outputs": "optional outputs, computed only when asked for: hinge_load (<body>.hinge_load of every "
+                           "body) and energy",
+                "assembly_tolerance": "largest constraint residual of the initial state that is projected away "
+                                      "(m or rad, default 1e-6); beyond it the scene is refused"}
 NODE_KEYS = {"name": "node name", "body": "body it is fixed on", "position": "in the body frame (m)",
              "rotation": "node -> body", "grid": "FE grid id (nodes on flexible bodies)"}
 BODY_KEYS = {
@@ -79,6 +118,9 @@ BODY_KEYS = {
 }
 FLEXIBLE_ONLY = ("modes", "max_frequency", "modal_integrals_order", "omit_terms", "damping_ratio", "integrals",
                  "child_grid", "geometric_stiffening", "preload")
+OPTIONAL_OUTPUTS = {"hinge_load": "<body>.hinge_load of every body", "energy": "energy (kinetic, potential, force "
+                    "elements', total)"}
+"""Outputs a scene asks for (``multibody.outputs:``): computed on the constrained path only (its kernel has them)."""
 
 
 def _initial_keys():
@@ -109,6 +151,7 @@ class MultibodySection:
     written_q: np.ndarray
     constrained: ConstrainedSystem | None = None
     assembly: AssemblyReport | None = None
+    outputs: tuple = ()  # the optional outputs asked for (shell.models.multibody.OPTIONAL_OUTPUTS)
 
 
 def read_multibody(description, where: Where) -> MultibodySection:
@@ -139,15 +182,30 @@ def read_multibody(description, where: Where) -> MultibodySection:
     places = {body.get("name"): here for _, here, body in initial}  # the stiffening warning names its body
     with located(lambda text: next((h for b, h in places.items() if f"body '{b}'" in text), where)):
         system, _ = resolve_modal_orders(system, q0, u0)  # modal_integrals_order: auto
+    outputs = _optional_outputs(description, where)
     if not description.get("constraints") and not description.get("forces"):
         for key in ("constraints", "forces"):
             if key in description:
                 expect_list(description[key], where.child(description, key), key)
         if "assembly_tolerance" in description:
             raise where.child(description, "assembly_tolerance").error("applies to a scene with constraints:")
+        if outputs:  # the constrained path computes them: a ConstrainedSystem without constraints or elements
+            return MultibodySection(name, system, q0, u0, written, ConstrainedSystem(system), None, outputs)
         return MultibodySection(name, system, q0, u0, written)
     constrained, q0, u0, report = _constrained(system, description, where, q0, u0)
-    return MultibodySection(name, system, q0, u0, written, constrained, report)
+    return MultibodySection(name, system, q0, u0, written, constrained, report, outputs)
+
+
+def _optional_outputs(description, where: Where) -> tuple:
+    """The section's ``outputs:`` list, each one of :data:`OPTIONAL_OUTPUTS`, none twice."""
+    here = where.child(description, "outputs")
+    entries = expect_list(description.get("outputs") or [], here, "optional outputs")
+    for k, entry in enumerate(entries):
+        if entry not in OPTIONAL_OUTPUTS or entry in entries[:k]:
+            raise here.child(entries, k).error(f"expected one of {list(OPTIONAL_OUTPUTS)}, each once, given "
+                                               f"{entry!r}" + (suggest(entry, OPTIONAL_OUTPUTS) if isinstance(
+                                                   entry, str) else ""))
+    return tuple(entries)
 
 
 def _constrained(system, description, where: Where, q0, u0):
@@ -169,7 +227,7 @@ def _constrained(system, description, where: Where, q0, u0):
                                                   f"{places[constraint.label]})")
         places[constraint.label] = here
         constraints.append(constraint)
-    forces = _forces(system, description, where)
+    forces = _forces(system, description, where, q0)
     try:
         constrained = ConstrainedSystem(system, constraints, forces, q_reference=q0)
     except ModelDefinitionError as exc:
@@ -188,14 +246,20 @@ def _constrained(system, description, where: Where, q0, u0):
     return constrained, q0, u0, report
 
 
-def _forces(system, description, where: Where) -> list:
-    """The section's ``forces:`` entries as force elements (:mod:`dynamics.force_elements`), checked key by key."""
+def _forces(system, description, where: Where, q0) -> list:
+    """The section's ``forces:`` entries as force elements (:mod:`dynamics.force_elements`), checked key by key; each
+    is compiled against the system at the initial configuration ``q0`` here, so that what only the engine can judge
+    (a non-symmetric stiffness, a hinge elements cannot act on) is refused at its entry."""
     here_list = where.child(description, "forces")
     entries = expect_list(description.get("forces") or [], here_list, "forces")
+    every_key = {"name": "force element name", "kind": ", ".join(FORCE_KINDS)}
+    for keys in FORCE_KEYS.values():
+        every_key.update(keys)
+    reference = system.node_kinematics(q0, np.zeros(system.nu))
     out, names = [], set()
     for k, entry in enumerate(entries):
         here = here_list.child(entries, k)
-        expect_mapping(entry, here, FORCE_KEYS, required=("name", "kind", "node_a", "stiffness"))
+        expect_mapping(entry, here, every_key, required=("name", "kind"))
         name = expect_name(entry["name"], here.child(entry, "name"), "a force element name")
         here = here.named(name)
         if name in names:
@@ -204,31 +268,200 @@ def _forces(system, description, where: Where) -> list:
         kind = expect_name(entry["kind"], here.child(entry, "kind"), "a force element kind")
         if kind not in FORCE_KINDS:
             raise here.child(entry, "kind").error(f"unknown force element kind {kind!r}; expected one of "
-                                                  f"{list(FORCE_KINDS)} (bushings, hinge stops and contact are not "
-                                                  f"in scenarios yet)" + suggest(kind, FORCE_KINDS))
-        nodes = {}
-        for role in ("node_a", "node_b"):
-            if role in entry:
-                node = expect_name(entry[role], here.child(entry, role), "a node name")
-                if node not in system.node_names:
-                    raise here.child(entry, role).error(f"unknown node {node!r}; nodes: {list(system.node_names)}"
-                                                        + suggest(node, system.node_names))
-                nodes[role] = node
-        if "node_b" in nodes and "world_point" in entry:
-            raise here.child(entry, "world_point").error("give node_b or world_point, not both")
-        values = {}
-        for key, unit in (("stiffness", "N/m"), ("damping", "N*s/m"), ("free_length", "m")):
-            if key in entry:
-                values[key] = float(_vector(entry, key, unit, (), here))
-                if not values[key] >= 0.0:
-                    raise here.child(entry, key).error(f"expected a value >= 0, given {entry[key]!r}")
-        acts = entry.get("acts", "both")
-        if acts not in ACTS:
-            raise here.child(entry, "acts").error(f"expected one of {sorted(ACTS)}, given {acts!r}")
-        world_point = tuple(_vector(entry, "world_point", "m", (3,), here)) if "world_point" in entry else None
-        out.append(SpringDamper(name, nodes["node_a"], nodes.get("node_b"), acts=acts, world_point=world_point,
-                                **values))
+                                                  f"{list(FORCE_KINDS)}" + suggest(kind, FORCE_KINDS))
+        allowed = {"name": every_key["name"], "kind": every_key["kind"], **FORCE_KEYS[kind]}
+        for key in entry:
+            if key not in allowed:
+                raise here.child(entry, key).error(f"not a key of a {kind}; expected one of {sorted(allowed)}")
+        expect_mapping(entry, here, allowed, required=_FORCE_REQUIRED[kind])
+        element = _FORCE_READERS[kind](_ForceEntry(system, entry, here), name)
+        try:
+            element_tables([element], system, reference)
+        except ModelDefinitionError as exc:
+            message = str(exc).split(": ", 1)[-1]
+            key = next((key for key in entry if key not in ("name", "kind") and key in message.split()), None)
+            raise (here if key is None else here.child(entry, key)).error(message) from None
+        out.append(element)
     return out
+
+
+class _ForceEntry:
+    """One ``forces:`` entry's values, converted and checked with file, line and key."""
+
+    def __init__(self, system, entry, here: Where):
+        self.system, self.entry, self.here = system, entry, here
+        self.coordinate, self.load = "", ""  # a hinge element's coordinate and generalized force units
+
+    def error(self, key, message):
+        return self.here.child(self.entry, key).error(message)
+
+    def node(self, key):
+        if key not in self.entry:
+            return None
+        node = expect_name(self.entry[key], self.here.child(self.entry, key), "a node name")
+        if node not in self.system.node_names:
+            raise self.error(key, f"unknown node {node!r}; nodes: {list(self.system.node_names)}"
+                             + suggest(node, self.system.node_names))
+        return node
+
+    def number(self, key, unit, *, low=None, positive=False, high=None):
+        """The value of ``key`` in ``unit`` (None when absent), checked against its bounds."""
+        if key not in self.entry:
+            return None
+        value = float(_vector(self.entry, key, unit, (), self.here))
+        if not np.isfinite(value) or (low is not None and not value >= low) or (positive and not value > 0.0) or \
+                (high is not None and not value <= high):
+            bound = (f"in (0, {high:g}]" if high is not None else "> 0") if positive else \
+                (f"in [{low:g}, {high:g}]" if high is not None else f">= {low:g}")
+            raise self.error(key, f"expected a value {bound if low is not None or positive else 'finite'}, given "
+                                  f"{self.entry[key]!r}")
+        return value
+
+    def vector(self, key, unit):
+        return None if key not in self.entry else tuple(_vector(self.entry, key, unit, (3,), self.here))
+
+    def apart(self, key_a, key_b):
+        """Refuse the nodes of ``key_a`` and ``key_b`` on one body (a contact of a body with itself)."""
+        a, b = self.node(key_a), self.node(key_b)
+        if a is not None and b is not None and self.system.node_bodies[self.system.node_index(a)] == \
+                self.system.node_bodies[self.system.node_index(b)]:
+            raise self.error(key_b, f"nodes {a!r} and {b!r} are on the same body "
+                                    f"{self.system.node_bodies[self.system.node_index(a)]!r}")
+        return a, b
+
+    def hinge(self):
+        """The hinge element's body, checked, and the units of its coordinate and generalized force."""
+        body = expect_name(self.entry["body"], self.here.child(self.entry, "body"), "a body name")
+        names = list(self.system.body_names)
+        if body not in names:
+            raise self.error("body", f"unknown body {body!r}; bodies: {names}" + suggest(body, names))
+        hinge = self.system.hinge_names[names.index(body)]
+        units = {"revolute": ("rad", "N*m"), "ujoint": ("rad", "N*m"), "prismatic": ("m", "N")}
+        if hinge not in units:
+            raise self.error("body", f"body {body!r} has a {hinge} hinge; hinge elements act on revolute, prismatic "
+                                     f"or U-joint coordinates")
+        self.coordinate, self.load = units[hinge]
+        dof = self.entry.get("dof", 0)
+        if isinstance(dof, bool) or not isinstance(dof, int) or not 0 <= dof < (2 if hinge == "ujoint" else 1):
+            raise self.error("dof", f"expected {'0 or 1' if hinge == 'ujoint' else '0'} (the {hinge} hinge's DOF), "
+                                    f"given {dof!r}")
+        return body, dof
+
+    def law(self, length, exponent_default):
+        """The Hunt-Crossley law's keys in the units of ``length`` (m or rad): stiffness per length^n."""
+        exponent = self.number("exponent", "", low=1.0)
+        n = exponent_default if exponent is None else exponent
+        force = self.load or "N"
+        if "damping" in self.entry and "restitution" in self.entry:
+            raise self.error("restitution", "give damping or restitution (with impact_speed), not both")
+        if "restitution" in self.entry and "impact_speed" not in self.entry:
+            raise self.error("restitution", "restitution needs the impact_speed it holds at (the Hunt-Crossley "
+                                            "damping depends on it)")
+        if "impact_speed" in self.entry and "restitution" not in self.entry:
+            raise self.error("impact_speed", "impact_speed goes with restitution")
+        return dict(stiffness=self.number("stiffness", f"{force}/{length}**{n!r}", low=0.0), exponent=exponent,
+                    damping=self.number("damping", f"s/{length}", low=0.0),
+                    restitution=self.number("restitution", "", positive=True, high=1.0),
+                    impact_speed=self.number("impact_speed", f"{length}/s", positive=True))
+
+    def six_by_six(self, key, rotation_unit, translation_unit):
+        """A bushing's stiffness or damping: 6 or 6 x 6 SI numbers, or ``{rotation: .., translation: ..}`` blocks
+        (3 or 3 x 3 each, with units)."""
+        if key not in self.entry:
+            return None
+        value = self.entry[key]
+        if isinstance(value, dict) and "unit" not in value:
+            expect_mapping(value, self.here.child(self.entry, key), {"rotation": rotation_unit,
+                                                                     "translation": translation_unit})
+            matrix = np.zeros((6, 6))
+            for block, unit, rows in (("rotation", rotation_unit, slice(0, 3)),
+                                      ("translation", translation_unit, slice(3, 6))):
+                if block in value:
+                    where = self.here.child(self.entry, key)
+                    part = _vector(value, block, unit, None, where)
+                    if part.shape not in ((3,), (3, 3)):
+                        raise where.child(value, block).error(f"expected 3 entries or a 3x3 matrix, given shape "
+                                                              f"{part.shape}")
+                    matrix[rows, rows] = np.diag(part) if part.shape == (3,) else part
+            return matrix
+        part = _vector(self.entry, key, "", None, self.here)
+        if part.shape not in ((6,), (6, 6)):
+            raise self.error(key, f"expected 6 entries or a 6x6 matrix (SI: {rotation_unit} rows 0-2, "
+                                  f"{translation_unit} rows 3-5), given shape {part.shape}")
+        return part
+
+
+def _spring_damper(f: _ForceEntry, name):
+    acts = f.entry.get("acts", "both")
+    if acts not in ACTS:
+        raise f.error("acts", f"expected one of {sorted(ACTS)}, given {acts!r}")
+    if "node_b" in f.entry and "world_point" in f.entry:
+        raise f.error("world_point", "give node_b or world_point, not both")
+    values = {key: f.number(key, unit, low=0.0) for key, unit in (("stiffness", "N/m"), ("damping", "N*s/m"),
+                                                                  ("free_length", "m")) if key in f.entry}
+    return SpringDamper(name, f.node("node_a"), f.node("node_b"), acts=acts, world_point=f.vector("world_point", "m"),
+                        **values)
+
+
+def _bushing(f: _ForceEntry, name):
+    if "node_b" in f.entry:
+        for key in ("world_position", "world_rotation"):
+            if key in f.entry:
+                raise f.error(key, "give node_b or a world pose, not both")
+    return Bushing(name, f.node("node_a"), f.node("node_b"),
+                   stiffness=f.six_by_six("stiffness", "N*m/rad", "N/m"),
+                   damping=f.six_by_six("damping", "N*m*s/rad", "N*s/m"),
+                   world_rotation=_rotation(f.entry, "world_rotation", f.here),
+                   world_position=f.vector("world_position", "m"))
+
+
+def _hinge_spring(f: _ForceEntry, name):
+    body, dof = f.hinge()
+    c, load = f.coordinate, f.load
+    return HingeSpring(name, body, f.number("stiffness", f"{load}/{c}", low=0.0),
+                       f.number("damping", f"{load}*s/{c}", low=0.0) or 0.0, f.number("neutral", c) or 0.0, dof)
+
+
+def _hinge_stop(f: _ForceEntry, name):
+    body, dof = f.hinge()
+    if "lower" not in f.entry and "upper" not in f.entry:
+        raise f.here.error("give lower and/or upper")
+    lower, upper = f.number("lower", f.coordinate), f.number("upper", f.coordinate)
+    if lower is not None and upper is not None and not lower < upper:
+        raise f.error("upper", f"lower ({lower:g} {f.coordinate}) must be below upper ({upper:g} {f.coordinate})")
+    return HingeStop(name, body, lower, upper, dof=dof, **f.law(f.coordinate, 1.0))
+
+
+def _hinge_friction(f: _ForceEntry, name):
+    body, dof = f.hinge()
+    slip = f.number("slip_speed", f"{f.coordinate}/s", positive=True)
+    return HingeFriction(name, body, f.number("level", f.load, low=0.0), 1e-3 if slip is None else slip, dof)
+
+
+def _contact_keys(f: _ForceEntry):
+    slip = f.number("slip_speed", "m/s", positive=True)
+    return dict(friction=f.number("friction", "", low=0.0) or 0.0, slip_speed=1e-3 if slip is None else slip,
+                **f.law("m", 1.5))
+
+
+def _plane_contact(f: _ForceEntry, name):
+    if "plane_node" in f.entry and "world_point" in f.entry:
+        raise f.error("world_point", "give plane_node or world_point, not both")
+    normal = f.vector("normal", "")
+    node, plane_node = f.apart("node", "plane_node")
+    return PlaneContact(name, node, f.number("radius", "m", low=0.0) or 0.0, plane_node,
+                        (0.0, 0.0, 1.0) if normal is None else normal, f.vector("world_point", "m") or (0.0, 0.0, 0.0),
+                        **_contact_keys(f))
+
+
+def _sphere_contact(f: _ForceEntry, name):
+    return SphereContact(name, *f.apart("node_a", "node_b"), f.number("radius_a", "m", low=0.0) or 0.0,
+                         f.number("radius_b", "m", low=0.0) or 0.0, **_contact_keys(f))
+
+
+_FORCE_READERS = {"spring_damper": _spring_damper, "bushing": _bushing, "hinge_spring": _hinge_spring,
+                  "hinge_stop": _hinge_stop, "hinge_friction": _hinge_friction, "plane_contact": _plane_contact,
+                  "sphere_contact": _sphere_contact}
 
 
 def _constraint(system, entry, here: Where) -> ClosureConstraint:

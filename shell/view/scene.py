@@ -12,7 +12,9 @@ Three sources give a :class:`ViewScene`:
 * a linear model (:func:`from_linear_model`): one system mode, ``q(phi) = q0 (+) s Re(v e^{i phi})`` over
   one period (:func:`shell.analysis.system_modes.state_space_modes`; ``(+)`` adds plain coordinates and
   composes hinge quaternions with ``Exp`` of the rotation-vector rows, as the linearization's tangent
-  coordinates are defined: ``q = q0 (x) Exp(phi)``, shell/analysis/linearize.py).
+  coordinates are defined: ``q = q0 (x) Exp(phi)``, shell/analysis/linearize.py); a model of a scene with closure
+  constraints, in minimal coordinates, has its dependent coordinates moved onto the constraints in every frame
+  (:func:`shell.analysis.linearize.close_loops`).
 
 Poses: body frames from :meth:`dynamics.system.MultibodySystem.body_poses`, node frames (elastic motion
 included) from :meth:`~dynamics.system.MultibodySystem.node_kinematics`, evaluated once per frame in
@@ -49,7 +51,7 @@ from scipy.spatial.transform import Rotation
 
 from dynamics.hinges import HINGE_NQ, HINGE_TYPES
 from shell.analysis.linear_model_file import read_linear_model
-from shell.analysis.linearize import quaternion_exp
+from shell.analysis.linearize import close_loops, quaternion_exp
 from shell.analysis.system_modes import state_space_modes
 from shell.assembly import flatten
 from shell.attitude import quaternion_products
@@ -751,8 +753,9 @@ def _tangent_map(state_names: list[str], label: str):
     return plain, quaternions
 
 
-def _mode_frames(q0, v, plain, quaternions, amplitude, phases):
-
+def _mode_frames(q0, v, plain, quaternions, amplitude, phases, closure=None):
+    """Engine coordinates of the mode's frames; ``closure`` (:func:`_loop_closure`): the dependent coordinates of a
+    linear model in minimal coordinates moved onto the closure constraints in every frame."""
     frames = np.tile(q0, (len(phases), 1))
     for f, phi in enumerate(phases):
         xi = amplitude * np.real(v * np.exp(1j * phi))
@@ -760,7 +763,29 @@ def _mode_frames(q0, v, plain, quaternions, amplitude, phases):
             frames[f, k] += xi[row]
         for row, k in quaternions:
             frames[f, k:k + 4] = quaternion_products(q0[k:k + 4], quaternion_exp(xi[row:row + 3]))
+        if closure is not None:
+            frames[f] = close_loops(closure[0], frames[f], closure[1])
     return frames
+
+
+def _loop_closure(engine, plain, quaternions):
+    """(ConstrainedSystem, dependent tangent coordinates in u's order) when the engine has closure constraints and the
+    linear model's states are its minimal coordinates (some coordinates absent), else None."""
+    constrained = getattr(engine, "constrained", None)
+    if constrained is None or not len(constrained.jacobian(engine._initial_q)):
+        return None
+    system = constrained.system
+    tangent = {}  # q index -> its tangent coordinates (u's order)
+    for b, hinge in enumerate(system.hinge_names):
+        qs, us = system.q_slices[b], system.u_slices[b]
+        quaternion = hinge in ("spherical", "free")
+        if quaternion:
+            tangent[qs.start] = [us.start, us.start + 1, us.start + 2]
+        for j in range(4 if quaternion else 0, qs.stop - qs.start):
+            tangent[qs.start + j] = [us.start + j - (1 if quaternion else 0)]
+    independent = {i for _, k in plain + quaternions for i in tangent[k]}
+    dependent = np.array(sorted(set(range(system.nu)) - independent), dtype=np.int64)
+    return (constrained, dependent) if dependent.size else None
 
 
 def from_linear_model(path, mode: int, *, scenario=None, overrides=None, meshes=None, scale="auto",
@@ -793,12 +818,19 @@ def from_linear_model(path, mode: int, *, scenario=None, overrides=None, meshes=
                         f"{model.state_names[:6]}...): nothing to animate")
     x0 = np.asarray(model.operating_point["x"], float)
     q0 = np.asarray(engine._initial_q, float).copy()
-    # the operating point's engine coordinates, by the x index of each tangent row
-    x_index = _x_indices(list(model.state_names))
+    # the operating point's engine coordinates, by the x index of each tangent row (written by linearize; older
+    # files: from the names, which then list every state)
+    x_rows = model.operating_point.get("x_rows")
+    x_index = [int(r) for r in x_rows] if x_rows is not None else _x_indices(list(model.state_names))
     for row, k in plain:
         q0[k] = x0[x_index[row]]
     for row, k in quaternions:
         q0[k:k + 4] = x0[x_index[row]:x_index[row] + 4]
+    closure = _loop_closure(engine, plain, quaternions)
+    if closure is not None:  # minimal coordinates: the dependent ones at the operating point, then each frame's
+        row, k = (plain or quaternions)[0]
+        start = x_index[row] - k
+        q0 = x0[start:start + len(q0)].copy()
     v = modes.shapes[:, mode - 1]
     v = v * np.exp(-1j * np.angle(v[np.argmax(np.abs(v))]))  # the largest entry real: phase 0 is a peak
     frequency = float(modes.frequencies_hz[mode - 1])
@@ -808,12 +840,12 @@ def from_linear_model(path, mode: int, *, scenario=None, overrides=None, meshes=
     # amplitude: the probe's largest displacement (grids, nodes, body origins), scaled to 10 % of the scene
     probe = 1e-4 / max(float(np.abs(v).max()), 1e-300)
     trial = _assemble(engine, spec.file, meshes or {}, np.zeros(4), _mode_frames(
-        q0, v, plain, quaternions, probe, phases[::max(1, frames // 4)][:4]), [], "", "", 1.0)
+        q0, v, plain, quaternions, probe, phases[::max(1, frames // 4)][:4], closure), [], "", "", 1.0)
     reference = _assemble(engine, spec.file, meshes or {}, np.zeros(1), q0[None, :], [], "", "", 1.0)
     moved = _displacement(trial, reference)
     amplitude = probe * (0.1 * reference.length / moved) if scale == "auto" and moved > 0 else \
         probe * (float(scale) if scale != "auto" else 1.0) / 1e-4
-    q_frames = _mode_frames(q0, v, plain, quaternions, amplitude, phases)
+    q_frames = _mode_frames(q0, v, plain, quaternions, amplitude, phases, closure)
     time = phases / (2.0 * np.pi * frequency) if frequency > 0 else phases
     view = _assemble(engine, spec.file, meshes or {}, time, q_frames, notes,
                      f"{spec.name}: system mode {mode}, {frequency:.4g} Hz", str(path), 1.0, loop=True)

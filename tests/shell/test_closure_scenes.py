@@ -151,19 +151,6 @@ def test_an_initial_state_near_the_loop_is_assembled_and_one_far_from_it_refused
     assert _scene(tmp_path, lifted).children["multibody"].assembly.residual > 1e-3
 
 
-def test_linearization_of_a_constrained_scene_is_refused_not_given_with_spurious_modes():
-    """Linearize, trim and the sampled linearization on the constraint manifold are not wired into scenes yet:
-    each refuses the scene (the unrestricted linear model would have the constraint directions as zero modes)."""
-    from shell.analysis.linearize import LinearizationError, linearize
-    from shell.analysis.trim import trim
-    from shell.scenario import build_simulation
-
-    sim = build_simulation(load_scenario(CONFIGS / "four_bar.yaml"))
-    for analysis in (lambda: linearize(sim, [], ["multibody.crank.q"]), lambda: trim(sim)):
-        with pytest.raises(LinearizationError, match="multibody has closure constraints or force elements \\(pin\\)"):
-            analysis()
-
-
 def test_a_projection_that_cannot_close_the_loop_stops_the_run_with_the_reason(tmp_path):
     """A distance constraint whose length no configuration reaches (set in the run's data after assembly): the
     projection after a step fails, the velocities become NaN and the model says why (the simulation reports it)."""
@@ -218,12 +205,12 @@ def test_a_spring_damper_in_a_scenario_is_the_damped_oscillator(tmp_path):
 
 
 @pytest.mark.parametrize("change, key, message", [
-    ("kind: spring_damper", "kind", "unknown force element kind 'bushing'"),
+    ("kind: spring_damper", "kind", "unknown force element kind 'spring'"),
     ("node_a: hook", "node_a", "unknown node 'hock'"),
     ("damping: 1.2 N*s/m", "damping", "expected a value >= 0"),
 ])
 def test_bad_force_elements_are_refused_with_file_line_and_key(tmp_path, change, key, message):
-    wrong = {"kind": "kind: bushing", "node_a": "node_a: hock", "damping": "damping: -1 N*s/m"}[key]
+    wrong = {"kind": "kind: spring", "node_a": "node_a: hock", "damping": "damping: -1 N*s/m"}[key]
     text = SPRING_SCENE.replace(change, wrong)
     with pytest.raises(ScenarioError) as caught:
         _scene(tmp_path, text)
