@@ -49,10 +49,10 @@ from dynamics import kernels as K
 from dynamics import single_body as SB
 
 
-def _strip_references(context, builder, typ, value):
-    """``value`` of numba type ``typ`` with every array's meminfo (and parent) set to null: see
+def strip_references(context, builder, typ, value):
+    """``value`` of numba type ``typ`` with every array's (and numpy Generator's) meminfo and parent set to null: see
     :func:`borrowed`."""
-    if isinstance(typ, types.Array):
+    if isinstance(typ, (types.Array, types.NumPyRandomGeneratorType)):
         model = context.data_model_manager[typ]
         for field in ("meminfo", "parent"):
             index = model.get_field_position(field)
@@ -61,7 +61,7 @@ def _strip_references(context, builder, typ, value):
     if isinstance(typ, types.BaseTuple):
         for index, member in enumerate(typ.types):
             if isinstance(member, (types.Array, types.BaseTuple)):
-                stripped = _strip_references(context, builder, member, builder.extract_value(value, index))
+                stripped = strip_references(context, builder, member, builder.extract_value(value, index))
                 value = builder.insert_value(value, stripped, index)
     return value
 
@@ -78,7 +78,7 @@ def borrowed(typingctx, value):
         return None
 
     def codegen(context, builder, sig, args):
-        return _strip_references(context, builder, sig.args[0], args[0])
+        return strip_references(context, builder, sig.args[0], args[0])
 
     return value(value), codegen
 

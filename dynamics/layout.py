@@ -71,10 +71,10 @@ FX_P_SMALL = 25  # pool: the Woodbury system (V and Q r x r, [C | rhs] r x (r + 
 FX_RANK = 26  # r = 6 (child attachment nodes) + 12 (when the hinge sits on a node of the body)
 FX_P_MRR = 27  # pool: M_rr(eta) (6 x 6)
 FX_P2 = 28  # params: (n, n, 3) second-order mass-centre shift of geometric stiffening (ModalMassTerms.P2)
-FX_NODES = 29  # params: the node-inertia records (NODE_RECORD + 6 n numbers each), -1 when none
+FX_NODES = 29  # params: the node-inertia data (dynamics.kernels.node_inertia.node_params), -1 when none
 FX_NODE_COUNT = 30  # how many nodes with rotary inertia or CG offsets carry terms of M(eta)
 FX_NODE_TERMS = 31  # which terms they carry: a sum of NODE_G1, NODE_G2, NODE_F2
-FX_P_NODES = 32  # pool: theta_j = lambda_j eta and u_j = gamma_j eta of each such node (6 per node)
+FX_P_NODES = 32  # pool: theta_j = lambda_j eta, u_j = gamma_j eta and scratch of each such node (NODE_STATE per node)
 FX_REFINE = 33  # > 0: G(eta) = G0 + node terms, refined against the constant G0 (GINV_KIND of G0) for at
 #                most this many passes (the cost of factoring G(eta) instead); 0: not refined
 N_FX = 34
@@ -88,12 +88,10 @@ PV_DG = 4  # (G(eta) - G0) etaddot of the current refinement iterate (ABA)
 PV_PREV = 5  # the modal accelerations of the previous refinement iterate
 N_PV = 6
 
-# the terms of M(eta) summed over nodes (FX_NODE_TERMS bits); a node record in params is [m, p (3), J (9, row
-# major), 1 if p != 0 else 0] followed by its shapes [lambda; gamma] (6 x n, row major)
+# the terms of M(eta) summed over nodes (FX_NODE_TERMS bits; their data: dynamics.kernels.node_inertia.node_params)
 NODE_G1 = 1
 NODE_G2 = 2
 NODE_F2 = 4
-NODE_RECORD = 14
 
 # how G^-1 is applied
 GINV_DIAGONAL = 0

@@ -34,6 +34,7 @@ from dynamics.definitions import rigid_mass_properties
 from dynamics.engine import borrowed
 from dynamics.errors import ModelDefinitionError, SingularConfigurationError
 from dynamics.hinges import HINGE_TYPES, HINGES
+from dynamics.kernels.node_inertia import NODE_STATE, node_params
 from dynamics.reconfigure import reconfigure
 from dynamics.spatial import spatial_inertia as _spatial_inertia
 
@@ -444,11 +445,8 @@ class MultibodySystem:
             if shapes.shape != (nodes.count, 6, n):
                 raise ModelDefinitionError(f"{where}: node_inertia shapes must have shape {(nodes.count, 6, n)}, got "
                                            f"{shapes.shape}")
-            offset = np.any(nodes.cg != 0.0, axis=1).astype(float)
-            records = np.concatenate([nodes.mass[:, None], nodes.cg, np.asarray(nodes.inertia).reshape(-1, 9),
-                                      offset[:, None], shapes.reshape(nodes.count, 6 * n)], axis=1)
-            fx[L.FX_NODES] = params.push(records)
-            fx[L.FX_P_NODES] = pool.reserve(6 * nodes.count)
+            fx[L.FX_NODES] = params.push(node_params(nodes.mass, nodes.cg, nodes.inertia, shapes))
+            fx[L.FX_P_NODES] = pool.reserve(NODE_STATE * nodes.count)
         varying = terms.G1 is not None or terms.G2 is not None
         quasi_static = has_quasi_static_modes(data)
         budget = refinement_budget(n, nodes.count) if node_terms & (L.NODE_G1 | L.NODE_G2) else 0

@@ -7,28 +7,30 @@ dispatch per kernel, many per derivative. Here the same sequence runs inside num
   parameters and its data slot) is encoded as integer *op* tables (:class:`shell.compiled_plan.CompiledPlan`);
 * every model kernel is passed as a function pointer (the addresses numba gives a compiled function, in an int64
   table) and called through it: an indirect call of ~10 ns, no Python. Kernels of the uniform signature, kernels
-  of models with a data slot, and the op kernels of models with typed per-run data (the engine: its data from the
-  ``slots`` tuple) are called the same way (:mod:`shell.kernel_protocol`);
+  of models with a data slot, and the op kernels of models with typed per-run data (the engine: its data by
+  reference, an int64 array, :func:`shell.kernel_protocol.reference`) are called the same way
+  (:mod:`shell.kernel_protocol`);
 * :func:`advance` runs the instants from one to the next: it integrates with the run's stepper (whatever method:
   :mod:`shell.integrators.compiled`; the loop below owns the instants, the shortened last step, the counters, the
   zero-crossing checks on the method's dense output and the returns to Python), runs the sampled models' updates
   at integer ticks of a common time base (their noise drawn from each model's own ``numpy.random.Generator``,
-  bit-identical to the interpreted draws), writes log rows into preallocated buffers, and returns to Python only to
+  bit-identical to the interpreted draws; the generators by reference in ``R``), writes log rows into preallocated buffers, and returns to Python only to
   run Python-only models, flush full log buffers, report progress, locate a crossing, answer the integrator, or
   report a failure (:mod:`shell.compiled_run`).
 
-Because the plan and the kernels are data (arrays of offsets and of addresses), this module is compiled once per
-installation (numba's on-disk cache) per stepper type and per type of the op-kernel data, not per scene: a new
+Because the plan, the kernels and the op kernels' data are data (arrays of offsets, of addresses, of references),
+this module is compiled once per installation (numba's on-disk cache) per stepper type, not per scene: a new
 scene costs no compilation, and the loop's compiled code does not contain the engine or any model (each is compiled
 and cached on its own). The arithmetic is that of the interpreted path operation for operation (same kernels, the
 stepper's combinations, the same quaternion normalization, instants ``k / den`` rounded as Python's
 ``float(Fraction)``), so the two give the same numbers; tests check it.
 
-Op table columns (int64): ``KIND, FN, G0, G1, X0, X1, Z0, Z1, U0, U1, P0, P1, O0, O1, N0, N1, RNG, D0, D1, SLOT,
+Op table columns (int64): ``KIND, FN, G0, G1, X0, X1, Z0, Z1, U0, U1, P0, P1, O0, O1, N0, N1, RNG, D0, D1,
 OPCODE``: the kind of call, the function index, the feedthrough gather range, the model's slices of ``x``, ``z``,
 the signal buffer (inputs), the parameters, its output range (outputs in the signal buffer, derivatives in
-``xdot``, zero crossings in ``g``), the noise buffer range and random stream of a noisy update, its data slot
-range, and for an op kernel its data slot and op code.
+``xdot``, zero crossings in ``g``), the noise buffer range of a noisy update and where its generator's reference
+starts in ``R``, its data slot range (for an op kernel: the range of its data's reference in ``R``), and an op
+kernel's op code.
 """
 
 from __future__ import annotations
@@ -36,11 +38,12 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, types
+from numba import njit, typeof, types
 from numba.core import cgutils
 from numba.extending import intrinsic
+from numba.np.random import generator_core  # noqa: F401 (registers the numba data model of a numpy Generator)
 
-from dynamics.engine import borrowed
+from dynamics.engine import borrowed, strip_references
 from shell import kernel_protocol as KP
 from shell.integrators import compiled as IC
 from shell.integrators.compiled import (I_F_VALID, I_NOW, I_PHASE, I_STEPS, I_UPDATES, R_LAST_EVENT, R_T, R_T_OLD,
@@ -49,9 +52,10 @@ from shell.integrators.kernels import all_finite, copy_into
 
 __all__ = ["N_INTS", "N_REALS", "START_FAILED", "STEP_FAILED", "FIRST_REQUEST"]
 
-#: random-stream slots come in multiples of this (a scene with more noisy models takes the next multiple: one loop
-#: compilation per multiple, not per scene)
-NOISY_MODELS_PER_BLOCK = 8
+#: a numpy Generator's numba type and the int64 words of its reference (:func:`shell.kernel_protocol.reference`)
+GENERATOR = typeof(np.random.default_rng(0))
+GENERATOR_WORDS = KP.reference_words(GENERATOR)
+_generator = KP.reader(GENERATOR)
 
 
 def _function_struct(function_type, context, builder, args):
@@ -76,18 +80,6 @@ def _pointer_intrinsic(signature):
         return function_type(types.int64, types.int64), codegen
 
     return as_function
-
-
-@intrinsic
-def _op_function(typingctx, c_address, jit_address, data):
-    """The op kernel at (cfunc wrapper address, numba entry address) whose data have the type of ``data`` (only
-    typed: :func:`shell.kernel_protocol.op_kernel_signature`)."""
-    function_type = types.FunctionType(KP.op_kernel_signature(data))
-
-    def codegen(context, builder, sig, args):
-        return _function_struct(function_type, context, builder, args)
-
-    return function_type(types.int64, types.int64, data), codegen
 
 
 @intrinsic
@@ -117,17 +109,18 @@ def _view(typingctx, array, start, stop):
 _kernel = _pointer_intrinsic(KP.KERNEL_SIGNATURE)
 _data_kernel = _pointer_intrinsic(KP.DATA_KERNEL_SIGNATURE)
 _update_kernel = _pointer_intrinsic(KP.UPDATE_SIGNATURE)
+_op_kernel = _pointer_intrinsic(KP.REFERENCE_KERNEL_SIGNATURE)
 
 # op table columns
-KIND, FN, G0, G1, X0, X1, Z0, Z1, U0, U1, P0, P1, O0, O1, N0, N1, RNG, D0, D1, SLOT, OPCODE = range(21)
-OP_COLUMNS = 21
+KIND, FN, G0, G1, X0, X1, Z0, Z1, U0, U1, P0, P1, O0, O1, N0, N1, RNG, D0, D1, OPCODE = range(20)
+OP_COLUMNS = 20
 
 # op kinds
 PLAIN = 0                # fns[FN](t, x, z, u, p, out)
 DATA = 1                 # data_fns[FN](t, x, z, u, p, d, out), d = the model's data slot D[D0:D1]
-OP = 2                   # op_fns[FN](OPCODE, t, x, z, u, p, slots[SLOT], out)
+OP = 2                   # op_fns[FN](OPCODE, t, x, z, u, p, R[D0:D1], out): the model's data by reference
 UPDATE = 5               # update_fns[FN](t, x, z, u, p)
-UPDATE_NOISE = 6         # noise from rngs[RNG] into noise[N0:N1], then fns[FN](t, x, z, u, p, noise)
+UPDATE_NOISE = 6         # noise from the generator at R[RNG:] into noise[N0:N1], then fns[FN](t, x, z, u, p, noise)
 UPDATE_PYTHON = 7        # the update runs in Python: advance returns to the caller
 UPDATE_DATA = 8          # fns[FN](t, x, z, u, p, d)
 UPDATE_DATA_NOISE = 9    # noise as UPDATE_NOISE, then data_fns[FN](t, x, z, u, p, d, noise)
@@ -156,6 +149,7 @@ class Buffers(NamedTuple):
     S: np.ndarray
     P: np.ndarray
     D: np.ndarray               # the data slots of the models that have one
+    R: np.ndarray               # int64: the op-kernel models' data and the noisy models' generators by reference
     XD: np.ndarray
     G: np.ndarray
     noise: np.ndarray
@@ -178,22 +172,23 @@ class Kernels(NamedTuple):
     fns: np.ndarray          # (n, 2) KERNEL_SIGNATURE
     data_fns: np.ndarray     # (m, 2) DATA_KERNEL_SIGNATURE
     update_fns: np.ndarray   # (k, 2) UPDATE_SIGNATURE
-    op_fns: np.ndarray       # (e, 2) op kernels of the slots' data type
+    op_fns: np.ndarray       # (e, 2) REFERENCE_KERNEL_SIGNATURE: op kernels by reference
 
 
 class System(NamedTuple):
-    """What a stepper integrates (shell.integrators.compiled): the kernels, the op kernels' data, the buffers."""
+    """What a stepper integrates (shell.integrators.compiled): the kernels and the buffers."""
 
     kernels: Kernels
-    slots: tuple
     buffers: Buffers
 
 
 class Events(NamedTuple):
-    """Zero-crossing detection: the mode, each function's direction, values at the ends of the last step
-    and at the subdivision samples, the last step's start (for its dense output)."""
+    """Zero-crossing detection: the mode, the check's function pointer (:func:`event_check`), each function's
+    direction, values at the ends of the last step and at the subdivision samples, the last step's start (for its
+    dense output)."""
 
     mode: int
+    check: np.ndarray        # (2,) int64: [cfunc wrapper address, numba entry address] of events_at (0: no events)
     direction: np.ndarray    # (m,) int64: +1 rising only, -1 falling only, 0 both
     g_old: np.ndarray        # (m,)
     g_new: np.ndarray        # (m,)
@@ -223,12 +218,14 @@ class Schedule(NamedTuple):
 
 
 # ----------------------------------------------------------------------------------------------------------
-# evaluation. The chain from a stepper's derivative to the model kernels is inlined (numba's inline="always") into
-# the stepper: every call level otherwise copies the scene's arrays (the engine's ~40 among them) by value, which
-# measured 40 % of an RK4 step of a free rigid body (6.4 against 3.6 us) and 8x the kernel calls of 200 trivial
-# models when each kernel call was a helper of its own.
+# evaluation. The chain from the derivative to the model kernels is inlined (numba's inline="always") into one
+# function, which the steppers call with the system by reference (_derivative_by_reference): a call level that copies
+# the scene's arrays by value measured 40 % of an RK4 step of a free rigid body (6.4 against 3.6 us, when the
+# engine's ~40 arrays were among them) and 8x the kernel calls of 200 trivial models when each kernel call was a
+# helper of its own; inlining the evaluation into every stepper's call site instead cost ~25 s of each loop's
+# compilation (issue 31).
 @njit(cache=True, inline="always")
-def _run_rows(k, slots, b, ops, r0, r1, t, src, fac, out):
+def _run_rows(k, b, ops, r0, r1, t, src, fac, out):
     """Rows ``r0:r1`` of an op table: gather each row's feedthrough inputs (its G0:G1 range of the gather arrays
     ``src``/``fac``), then call its kernel with output ``out[O0:O1]`` (the signal buffer for output stages, ``XD`` for
     derivatives, ``G`` for zero crossings)."""
@@ -247,16 +244,16 @@ def _run_rows(k, slots, b, ops, r0, r1, t, src, fac, out):
         if kind == PLAIN:
             _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, y)
         elif kind == OP:
-            d = slots[ops[r, SLOT]]
-            _op_function(k.op_fns[f, 0], k.op_fns[f, 1], d)(ops[r, OPCODE], t, x, z, u, p, d, y)
+            _op_kernel(k.op_fns[f, 0], k.op_fns[f, 1])(ops[r, OPCODE], t, x, z, u, p,
+                                                       _view(b.R, ops[r, D0], ops[r, D1]), y)
         else:
             _data_kernel(k.data_fns[f, 0], k.data_fns[f, 1])(t, x, z, u, p, _view(b.D, ops[r, D0], ops[r, D1]), y)
 
 
 @njit(cache=True)
-def run_stages(ops, n_ops, k, slots, b, t, src, fac):
+def run_stages(ops, n_ops, k, b, t, src, fac):
     """Output stages ``ops[:n_ops]``: gather each model's feedthrough inputs, then call its kernel."""
-    _run_rows(k, slots, b, ops, 0, n_ops, t, src, fac, b.S)
+    _run_rows(k, b, ops, 0, n_ops, t, src, fac, b.S)
 
 
 @njit(cache=True)
@@ -268,69 +265,100 @@ def gather_all(b, src, fac):
 
 
 @njit(cache=True)
-def evaluate_full(k, slots, t, b, src, fac):
+def evaluate_full(k, t, b, src, fac):
     """Every output, then every input (the interpreted ``Diagram.evaluate``)."""
-    run_stages(b.full_ops, b.full_ops.shape[0], k, slots, b, t, src, fac)
+    run_stages(b.full_ops, b.full_ops.shape[0], k, b, t, src, fac)
     gather_all(b, src, fac)
 
 
 @njit(cache=True)
-def evaluate_stages(ops, k, slots, t, b):
+def evaluate_stages(ops, k, t, b):
     """The output stages of the op table ``ops``, then every input (a log's evaluation)."""
-    run_stages(ops, ops.shape[0], k, slots, b, t, b.src, b.fac)
+    run_stages(ops, ops.shape[0], k, b, t, b.src, b.fac)
     gather_all(b, b.src, b.fac)
 
 
 @njit(cache=True, inline="always")
-def derivatives(k, slots, b, t, src, fac):
+def derivatives(k, b, t, src, fac):
     """``XD = f(t, X)`` (the interpreted ``Diagram.derivatives``), with the gather arrays ``src``/``fac`` (the
     diagram's, or an opened diagram's)."""
     ops = b.derivative_ops
     n_stages = b.n_derivative_stages
-    _run_rows(k, slots, b, ops, 0, n_stages, t, src, fac, b.S)
+    _run_rows(k, b, ops, 0, n_stages, t, src, fac, b.S)
     gather_all(b, src, fac)
-    _run_rows(k, slots, b, ops, n_stages, ops.shape[0], t, src, fac, b.XD)
+    _run_rows(k, b, ops, n_stages, ops.shape[0], t, src, fac, b.XD)
+
+
+@intrinsic
+def _by_reference(typingctx, value):
+    """A pointer to ``value`` (a tuple of arrays, nested) stored on the caller's stack with its arrays borrowed
+    (:func:`dynamics.engine.borrowed`): valid in the caller's frame while the owner of the arrays keeps them."""
+    def codegen(context, builder, sig, args):
+        model = context.data_model_manager[sig.args[0]]
+        stripped = strip_references(context, builder, sig.args[0], args[0])
+        return cgutils.alloca_once_value(builder, model.as_data(builder, stripped))
+
+    return types.CPointer(value)(value), codegen
+
+
+@intrinsic
+def _dereference(typingctx, pointer):
+    """The value :func:`_by_reference` stored (its arrays borrowed)."""
+    if not isinstance(pointer, types.CPointer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        return context.data_model_manager[sig.return_type].from_data(builder, builder.load(args[0]))
+
+    return pointer.dtype(pointer), codegen
+
+
+@njit(cache=True)
+def _derivative_by_reference(system_reference, t, y):
+    system = _dereference(system_reference)
+    b = system.buffers
+    copy_into(b.X, y)
+    derivatives(system.kernels, b, t, b.src, b.fac)
+    return b.XD
 
 
 @njit(cache=True, inline="always")
 def derivative_at(system, t, y):
-    """``f(t, y)`` into ``XD``, returned (``X`` is overwritten with ``y``): the system's derivative for steppers."""
-    b = system.buffers
-    copy_into(b.X, y)
-    derivatives(system.kernels, system.slots, b, t, b.src, b.fac)
-    return b.XD
+    """``f(t, y)`` into ``XD``, returned (``X`` is overwritten with ``y``): the system's derivative for steppers.
+    The evaluation is compiled once, in a function of its own that takes the system by reference (one pointer: the
+    system's ~170 words by value measured 40 % of an RK4 step of a free body), not into every call site."""
+    return _derivative_by_reference(_by_reference(system), t, y)
 
 
 @njit(cache=True)
-def derivative_of(k, slots, t, y, b):
+def derivative_of(k, t, y, b):
     """:func:`derivative_at` for a Python caller."""
     copy_into(b.X, y)
-    derivatives(k, slots, b, t, b.src, b.fac)
+    derivatives(k, b, t, b.src, b.fac)
 
 
 @njit(cache=True)
-def _zero_crossings(k, slots, b, t):
+def _zero_crossings(k, b, t):
     """Every zero-crossing function into ``G`` after evaluating the outputs they need."""
-    run_stages(b.zc_stage_ops, b.zc_stage_ops.shape[0], k, slots, b, t, b.src, b.fac)
+    run_stages(b.zc_stage_ops, b.zc_stage_ops.shape[0], k, b, t, b.src, b.fac)
     gather_all(b, b.src, b.fac)
-    _run_rows(k, slots, b, b.zc_ops, 0, b.zc_ops.shape[0], t, b.src, b.fac, b.G)
+    _run_rows(k, b, b.zc_ops, 0, b.zc_ops.shape[0], t, b.src, b.fac, b.G)
 
 
 @njit(cache=True)
-def zero_crossings(k, slots, t, y, b):
+def zero_crossings(k, t, y, b):
     """:func:`_zero_crossings` at state ``y`` for a Python caller."""
     copy_into(b.X, y)
-    _zero_crossings(k, slots, b, t)
+    _zero_crossings(k, b, t)
 
 
 @njit(cache=True)
-def update_model_alone(i, system, rng, t):
+def update_model_alone(i, system, t):
     """Evaluate the outputs model ``i``'s inputs need, then run its compiled update, drawing its noise first from
-    its own random stream ``rng`` (any generator when it draws no noise)."""
+    its own random stream."""
     b, k = system.buffers, system.kernels
     ops = b.update_ops
-    run_stages(b.input_stage_ops[ops[i, G0]:ops[i, G1]], ops[i, G1] - ops[i, G0], k, system.slots, b, t, b.src,
-               b.fac)
+    run_stages(b.input_stage_ops[ops[i, G0]:ops[i, G1]], ops[i, G1] - ops[i, G0], k, b, t, b.src, b.fac)
     gather_all(b, b.src, b.fac)
     x = _view(b.X, ops[i, X0], ops[i, X1])
     z = _view(b.Z, ops[i, Z0], ops[i, Z1])
@@ -345,6 +373,7 @@ def update_model_alone(i, system, rng, t):
         _kernel(k.fns[f, 0], k.fns[f, 1])(t, x, z, u, p, d)
     else:
         noise = _view(b.noise, ops[i, N0], ops[i, N1])
+        rng = _generator(_view(b.R, ops[i, RNG], ops[i, RNG] + GENERATOR_WORDS))
         for n in range(noise.shape[0]):
             noise[n] = rng.standard_normal()
         if kind == UPDATE_NOISE:
@@ -354,10 +383,9 @@ def update_model_alone(i, system, rng, t):
 
 
 @njit(cache=True)
-def update_model(i, k, slots, rng, t, b):
-    """:func:`update_model_alone` for a Python caller (a loop whose integrator stays in Python), given the model's
-    own stream only: unboxing every model's stream costs more than most updates."""
-    update_model_alone(i, System(k, slots, b), rng, t)
+def update_model(i, k, t, b):
+    """:func:`update_model_alone` for a Python caller (a loop whose integrator stays in Python)."""
+    update_model_alone(i, System(k, b), t)
 
 
 @njit(cache=True, inline="always")
@@ -367,15 +395,15 @@ def normalize(system, y):
     ops = b.normalize_ops
     for r in range(ops.shape[0]):
         x = _view(y, ops[r, X0], ops[r, X1])
-        d = system.slots[ops[r, SLOT]]
         f = ops[r, FN]
-        _op_function(k.op_fns[f, 0], k.op_fns[f, 1], d)(KP.NORMALIZE, 0.0, x, x, x, x, d, x)
+        _op_kernel(k.op_fns[f, 0], k.op_fns[f, 1])(KP.NORMALIZE, 0.0, x, x, x, x, _view(b.R, ops[r, D0], ops[r, D1]),
+                                                   x)
 
 
 @njit(cache=True)
-def normalize_state(k, slots, b, y):
+def normalize_state(k, b, y):
     """:func:`normalize` for a Python caller."""
-    normalize(System(k, slots, b), y)
+    normalize(System(k, b), y)
 
 
 @njit(cache=True)
@@ -398,7 +426,7 @@ def _instant_time(tick, den):
 def _zero_crossings_at(system, t, y, out):
     b = system.buffers
     copy_into(b.X, y)
-    _zero_crossings(system.kernels, system.slots, b, t)
+    _zero_crossings(system.kernels, b, t)
     copy_into(out, b.G)
 
 
@@ -499,6 +527,60 @@ def _event_candidate(system, st, ev, t_old, t_new, search):
     return _samples_flag_candidate(ev, m, n, (t_new - t_old) / n, t_old, t_new)
 
 
+# phases of events_at
+EVENTS_START = 0         # the functions' values at the start of the steps
+EVENTS_STEP = 1          # after a step: a sign change of a function between the step's ends is a candidate
+EVENTS_SEARCH = 2        # after a step: the subdivided search of the step's dense output
+
+
+@njit(cache=True)
+def events_at(system_reference, stepper_reference, events_reference, phase, t_old, t):
+    """The zero-crossing checks of a run with events (the stepper at ``t``): the functions' values at the start
+    (EVENTS_START), or after a step from ``t_old``: their values at its end, and whether a crossing may lie inside it
+    (:func:`_event_candidate`; otherwise the end's values become the next step's start's). The loop calls it
+    through a function pointer (:func:`event_check`), so a scene without zero crossings does not compile it."""
+    system = _dereference(system_reference)
+    st = _dereference(stepper_reference)
+    ev = _dereference(events_reference)
+    if phase == EVENTS_START:
+        _zero_crossings_at(system, t, st.Y, ev.g_old)
+        return False
+    _zero_crossings_at(system, t, st.Y, ev.g_new)
+    if _event_candidate(system, st, ev, t_old, t, phase == EVENTS_SEARCH):
+        return True
+    copy_into(ev.g_old, ev.g_new)
+    return False
+
+
+def _events_signature(system_type, stepper_type, events_type):
+    return types.boolean(types.CPointer(system_type), types.CPointer(stepper_type), types.CPointer(events_type),
+                         types.int64, types.float64, types.float64)
+
+
+@intrinsic
+def _events_function(typingctx, c_address, jit_address, system_reference, stepper_reference, events_reference):
+    """:func:`events_at` at (cfunc wrapper address, numba entry address) for the types of the references."""
+    function_type = types.FunctionType(_events_signature(system_reference.dtype, stepper_reference.dtype,
+                                                         events_reference.dtype))
+
+    def codegen(context, builder, sig, args):
+        return _function_struct(function_type, context, builder, args)
+
+    return function_type(types.int64, types.int64, system_reference, stepper_reference, events_reference), codegen
+
+
+def event_check(kernels, buffers, stepper, events) -> np.ndarray:
+    """``Events.check`` of a run with zero crossings: :func:`events_at` compiled for the types of its system, its
+    stepper and ``events`` (compiled or loaded here, once per stepper type)."""
+    from numba import typeof
+    from numba.experimental.function_type import _get_jit_address, _get_wrapper_address
+
+    signature = _events_signature(typeof(System(kernels, buffers)), typeof(stepper), typeof(events))
+    events_at.compile(signature.args)
+    return np.array([_get_wrapper_address(events_at, signature), _get_jit_address(events_at, signature)],
+                    dtype=np.int64)
+
+
 @njit(cache=True)
 def _integrate(system, st, ev, target, ints, reals, skip_final):
     """Steps of the run's method from reals[R_T] to ``target`` (the Python loop's _advance, the same arithmetic);
@@ -509,8 +591,12 @@ def _integrate(system, st, ev, target, ints, reals, skip_final):
     status = IC.start(system, st, t, ints, reals)
     if status != 0:  # the context's state is untouched
         return status
-    if ev.mode != NO_EVENTS:
-        _zero_crossings_at(system, t, st.Y, ev.g_old)
+    events = ev.mode != NO_EVENTS
+    if events:
+        system_reference, stepper_reference, events_reference = (_by_reference(system), _by_reference(st),
+                                                                  _by_reference(ev))
+        check = _events_function(ev.check[0], ev.check[1], system_reference, stepper_reference, events_reference)
+        check(system_reference, stepper_reference, events_reference, EVENTS_START, t, t)
     h0 = st.h
     while t < target:
         remaining = target - t
@@ -526,7 +612,7 @@ def _integrate(system, st, ev, target, ints, reals, skip_final):
             else:  # the method stopped before its step: the run's state is its state
                 copy_into(X, st.Y)
             return status
-        if ev.mode != NO_EVENTS:
+        if events:
             IC.keep(st, ev)
         IC.accept(st, ints, skip)
         reals[R_T_OLD] = t
@@ -537,13 +623,13 @@ def _integrate(system, st, ev, target, ints, reals, skip_final):
             t = target
         if skip:
             break
-        if ev.mode != NO_EVENTS:
-            _zero_crossings_at(system, t, st.Y, ev.g_new)
-            if _event_candidate(system, st, ev, t_old, t, ev.mode == SUBDIVIDED or t_old == reals[R_LAST_EVENT]):
+        if events:
+            search = ev.mode == SUBDIVIDED or t_old == reals[R_LAST_EVENT]
+            if check(system_reference, stepper_reference, events_reference, EVENTS_SEARCH if search else EVENTS_STEP,
+                     t_old, t):
                 reals[R_T] = t
                 copy_into(X, st.Y)
                 return EVENT_CANDIDATE
-            copy_into(ev.g_old, ev.g_new)
     reals[R_T] = t
     copy_into(X, st.Y)
     return 0
@@ -561,8 +647,7 @@ def _log_instant(system, sc, ints, reals, write):
             continue
         if write:
             if not evaluated:
-                run_stages(sc.log_stage_ops, sc.log_stage_ops.shape[0], system.kernels, system.slots, b, t, b.src,
-                           b.fac)
+                run_stages(sc.log_stage_ops, sc.log_stage_ops.shape[0], system.kernels, b, t, b.src, b.fac)
                 gather_all(b, b.src, b.fac)
                 evaluated = True
             row = sc.log_count[g]
@@ -579,7 +664,7 @@ def _log_instant(system, sc, ints, reals, write):
 
 
 @njit(cache=True)
-def advance(k, slots, rngs, b, st, ev, sc, ints, reals, budget, write_logs, integrate):
+def advance(k, b, st, ev, sc, ints, reals, budget, write_logs, integrate):
     """Run instants until the end tick, a return to Python, or ``budget`` instants (see the module docstring).
 
     ``ints[I_PHASE]`` 1: the updates at the current instant were done by the caller; continue with its
@@ -588,8 +673,8 @@ def advance(k, slots, rngs, b, st, ev, sc, ints, reals, budget, write_logs, inte
     The context's arrays are used as borrowed references inside (``dynamics.engine.borrowed``): the
     caller's context owns them for the whole call, and passing the tuples between the loop's functions
     otherwise costs an atomic increment and decrement per array and call."""
-    k, slots, b, st, ev, sc = borrowed((k, slots, b, st, ev, sc))
-    system = System(k, slots, b)
+    k, b, st, ev, sc = borrowed((k, b, st, ev, sc))
+    system = System(k, b)
     instants = 0
     while True:
         if ints[I_PHASE] == 0:
@@ -618,7 +703,7 @@ def advance(k, slots, rngs, b, st, ev, sc, ints, reals, budget, write_logs, inte
             updated = False
             for i in sc.order:
                 if sc.next_tick[i] == nxt:
-                    update_model_alone(i, system, rngs[b.update_ops[i, RNG]], target)
+                    update_model_alone(i, system, target)
                     sc.next_tick[i] += sc.period[i]
                     ints[I_UPDATES] += 1
                     updated = True

@@ -10,9 +10,9 @@ adaptive and implicit integrators, ``evaluate``, ``zero_crossings``, ``update``,
 What runs compiled (:mod:`shell.kernel_protocol`): every model kernel that is a numba function of the uniform
 signature ``kernel(t, x, z, u, p, out)`` (update: ``update(t, x, z, u, p)``, or ``update(t, x, z, u, p, noise)``
 with ``noise_size``), with the model's data slot after ``p`` when its per-run data is one float64 array, and the
-op kernel of a model whose per-run data is a typed tuple (``compiled_kernel``: the multibody engine). Any number of
-noisy models (their random streams in blocks of eight), of models with data slots, and of op-kernel models whose
-data share one numba type. A model whose output, derivative or zero-crossing kernel is plain Python makes the
+op kernel of a model whose per-run data is a typed tuple (``compiled_kernel``: the multibody engine; its data by
+reference). Any number of noisy models (their random streams by reference too), of models with data slots, and of
+op-kernel models (with data of any types: the loop does not see them). A model whose output, derivative or zero-crossing kernel is plain Python makes the
 whole scene run interpreted (the message names it). A sampled model whose update is plain Python
 (``UserFunction``, the thruster cluster's minimum-fuel allocation, ``MassDepletion``) keeps the loop compiled: it
 returns to Python at that model's sample instants.
@@ -49,9 +49,9 @@ def _pointer(fn, signature, model, what):
 _OP_CODES = {"state": KP.STATE_OUTPUTS, "feedthrough": KP.FEEDTHROUGH_OUTPUTS}
 
 
-def _op(kind, fn, gather, x, z, u, p, out, noise=(0, 0), rng=0, data=(0, 0), slot=0, opcode=0):
+def _op(kind, fn, gather, x, z, u, p, out, noise=(0, 0), rng=0, data=(0, 0), opcode=0):
     return [kind, fn, gather[0], gather[1], x.start, x.stop, z.start, z.stop, u.start, u.stop, p.start, p.stop,
-            out.start, out.stop, noise[0], noise[1], rng, data[0], data[1], slot, opcode]
+            out.start, out.stop, noise[0], noise[1], rng, data[0], data[1], opcode]
 
 
 def _table(rows):
@@ -65,26 +65,28 @@ class _Kinds:
         self.diagram = diagram
         self.tables = {"fns": [], "data_fns": [], "update_fns": [], "op_fns": []}
         self._index: dict = {}
-        #: per model: "plain", "data" (a float64 data slot) or "op" (op kernel, typed data in a slot of ``slots``)
+        #: per model: "plain", "data" (a float64 data slot) or "op" (op kernel, typed data by reference)
         self.kind = []
-        #: per model with an op kernel: its slot; the numba type of the op kernels' data
-        self.slot, self.data_type = {}, None
+        #: per model with an op kernel: the numba type of its data, and the range of its reference in the loop's
+        #: references (Buffers.R)
+        self.data_type, self.reference_range = {}, {}
+        n_words = 0
         for i, m in enumerate(diagram.models):
             if not m.uses_data:
                 self.kind.append("plain")
             elif getattr(m, "compiled_kernel", None) is not None:
-                data_type = typeof(context.data[i])
-                if self.data_type is not None and data_type != self.data_type:
-                    raise NotCompilable(f"model {m.path}: its per-run data have numba type {data_type}, another "
-                                        f"op-kernel model's {self.data_type}; the compiled loop takes one type")
-                self.data_type = data_type
-                self.slot[i] = len(self.slot)
+                data_type = self.data_type[i] = typeof(context.data[i])
+                words = KP.reference_words(data_type)
+                self.reference_range[i] = (n_words, n_words + words)
+                n_words += words
                 self.kind.append("op")
             elif context.flat_slices[i] is not None:
                 self.kind.append("data")
             else:
                 raise NotCompilable(f"model {m.path} ({type(m).__name__}) keeps per-run data that is neither one "
                                     "float64 array (a data slot) nor served by an op kernel (compiled_kernel)")
+        #: int64 words of the op-kernel models' references: the noisy models' generators' follow in Buffers.R
+        self.n_words = n_words
 
     def pointer(self, table, fn, signature, model, what) -> int:
         key = (table, id(fn), str(signature))
@@ -114,8 +116,9 @@ class _Tables:
             block = (diagram.x_block[i], diagram.z_block[i], diagram.u_block[i], diagram.p_block[i], out)
             kind = kinds.kind[i]
             if kind == "op":
-                f = kinds.pointer("op_fns", m.compiled_kernel, KP.op_kernel_signature(kinds.data_type), m, "op")
-                return _op(L.OP, f, gather, *block, slot=kinds.slot[i], opcode=opcode)
+                f = kinds.pointer("op_fns", KP.by_reference(m.compiled_kernel, kinds.data_type[i]),
+                                  KP.REFERENCE_KERNEL_SIGNATURE, m, "op")
+                return _op(L.OP, f, gather, *block, data=kinds.reference_range[i], opcode=opcode)
             if kind == "data":
                 f = kinds.pointer("data_fns", fn, KP.DATA_KERNEL_SIGNATURE, m, what)
                 return _op(L.DATA, f, gather, *block, data=_range(self.flat_slices[i]))
@@ -185,7 +188,8 @@ class _Tables:
                                                                  "update")
                 else:
                     kind, f = L.UPDATE_NOISE, kinds.pointer("fns", m.update, KP.KERNEL_SIGNATURE, m, "update")
-                updates.append(_op(kind, f, stages, *block, noise=noise, rng=len(self.noisy) - 1, data=data))
+                rng = kinds.n_words + L.GENERATOR_WORDS * (len(self.noisy) - 1)
+                updates.append(_op(kind, f, stages, *block, noise=noise, rng=rng, data=data))
             elif kinds.kind[i] == "data":
                 f = kinds.pointer("fns", m.update, KP.KERNEL_SIGNATURE, m, "update")
                 updates.append(_op(L.UPDATE_DATA, f, stages, *block, data=data))
@@ -207,16 +211,6 @@ def _tables(diagram, context) -> _Tables:
     return tables
 
 
-_NO_DATA = (np.zeros(0),)  # the slots of a scene without op-kernel models (never read)
-_PLACEHOLDER_RNG: list = []
-
-
-def _placeholder_rng():
-    if not _PLACEHOLDER_RNG:
-        _PLACEHOLDER_RNG.append(np.random.default_rng(0))
-    return _PLACEHOLDER_RNG[0]
-
-
 class CompiledPlan:
     """The compiled form of ``diagram`` bound to ``context``; see the module docstring."""
 
@@ -229,15 +223,20 @@ class CompiledPlan:
             raise NotCompilable("the models' data slots differ in size from those of the diagram's first context")
         self.kernels = tables.kernels
         self.python_updates = tables.python_updates
-        op_models = sorted(tables.kinds.slot, key=tables.kinds.slot.get)
-        #: the op-kernel models' per-run data, in slot order (a never-read stand-in without such models)
-        self.slots = tuple(context.data[i] for i in op_models) if op_models else _NO_DATA
-        rngs = [context.rngs[i] for i in tables.noisy]
-        blocks = max(1, -(-len(rngs) // L.NOISY_MODELS_PER_BLOCK))
-        self.rngs = tuple(rngs) + (_placeholder_rng(),) * (blocks * L.NOISY_MODELS_PER_BLOCK - len(rngs))
+        kinds = tables.kinds
+        op_models = sorted(kinds.reference_range)
+        if any(typeof(context.data[i]) != kinds.data_type[i] for i in op_models):
+            raise NotCompilable("the op-kernel models' data differ in numba type from those of the diagram's first "
+                                "context")
+        #: the op-kernel models' per-run data and the noisy models' generators (kept alive here: the loop reads
+        #: them by reference), and their references side by side (Buffers.R)
+        self.op_data = tuple(context.data[i] for i in op_models)
+        self.rngs = tuple(context.rngs[i] for i in tables.noisy)
+        self.references = np.concatenate([np.zeros(0, dtype=np.int64)] + [KP.reference(d) for d in self.op_data]
+                                         + [KP.reference(rng) for rng in self.rngs])
         self.noise = np.zeros(tables.noise_size)
-        self.buffers = L.Buffers(context.x, context.z, context.signals, context.p, context.flat_data, context.xdot,
-                                 context.g, self.noise, diagram.gather_source, diagram.gather_destination,
+        self.buffers = L.Buffers(context.x, context.z, context.signals, context.p, context.flat_data,
+                                 self.references, context.xdot, context.g, self.noise, diagram.gather_source, diagram.gather_destination,
                                  diagram.gather_factor, *tables.tables)
         self._variants: dict = {}
 
@@ -245,16 +244,16 @@ class CompiledPlan:
     def derivative(self, t: float, y: np.ndarray) -> np.ndarray:
         """f(t, y), a new array (the right-hand side for adaptive and implicit integrators)."""
         b = self.buffers
-        L.derivative_of(self.kernels, self.slots, float(t), np.asarray(y, dtype=np.float64), b)
+        L.derivative_of(self.kernels, float(t), np.asarray(y, dtype=np.float64), b)
         return b.XD.copy()
 
     def evaluate(self, t: float, stages=None) -> None:
         """Every output (or those of ``stages``), then every input, at the context's state."""
         b = self.buffers
         if stages is None:
-            L.evaluate_full(self.kernels, self.slots, float(t), b, b.src, b.fac)
+            L.evaluate_full(self.kernels, float(t), b, b.src, b.fac)
             return
-        L.evaluate_stages(self.stage_table(stages), self.kernels, self.slots, float(t), b)
+        L.evaluate_stages(self.stage_table(stages), self.kernels, float(t), b)
 
     def update_is_compiled(self, i: int) -> bool:
         """Whether sampled model ``i`` has a compiled update (not a Python one)."""
@@ -267,8 +266,7 @@ class CompiledPlan:
         if not self.update_is_compiled(i):
             self.diagram.update(self.context, i, t)
             return
-        rng = self.rngs[int(self.buffers.update_ops[i, L.RNG])]  # its own stream (slot 0, unused, without noise)
-        L.update_model(i, self.kernels, self.slots, rng, float(t), self.buffers)
+        L.update_model(i, self.kernels, float(t), self.buffers)
 
     def stage_table(self, stages):
         """The op table of ``stages`` (cached per stage tuple)."""
@@ -279,11 +277,11 @@ class CompiledPlan:
 
     def zero_crossings(self, t: float, y: np.ndarray) -> np.ndarray:
         b = self.buffers
-        L.zero_crossings(self.kernels, self.slots, float(t), np.asarray(y, dtype=np.float64), b)
+        L.zero_crossings(self.kernels, float(t), np.asarray(y, dtype=np.float64), b)
         return b.G.copy()
 
     def normalize(self, y: np.ndarray) -> None:
-        L.normalize_state(self.kernels, self.slots, self.buffers, y)
+        L.normalize_state(self.kernels, self.buffers, y)
 
     def derivatives_into(self, t: float, stages, source=None, factor=None) -> None:
         """Derivatives at the context's ``x`` into its ``xdot``, running only the output ``stages`` first,
@@ -296,7 +294,7 @@ class CompiledPlan:
             buffers = self.buffers._replace(derivative_ops=table, n_derivative_stages=len(stages))
             cached = self._variants[key] = (stages, buffers)
         b = cached[1]
-        L.derivatives(self.kernels, self.slots, b, float(t), b.src if source is None else source,
+        L.derivatives(self.kernels, b, float(t), b.src if source is None else source,
                       b.fac if factor is None else factor)
 
 

@@ -181,13 +181,18 @@ class CompiledRun:
         n_g, n_x = sim.diagram.n_zero_crossings, sim.x.size
         mode = CL.NO_EVENTS if n_g == 0 else (CL.SUBDIVIDED if sim.event_location.detection == "subdivided" else
                                              CL.SIGN_CHANGE)
-        events = CL.Events(mode, sim.event_location.directions(), np.zeros(n_g), np.zeros(n_g),
-                           np.zeros((CL.SUBDIVISIONS + 1, n_g)), np.zeros(n_x), np.zeros(n_x), np.zeros(n_x))
+        events = CL.Events(mode, np.zeros(2, dtype=np.int64), sim.event_location.directions(), np.zeros(n_g),
+                           np.zeros(n_g), np.zeros((CL.SUBDIVISIONS + 1, n_g)), np.zeros(n_x), np.zeros(n_x),
+                           np.zeros(n_x))
         reals[IC.R_LAST_EVENT] = sim.event_location.last[0]
         budget, integrate = 64, n_x > 0
+        checked = None  # the stepper the events' check was compiled for
         while True:
+            if mode != CL.NO_EVENTS and current[0] is not checked:
+                checked = current[0]
+                events = events._replace(check=CL.event_check(plan.kernels, plan.buffers, checked, events))
             started = _time.perf_counter()
-            status = CL.advance(plan.kernels, plan.slots, plan.rngs, plan.buffers, current[0], events, schedule, ints,
+            status = CL.advance(plan.kernels, plan.buffers, current[0], events, schedule, ints,
                                 reals, budget, writer is not None, integrate)
             elapsed = _time.perf_counter() - started
             if status == CL.DONE:

@@ -30,7 +30,7 @@ from dynamics.kernels.body_terms import apply_node_forces, flexible_body_terms, 
 from dynamics.kernels.kinematics import general_kinematics, parent_acceleration_general, rigid_position, rigid_velocity
 from dynamics.kernels.modal_condensation import (
     condense_bias, condense_inertia, force_to_slot, inertia_to_slot, modal_accelerations, modal_mass_kind)
-from dynamics.kernels.node_inertia import node_inertia_times
+from dynamics.kernels.node_inertia import NODE_STATE, node_inertia_times
 from dynamics.kernels.small_linalg import spd_inverse
 from dynamics.layout import (
     FIRST_SLOT, FLEX, FLEXIBLE, FREE_DOFS, FX_NODES, FX_NODE_COUNT, FX_NODE_TERMS, FX_P_MRR, FX_P_NODES, FX_P_VEC,
@@ -268,7 +268,7 @@ def _refinement_products(topology, params, udot, pool):
             dg[s] = 0.0
         count = fx[FX_NODE_COUNT]
         node_inertia_times(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS],
-                           pool[fx[FX_P_NODES]:fx[FX_P_NODES] + 6 * count], udot[ue:ue + n], dg)
+                           pool[fx[FX_P_NODES]:fx[FX_P_NODES] + NODE_STATE * count], udot[ue:ue + n], dg)
 
 
 @njit(cache=True)

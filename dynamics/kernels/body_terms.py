@@ -10,10 +10,10 @@ from __future__ import annotations
 from numba import njit
 
 from dynamics import flexible_kernels as FK
-from dynamics.kernels.node_inertia import node_inertia_modal_mass, node_inertia_terms, node_inertia_times
+from dynamics.kernels.node_inertia import NODE_STATE, node_inertia_modal_mass, node_inertia_terms, node_inertia_times
 from dynamics.layout import (
     FLEX, FX_NODES, FX_NODE_COUNT, FX_NODE_TERMS, FX_P_G, FX_P_MDRE, FX_P_MRE, FX_P_MRR, FX_P_NODES, FX_P_VEC,
-    FX_REFINE, INERTIA, MAT_IAP, NODE_BODY, NODE_FRAME, NODE_SHAPE, NQ_HINGE, NU_HINGE, N_FX, N_MODES, POOL_HEADER,
+    FX_REFINE, INERTIA, MAT_IAP, NODE_BODY, NODE_FRAME, NODE_SHAPE, NQ_HINGE, NU_HINGE, N_FX, N_MODES,
     PV_FORCE, P_L, P_R, P_TMP83, P_V1, Q_START, U_START, VEC_P, VEC_V, view)
 from dynamics.spatial import force_to_parent_add
 
@@ -66,12 +66,11 @@ def flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, with_bi
                            Mre, Gm, ws_vec[i, VEC_P], bm, ws_mat[i, MAT_IAP], view(pool, fx[FX_P_MDRE], 6, n))
     if fx[FX_NODES] >= 0:
         count = fx[FX_NODE_COUNT]
-        state = pool[fx[FX_P_NODES]:fx[FX_P_NODES] + 6 * count]
+        state = pool[fx[FX_P_NODES]:fx[FX_P_NODES] + NODE_STATE * count]
         node_inertia_terms(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], q[qe:qe + n], ws_vec[i, VEC_V],
                            u[ue:ue + n], with_bias, Mre, ws_vec[i, VEC_P], bm, state)
         if form_G:
-            node_inertia_modal_mass(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], state, Gm,
-                                    pool[POOL_HEADER:POOL_HEADER + 3 * n])
+            node_inertia_modal_mass(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], state, Gm)
 
 
 @njit(cache=True)
@@ -84,7 +83,7 @@ def modal_mass_times(i, topology, params, pool, a, out):
     if fx[FX_REFINE]:
         count = fx[FX_NODE_COUNT]
         node_inertia_times(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS],
-                           pool[fx[FX_P_NODES]:fx[FX_P_NODES] + 6 * count], a, out)
+                           pool[fx[FX_P_NODES]:fx[FX_P_NODES] + NODE_STATE * count], a, out)
 
 
 @njit(cache=True)

@@ -21,12 +21,13 @@ import warnings
 #: engine per solver path (the single-body kernel 6 s in the demo, benchmarks/compile_time.py --profile,
 #: 2026-11-28 at load 3; the articulated-body and dense paths from the 2026-11-27 profile of the whole engine, 424 s
 #: of 505 s compiling at load 7.7, scaled to the 106 s the demo then compiled on a quiet machine), the loop of one
-#: stepper family (~40 s in the 2026-11-28 profile: the scene's evaluation is inlined into the stepper); model
-#: kernels 1-3 s each
-#: The constrained path (a scene with closure constraints; not in the common set `flexshell compile` compiles): the
-#: first run of configs/four_bar.yaml compiled engine and loop in 104 s at load 2 (2026-11-28), ~40 s of it the loop
+#: stepper family (~15 s CPU in the 2026-11-28 02:20 profile at load 4: one loop per stepper for every scene, the
+#: evaluation compiled once and called by reference; 40 s when it was inlined into the stepper); model kernels 1-3 s
+#: each. The constrained path (a scene with closure constraints; not in the common set `flexshell compile`
+#: compiles): the first run of configs/four_bar.yaml compiled engine and loop in 104 s at load 2 (2026-11-28), ~40 s
+#: of it the loop, which such scenes now share with the others
 ENGINE_SECONDS = {"single_body": 10, "articulated": 60, "dense": 60, "constrained": 70}
-LOOP_SECONDS = 45
+LOOP_SECONDS = 20
 MODEL_SECONDS = 3
 
 _MODEL_KERNELS = ("state_outputs", "feedthrough_outputs", "derivatives", "zero_crossing_values", "update")
@@ -52,6 +53,8 @@ def describe(dispatcher) -> tuple[str, float]:
     module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
     if module.startswith("dynamics.flex."):
         return "the FEM-to-modal pipeline", MODEL_SECONDS
+    if module == "shell.kernel_protocol":  # an op kernel's by-reference form (a few lines around the kernel's call)
+        return "an op kernel's by-reference form", MODEL_SECONDS
     if module == "shell.models.multibody" or module.startswith("dynamics"):
         name = getattr(dispatcher.py_func, "__name__", "")
         path = next((p for p in ENGINE_SECONDS if name == f"engine_kernel_{p}"), None)
@@ -72,33 +75,48 @@ def work_items() -> list[tuple[str, object]]:
     return items
 
 
-def engine_signature():
-    """The op-kernel signature of the engine model (:mod:`shell.kernel_protocol`) for the numba type of every engine
-    model's data (a one-body probe's)."""
-    from numba import typeof
-
+def engine_data():
+    """The data of an engine model without closure constraints (a one-body probe's: every such model's have its
+    numba type)."""
     from dynamics import Multibody
-    from shell.kernel_protocol import op_kernel_signature
     from shell.models.multibody import MultibodyModel
 
     builder = Multibody()
     builder.add_body("probe", None, mass=1.0, inertia=[1.0, 1.0, 1.0], hinge="free")
     builder.add_node("probe_node", "probe")
-    return op_kernel_signature(typeof(MultibodyModel("probe", builder.compile()).create_data()[1]))
+    return MultibodyModel("probe", builder.compile()).create_data()[1]
+
+
+def engine_signature():
+    """The op-kernel signature of the engine model (:mod:`shell.kernel_protocol`) for the numba type of its data."""
+    from numba import typeof
+
+    from shell.kernel_protocol import op_kernel_signature
+
+    return op_kernel_signature(typeof(engine_data()))
 
 
 def _engine() -> None:
+    from numba import typeof
+
+    from shell.kernel_protocol import REFERENCE_KERNEL_SIGNATURE, by_reference, op_kernel_signature, reference
     from shell.models.multibody import ENGINE_KERNELS
 
-    signature = engine_signature()
+    data = engine_data()
+    data_type = typeof(data)
+    reference(data)  # how a run hands the data to the compiled loop
     for kernel in ENGINE_KERNELS.values():  # single body, articulated-body recursion, dense solve
-        kernel.compile(signature)
+        kernel.compile(op_kernel_signature(data_type))
+        by_reference(kernel, data_type).compile(REFERENCE_KERNEL_SIGNATURE)  # as the compiled loop calls it
 
 
 def _loop(method: str):
     def compile_loop() -> None:
         """A first-order lag x' = -x run for two steps: the loop (or driver) of ``method`` and its kernels."""
+        import numpy as np
+
         from shell.assembly import Assembly
+        from shell.kernel_protocol import reference
         from shell.models.blocks import Gain, Integrator
         from shell.simulation import Simulation
 
@@ -111,6 +129,7 @@ def _loop(method: str):
         with warnings.catch_warnings():  # etdrk4 says that this scene has no linear part: expected here
             warnings.filterwarnings("ignore", "etdrk4: the linear part is empty", UserWarning)
             Simulation(root, integrator=method, step=1e-3).run(2e-3)
+        reference(np.random.default_rng(0))  # how a run hands a noisy model's generator to the loop
 
     return compile_loop
 

@@ -13,8 +13,8 @@ applied ones; index-1 form, multipliers from ``G M^-1 G'``, no Baumgarte terms),
 projection after every accepted step in the same ``normalize`` hook: the quaternions renormalized, then the positions
 projected onto ``phi(q) = 0`` (Newton along ``M^-1 G'``, to :data:`PROJECTION_TOLERANCE`) and the velocities onto ``G
 u = 0`` (M-orthogonal), the choice docs/closure_constraints.md measures (benchmarks/closure_drift.py). Its per-run
-data carry the constraint data and loads besides the engine's, so a constrained scene compiles the loop once more
-(for that data type); scenes without constraints keep theirs.
+data carry the constraint data and loads besides the engine's (the compiled loop takes either by reference: one loop
+for both).
 
 Ports (``<body>`` a body name, i.e. its inboard hinge; ``<node>`` a node name):
 
@@ -346,8 +346,7 @@ def _constrained_rates(engine, ports, work, x, out):
 
 
 #: path name -> the engine model's kernel for systems of that path (each compiled on first use); a scene with
-#: closure constraints takes :func:`engine_kernel_constrained` (its data type differs: one more compilation of the
-#: loop, for such scenes only)
+#: closure constraints takes :func:`engine_kernel_constrained`
 ENGINE_KERNELS = {name: _engine_kernel(path) for name, path in E.PATHS.items()}
 
 

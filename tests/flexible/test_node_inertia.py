@@ -43,15 +43,21 @@ def _state(system, n, rng, size=0.1):
 
 @pytest.mark.parametrize("order", [1, 2])
 @pytest.mark.parametrize("refine", [False, True])
-def test_node_terms_equal_the_tables(order, refine, monkeypatch):
-    """Every algorithm on a body with rotary node inertia and CG offsets, and a wheel on one of its nodes:
-    the node sums (refined or factored modal mass) against the same body with all terms as tables."""
+@pytest.mark.parametrize("offsets", ["all", "none", "some"])
+def test_node_terms_equal_the_tables(order, refine, offsets, monkeypatch):
+    """Every algorithm on a body with rotary node inertia and CG offsets on all, none or every other node (the node
+    sums skip the offset terms of a body without any and carry zero offsets through them where only some nodes have
+    one), and a wheel on one of its nodes: the node sums (refined or factored modal mass) against the same body with
+    all terms as tables."""
     monkeypatch.setattr(dynamics.system, "refinement_budget", lambda n, count: 60 if refine else 0)
     model = random_node_model(9, 6, seed=50 + order)
+    if offsets != "all":
+        model.cg[::1 if offsets == "none" else 2] = 0.0
     tables = _body(model, order, nodal=False, wheel=True)
     nodes = _body(model, order, nodal=True, wheel=True)
     fx = nodes.topology[0, dynamics.system.L.FLEX:]
     assert fx[dynamics.system.L.FX_NODES] >= 0 and bool(fx[dynamics.system.L.FX_REFINE]) == refine
+    assert nodes.params[fx[dynamics.system.L.FX_NODES]] == (0.0 if offsets == "none" else 1.0)
     rng = np.random.default_rng(order)
     for _ in range(3):
         q, u, tau = _state(nodes, 6, rng)
