@@ -405,7 +405,8 @@ def free_detached_bodies(description, where, events):
     bodies = description.get("bodies") if isinstance(description, dict) else None
     if not isinstance(bodies, list):
         return description, ()
-    locked = {b.get("name"): k for k, b in enumerate(bodies) if isinstance(b, dict) and b.get("hinge") == "locked"}
+    locked = {b["name"]: k for k, b in enumerate(bodies)  # a malformed entry is refused by the section's reader
+              if isinstance(b, dict) and isinstance(b.get("name"), str) and b.get("hinge") == "locked"}
     chosen = {name: place for name, place in chosen.items() if name in locked}
     if not chosen:
         return description, ()

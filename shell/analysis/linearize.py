@@ -346,8 +346,8 @@ def _initial_q(model):
 
 class ConstraintManifold:
     """Minimal coordinates of one engine model with closure constraints by coordinate partitioning (Wehage and Haug,
-    J. Mech. Design 104, 1982): of the model's tangent coordinates ``[dq; u]`` (:meth:`dynamics.constraints.
-    ConstrainedSystem.tangent_map`), ``nu - rank G`` positions and as many velocities are independent, the others
+    J. Mech. Design 104, 1982): of the model's tangent coordinates ``[dq; u]``
+    (:meth:`dynamics.constraints.ConstrainedSystem.tangent_map`), ``nu - rank G`` positions and as many velocities are independent, the others
     follow from ``phi(q) = 0`` (Newton on the dependent positions, to :data:`CHART_TOLERANCE`) and ``G(q) u = 0``
     (solved for the dependent velocities). This is a chart of the state manifold ``{phi = 0, G u = 0}``, so the
     rates of the independent coordinates are exactly the chart's equations: ``A`` of the minimal model is the
@@ -398,8 +398,8 @@ class ConstraintManifold:
 
 
 def close_loops(constrained, q, dependent):
-    """The configuration ``q`` with its ``dependent`` tangent coordinates (indices in u's order, :meth:`dynamics.
-    constraints.ConstrainedSystem.tangent_map`) moved by Newton until the closure constraints hold to
+    """The configuration ``q`` with its ``dependent`` tangent coordinates (indices in u's order,
+    :meth:`dynamics.constraints.ConstrainedSystem.tangent_map`) moved by Newton until the closure constraints hold to
     :data:`CHART_TOLERANCE`, the others kept; :class:`LinearizationError` when it does not converge."""
     q = np.array(q, dtype=float)
     for _ in range(CHART_ITERATIONS):

@@ -65,11 +65,11 @@ def register(subparsers) -> None:
 def commanded_attitude(scenario_text: str, signal: str):
     """``attitude_command`` of the model attached to the node of ``signal`` (``<engine>.<node>.attitude``)
     in the scenario text stored in the log, or None."""
-    import yaml
+    from shell.schema.document import ScenarioError, load_yaml
 
     try:
-        document = yaml.safe_load(scenario_text or "") or {}
-    except yaml.YAMLError:
+        document = load_yaml(scenario_text or "") or {}
+    except ScenarioError:
         return None
     parts = signal.split(".")
     if len(parts) < 3 or not isinstance(document, dict):
@@ -102,17 +102,16 @@ def coordinate_blocks(scenario_text: str, signal: str, size: int):
     ``u_dot``) into each body's hinge coordinates and each flexible body's modal coordinates, read from
     the scenario stored in the log; None when the split cannot be made without doubt (then the signal is
     plotted whole)."""
-    import yaml
-
     from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES, hinge as hinge_record
     from shell.models.multibody import HINGE_UNITS
+    from shell.schema.document import ScenarioError, load_yaml
 
     engine, _, leaf = signal.rpartition(".")
     if leaf not in ("q", "u", "u_dot") or "." in engine:
         return None
     try:
-        document = yaml.safe_load(scenario_text or "") or {}
-    except yaml.YAMLError:
+        document = load_yaml(scenario_text or "") or {}
+    except ScenarioError:
         return None
     description = document.get("multibody") if isinstance(document, dict) else None
     if not isinstance(description, dict) or description.get("name", "multibody") != engine:

@@ -95,11 +95,11 @@ def percentile_envelope(runs: list[tuple[np.ndarray, np.ndarray]], percentiles=E
 
 def requirements(results: dict) -> dict:
     """{metric column: (operator, bound in the column's unit)} from the campaign text in the results file."""
-    import yaml
+    from shell.schema.document import ScenarioError, load_yaml
 
     try:
-        document = yaml.safe_load(str(results["attrs"].get("campaign", ""))) or {}
-    except yaml.YAMLError:
+        document = load_yaml(str(results["attrs"].get("campaign", ""))) or {}
+    except ScenarioError:
         return {}
     found = {}
     for name, spec in ((document.get("metrics") or {}) if isinstance(document, dict) else {}).items():

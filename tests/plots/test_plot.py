@@ -152,3 +152,18 @@ def test_bad_options_are_refused(log, tmp_path, capsys):
     assert "--per-page" in capsys.readouterr().err
     assert main(["plot", str(path), "nothing_here", "-o", str(tmp_path / "a.png")]) == 1
     assert "no signal 'nothing_here'" in capsys.readouterr().err
+
+
+def test_plot_reads_a_stored_scenario_with_an_indexed_signal_in_a_flow_mapping():
+    """The array-latch scene writes issue 29's `when: {signal: multibody.array.q[0], ...}` unquoted; plot reads the
+    scenario stored in the log with the scenario loader, so q still splits per hinge (plain YAML refused the text and
+    the split was silently dropped)."""
+    from pathlib import Path
+
+    from shell.commands.plot import coordinate_blocks
+
+    text = (Path(__file__).resolve().parents[2] / "configs" / "gallery" / "16_array_latch.yaml").read_text()
+    assert "q[0], crosses" in text
+    blocks = coordinate_blocks(text, "multibody.q", 8)
+    assert [(title, first, count) for title, first, count, _, _ in blocks] == [
+        ("bus free hinge", 0, 7), ("array revolute hinge", 7, 1)]
