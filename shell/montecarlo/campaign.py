@@ -42,6 +42,7 @@ from shell.montecarlo.draws import DISTRIBUTIONS, CorrelationGroup, Dispersion, 
 from shell.montecarlo.metrics import MAPPINGS, STATISTICS, Metric, evaluate, mapped_samples, parse_requirement
 from shell.scenario import ScenarioError, build_simulation, decode_scenario, load_yaml, parse_scenario, show
 from shell.schema import Where, expect_mapping
+from shell.schema.document import plain
 from shell.units import UnitError, conversion_factor, parse_unit, to_magnitude, ureg
 
 class CampaignError(ScenarioError):
@@ -61,15 +62,6 @@ class _Where(Where):
 
 
 _mapping = expect_mapping  # the scenario's key check; the _Where decides the error type
-
-
-def _plain(value):
-    """LineDict/LineList -> dict/list (picklable, comparable)."""
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_plain(v) for v in value]
-    return value
 
 
 def yaml_text(value, top: bool = True) -> str:
@@ -179,7 +171,7 @@ def _parse_dispersion(path: str, spec, where: _Where) -> Dispersion:
                 or np.any(probabilities < 0) or not abs(probabilities.sum() - 1.0) <= 1e-9:
             raise where.child(spec, "probabilities").error(
                 f"expected {len(choices)} non-negative numbers summing to 1, given {show(spec.get('probabilities'))}")
-        return Dispersion(path, kind, (), "", {"probabilities": probabilities}, _plain(choices))
+        return Dispersion(path, kind, (), "", {"probabilities": probabilities}, plain(choices))
     location = {"normal": "mean", "truncated_normal": "mean", "uniform": "low", "lognormal": "median"}[kind]
     unit = spec["unit"] if "unit" in spec else _unit_of(spec[location])
     try:
@@ -648,7 +640,7 @@ def parse_campaign(text: str, filename: str = "<string>", validate: bool = True)
     if not isinstance(settings, dict):
         raise root.child(document, "set").error(f"expected a mapping key.path: value, given {settings!r}")
     for key, value in settings.items():
-        base.append(f"{key}={yaml_text(_plain(value))}")
+        base.append(f"{key}={yaml_text(plain(value))}")
     dispersions = []
     section = document.get("dispersions", {}) or {}
     where = root.child(document, "dispersions")

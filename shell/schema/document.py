@@ -53,6 +53,15 @@ class LineList(list):
     lines: list
 
 
+def plain(value):
+    """LineDict/LineList -> dict/list, recursively (picklable, comparable, what ``yaml.safe_dump`` writes)."""
+    if isinstance(value, dict):
+        return {k: plain(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [plain(v) for v in value]
+    return value
+
+
 def type_name(value) -> str:
     """What a YAML value is, in a user's words (mapping, list, text, number, ...), for messages."""
     return {dict: "mapping", LineDict: "mapping", list: "list", LineList: "list", str: "text", int: "integer",

@@ -32,7 +32,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from shell.cli import main
-from shell.schema.document import load_yaml
+from shell.schema.document import load_yaml, plain
 from tests.safety.conftest import ROOT
 from tests.safety.test_fuzz import junk_text, paths, values
 
@@ -182,15 +182,6 @@ def _at(document, path):
 
 def load(relative: str):
     return plain(load_yaml((CONFIGS / relative).read_text(), relative))  # the scenario loader: q[0] inside { }
-
-
-def plain(value):
-    """The loader's line-remembering mappings and lists as plain ones (what yaml.safe_dump writes)."""
-    if isinstance(value, dict):
-        return {k: plain(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [plain(v) for v in value]
-    return value
 
 
 def scenario_case(workspace, relative, text):
