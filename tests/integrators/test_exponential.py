@@ -255,6 +255,25 @@ def test_a_linear_part_that_does_not_move_is_checked_ever_more_rarely():
     assert integ.njev == len(evaluations) == 21 and integ.nlu == 1
 
 
+def test_at_a_short_step_the_checks_are_spaced_in_time():
+    """The longest interval between checks is max(64 steps, 0.25 s): at 1 ms, 250 steps (the configuration moves
+    on the scene's time scale; one check of the 196-mode observatory costs 15 derivatives)."""
+    omega = 300.0
+    L = np.array([[0.0, 1.0], [-omega ** 2, 0.0]])
+    evaluations = []
+
+    def linear_part(t, y):
+        evaluations.append(t)
+        return np.array([0, 1]), L
+
+    integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 2.0, 1e-3, linear_part=linear_part)
+    # 2000 steps: the start, checks at steps 1, 3, 7, ..., 255 (intervals 1, 2, ..., 128), then every 250 steps
+    # (505, 755, ..., 1755): 1 + 8 + 6
+    assert integ.max_check_interval == 250
+    assert integ.njev == len(evaluations) == 15 and integ.nlu == 1
+    np.testing.assert_allclose(np.diff(evaluations)[-6:], 0.25, rtol=1e-9)
+
+
 # --- interface ----------------------------------------------------------------------------------------------
 def test_registered_and_lazy_derivative():
     assert INTEGRATORS["etdrk4"].uses_linear_part and INTEGRATORS["etdrk4"].fixed_step
