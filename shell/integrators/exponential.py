@@ -92,8 +92,8 @@ then rotate far enough to change the mass matrix, the difference ``(L(q) - L(q0)
 the integrator re-evaluates it after 1, 2, 4, ... steps while it does not move, up to MAX_CHECK_INTERVAL steps
 or MAX_CHECK_TIME of simulated time, whichever is longer (the configuration moves on the time scale of the
 scene, not of the step; a mass matrix and a Cholesky solve: ~0.7 ms for the 60-mode observatory, a fifth of one
-derivative, but 15-21 ms for the 196-mode general-mass one at order 1, 15 derivatives: every 64 steps of 1 ms
-that was a tenth of its run, every 256 steps it is 3 %) and rebuilds
+derivative, but 5-21 ms for the 196-mode general-mass one at order 1, about 15 derivatives: every 64 steps of
+1 ms that was 5-10 % of its run, every 250 steps it is 1-3 %) and rebuilds
 the matrix functions and the driven rows when ``||L(y) - L||_F / ||L||_F > DRIFT_TOLERANCE``; the check starts
 again every step after a rebuild. Independently, each step estimates the stiffness of ``N`` from its two stages
 at c = 1/2 (``rho = ||N3 - N2|| / ||Y3 - Y2||``, the Rayleigh-quotient estimate of HNW I Sec. IV.2, skipped
