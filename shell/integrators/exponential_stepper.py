@@ -3,16 +3,17 @@
 The stepper holds the method's state and work arrays and the linear part's matrix functions (built in Python by
 :class:`ExponentialRK4`); its step is ExponentialRK4._step_impl with the same njit stage products (stage_real /
 stage_eigen), the same remainder N = f - L y, the same order of operations and the same lazy slope, so the compiled
-and the Python runs agree bit for bit. Python keeps what must be Python: the callable linear part (a mass matrix
-and a Cholesky solve in the models' ``stiff_linear_part``) and the rebuild of the matrix functions. The stepper
-keeps the integrator's check counters (``counters``: steps since the last check, the check interval, the step's
-flags) and asks (:class:`ExponentialStepping`) for a check of the linear part when one is due (after 1, 2, 4, ...
-steps up to max(64 steps, 0.25 s): one request per 250 steps of 1 ms once the part stands still: LINEAR_CHECK),
-and when a step finds the remainder stiff (h rho(N) > 1: STIFF_REMAINDER); Python checks (and perhaps rebuilds the stepper) and the loop continues the
-step where it stopped (flag RESUME: the stages before are kept in S and N). Until the integrator exists the stepper
-is a placeholder (step 0) that asks for it (NEW_INTEGRATOR) where the Python loop makes it, at the start of the
-first integration after the updates at that instant, so that its linear part and driven rows are built at the same
-state. The dense output (for event location) is ExponentialDenseOutput's, from ``N`` and the step's start.
+and the Python runs agree bit for bit. Python keeps what must be Python: the callable linear part (a mass matrix and
+a Cholesky solve in the models' ``stiff_linear_part``) and the rebuild of the matrix functions. The stepper keeps
+the integrator's check counters (``counters``: steps since the last check, the check interval, the step's flags) and
+asks (:class:`ExponentialStepping`) for a check of the linear part when one is due (after 1, 2, 4, ... steps up to
+max(64 steps, 0.25 s): one request per 250 steps of 1 ms once the part stands still: LINEAR_CHECK), and when a step
+finds the remainder stiff (h rho(N) > 1: STIFF_REMAINDER); Python checks (and perhaps rebuilds the stepper) and the
+loop continues the step where it stopped (flag RESUME: the stages before are kept in S and N). Until the integrator
+exists the stepper is a placeholder (step 0) that asks for it (NEW_INTEGRATOR) where the Python loop makes it, at
+the start of the first integration after the updates at that instant, so that its linear part and driven rows are
+built at the same state. The dense output (for event location) is ExponentialDenseOutput's, from ``N`` and the
+step's start.
 """
 
 from __future__ import annotations
