@@ -52,6 +52,13 @@ Attaching a model to node N binds its inputs named attitude, rotation, position,
 linear_velocity, angular_acceleration, linear_acceleration to N's outputs, and its outputs named torque
 and force to N's inputs; attaching to hinge B binds q, u, u_dot, and torque/prescribed_accel outputs.
 
+Node kinematics are computed only for the nodes whose outputs something reads ("model no more than a scene
+needs"): a connection (decided when the diagram is built), a logged signal, a linearization's output or a name read
+later (:meth:`MultibodyModel.output_read`, called by :meth:`shell.diagram.Diagram.note_read`). The choice is an
+int64 mask in the per-run data (``EnginePorts.node_read``, shared by every run of the model), read by the one compiled
+kernel of the path; the outputs of a node nothing reads are NaN, and the run summary names those nodes. A node that
+only receives a force needs no kinematics: the forward dynamics projects its force (and skips an exactly-zero one).
+
 Hinge ports of mixed dimension (free: [rad, m] coordinates, [rad/s, m/s] velocities) are declared
 without a unit and carry SI values; single-kind hinges declare rad, m, rad/s, N m or N.
 """
