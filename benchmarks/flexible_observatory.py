@@ -19,8 +19,10 @@ Reported:
   ``--duration`` s, at orders 0, 1 and 2 and at 1 and 2 without the terms of the nodes' rotary inertia, with the
   machine's load average; for orders 0, 1, 2 where the last run's step went (:func:`breakdown`: the integrator's
   linear algebra, the checks of its linear part, the rest: derivatives, updates, log); and order 1 without the
-  sixteen nodes that only the linearization uses (each node's kinematics and force projection are computed at
-  every derivative evaluation: about 40 % of the order-1 derivative here);
+  sixteen nodes that only the linearization uses (before the engine model computed only the nodes a scene reads,
+  their kinematics were about 40 % of the order-1 derivative; now what is left of their cost is this difference);
+* the node mask before/after (:func:`node_mask`, first; alone with ``--nodes-only``): per order, interleaved, every
+  node's kinematics computed (what the engine model did before) against only the nodes something reads;
 * accuracy at order 1: the IMU's rate and the controller node's attitude (angle from the command) over the run,
   etdrk4 at 1 ms against RK4 at 0.05 ms, largest difference relative to the peak of the reference;
 * the same scene with an unbalanced wheel (products of inertia 0.005 kg m^2, centre of mass 1 mm off the axis):
@@ -30,7 +32,7 @@ Reported:
   by 5 outputs (IMU rate, the controller node's angular velocity and attitude, the tip position, the wheels'
   rates), 4-point central differences with Richardson (``shell.analysis.linearize``), wall time.
 
-    python3 benchmarks/flexible_observatory.py [--duration 1] [--repeat 3] [--skip-reference]
+    python3 benchmarks/flexible_observatory.py [--duration 1] [--repeat 3] [--skip-reference] [--nodes-only]
 """
 
 from __future__ import annotations
@@ -233,7 +235,7 @@ def main():
             if not omit:
                 print(f"  last run, {breakdown(sim, cpu, args.duration)}", flush=True)
         costs = []
-        for r in range(args.repeat):  # the sixteen nodes are the linearization's inputs; the run does not use them
+        for r in range(args.repeat):  # the sixteen nodes are the linearization's inputs; the run reads none of them
             sim = build(tmp, scene("beam.h5", 1, "etdrk4", 1e-3, args.duration + 0.01, thrusters=False), "o1n.yaml")
             cpu, _ = timed_run(sim, args.duration)
             costs.append(cpu / args.duration)
