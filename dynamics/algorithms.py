@@ -1,6 +1,6 @@
 """The engine's algorithms as free functions over ``(model, data, ...)``, named for what they compute.
 
-As Pinocchio's ``aba(model, data, q, v, tau)`` (../shared/design/STYLE.md): ``model`` is the immutable
+As Pinocchio's ``aba(model, data, q, v, tau)``: ``model`` is the immutable
 :class:`dynamics.model.Model`, ``data`` a :class:`dynamics.data.Data` of it (``model.create_data()``) whose workspace
 the call overwrites; nothing else is kept between calls. :class:`dynamics.MultibodySystem` (a model with its own
 data) has each of them as a method.
@@ -25,6 +25,7 @@ call, which keeps the arrays alive.
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -36,6 +37,17 @@ from dynamics.errors import SingularConfigurationError
 from dynamics.model import checked_mass_properties, rigid_inertia_block
 
 _FLOAT64 = np.dtype(np.float64)
+
+
+class NodeKinematics(NamedTuple):
+    """Kinematics of every node; arrays indexed like ``MultibodySystem.node_names``."""
+
+    rotation: np.ndarray  # (n, 3, 3) node -> world
+    position: np.ndarray  # (n, 3) node origin in the world
+    angular_velocity: np.ndarray  # (n, 3) node axes
+    linear_velocity: np.ndarray  # (n, 3) node axes, velocity of the node origin
+    angular_acceleration: np.ndarray  # (n, 3) node axes
+    linear_acceleration: np.ndarray  # (n, 3) node axes, classical acceleration of the node origin
 
 
 @njit(cache=True)
@@ -192,9 +204,7 @@ def damping_matrix(model):
 
 
 def node_kinematics(model, data, q, u, u_dot=None):
-    """Pose, velocity and (classical) acceleration of every node; see :class:`dynamics.NodeKinematics`."""
-    from dynamics.system import NodeKinematics
-
+    """Pose, velocity and (classical) acceleration of every node; see :class:`NodeKinematics`."""
     _checked(model, data)
     n = model.nnodes
     rotation = np.empty((n, 3, 3))

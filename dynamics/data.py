@@ -1,6 +1,6 @@
 """The per-run data of an engine model: the workspace its algorithms write, and the run's mass properties.
 
-Pinocchio's ``Data`` / MuJoCo's ``mjData`` (../shared/design/STYLE.md): a :class:`Data` belongs to one
+Pinocchio's ``Data`` / MuJoCo's ``mjData``: a :class:`Data` belongs to one
 :class:`dynamics.model.Model` (``model.create_data()``) and holds everything an evaluation writes:
 
 * the kernels' workspace (:mod:`dynamics.layout`): ``ws_rot`` (nb, N_ROT, 3, 3), ``ws_vec`` (nb, N_VEC, 6),
@@ -25,7 +25,14 @@ import numpy as np
 
 from dynamics import kernels as K
 from dynamics import layout as L
-from dynamics.model import frozen
+
+
+def frozen(a, dtype=np.float64):
+    """``a`` as a C-contiguous array of ``dtype`` that cannot be written (a copy when the conversion needs one): the
+    model's arrays, and a data's own mass properties outside :func:`dynamics.algorithms.set_mass_properties`."""
+    a = np.ascontiguousarray(a, dtype=dtype)
+    a.setflags(write=False)
+    return a
 
 
 class Data:

@@ -1,6 +1,6 @@
 """The engine's immutable model: what a compiled multibody system *is*, apart from any run of it.
 
-Pinocchio's ``Model`` / MuJoCo's ``mjModel`` (../shared/design/STYLE.md): a :class:`Model` holds the description
+Pinocchio's ``Model`` / MuJoCo's ``mjModel``: a :class:`Model` holds the description
 that :meth:`dynamics.Multibody.compile` lays out (:mod:`dynamics.layout`) and nothing that an evaluation writes:
 
 * the tables the kernels read: ``topology`` and ``nodes`` (int64), ``joint_rot`` / ``joint_vec`` (hinge frames),
@@ -28,17 +28,11 @@ import dataclasses
 import numpy as np
 
 from dynamics import layout as L
+from dynamics.data import Data, frozen
 from dynamics.definitions import rigid_mass_properties
 from dynamics.errors import ModelDefinitionError
 from dynamics.hinges import HINGES
 from dynamics.spatial import spatial_inertia
-
-
-def frozen(a, dtype=np.float64):
-    """``a`` as a C-contiguous array of ``dtype`` that cannot be written (a copy when the conversion needs one)."""
-    a = np.ascontiguousarray(a, dtype=dtype)
-    a.setflags(write=False)
-    return a
 
 
 def rigid_inertia_block(model, body):
@@ -86,7 +80,8 @@ class Model:
                                         topology[:, L.PRESCRIBED_DOFS:L.PRESCRIBED_DOFS + 6]], axis=1), np.int64),
             spatial_inertia=params[6:6 + 36 * nb].reshape(nb, 6, 6), gravity=frozen(gravity),
             ground_accel=params[L.GROUND_ACCEL:L.GROUND_ACCEL + 6], node_body=frozen(nodes[:, L.NODE_BODY], np.int64),
-            node_rot=frozen(np.asarray(node_rot).reshape(-1, 3, 3)), node_pos=frozen(np.asarray(node_pos).reshape(-1, 3)),
+            node_rot=frozen(np.asarray(node_rot).reshape(-1, 3, 3)),
+            node_pos=frozen(np.asarray(node_pos).reshape(-1, 3)),
             masses=frozen(masses), n_modes=tuple(int(t[L.N_MODES]) for t in topology),
             is_flexible=bool(np.any(topology[:, L.FLEXIBLE])), nbodies=nb, nnodes=len(node_names),
             nq=int(last[L.Q_START] + last[L.NQ_HINGE] + last[L.N_MODES]), nu=nu,
@@ -121,15 +116,14 @@ class Model:
     def create_data(self, mass_properties: bool = False):
         """A new :class:`dynamics.data.Data` of this model: the workspace of its algorithms, with the model's mass
         properties (``mass_properties``: a private copy of them at once, else at its first change)."""
-        from dynamics.data import Data
-
         return Data(self, own_mass_properties=mass_properties)
 
     # ------------------------------------------------------------------ new models from this one
     def with_mass_properties(self, changes):
         """A new model with the rigid bodies' mass properties ``changes`` ({body: (mass, com, inertia about the
-        COM)} or {body: {"mass": ..., "com": ..., "inertia": ...}}), validated like :meth:`dynamics.Multibody.add_body`'s;
-        every array but ``params`` and ``masses`` is shared with this model. O(size of params)."""
+        COM)} or {body: {"mass": ..., "com": ..., "inertia": ...}}), validated like
+        :meth:`dynamics.Multibody.add_body`'s; every array but ``params`` and ``masses`` is shared with this model.
+        O(size of params)."""
         params = np.array(self.params)
         masses = np.array(self.masses)
         bodies = list(self.definitions[0])
@@ -141,7 +135,8 @@ class Model:
             masses[i] = mass
             bodies[i] = dataclasses.replace(bodies[i], mass=mass, com=com, inertia=inertia)
         params, nb = frozen(params), self.nbodies
-        return self._replaced(params=params, masses=frozen(masses), spatial_inertia=params[6:6 + 36 * nb].reshape(nb, 6, 6),
+        return self._replaced(params=params, masses=frozen(masses),
+                              spatial_inertia=params[6:6 + 36 * nb].reshape(nb, 6, 6),
                               ground_accel=params[L.GROUND_ACCEL:L.GROUND_ACCEL + 6],
                               definitions=(tuple(bodies),) + self.definitions[1:])
 

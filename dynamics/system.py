@@ -24,31 +24,18 @@ It also chooses the forward-dynamics solver (``solver``): the articulated-body r
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
 
 import numpy as np
 
 from dynamics import algorithms as A
 from dynamics import layout as L
+from dynamics.data import Data, frozen
 from dynamics.errors import ModelDefinitionError
 from dynamics.hinges import HINGE_TYPES, HINGES
-from dynamics.data import Data
-from dynamics.model import Model, frozen
 from dynamics.kernels.node_inertia import NODE_STATE, node_params
+from dynamics.model import Model
 from dynamics.reconfigure import reconfigure
 from dynamics.spatial import spatial_inertia as _spatial_inertia
-
-
-class NodeKinematics(NamedTuple):
-    """Kinematics of every node; arrays indexed like ``MultibodySystem.node_names``."""
-
-    rotation: np.ndarray  # (n, 3, 3) node -> world
-    position: np.ndarray  # (n, 3) node origin in the world
-    angular_velocity: np.ndarray  # (n, 3) node axes
-    linear_velocity: np.ndarray  # (n, 3) node axes, velocity of the node origin
-    angular_acceleration: np.ndarray  # (n, 3) node axes
-    linear_acceleration: np.ndarray  # (n, 3) node axes, classical acceleration of the node origin
-
 
 class _Packer:
     """Lays float64 blocks out one after the other in a flat array; returns each block's offset."""
