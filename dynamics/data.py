@@ -56,6 +56,12 @@ class Data:
         if own_mass_properties:
             self.own_mass_properties()
 
+    def __setstate__(self, state):
+        # an unpickled or deep-copied data: its mass properties read-only again, as numpy restores arrays writable
+        self.__dict__.update(state)
+        for name in ("params", "masses"):
+            getattr(self, name).setflags(write=False)
+
     @property
     def owns_mass_properties(self) -> bool:
         """Whether this data has its own copy of the mass properties (else it reads the model's)."""

@@ -105,6 +105,14 @@ class Model:
     def __delattr__(self, name):
         self.__setattr__(name, None)
 
+    def __setstate__(self, state):
+        # an unpickled or deep-copied model: numpy restores arrays writable, so freeze them again (as numba types
+        # them read-only, also the kernels' compiled specialization stays the one of a compiled model)
+        for name, value in state.items():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
     def _replaced(self, **changes):
         """A model with ``changes`` (already frozen) and every other attribute shared with this one."""
         other = object.__new__(Model)

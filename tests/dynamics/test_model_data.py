@@ -7,7 +7,9 @@ alone: they share no written array, so any difference is interference, not round
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import pickle
 import threading
 
 import numpy as np
@@ -50,6 +52,19 @@ def test_every_array_of_the_model_is_read_only_and_the_model_cannot_be_rebound(s
         del model.topology
     # the system reads its model's description: the same arrays, not copies
     assert system.topology is model.topology and system.params is model.params
+
+
+def test_a_pickled_or_copied_system_keeps_its_model_read_only_and_its_numbers(system):
+    """numpy unpickles arrays writable: the model and data freeze theirs again (else the copy's model could be
+    written, and numba would compile the kernels again for writable arrays)."""
+    rng = np.random.default_rng(2)
+    q, u, tau = random_state(system, rng)
+    for other in (pickle.loads(pickle.dumps(system)), copy.deepcopy(system)):
+        assert other.data.model is other.model
+        for name, a in _arrays(other.model).items():
+            assert not a.flags.writeable, name
+        assert not other.data.params.flags.writeable and not other.data.masses.flags.writeable
+        np.testing.assert_array_equal(other.forward_dynamics(q, u, tau), system.forward_dynamics(q, u, tau))
 
 
 @njit
