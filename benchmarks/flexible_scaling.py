@@ -3,13 +3,13 @@
 Part 0, a real deck's general mass: a 9 m aluminium tube (100 CBAR, PARAM COUPMASS -1) with a CONM2 carrying
 rotary inertia on every grid (:func:`beam_deck`), through ``dynamics.flex.fem2modal`` at 400 free-free modes
 (modal integrals: G1, F2, G2 are then summed over the 101 grids by the engine, and C1, J2 over them too where
-cheaper than their tables), on a free hinge with a wheel
-spinning at 50 rad/s on a revolute hinge at its middle grid; orders 0, 1 and 2, and 1 and 2 without the terms of
-the nodes' rotary inertia (what ``order: auto`` keeps when the node rotations are below 1e-3), at 25, 50, 100,
-196 and 400 modes (the file's first modes), one ``forward_dynamics`` call in a state deflected by a lateral tip load (1 cm at
-the tip), 0.05 rad/s of rate and modal rates of a tenth of each mode's amplitude times its frequency: per call (us),
-the refinement passes it took (``P_REFINEMENTS``), the log-log slope over all sizes and the ratios to order 0 (the
-five orders of one size timed in interleaved batches, so that their ratios share the machine's load).
+cheaper than their tables), on a free hinge with a wheel spinning at 50 rad/s on a revolute hinge at its middle
+grid; orders 0, 1 and 2, and 1 and 2 without the terms of the nodes' rotary inertia (what ``order: auto`` keeps
+when the node rotations are below 1e-3), at 25, 50, 100, 196 and 400 modes (the file's first modes), one
+``forward_dynamics`` call in a state deflected by a lateral tip load (1 cm at the tip), 0.05 rad/s of rate and
+modal rates of a tenth of each mode's amplitude times its frequency: per call (us), the refinement passes it took
+(``P_REFINEMENTS``), the log-log slope over all sizes and the ratios to order 0 (the five orders of one size
+timed in interleaved batches, so that their ratios share the machine's load).
 Checked against the dense ``M^-1 (tau - h)`` of the same state.
 
 Part 1, modes: one flexible body on a free hinge carrying a rigid wheel on a revolute hinge at one of

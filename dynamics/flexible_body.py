@@ -39,9 +39,8 @@ Geometric stiffening (:func:`add_geometric_stiffening`, issue 15) adds to C1 and
 C1 and J2 are sums over every node with mass of products of its shapes, mass, position, offset and inertia
 (the integrals F1, E1, J2 of TM eqs. E.2.4-E.2.5): :class:`NodeMass` holds those per-node invariants and
 :mod:`dynamics.kernels.node_mass` evaluates the two terms from them in O(N n) per evaluation (N nodes), where
-that is cheaper than reading the tables (:func:`node_mass_is_cheaper`: at a few hundred modes the tables, 12 n^2
-numbers, no longer fit in cache). Geometric stiffening's parts of C1 and J2 are not node sums: a body with it
-keeps both as tables.
+that is cheaper than reading the tables (:func:`node_mass_is_cheaper`: from about 1.7 N modes at order 2, 3.4 N
+at order 1). Geometric stiffening's parts of C1 and J2 are not node sums: a body with it keeps both as tables.
 
 G1, F2 and G2 come only from nodes with rotational inertia or centre-of-mass offsets (zero for point
 masses, TM eq. E.3.1): they are the turning of each such node's own inertia with its elastic rotation
@@ -426,11 +425,15 @@ def node_mass_from_nodes(mass, cg, inertia, positions, shapes, order):
 
 def node_mass_is_cheaper(n, nodes):
     """Whether the terms of ``nodes`` (a :class:`NodeMass`) cost less per evaluation summed over the nodes than as
-    tables of a body of ``n`` modes. Tables: C1 three multiply-adds per entry (``3 n^2`` entries, ``6 n^2``
-    with CG offsets), J2 one (``9 n^2``), read whole from memory; over the nodes: about 6 multiply-adds per
-    entry of the ``3N x n`` translation shapes and as many of the rotation shapes (nodes with rotary inertia,
-    3 more with CG offsets), plus some 150 per node, on a fifth of the data or less. The factor ``TABLE_WEIGHT``
-    on the tables (their reads miss the cache) is measured (``benchmarks/flexible_scaling.py --deck-only``)."""
+    tables of a body of ``n`` modes, counted in multiply-adds. Tables: C1 three per entry (``3 n^2`` entries,
+    ``6 n^2`` with CG offsets), J2 one (``9 n^2``); over the nodes: 6 per entry of the ``3N x n`` translation
+    shapes (two passes: the shapes times eta and the rates, then C(eta) and the modal forces), as many of the
+    rotation shapes when nodes have rotary inertia, 3 more with CG offsets, and some 150 per node. Both are bound
+    by reading their data at a few hundred modes (the tables ``12 n^2`` numbers once, the shapes ``4 x 3N n``
+    numbers in two passes each): ``TABLE_WEIGHT`` is the measured ratio. On the 101-grid tube of
+    ``benchmarks/flexible_scaling.py --deck-only`` (rotary inertia on every grid) the node sums are cheaper from
+    about 150 modes at order 2 (C1 and J2) and 400 at order 1 (C1 only); this rule puts the switch at 170 and
+    340."""
     rows = 6 if np.any(nodes.cg) else 3
     table = 3.0 * rows * n * n * ("C1" in nodes.terms) + 9.0 * n * n * ("J2" in nodes.terms)
     per_entry = 6.0 + (6.0 if nodes.rotary else 0.0) + (3.0 if np.any(nodes.cg) else 0.0)
@@ -438,9 +441,9 @@ def node_mass_is_cheaper(n, nodes):
     return nodal < TABLE_WEIGHT * table
 
 
-TABLE_WEIGHT = 2.0
-"""How much more a multiply-add of the C1 and J2 tables costs than one of the node sums
-(:func:`node_mass_is_cheaper`)."""
+TABLE_WEIGHT = 1.2
+"""Cost of a multiply-add of the C1 and J2 tables relative to one of the node sums (:func:`node_mass_is_cheaper`;
+measured 2026-12-07 on the tube of ``benchmarks/flexible_scaling.py --deck-only``: 0.9 to 1.4)."""
 
 
 def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=None, integrals="general",

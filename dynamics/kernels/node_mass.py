@@ -37,9 +37,11 @@ per-node 3-vectors: ``b_m`` gains ``Lambda' a + Gamma' z`` with the per-node coe
 ``theta``). Per evaluation: one pass over the stacked translation shapes ``Gamma`` (n x 3N, node-minor as in
 :mod:`dynamics.kernels.node_inertia`) for ``u`` and ``ud``, one for ``C(eta)``'s three rows and ``Gamma' z``
 together, and the same two over ``Lambda`` when nodes have rotary inertia or CG offsets (a third pass for the
-translational rows ``-m d~ lambda`` with CG offsets): about 12 multiply-adds per entry of 3N x n shapes, against
-3 per entry of the C1 table and one per entry of J2, but a fifth of the data (the tables do not fit in cache at
-a few hundred modes). :func:`dynamics.flexible_body.node_mass_is_cheaper` chooses per body. Geometric
+translational rows ``-m d~ lambda`` with CG offsets): 6 multiply-adds per entry of each 3N x n shape array
+(``12 x 3N n`` with rotary inertia), against 3 per entry of the C1 table (``3 n^2``) and one per entry of J2
+(``9 n^2``), and ``4 x 3N n`` numbers read against ``12 n^2``: the node sums win where the modes outnumber the
+nodes (at order 2 from about 1.5 N modes, at order 1, C1 alone, from about 4 N on the tube of
+``benchmarks/flexible_scaling.py``); :func:`dynamics.flexible_body.node_mass_is_cheaper` chooses per body. Geometric
 stiffening adds stiffness-derived parts to C1 and J2 that are not node sums: such a body keeps its tables.
 The result equals the tables' to round-off (``tests/flexible/test_node_mass.py``).
 

@@ -14,6 +14,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+import dynamics.flexible_body as FB
 from dynamics import Multibody
 from dynamics import layout as L
 from dynamics.errors import ModelDefinitionError
@@ -46,6 +47,12 @@ def _state(system, n, rng, size=0.1):
     q[:4] /= np.linalg.norm(q[:4])
     q[4:7] = rng.standard_normal(3)
     q[7:7 + n] = size * rng.standard_normal(n)
+    return q, rng.standard_normal(system.nu), rng.standard_normal(system.nu)
+
+
+def _hinged_state(system, rng):
+    q = system.neutral_configuration()
+    q[:] = 0.02 * rng.standard_normal(system.nq)
     return q, rng.standard_normal(system.nu), rng.standard_normal(system.nu)
 
 
@@ -98,3 +105,54 @@ def test_the_cheaper_form_is_chosen():
     assert node_mass_is_cheaper(200, nodes)
     few = node_mass_from_nodes(model.mass, model.cg, model.inertia, model.position, np.zeros((100, 6, 5)), 2)
     assert not node_mass_is_cheaper(5, few)
+
+
+@pytest.fixture(scope="module")
+def fe_beam_body():
+    from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
+
+    return fem2modal("configs/fem/single_length_beam.dat", Fem2ModalOptions(n_modes=6, modal_integrals=True))
+
+
+@pytest.mark.parametrize("integrals", ["general", "point_mass"])
+@pytest.mark.parametrize("order", [1, 2])
+def test_body_file_node_sums_equal_its_tables(fe_beam_body, integrals, order, monkeypatch):
+    """A body file's grids (masses, offsets, inertias, positions and shapes of the kept modes, as
+    ``flexible_body_from_modal_body`` selects them) against the tables built from the file's own modal integrals
+    (computed by the FEM pipeline): the same dynamics to 1e-12."""
+    systems = []
+    for nodal in (False, True):
+        monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes, nodal=nodal: nodal)
+        mb = Multibody()
+        # point masses on a line have no inertia about it: a revolute hinge across the beam for those
+        hinge = {"hinge": "free"} if integrals == "general" else {"hinge": "revolute", "axis": (0.0, 0.0, 1.0)}
+        mb.add_flexible_body("beam", None, modal=fe_beam_body, order=order, integrals=integrals,
+                             modes=[0, 2, 3, 5], **hinge)
+        systems.append(mb.compile(solver="aba"))
+    fx = [s.topology[0, L.FLEX:] for s in systems]
+    assert fx[0][L.FX_C1] >= 0 and fx[0][L.FX_MASS_NODES] < 0
+    assert fx[1][L.FX_C1] < 0 and fx[1][L.FX_J2] < 0 and fx[1][L.FX_MASS_NODES] >= 0
+    assert fx[1][L.FX_MASS_NODE_COUNT] == np.count_nonzero(fe_beam_body.node_mass)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        q, u, tau = _state(systems[0], 4, rng, size=0.02) if integrals == "general" else _hinged_state(systems[0], rng)
+        assert rel(systems[1].forward_dynamics(q, u, tau), systems[0].forward_dynamics(q, u, tau)) < 1e-12
+        assert rel(systems[1].bias_forces(q, u), systems[0].bias_forces(q, u)) < 1e-12
+        assert rel(systems[1].mass_matrix(q), systems[0].mass_matrix(q)) < 1e-12
+
+
+def test_geometric_stiffening_keeps_the_tables(monkeypatch, tmp_path):
+    """Geometric stiffening adds stiffness-derived parts to C1 and J2 that are not sums over the nodes: the body
+    keeps both as tables however the costs compare."""
+    from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
+    from tests.flex.rotating_beam import rotating_beam_deck
+
+    deck = tmp_path / "beam.dat"
+    deck.write_text(rotating_beam_deck(10))
+    body = fem2modal(str(deck), Fem2ModalOptions(n_modes=4, modal_integrals=True, geometric_stiffness=True))
+    monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes: True)
+    stiffened = FB.flexible_body_from_modal_body(body, order=2)
+    assert stiffened.geometric_stiffening and stiffened.mass_nodes is None
+    assert stiffened.terms.C1 is not None and stiffened.terms.J2 is not None and stiffened.terms.P2 is not None
+    plain = FB.flexible_body_from_modal_body(body, order=2, geometric_stiffening=False)
+    assert plain.mass_nodes is not None and plain.mass_nodes.terms == ("C1", "J2") and plain.terms.C1 is None
