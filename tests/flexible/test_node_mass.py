@@ -5,6 +5,8 @@ themselves checked against the nodal product E.1.34 in tests/flex/test_modal_int
 the same in both. Tolerance 1e-12 relative: the two representations sum the same products in another order
 (round-off; observed below 1e-14), while a wrong sign or a missing factor of any single term of the node sums
 moves the result by far more than that at the deformations and rates used (1e-1 modal coordinates, unit rates).
+Also every term over the nodes against the brute-force nodal reference of test_brute_force.py (1e-10; leaving
+C1 or J2 out moves the result by 1e-1 and 3e-2 of it there).
 """
 
 from __future__ import annotations
@@ -156,3 +158,20 @@ def test_geometric_stiffening_keeps_the_tables(monkeypatch, tmp_path):
     assert stiffened.terms.C1 is not None and stiffened.terms.J2 is not None and stiffened.terms.P2 is not None
     plain = FB.flexible_body_from_modal_body(body, order=2, geometric_stiffening=False)
     assert plain.mass_nodes is not None and plain.mass_nodes.terms == ("C1", "J2") and plain.terms.C1 is None
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_all_node_sums_match_the_nodal_reference(order):
+    """Every eta-dependent term but R1 over the nodes (C1, J2 here, G1, F2, G2 by node_inertia) against the
+    brute-force nodal formulation of test_brute_force.py (the node-by-node mass matrix truncated at the order,
+    differentiated by complex steps; independent of the modal-integral tables): 1e-10, as there."""
+    from .test_brute_force import reference_free_free
+
+    model = random_node_model(8, 4, seed=80 + order)
+    system = _system(_with_node_mass(flexible_body_data(model, order, nodal=True), model, order), wheel=False)
+    fx = system.topology[0, L.FLEX:]
+    assert fx[L.FX_MASS_NODES] >= 0 and fx[L.FX_NODES] >= 0 and fx[L.FX_C1] < 0 and fx[L.FX_G1] < 0
+    rng = np.random.default_rng(9 + order)
+    for size in (1e-3, 1e-1, 0.5):
+        q, u, tau = _state(system, 4, rng, size)
+        assert rel(system.forward_dynamics(q, u, tau), reference_free_free(model, order, u, q[7:], tau)) < 1e-10
