@@ -85,16 +85,17 @@ def test_python_calls_borrow_the_systems_arrays():
     udot, tau_out = np.zeros(system.nu), np.empty(system.nu)
 
     def owned_call():
-        return K.forward_dynamics(*owned, q, u, tau, system._zero_node_forces, system._zero_body_forces, udot,
+        return K.forward_dynamics(*owned, q, u, tau, system.data.zero_node_forces, system.data.zero_body_forces, udot,
                                   tau_out, *workspace)
 
     assert owned_call() == 0
     assert np.array_equal(system.forward_dynamics(q, u, tau), udot)
     tau_id = np.empty(system.nu)
-    K.inverse_dynamics(*owned, q, u, udot, system._zero_node_forces, system._zero_body_forces, tau_id, *workspace)
+    K.inverse_dynamics(*owned, q, u, udot, system.data.zero_node_forces, system.data.zero_body_forces, tau_id,
+                       *workspace)
     assert np.array_equal(system.inverse_dynamics(q, u, udot), tau_id)
     M = np.empty((system.nu, system.nu))
-    K.mass_matrix(*owned, q, system._zero_u, M, *workspace)
+    K.mass_matrix(*owned, q, system.data.zero_u, M, *workspace)
     assert np.array_equal(system.mass_matrix(q), M)
 
     arrays = owned + workspace
