@@ -19,8 +19,8 @@ The kernels take the arrays as borrowed references (:func:`dynamics.engine.borro
 and decrements an atomic reference count for every view a kernel takes of them (ws_mat[i, MAT_IA], a node's slot,
 ...), which was 60 % of a rigid forward dynamics (a random tree of 30 bodies 16.2 -> 6.5 us, of 300 bodies
 155 -> 67 us, 2026-11-28; benchmarks/rigid_vs_pinocchio.py); on the AMD EPYC machine of 2026-12-07 the
-difference is within 5 % (100 bodies: 88 -> 84 us at load 4.5): atomic operations cost little there. The caller holds ``model`` and ``data`` for the whole
-call, which keeps the arrays alive.
+difference is within 5 % (100 bodies: 88 -> 84 us at load 4.5): atomic operations cost little there. The caller
+holds ``model`` and ``data`` for the whole call, which keeps the arrays alive.
 """
 
 from __future__ import annotations

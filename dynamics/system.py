@@ -531,6 +531,9 @@ class MultibodySystem:
                     nodal = [t for t, bit in (("G1", L.NODE_G1), ("F2", L.NODE_F2), ("G2", L.NODE_G2))
                              if fx[L.FX_NODE_TERMS] & bit]
                     terms.append(f"{'+'.join(nodal)} over {fx[L.FX_NODE_COUNT]} nodes")
+                if fx[L.FX_MASS_NODES] >= 0:
+                    summed = [t for t, bit in (("C1", L.MASS_C1), ("J2", L.MASS_J2)) if fx[L.FX_MASS_NODE_TERMS] & bit]
+                    terms.append(f"{'+'.join(summed)} over {fx[L.FX_MASS_NODE_COUNT]} nodes")
                 kind = {L.GINV_DIAGONAL: "diagonal G0", L.GINV_DENSE: "G0^-1 precomputed",
                         L.GINV_FACTORED: "G(eta) factored per call"}[int(fx[L.FX_GINV_KIND])]
                 if fx[L.FX_REFINE]:

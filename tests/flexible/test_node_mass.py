@@ -75,6 +75,8 @@ def test_node_sums_equal_the_tables(order, nodes, rotary_terms):
     fx = summed.topology[0, L.FLEX:]
     assert fx[L.FX_C1] < 0 and fx[L.FX_J2] < 0 and fx[L.FX_MASS_NODES] >= 0
     assert fx[L.FX_MASS_NODE_TERMS] == (L.MASS_C1 if order == 1 else L.MASS_C1 | L.MASS_J2)
+    summed_terms = "C1 over 9 nodes" if order == 1 else "C1+J2 over 9 nodes"
+    assert summed_terms in summed.summary() and summed_terms not in tables.summary()  # what was compiled is said
     rotary, offset = summed.params[fx[L.FX_MASS_NODES]:fx[L.FX_MASS_NODES] + 2]
     assert (rotary, offset) == (float(nodes != "point masses"), float(nodes in ("all", "some")))
     rng = np.random.default_rng(order)
