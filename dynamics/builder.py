@@ -1,9 +1,9 @@
 """The multibody builder: collect bodies, hinges and nodes, validate them, compile to arrays.
 
 ``Multibody`` is the only mutable description; ``compile()`` checks everything a user can get wrong
-(names, parents, masses, inertias, axes, frames, prescribed flags) and returns an immutable
-:class:`dynamics.system.MultibodySystem` of numpy arrays (model/data separation as in Pinocchio's
-``Model``/``Data``). Bodies are numbered in the order they are added, which must put every parent before
+(names, parents, masses, inertias, axes, frames, prescribed flags) and returns a
+:class:`dynamics.system.MultibodySystem`: an immutable :class:`dynamics.model.Model` of numpy arrays with a
+:class:`dynamics.data.Data` of its own (model/data separation as in Pinocchio's ``Model``/``Data``). Bodies are numbered in the order they are added, which must put every parent before
 its children; that is also the coordinate order of ``q`` and ``u`` (docs/conventions.md).
 """
 

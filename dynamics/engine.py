@@ -29,11 +29,13 @@ This interface (argument order, array shapes, the meaning of every field) is wha
 the algorithms underneath may change freely. ``MultibodySystem`` keeps the same arrays, so Python callers
 (``system.forward_dynamics(...)``) and compiled callers compute the same numbers.
 
-Ownership: the description arrays (topology, joint frames, node tables) never change after
-``Multibody.compile``. The rigid inertias in ``params`` may change during a run
-(``MultibodySystem.set_mass_properties``, mass depletion) and the workspace is scratch, so an
-:class:`EngineData` serves one simulation at a time: :func:`engine_data` of ``system.copy()`` gives an
-independent one.
+Ownership: the description arrays (topology, joint frames, node tables) are the immutable model's
+(:class:`dynamics.model.Model`) and never change. ``params`` and the workspace are the data's
+(:class:`dynamics.data.Data`): the rigid inertias in ``params`` may change during a run
+(:func:`dynamics.algorithms.set_mass_properties`, mass depletion; written in place, which is why
+:func:`engine_data` gives the data its own copy of them) and the workspace is scratch, so an
+:class:`EngineData` serves one simulation at a time: :func:`engine_data` of ``model`` and another
+``model.create_data()`` (or of ``system.copy()``) gives an independent one.
 """
 
 from __future__ import annotations
@@ -87,14 +89,14 @@ class EngineData(NamedTuple):
     """Arrays of a compiled multibody system and its workspace (see the module docstring)."""
 
     dense: bool                   # the forward-dynamics solver: False articulated-body, True dense
-    # description (immutable but for the rigid inertias in params, see the module docstring)
+    # the model's description (immutable), but params: the data's (its rigid inertias change with mass depletion)
     topology: np.ndarray          # (nb, TOPOLOGY_COLUMNS) int64, dynamics.kernels column constants
     nodes: np.ndarray             # (nnodes, NODE_COLUMNS) int64
     joint_rot: np.ndarray         # (nb, 2, 3, 3) inboard / outboard frame rotations
     joint_vec: np.ndarray         # (nb, 4, 3) inboard / outboard positions, hinge axes
     params: np.ndarray            # (m,) ground acceleration, inertias, modal data, node frames and shapes
     quaternion_q: np.ndarray      # (k,) int64: position in q of each hinge quaternion's w
-    # workspace
+    # the data's workspace
     ws_rot: np.ndarray
     ws_vec: np.ndarray
     ws_mat: np.ndarray
@@ -102,12 +104,21 @@ class EngineData(NamedTuple):
     zero_body_forces: np.ndarray  # (nb, 6) zeros
 
 
-def engine_data(system) -> EngineData:
-    """The :class:`EngineData` of ``system``, sharing its arrays (mass properties and workspace too)."""
+def engine_data(model, data=None) -> EngineData:
+    """The :class:`EngineData` of a :class:`dynamics.model.Model` and one of its :class:`dynamics.data.Data` (or of a
+    ``dynamics.MultibodySystem``: its model and data), sharing their arrays: the model's description, the data's
+    workspace and mass properties. The data gets its own copy of the mass properties first
+    (:meth:`dynamics.data.Data.own_mass_properties`): a compiled caller holds these arrays for a whole run, so a
+    later change (mass depletion) must write into the array it holds rather than replace it."""
+    if data is None:
+        model, data = model.model, model.data
+    elif data.model is not model:
+        raise ValueError(f"{data!r} is not a data of {model!r}: use model.create_data()")
+    data.own_mass_properties()
     return EngineData(
-        system.solver == "dense", system.topology, system.nodes, system.joint_rot, system.joint_vec, system.params,
-        np.ascontiguousarray(system.quaternion_q_indices, dtype=np.int64), system.ws_rot, system.ws_vec,
-        system.ws_mat, system.pool, np.zeros((system.nbodies, 6)))
+        model.solver == "dense", model.topology, model.nodes, model.joint_rot, model.joint_vec, data.params,
+        np.array(model.quaternion_q_indices, dtype=np.int64), data.ws_rot, data.ws_vec, data.ws_mat, data.pool,
+        np.zeros((model.nbodies, 6)))
 
 
 # -- the paths: a compiled caller that knows its system's path (:func:`path_of`) calls that path's functions and

@@ -178,5 +178,5 @@ def resolve_modal_orders(system, q, u, tolerance=TOLERANCE):
     for message in messages:
         warnings.warn(message, UserWarning, stacklevel=2)
     if messages:
-        system.notes = system.notes + tuple(f"warning: {m}" for m in messages)
+        system = system.with_notes(f"warning: {m}" for m in messages)
     return system, choices

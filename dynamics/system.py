@@ -1,4 +1,5 @@
-"""The compiled multibody system: immutable arrays, a private workspace, and the user-facing algorithms.
+"""The compiled multibody system: an immutable :class:`dynamics.model.Model` with a :class:`dynamics.data.Data` of
+its own, and the engine's algorithms (:mod:`dynamics.algorithms`) as its methods.
 
 Coordinates (docs/conventions.md): ``q`` and ``u`` concatenate, in body order, each body's hinge coordinates
 (see :mod:`dynamics.hinges`) followed by its modal coordinates (none for rigid bodies). Generalized
@@ -7,56 +8,35 @@ hinge's ``[torque; force]`` in the outboard frame for spherical/free hinges.
 
 Node forces are spatial forces ``[torque; force]`` in node axes, applied at the node origin.
 
-Compilation lays the description out (:mod:`dynamics.layout`) for the kernels of :mod:`dynamics.kernels` (one
-recursion for rigid and flexible bodies): ``topology`` and ``nodes`` (int tables), ``joint_rot``/``joint_vec`` (hinge
-frames), ``params`` (ground acceleration, inertias, modal data, node frames and mode shapes, and what
-can be precomputed from them: the inverse modal mass ``G0^-1``, ``M0_re G0^-1``, ``Pi G0^-1`` at the
-nodes children hang from), and sizes the workspace (``ws_rot``, ``ws_vec``, ``ws_mat``, ``pool``). The
-description never changes after :meth:`dynamics.Multibody.compile` except the rigid bodies' inertias
-(:meth:`MultibodySystem.set_mass_properties`); the workspace is scratch owned by this object, so a system
-must not be shared between threads (use :meth:`MultibodySystem.copy`).
+Compilation (:meth:`MultibodySystem.from_definitions`) lays the description out (:mod:`dynamics.layout`) for the
+kernels of :mod:`dynamics.kernels` (one recursion for rigid and flexible bodies): ``topology`` and ``nodes`` (int
+tables), ``joint_rot``/``joint_vec`` (hinge frames), ``params`` (ground acceleration, inertias, modal data, node
+frames and mode shapes, and what can be precomputed from them: the inverse modal mass ``G0^-1``, ``M0_re G0^-1``,
+``Pi G0^-1`` at the nodes children hang from), and sizes the workspace (``ws_rot``, ``ws_vec``, ``ws_mat``,
+``pool``). The description is the immutable model (``system.model``); the workspace, and the rigid bodies' mass
+properties once :meth:`MultibodySystem.set_mass_properties` changes them, are the system's data (``system.data``).
+A system must not be shared between threads: :meth:`MultibodySystem.copy` gives one with its own data.
 
-It also chooses the forward-dynamics solver (:attr:`MultibodySystem.solver`): the articulated-body
-recursion, or the dense ``M udot = tau - h`` where that is cheaper (:func:`choose_solver`).
+It also chooses the forward-dynamics solver (``solver``): the articulated-body recursion, or the dense
+``M udot = tau - h`` where that is cheaper (:func:`choose_solver`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
-from dynamics import kernels as K
+from dynamics import algorithms as A
 from dynamics import layout as L
-from dynamics.definitions import rigid_mass_properties
-from dynamics.engine import borrowed
-from dynamics.errors import ModelDefinitionError, SingularConfigurationError
+from dynamics.data import Data, frozen
+from dynamics.errors import ModelDefinitionError
 from dynamics.hinges import HINGE_TYPES, HINGES
 from dynamics.kernels.node_inertia import NODE_STATE, node_params
+from dynamics.kernels.node_mass import MASS_NODE_STATE, node_mass_params
+from dynamics.model import Model
 from dynamics.reconfigure import reconfigure
 from dynamics.spatial import spatial_inertia as _spatial_inertia
-
-
-class NodeKinematics(NamedTuple):
-    """Kinematics of every node; arrays indexed like ``MultibodySystem.node_names``."""
-
-    rotation: np.ndarray  # (n, 3, 3) node -> world
-    position: np.ndarray  # (n, 3) node origin in the world
-    angular_velocity: np.ndarray  # (n, 3) node axes
-    linear_velocity: np.ndarray  # (n, 3) node axes, velocity of the node origin
-    angular_acceleration: np.ndarray  # (n, 3) node axes
-    linear_acceleration: np.ndarray  # (n, 3) node axes, classical acceleration of the node origin
-
-
-_FLOAT64 = np.dtype(np.float64)
-
-
-def _frozen(a, dtype=np.float64):
-    a = np.ascontiguousarray(a, dtype=dtype)
-    a.setflags(write=False)
-    return a
 
 
 class _Packer:
@@ -178,98 +158,43 @@ def choose_solver(topology):
                    f"dense M udot = tau - h)")
 
 
-# -- Python's calls into the kernels. The system owns its arrays for the whole call, so the kernels take them as
-# borrowed references (dynamics.engine.borrowed): otherwise numba increments and decrements an atomic reference count
-# for every view a kernel takes of them (ws_mat[i, MAT_IA], a node's slot, ...), which was 60 % of a rigid forward
-# dynamics (a random tree of 30 bodies 16.2 -> 6.5 us, of 300 bodies 155 -> 67 us, 2026-11-28;
-# benchmarks/rigid_vs_pinocchio.py). The compiled loop borrows the same arrays for the same reason.
-
-@njit(cache=True)
-def _borrowing_articulated_forward_dynamics(*arrays):
-    return K.forward_dynamics(*borrowed(arrays))
-
-
-@njit(cache=True)
-def _borrowing_dense_forward_dynamics(*arrays):
-    return K.forward_dynamics_dense(*borrowed(arrays))
-
-
-@njit(cache=True)
-def _borrowing_inverse_dynamics(*arrays):
-    K.inverse_dynamics(*borrowed(arrays))
-
-
-@njit(cache=True)
-def _borrowing_mass_matrix(*arrays):
-    K.mass_matrix(*borrowed(arrays))
-
-
-@njit(cache=True)
-def _borrowing_node_kinematics(*arrays):
-    K.node_kinematics(*borrowed(arrays))
-
-
-@njit(cache=True)
-def _borrowing_energy_momentum(*arrays):
-    K.energy_momentum(*borrowed(arrays))
+_PER_RUN = ("params", "masses", "definitions", "spatial_inertia", "ground_accel")
 
 
 class MultibodySystem:
-    """A compiled tree of bodies. Build with :class:`dynamics.Multibody`.
+    """A compiled tree of bodies: an immutable :class:`dynamics.model.Model` (:attr:`model`) with a
+    :class:`dynamics.data.Data` of its own (:attr:`data`), and the algorithms of :mod:`dynamics.algorithms` as
+    methods. Build with :class:`dynamics.Multibody`.
 
-    :attr:`solver` is the forward-dynamics method chosen at compile time ("aba" or "dense",
-    :attr:`solver_reason` says why); :attr:`notes` lists choices made for the user (default modal-integral
-    orders, O(n^3) terms kept); :meth:`summary` prints both."""
+    The model's attributes (names, sizes, ``topology``, ``joint_rot`` ...) read as the system's. ``params``,
+    ``masses``, ``definitions`` and ``spatial_inertia`` are this system's (its data's: the model's until
+    :meth:`set_mass_properties` changes them). ``solver`` is the forward-dynamics method chosen at compile time
+    ("aba" or "dense", ``solver_reason`` says why); ``notes`` lists choices made for the user (default
+    modal-integral orders, O(n^3) terms kept); :meth:`summary` prints both."""
 
-    def __init__(self, *, body_names, joint_names, hinge_names, node_names, node_bodies, topology, nodes,
-                 joint_rot, joint_vec, params, pool_size, gravity, node_rot, node_pos, masses, notes, solver,
-                 solver_reason):
-        self.body_names = tuple(body_names)
-        self.joint_names = tuple(joint_names)
-        self.hinge_names = tuple(hinge_names)
-        self.node_names = tuple(node_names)
-        self.node_bodies = tuple(node_bodies)
-        self.topology = _frozen(topology, np.int64)
-        self.nodes = _frozen(nodes.reshape(-1, L.NODE_COLUMNS), np.int64)
-        self.joint_rot = _frozen(joint_rot)
-        self.joint_vec = _frozen(joint_vec)
-        self.params = _frozen(params)
-        self.pool_size = int(pool_size)
-        nb = self.topology.shape[0]
-        self.hinge_dofs = _frozen(np.stack([self.topology[:, L.FREE_DOFS:L.FREE_DOFS + 6],
-                                            self.topology[:, L.PRESCRIBED_DOFS:L.PRESCRIBED_DOFS + 6]], axis=1),
-                                  np.int64)
-        self.spatial_inertia = self.params[6:6 + 36 * nb].reshape(nb, 6, 6)
-        self.gravity = _frozen(gravity)
-        self.ground_accel = self.params[L.GROUND_ACCEL:L.GROUND_ACCEL + 6]
-        self.node_body = _frozen(self.nodes[:, L.NODE_BODY], np.int64)
-        self.node_rot = _frozen(np.asarray(node_rot).reshape(-1, 3, 3))
-        self.node_pos = _frozen(np.asarray(node_pos).reshape(-1, 3))
-        self.masses = _frozen(masses)
-        self.n_modes = tuple(int(t[L.N_MODES]) for t in self.topology)
-        self.is_flexible = bool(np.any(self.topology[:, L.FLEXIBLE]))
-        last = self.topology[-1]
-        self.nbodies = nb
-        self.nnodes = len(self.node_names)
-        self.nq = int(last[L.Q_START] + last[L.NQ_HINGE] + last[L.N_MODES])
-        self.nu = int(last[L.U_START] + last[L.NU_HINGE] + last[L.N_MODES])
-        self.parents = tuple(int(p) for p in self.topology[:, L.PARENT])
-        self.q_slices = tuple(slice(int(t[L.Q_START]), int(t[L.Q_START] + t[L.NQ_HINGE] + t[L.N_MODES]))
-                              for t in self.topology)
-        self.u_slices = tuple(slice(int(t[L.U_START]), int(t[L.U_START] + t[L.NU_HINGE] + t[L.N_MODES]))
-                              for t in self.topology)
-        self.quaternion_q_indices = np.array(
-            [t[L.Q_START] for t in self.topology if HINGES[t[L.HINGE_TYPE]].quaternion], dtype=np.int64)
-        prescribed = np.zeros(self.nu, dtype=bool)
-        for t in self.topology:
-            for kk in range(t[L.N_PRESCRIBED]):
-                prescribed[t[L.U_START] + t[L.PRESCRIBED_DOFS + kk]] = True
-        self.prescribed_dofs = _frozen(prescribed, bool)
-        self.solver, self.solver_reason = solver, solver_reason
-        self.notes = tuple(notes)
-        self._forward_kernel = (_borrowing_dense_forward_dynamics if self.solver == "dense"
-                                else _borrowing_articulated_forward_dynamics)
-        self._allocate_workspace()
+    def __init__(self, model, data=None):
+        if data is not None and data.model is not model:
+            raise ValueError(f"{data!r} is not a data of {model!r}")
+        # the model's attributes as plain attributes of the system (as fast to read as before the split), but for
+        # those a run may change, which the properties below read from the data
+        self.__dict__.update((k, v) for k, v in model.__dict__.items() if k not in _PER_RUN)
+        self.model = model
+        self.data = model.create_data() if data is None else data
+
+    # what a run may change, and the workspace: the data's
+    params = property(lambda self: self.data.params, doc="the parameters the kernels read (the data's)")
+    masses = property(lambda self: self.data.masses, doc="(nb,) body masses (the data's)")
+    definitions = property(lambda self: self.data.definitions,
+                           doc="(bodies, nodes, gravity) this system was compiled from, with its mass changes")
+    spatial_inertia = property(lambda self: self.data.params[6:6 + 36 * self.nbodies].reshape(self.nbodies, 6, 6),
+                               doc="(nb, 6, 6) spatial inertias about the body origins (the data's)")
+    ground_accel = property(lambda self: self.data.params[L.GROUND_ACCEL:L.GROUND_ACCEL + 6],
+                            doc="(6,) the ground's spatial acceleration (minus gravity)")
+    ws_rot = property(lambda self: self.data.ws_rot, doc="the data's workspace")
+    ws_vec = property(lambda self: self.data.ws_vec, doc="the data's workspace")
+    ws_mat = property(lambda self: self.data.ws_mat, doc="the data's workspace")
+    pool = property(lambda self: self.data.pool, doc="the data's workspace")
+
 
     @classmethod
     def from_definitions(cls, bodies, nodes, gravity, solver=None):
@@ -380,17 +305,18 @@ class MultibodySystem:
             raise ModelDefinitionError(f"solver must be 'aba' or 'dense', got {solver!r}")
         if solver == "dense":  # the mass matrix and two vectors at the end of the pool
             pool.reserve(u0 * u0 + 2 * u0)
-        system = cls(body_names=[b.name for b in bodies], joint_names=[b.joint_name for b in bodies],
-                     hinge_names=[b.hinge for b in bodies], node_names=[n.name for n in nodes],
-                     node_bodies=[n.body for n in nodes], topology=topology, nodes=table, joint_rot=joint_rot,
-                     joint_vec=joint_vec, params=flat, pool_size=pool.size, gravity=gravity,
-                     node_rot=[n.rotation for n in nodes], node_pos=[n.position for n in nodes],
-                     masses=[b.mass for b in bodies], notes=notes, solver=solver, solver_reason=reason)
-        system.requested_solver = requested  # what compile(solver=...) asked for, kept by a recompilation
-        # the description this system was compiled from, for run-time reconfiguration
-        system.definitions = (tuple(dataclasses.replace(b) for b in bodies),
-                              tuple(dataclasses.replace(n) for n in nodes), np.array(gravity, dtype=float))
-        return system
+        model = Model(body_names=[b.name for b in bodies], joint_names=[b.joint_name for b in bodies],
+                      hinge_names=[b.hinge for b in bodies], node_names=[n.name for n in nodes],
+                      node_bodies=[n.body for n in nodes], topology=topology, nodes=table, joint_rot=joint_rot,
+                      joint_vec=joint_vec, params=flat, pool_size=pool.size, gravity=gravity,
+                      node_rot=[n.rotation for n in nodes], node_pos=[n.position for n in nodes],
+                      masses=[b.mass for b in bodies], notes=notes, solver=solver, solver_reason=reason,
+                      # what compile(solver=...) asked for, kept by a recompilation
+                      requested_solver=requested,
+                      # the description this system was compiled from, for run-time reconfiguration
+                      definitions=(tuple(dataclasses.replace(b) for b in bodies),
+                                   tuple(dataclasses.replace(n) for n in nodes), np.array(gravity, dtype=float)))
+        return cls(model)
 
     @staticmethod
     def _flexible_layout(i, body, t, params, pool, n_child_nodes):
@@ -447,6 +373,23 @@ class MultibodySystem:
                                            f"{shapes.shape}")
             fx[L.FX_NODES] = params.push(node_params(nodes.mass, nodes.cg, nodes.inertia, shapes))
             fx[L.FX_P_NODES] = pool.reserve(NODE_STATE * nodes.count)
+        mass_nodes = data.mass_nodes
+        fx[L.FX_MASS_NODE_COUNT] = 0
+        fx[L.FX_MASS_NODE_TERMS] = 0
+        if mass_nodes is not None:
+            twice = sorted(t for t in mass_nodes.terms if getattr(terms, t) is not None)
+            if twice:
+                raise ModelDefinitionError(f"{where}: terms {twice} are given both as tables and over the nodes")
+            shapes = np.asarray(mass_nodes.shapes, dtype=np.float64)
+            if shapes.shape != (mass_nodes.count, 6, n):
+                raise ModelDefinitionError(f"{where}: mass_nodes shapes must have shape {(mass_nodes.count, 6, n)}, "
+                                           f"got {shapes.shape}")
+            bits = {"C1": L.MASS_C1, "J2": L.MASS_J2}
+            fx[L.FX_MASS_NODE_COUNT] = mass_nodes.count
+            fx[L.FX_MASS_NODE_TERMS] = sum(bits[t] for t in mass_nodes.terms)
+            fx[L.FX_MASS_NODES] = params.push(node_mass_params(mass_nodes.mass, mass_nodes.cg, mass_nodes.inertia,
+                                                               mass_nodes.positions, shapes))
+            fx[L.FX_P_MASS_NODES] = pool.reserve(MASS_NODE_STATE * mass_nodes.count)
         varying = terms.G1 is not None or terms.G2 is not None
         quasi_static = has_quasi_static_modes(data)
         budget = refinement_budget(n, nodes.count) if node_terms & (L.NODE_G1 | L.NODE_G2) else 0
@@ -471,47 +414,22 @@ class MultibodySystem:
         fx[L.FX_P_SMALL] = pool.reserve(3 * r * r + 14 * r + 2 * r * n)
         return kind, inverse
 
-    def _allocate_workspace(self):
-        nb = self.nbodies
-        self.ws_rot = np.zeros((nb, L.N_ROT, 3, 3))
-        self.ws_vec = np.zeros((nb, L.N_VEC, 6))
-        self.ws_mat = np.zeros((nb, L.N_MAT, 6, 6))
-        self.pool = np.zeros(self.pool_size)
-        K.initialize_workspace(self.topology, self.joint_rot, self.joint_vec, self.ws_rot, self.ws_mat)
-        # zeros for omitted inputs; writable like the caller's arrays (the kernels never write inputs), so
-        # that numba compiles one specialization of each kernel, not one per read-only combination
-        self._zero_body_forces = np.zeros((nb, 6))
-        self._zero_node_forces = np.zeros((self.nnodes, 6))
-        self._zero_u = np.zeros(self.nu)
-
     def copy(self, mass_properties: bool = False):
-        """A system sharing the immutable arrays with its own workspace (one per thread); with
-        ``mass_properties`` also its own copy of the parameters that :meth:`set_mass_properties` changes
-        (one per simulation context: a Monte Carlo run's mass changes stay in that run)."""
-        other = object.__new__(MultibodySystem)
-        other.__dict__.update(self.__dict__)
-        if mass_properties:
-            nb = self.nbodies
-            other.params = _frozen(np.array(self.params))
-            other.masses = _frozen(np.array(self.masses))
-            other.spatial_inertia = other.params[6:6 + 36 * nb].reshape(nb, 6, 6)
-            other.ground_accel = other.params[L.GROUND_ACCEL:L.GROUND_ACCEL + 6]
-        other._allocate_workspace()
-        return other
+        """A system of the same model with a data of its own (one per thread or per run): its own workspace, and
+        the same mass properties as this system, which a change in either does not carry to the other (with
+        ``mass_properties`` its own copy of them at once, else at its first change)."""
+        return MultibodySystem(self.model, self.data.copy(mass_properties))
+
+    def with_notes(self, notes):
+        """A system of this model with ``notes`` (strings) added (:meth:`dynamics.model.Model.with_notes`) and a
+        data of its own with this system's mass properties."""
+        model, d = self.model.with_notes(notes), self.data
+        if not d.owns_mass_properties:
+            return MultibodySystem(model)
+        return MultibodySystem(model, Data(model, params=frozen(np.array(d.params)), masses=frozen(np.array(d.masses)),
+                                           definitions=d.definitions))
 
     # ------------------------------------------------------------------ helpers
-    def body_index(self, name):
-        try:
-            return self.body_names.index(name)
-        except ValueError:
-            raise KeyError(f"unknown body '{name}'; bodies: {list(self.body_names)}") from None
-
-    def node_index(self, name):
-        try:
-            return self.node_names.index(name)
-        except ValueError:
-            raise KeyError(f"unknown node '{name}'; nodes: {list(self.node_names)}") from None
-
     def reconfigure(self, q, u, *, lock=(), unlock=(), detach=(), attach=None, mass_properties=None):
         """A new system after locking/unlocking hinges, detaching subtrees, attaching free bodies or changing
         mass properties, with the state mapped across: returns ``(system, q, u)``. See :mod:`dynamics.reconfigure`."""
@@ -519,31 +437,21 @@ class MultibodySystem:
                            mass_properties=mass_properties)
 
     def set_mass_properties(self, body, mass, com, inertia):
-        """Change a rigid body's mass, center of mass and inertia (about the COM) in place, O(1): for
-        mass depletion during a run. The values are validated like :meth:`Multibody.add_body`'s
+        """Change a rigid body's mass, center of mass and inertia (about the COM) in this system's data, O(1): for
+        mass depletion during a run (:func:`dynamics.algorithms.set_mass_properties`; the model and the systems
+        that share it keep theirs). The values are validated like :meth:`Multibody.add_body`'s
         (:func:`dynamics.definitions.rigid_mass_properties`)."""
-        i = self.body_index(body)
-        if self.topology[i, L.FLEXIBLE]:
-            raise ModelDefinitionError(f"set_mass_properties: '{body}' is flexible; its mass properties come "
-                                       f"from its modal data")
-        mass, com, inertia = rigid_mass_properties(mass, com, inertia, f"body '{body}'")
-        M = _spatial_inertia(mass, com, inertia)
-        o = int(self.topology[i, L.INERTIA])
-        self.params.setflags(write=True)
-        self.params[o:o + 36] = M.ravel()
-        self.params.setflags(write=False)
-        self.masses.setflags(write=True)
-        self.masses[i] = mass
-        self.masses.setflags(write=False)
-        definitions = list(self.definitions[0])
-        definitions[i] = dataclasses.replace(definitions[i], mass=mass, com=com, inertia=inertia)
-        self.definitions = (tuple(definitions),) + self.definitions[1:]
+        A.set_mass_properties(self.model, self.data, body, mass, com, inertia)
+
+    def body_index(self, name):
+        return self.model.body_index(name)
+
+    def node_index(self, name):
+        return self.model.node_index(name)
 
     def neutral_configuration(self):
         """Zero hinge angles/displacements, identity quaternions, zero modal coordinates."""
-        q = np.zeros(self.nq)
-        q[self.quaternion_q_indices] = 1.0
-        return q
+        return self.model.neutral_configuration()
 
     def normalize_quaternions(self, q):
         """Renormalize every hinge quaternion of ``q`` in place; returns ``q``."""
@@ -551,155 +459,64 @@ class MultibodySystem:
             q[k:k + 4] /= np.linalg.norm(q[k:k + 4])
         return q
 
-    def _vector(self, x, n, what):
-        if type(x) is np.ndarray and x.dtype is _FLOAT64 and x.ndim == 1 and x.shape[0] == n:
-            return x  # the common case, without a conversion call
-        x = np.asarray(x, dtype=np.float64)
-        if x.shape != (n,):
-            raise ValueError(f"{what}: expected shape ({n},), got {x.shape}")
-        return x
-
-    def _forces(self, node_forces, body_forces):
-        if node_forces is None:
-            nf = self._zero_node_forces
-        else:
-            nf = np.asarray(node_forces, dtype=np.float64)
-            if nf.shape != (self.nnodes, 6):
-                raise ValueError(f"node_forces: expected shape ({self.nnodes}, 6) (one [torque; force] per "
-                                 f"node, node axes), got {nf.shape}")
-        if body_forces is None:
-            return nf, self._zero_body_forces
-        bf = np.asarray(body_forces, dtype=np.float64)
-        if bf.shape != (self.nbodies, 6):
-            raise ValueError(f"body_forces: expected shape ({self.nbodies}, 6), got {bf.shape}")
-        return nf, bf
-
-    # ------------------------------------------------------------------ algorithms
+    # ------------------------------------------------------------------ algorithms (dynamics.algorithms)
     def q_dot(self, q, u):
         """Coordinate rates ``q_dot = f(q, u)``."""
-        qdot = np.empty(self.nq)
-        K.coordinate_rates(self.topology, self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), qdot)
-        return qdot
+        return A.coordinate_rates(self.model, q, u)
 
     def forward_dynamics(self, q, u, tau=None, node_forces=None, prescribed_accel=None, body_forces=None,
                          return_forces=False):
-        """Accelerations ``u_dot`` (O(N) articulated-body algorithm, or the dense solve, :attr:`solver`).
-
-        ``tau`` (nu,) generalized forces at the free DOFs; ``node_forces`` (nnodes, 6) and
-        ``body_forces`` (nbodies, 6: about the body origin, body axes) external spatial forces;
-        ``prescribed_accel`` (nu,) the accelerations of prescribed DOFs (zero if omitted). With
-        ``return_forces`` also returns the generalized forces of all DOFs (the input ``tau`` at free
-        DOFs, the force realizing the prescribed motion at prescribed DOFs).
-        """
-        q = self._vector(q, self.nq, "q")
-        u = self._vector(u, self.nu, "u")
-        tau = self._zero_u if tau is None else self._vector(tau, self.nu, "tau")
-        udot = np.zeros(self.nu) if prescribed_accel is None else \
-            np.array(self._vector(prescribed_accel, self.nu, "prescribed_accel"))
-        tau_out = np.empty(self.nu)
-        if node_forces is None and body_forces is None:
-            nf, bf = self._zero_node_forces, self._zero_body_forces
-        else:
-            nf, bf = self._forces(node_forces, body_forces)
-        status = self._forward_kernel(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params, q, u,
-                                      tau, nf, bf, udot, tau_out, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
-        if status:
-            name = self.body_names[status - 1]
-            raise SingularConfigurationError(
-                f"articulated inertia of hinge '{self.joint_names[status - 1]}' (body '{name}') is singular: "
-                f"the subtree it moves has no inertia along a free DOF (massless subtree, or a configuration "
-                f"where the hinge axes align)")
-        return (udot, tau_out) if return_forces else udot
+        """Accelerations ``u_dot``: :func:`dynamics.algorithms.forward_dynamics` on this system's model and data."""
+        return A.forward_dynamics(self.model, self.data, q, u, tau, node_forces, prescribed_accel, body_forces,
+                                  return_forces)
 
     def inverse_dynamics(self, q, u, u_dot, node_forces=None, body_forces=None):
         """Generalized forces realizing ``u_dot`` (recursive Newton-Euler), external forces included."""
-        tau = np.empty(self.nu)
-        q = self._vector(q, self.nq, "q")
-        u = self._vector(u, self.nu, "u")
-        u_dot = self._vector(u_dot, self.nu, "u_dot")
-        nf, bf = self._forces(node_forces, body_forces)
-        _borrowing_inverse_dynamics(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params, q, u, u_dot,
-                                    nf, bf, tau, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
-        return tau
+        return A.inverse_dynamics(self.model, self.data, q, u, u_dot, node_forces, body_forces)
 
     def mass_matrix(self, q):
         """Joint-space mass matrix (composite-rigid-body algorithm), symmetric (nu, nu)."""
-        M = np.empty((self.nu, self.nu))
-        _borrowing_mass_matrix(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
-                               self._vector(q, self.nq, "q"), self._zero_u, M, self.ws_rot, self.ws_vec, self.ws_mat,
-                               self.pool)
-        return M
+        return A.mass_matrix(self.model, self.data, q)
 
     def bias_forces(self, q, u, node_forces=None, body_forces=None):
         """Coriolis, gyroscopic, gravity and external-force terms: ``M u_dot + bias = tau``."""
-        return self.inverse_dynamics(q, u, self._zero_u, node_forces=node_forces, body_forces=body_forces)
-
-    def _modal_matrix(self, column):
-        out = np.zeros((self.nu, self.nu))
-        for i, s in enumerate(self.u_slices):
-            n = self.n_modes[i]
-            if n:
-                start = int(self.topology[i, L.FLEX + column])
-                out[s.stop - n:s.stop, s.stop - n:s.stop] = self.params[start:start + n * n].reshape(n, n)
-        return out
+        return A.bias_forces(self.model, self.data, q, u, node_forces, body_forces)
 
     def stiffness_matrix(self):
-        """Generalized stiffness (nu, nu): the modal stiffness blocks of flexible bodies, zero elsewhere.
-
-        At rest without gravity this is the exact linearization of the generalized forces, so
-        ``K phi = omega^2 M(q0) phi`` gives the system modes."""
-        return self._modal_matrix(L.FX_K)
+        """Generalized stiffness (nu, nu): :func:`dynamics.algorithms.stiffness_matrix`."""
+        return A.stiffness_matrix(self.model)
 
     def damping_matrix(self):
-        """Generalized damping (nu, nu): the modal damping blocks of flexible bodies, zero elsewhere."""
-        return self._modal_matrix(L.FX_C)
+        """Generalized damping (nu, nu): :func:`dynamics.algorithms.damping_matrix`."""
+        return A.damping_matrix(self.model)
 
     def node_kinematics(self, q, u, u_dot=None):
         """Pose, velocity and (classical) acceleration of every node; see :class:`NodeKinematics`."""
-        n = self.nnodes
-        rotation = np.empty((n, 3, 3))
-        position = np.empty((n, 3))
-        velocity = np.empty((n, 6))
-        acceleration = np.empty((n, 6))
-        u_dot = self._zero_u if u_dot is None else self._vector(u_dot, self.nu, "u_dot")
-        _borrowing_node_kinematics(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
-                                   self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), u_dot, rotation,
-                                   position, velocity, acceleration, self.ws_rot, self.ws_vec, self.ws_mat, self.pool)
-        return NodeKinematics(rotation, position, velocity[:, :3], velocity[:, 3:], acceleration[:, :3],
-                              acceleration[:, 3:])
+        return A.node_kinematics(self.model, self.data, q, u, u_dot)
 
     def body_poses(self, q):
         """(rotations (nb, 3, 3) body -> world, origins (nb, 3) in the world)."""
-        self._energy_momentum(q, self._zero_u)
-        return self.ws_rot[:, L.ROT_WB].copy(), self.ws_vec[:, L.VEC_WPOS, :3].copy()
+        return A.body_poses(self.model, self.data, q)
 
     def body_velocities(self, q, u):
         """Spatial velocities ``[omega; v]`` of every body reference frame, body axes, at its origin."""
-        self._energy_momentum(q, u)
-        return self.ws_vec[:, L.VEC_V].copy()
-
-    def _energy_momentum(self, q, u):
-        out = np.empty(8)
-        _borrowing_energy_momentum(self.topology, self.nodes, self.joint_rot, self.joint_vec, self.params,
-                                   self._vector(q, self.nq, "q"), self._vector(u, self.nu, "u"), out, self.ws_rot,
-                                   self.ws_vec, self.ws_mat, self.pool)
-        return out
+        return A.body_velocities(self.model, self.data, q, u)
 
     def kinetic_energy(self, q, u):
-        return float(self._energy_momentum(q, u)[0])
+        return A.kinetic_energy(self.model, self.data, q, u)
 
     def potential_energy(self, q):
         """Potential energy: uniform gravity ``-sum m g . r_com`` (zero at the world origin) plus the
         elastic energy ``1/2 eta' K eta`` of flexible bodies."""
-        return float(self._energy_momentum(q, self._zero_u)[1])
+        return A.potential_energy(self.model, self.data, q)
 
     def linear_momentum(self, q, u):
         """Total linear momentum, world axes."""
-        return self._energy_momentum(q, u)[2:5]
+        return A.linear_momentum(self.model, self.data, q, u)
 
     def angular_momentum(self, q, u):
         """Total angular momentum about the world origin, world axes."""
-        return self._energy_momentum(q, u)[5:8]
+        return A.angular_momentum(self.model, self.data, q, u)
 
     def summary(self):
         """A few lines describing the compiled system: sizes, flexible bodies, solver and notes."""
@@ -714,6 +531,9 @@ class MultibodySystem:
                     nodal = [t for t, bit in (("G1", L.NODE_G1), ("F2", L.NODE_F2), ("G2", L.NODE_G2))
                              if fx[L.FX_NODE_TERMS] & bit]
                     terms.append(f"{'+'.join(nodal)} over {fx[L.FX_NODE_COUNT]} nodes")
+                if fx[L.FX_MASS_NODES] >= 0:
+                    summed = [t for t, bit in (("C1", L.MASS_C1), ("J2", L.MASS_J2)) if fx[L.FX_MASS_NODE_TERMS] & bit]
+                    terms.append(f"{'+'.join(summed)} over {fx[L.FX_MASS_NODE_COUNT]} nodes")
                 kind = {L.GINV_DIAGONAL: "diagonal G0", L.GINV_DENSE: "G0^-1 precomputed",
                         L.GINV_FACTORED: "G(eta) factored per call"}[int(fx[L.FX_GINV_KIND])]
                 if fx[L.FX_REFINE]:

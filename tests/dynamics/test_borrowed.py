@@ -66,10 +66,10 @@ def test_borrowed_of_a_bare_array():
 
 def test_python_calls_borrow_the_systems_arrays():
     """MultibodySystem's algorithms from Python pass the system's arrays to the kernels as borrowed references:
-    the same numbers as the kernels called on owned arrays (bit for bit), the owner's reference counts unchanged
-    over many calls, and the forward dynamics at least 1.4x faster than on owned arrays (2.3x measured on a
-    random tree of 100 bodies; numba's atomic reference counting of every view the recursion takes is the
-    difference)."""
+    the same numbers as the kernels called on owned arrays (bit for bit) and the owner's reference counts
+    unchanged over many calls. The speed gain depends on the machine (2.3x on a random tree of 100 bodies on
+    2026-11-28; within 5 % on the AMD EPYC of 2026-12-07, whose atomic reference counts cost little), so it is
+    measured by benchmarks/rigid_vs_pinocchio.py, not asserted here."""
     import sys
     import time
 
@@ -85,29 +85,22 @@ def test_python_calls_borrow_the_systems_arrays():
     udot, tau_out = np.zeros(system.nu), np.empty(system.nu)
 
     def owned_call():
-        return K.forward_dynamics(*owned, q, u, tau, system._zero_node_forces, system._zero_body_forces, udot,
+        return K.forward_dynamics(*owned, q, u, tau, system.data.zero_node_forces, system.data.zero_body_forces, udot,
                                   tau_out, *workspace)
 
     assert owned_call() == 0
     assert np.array_equal(system.forward_dynamics(q, u, tau), udot)
     tau_id = np.empty(system.nu)
-    K.inverse_dynamics(*owned, q, u, udot, system._zero_node_forces, system._zero_body_forces, tau_id, *workspace)
+    K.inverse_dynamics(*owned, q, u, udot, system.data.zero_node_forces, system.data.zero_body_forces, tau_id,
+                       *workspace)
     assert np.array_equal(system.inverse_dynamics(q, u, udot), tau_id)
     M = np.empty((system.nu, system.nu))
-    K.mass_matrix(*owned, q, system._zero_u, M, *workspace)
+    K.mass_matrix(*owned, q, system.data.zero_u, M, *workspace)
     assert np.array_equal(system.mass_matrix(q), M)
 
     arrays = owned + workspace
     counts = [sys.getrefcount(a) for a in arrays]
-    t_owned = t_borrowed = np.inf
-    for _ in range(20):  # interleaved, minimum of each: load on the machine hits both alike
-        t0 = time.perf_counter()
-        for _ in range(10):
-            owned_call()
-        t1 = time.perf_counter()
-        for _ in range(10):
-            system.forward_dynamics(q, u, tau)
-        t2 = time.perf_counter()
-        t_owned, t_borrowed = min(t_owned, t1 - t0), min(t_borrowed, t2 - t1)
+    for _ in range(50):
+        system.forward_dynamics(q, u, tau)
     assert [sys.getrefcount(a) for a in arrays] == counts
-    assert t_borrowed * 1.4 < t_owned, (t_borrowed, t_owned)
+

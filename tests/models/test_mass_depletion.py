@@ -58,6 +58,10 @@ def test_constant_thrust_follows_the_sampled_mass_sum_and_the_rocket_equation():
         assert_allclose(system.masses[0], 100.0 - mdot * t_k[-1], rtol=1e-12)
         assert_allclose(used, mdot * t_final, rtol=1e-9)
         assert_allclose(system.definitions[0][0].com, [0.2 * f, 0, 0], rtol=1e-12)
+        # the run's data holds the depleted mass (the compiled loop read it: the velocity above); the engine's
+        # model keeps the scene's (dynamics.model / dynamics.data)
+        assert system.model.masses[0] == 100.0 and system.model.definitions[0][0].mass == 100.0
+        assert system.params is system.data.params is not system.model.params
     rocket = isp * g0 * np.log(100.0 / (100.0 - mdot * t_final))
     # sampled mass lags the true mass by T/2 on average: error ~ (mdot T / 2 m) * dv, shrinking with T
     errors = [abs(v - rocket) / rocket for v in velocities]
