@@ -17,7 +17,10 @@ Reported:
 * cost: CPU seconds per simulated second of ``flexshell run`` (process time of ``Simulation.run``, compilation
   excluded: a first short run compiles), real-time factor = 1 / that, median of ``--repeat`` runs of
   ``--duration`` s, at orders 0, 1 and 2 and at 1 and 2 without the terms of the nodes' rotary inertia, with the
-  machine's load average;
+  machine's load average; for orders 0, 1, 2 where the last run's step went (:func:`breakdown`: the integrator's
+  linear algebra, the checks of its linear part, the rest: derivatives, updates, log); and order 1 without the
+  sixteen nodes that only the linearization uses (each node's kinematics and force projection are computed at
+  every derivative evaluation: about 40 % of the order-1 derivative here);
 * accuracy at order 1: the IMU's rate and the controller node's attitude (angle from the command) over the run,
   etdrk4 at 1 ms against RK4 at 0.05 ms, largest difference relative to the peak of the reference;
 * the same scene with an unbalanced wheel (products of inertia 0.005 kg m^2, centre of mass 1 mm off the axis):
@@ -63,7 +66,7 @@ def wheel_inertia(axis, spin=0.1, transverse=0.06):
     return transverse * np.eye(3) + (spin - transverse) * np.outer(a, a)
 
 
-def scene(body_file, order, method, step, duration, unbalanced=False, log_rate=1000, omit=()):
+def scene(body_file, order, method, step, duration, unbalanced=False, log_rate=1000, omit=(), thrusters=True):
     wheels = []
     for k, axis in enumerate(WHEEL_AXES):
         J = wheel_inertia(axis)
@@ -74,7 +77,8 @@ def scene(body_file, order, method, step, duration, unbalanced=False, log_rate=1
         wheels.append(f"    - {{name: w{k + 1}, parent: structure, parent_node: bus, hinge: revolute, "
                       f"axis: {list(axis)}, mass: 5 kg, com: '{com} m', inertia: '{J.tolist()} kg*m^2', "
                       f"initial: {{angle_rate: 50 rad/s}}}}")
-    thrusters = "\n".join(f"    - {{name: t{k + 1}, body: structure, grid: {g}}}" for k, g in enumerate(THRUSTER_GRIDS))
+    thruster_nodes = "\n".join(f"    - {{name: t{k + 1}, body: structure, grid: {g}}}"
+                                for k, g in enumerate(THRUSTER_GRIDS if thrusters else ()))
     return f"""name: flexible_observatory
 multibody:
   bodies:
@@ -89,7 +93,7 @@ multibody:
     - {{name: bus, body: structure, grid: 51}}
     - {{name: imu, body: structure, grid: 30}}
     - {{name: tip, body: structure, grid: 101}}
-{thrusters}
+{thruster_nodes}
 models:
   imu:
     type: Imu
@@ -123,6 +127,51 @@ def timed_run(sim, duration):
     return time.process_time() - c0, result
 
 
+def breakdown(sim, cpu, duration, rounds=7, reps=100):
+    """Where the step's CPU time goes (after a timed run): the exponential integrator's linear algebra per nominal
+    step (the remainders and the four stage products, its compiled kernels timed alone), the check of its
+    linear part (one evaluation, spread over the longest check interval) and the rest (the derivative
+    evaluations, the models' updates, the log), with the derivative evaluations per step."""
+    from shell.integrators import exponential as EX
+
+    integ = sim._integrator
+    steps = sim.counters["steps"]
+    y, t, f = integ.y.copy(), integ.t, np.asarray(integ.f, dtype=np.float64).copy()
+    Y = np.empty((4, y.size))
+
+    def algebra():
+        integ._remainder(f, y, integ.N[0])
+        for k in range(4):
+            base_index, functions, coefficients = EX.STAGES[k]
+            W = integ.W[:functions.shape[0]]
+            EX.stage_real(integ.Phi_other[k], integ.Phi_copies, EX.PHI_AT_ZERO, functions, coefficients, f,
+                          integ.N, integ.h, y if base_index < 0 else Y[base_index], integ.part.indices,
+                          integ.part.other_components, integ.part.copy_components, integ.part.is_linear, Y[k],
+                          W, integ.w_stack, integ.w_copies, integ.product)
+            if k < 3:
+                integ._remainder(f, Y[k], integ.N[k + 1])
+
+    def check():
+        integ.linear_part_option(t, y.copy())
+
+    times = {}
+    for name, fn, n in (("algebra", algebra, reps), ("check", check, 3)):
+        fn()
+        samples = []
+        for _ in range(rounds):
+            c0 = time.process_time()
+            for _ in range(n):
+                fn()
+            samples.append((time.process_time() - c0) / n)
+        times[name] = float(np.median(samples))
+    per_step = cpu / (duration / integ.h)
+    check_share = times["check"] / integ.max_check_interval
+    return (f"per 1 ms step {1e6 * per_step:.0f} us: linear algebra {1e6 * times['algebra']:.0f} us, check of the "
+            f"linear part {1e3 * times['check']:.1f} ms every {integ.max_check_interval} steps "
+            f"({1e6 * check_share:.0f} us), the rest {1e6 * (per_step - times['algebra'] - check_share):.0f} us "
+            f"(derivatives: {(sim.counters['nfev'] - integ.part.m - 1) / steps:.2f} per step; m = {integ.part.m})")
+
+
 def series(sim, duration):
     log = MemoryLog(sim.log_groups())
     sim.run(duration, log_path=log)
@@ -154,6 +203,15 @@ def main():
             print(f"order {order}{' without ' + ', '.join(omit) if omit else ''}: etdrk4 1 ms, {np.median(costs):.3f} "
                   f"CPU s per simulated s (real-time factor {1 / np.median(costs):.2f}; runs "
                   f"{', '.join(f'{c:.3f}' for c in costs)})", flush=True)
+            if not omit:
+                print(f"  last run, {breakdown(sim, cpu, args.duration)}", flush=True)
+        costs = []
+        for r in range(args.repeat):  # the sixteen nodes are the linearization's inputs; the run does not use them
+            sim = build(tmp, scene("beam.h5", 1, "etdrk4", 1e-3, args.duration + 0.01, thrusters=False), "o1n.yaml")
+            cpu, _ = timed_run(sim, args.duration)
+            costs.append(cpu / args.duration)
+        print(f"order 1 without the sixteen thruster nodes: etdrk4 1 ms, {np.median(costs):.3f} CPU s per simulated s "
+              f"(real-time factor {1 / np.median(costs):.2f}; runs {', '.join(f'{c:.3f}' for c in costs)})", flush=True)
         sim = build(tmp, scene("beam.h5", "auto", "etdrk4", 1e-3, 0.01), "auto.yaml")
         print("auto: " + "; ".join(next(m for m in sim.models if m.path == "multibody").notes))
         if not args.skip_reference:

@@ -239,9 +239,11 @@ class Diagram:
         self.derivative_stages = self.stages_for(self.stages_needed_by_derivatives())
         feeding = self.feeding_stages()
         #: per model: the output stages its inputs need (an update evaluates only these; other outputs
-        #: may be stale in the buffer until the next evaluation that needs them)
-        self.input_stages = tuple(self.stages_for(self.stages_closure([stage for stage, _ in feeding.get(m.path, [])],
-                                                                      feeding)) for m in self.models)
+        #: may be stale in the buffer until the next evaluation that needs them); none for an update that reads
+        #: no input (Model.update_reads_inputs)
+        self.input_stages = tuple(self.stages_for(self.stages_closure(
+            [stage for stage, _ in feeding.get(m.path, [])] if m.update_reads_inputs else [], feeding))
+            for m in self.models)
         zc_paths = [m.path for m in self.models if m.zero_crossings]
         #: the output stages the zero-crossing functions need
         self.zero_crossing_stages = self.stages_for(self.stages_closure(

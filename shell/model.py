@@ -68,6 +68,9 @@ Writing a model's kernels (the conventions every built-in model follows):
   program, a call into the engine's Python API); its docstring says why. A compiled simulation loop
   returns to Python at each of that model's sample instants, which costs one interpreter round trip
   (microseconds) per sample; every other kernel must be ``numba.njit(cache=True)``.
+* ``update_reads_inputs = False`` marks a sampled model whose ``update`` reads none of its inputs (only its own
+  states and parameters): its samples then evaluate no output stage for it (the IMU's, whose inputs need the
+  engine's forward dynamics: one solve per sample saved). A test gives such an update non-finite inputs.
 """
 
 from __future__ import annotations
@@ -422,6 +425,10 @@ class Model:
     #: True: ``update`` is Python (user code, a scipy solver, the engine's Python API), so a compiled
     #: loop returns to Python at this model's sample instants; every other kernel is numba-compiled
     python_update: bool = False
+    #: False: the ``update`` kernel reads no input (``u``), only the model's own states and parameters, so a
+    #: sample of this model evaluates no output stage for it (an IMU, whose increments are the integrals of its
+    #: inputs in its continuous states: its inputs are the node's acceleration, one forward dynamics per sample)
+    update_reads_inputs: bool = True
     #: named offsets the kernels read, checked at construction (see :func:`check_named_offsets`)
     offsets: dict = {}
     #: one line shown by ``flexshell models``

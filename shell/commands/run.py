@@ -159,9 +159,10 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM received: handled as an interruption, so the log is closed with status "interrupted"."""
 
 
-#: SIGTERMs received during the current run. The handler raises Terminated where Python happens to be, and an
-#: exception raised inside a weakref callback or a __del__ (the garbage collector runs them at any time) is
-#: printed and dropped by Python: the run then checks this at every progress call, so a SIGTERM is never lost.
+#: SIGTERMs received during the current run. The first is only recorded: the run's next progress call (about
+#: every 0.1 s of wall time in the compiled loop, every sample instant in the Python loop) raises Terminated
+#: there, at a point where the run's own code is in control. A second SIGTERM, sent because the first seemed
+#: ignored, raises at once unless numba is compiling (see _raise_terminated).
 _SIGTERMS: list = []
 
 
@@ -176,14 +177,18 @@ def _numba_is_compiling() -> bool:
 
 
 def _raise_terminated(signum, frame) -> None:
-    """SIGTERM: recorded, and raised as Terminated unless numba is compiling, in which case the run's next progress
-    call raises it, once the compilation has ended. An exception raised inside numba's compiler can cut llvmlite
-    between a call into LLVM and the Python bookkeeping of what that call owns; one SIGTERM of
-    tests/safety/test_logs.py, sent while a cold cache compiled kernels after the run's first samples, ended in
-    SIGSEGV instead of exit 143 (CI, 2026-11-27; not reproduced in 16 later tries, 3 of them on a cold cache, so the
-    cause is likely, not proven)."""
+    """SIGTERM: recorded; the run's next progress call raises Terminated. Only a repeated SIGTERM raises here, and
+    not while numba compiles.
+
+    Why not raise at once: a handler's exception appears wherever the main thread runs Python, including inside
+    the finalizers and bookkeeping of extension libraries (llvmlite's ``__del__`` between disposing of an LLVM
+    object and marking it disposed, numba's compiler between a call into LLVM and what it records of it); such a
+    cut can free memory twice. tests/safety/test_logs.py's SIGTERM test ended in SIGSEGV instead of exit 143 in
+    CI (2026-11-27, a cold cache) and again in a helper's run under load (2026-11-28) after compilations were
+    already deferred; raising only at the run's progress calls removes the hazard at the cost of up to about
+    0.1 s of latency."""
     _SIGTERMS.append(signum)
-    if not _numba_is_compiling():
+    if len(_SIGTERMS) > 1 and not _numba_is_compiling():
         raise Terminated("terminated (SIGTERM)")
 
 
@@ -199,8 +204,8 @@ def _dropped_sigterm_unprinted(hook):
 
 
 def _watching_sigterm(progress):
-    """``progress`` that first raises Terminated if a SIGTERM arrived (its handler's exception may have been
-    dropped or deferred, see _SIGTERMS and _raise_terminated)."""
+    """``progress`` that first raises Terminated if a SIGTERM arrived (the handler records the first one only, and a
+    repeated one's exception may have been dropped by Python or deferred by a compilation: _raise_terminated)."""
     def call(t: float) -> None:
         if _SIGTERMS:
             raise Terminated("terminated (SIGTERM)")

@@ -20,8 +20,8 @@ phi_k(c h L)``, ``N_i = N(t + c_i h, Y_i)``, c = (0, 1/2, 1/2, 1):
     y1 = Y4 + h phi_2 (-N1 + 2 N2 - N4) + 4h phi_3 (N1 - N2 - N3 + N4)
 
 (the last line is Krogstad's ``y1 = phi_0 y + h [b1 N1 + b2 N2 + b3 N3 + b4 N4]``, ``b1 = phi_1 - 3 phi_2 +
-4 phi_3``, ``b2 = b3 = 2 phi_2 - 4 phi_3``, ``b4 = 4 phi_3 - phi_2``, written from Y4 so that each step
-costs 8 products with an m x m matrix, m = size of the linear part). It is exact for ``y' = L y + c``
+4 phi_3``, ``b2 = b3 = 2 phi_2 - 4 phi_3``, ``b4 = 4 phi_3 - phi_2``, written from Y4; the cost of these lines
+is in "Cost" below). It is exact for ``y' = L y + c``
 (constant forcing: a static deflection under a held actuator command comes out exact), of classical order 4,
 and of stiff order 3 for any ``L`` generating a bounded semigroup (Hochbruck & Ostermann, SIAM J. Numer.
 Anal. 43:1069-1090, 2005). With ``L = 0`` it is the classical RK4, which is what the components outside the
@@ -47,9 +47,29 @@ for |z| < 1 and from the recurrence above otherwise. The exponential obtained th
 scipy.linalg.expm (Pade with scaling and squaring, an independent algorithm) at every (re)computation; a
 linear part that is not diagonalizable to working accuracy (a critically damped or zero-frequency mode with
 a free rate) is refused with that message. For the nominal step the real matrices ``phi_k(c h L)`` are
-formed once and stored side by side per stage (8 m x m blocks, one BLAS product per stage); a shortened step
-(the last one before ``t_bound``, after an event) works in the eigenbasis instead (O(m) functions, one complex
-m x m product per term and one back).
+formed once (the stage products below, one BLAS gemv per stage); a shortened step (the last one before
+``t_bound``, after an event) works in the eigenbasis instead (O(m) functions, one complex m x m product per term
+and one back).
+
+Cost: at a few hundred modes the step is bound by reading the matrices (m = 418 on the 196-mode observatory of
+benchmarks/flexible_observatory.py: 196 modal coordinates, 206 free velocities, 16 driven rows; 1.4 MB per m x m
+matrix), so the nominal step reads as few as the method allows.
+
+* ``phi_0(z) = 1 + z phi_1(z)`` and ``F = f(t, y) = L y + N1`` give ``phi_{0,c} y + c h phi_{1,c} N1 = y + c h
+  phi_{1,c} F``: stages 2 and 4 start from y with one phi_1 product of the slope, and ``phi_0`` is never formed
+  (:data:`STAGES`: 5 products with phi_1, phi_2, phi_3 instead of 8 with phi_0 .. phi_3). Same scheme, same
+  exactness for ``y' = L y + c``; for ``L = 0`` still RK4.
+* A row of L that copies one component (``d eta/dt = eta_dot``: a single entry, exactly 1) has ``N = f - L y =
+  f_a - y_b``, exactly zero when the model's rate is that component (the engine's is: a copy); the remainder
+  computes it as that difference (no product) and multiplies only the other rows of L (``L_other``); the
+  products of the N-differences take only the columns of the other rows (``other_rows``: u and driven rows, half
+  of m), and a term whose vector is not exactly zero on the copy rows (F, or N of a model whose rate is not a
+  copy) adds the product with those columns (``Phi_copies``): the same result, nothing assumed.
+
+Per step the observatory reads 2 full phi_1 matrices, 4 half-width phi_2/phi_3 blocks and 4 times the half of L
+(~6 m x m matrices, against 12 with the published form: 8 phi products and 4 full L y products): 243 us of
+linear algebra per step against 382 (1.57x, both in one process, 2026-12-07, load 4.3). The result equals the
+published form to round-off (tests/integrators/test_exponential.py, phi functions from a block exponential).
 
 Dense output: the continuous extension of the same quadrature, exact for the linear part,
 ``y(t + theta h) = phi_0(theta h L) y + theta h [phi_1 n0 + theta phi_2 n1 + 2 theta^2 phi_3 n2](theta h L)``
@@ -69,8 +89,11 @@ defective) and zero columns, so their integrals of the modal motion are exact to
 Changing configuration: ``L`` is built at the configuration where the integrator starts. If hinged parts
 then rotate far enough to change the mass matrix, the difference ``(L(q) - L(q0)) y`` is a stiff term inside
 ``N`` that the explicit part integrates badly. With a callable ``linear_part(t, y)`` (what the shell passes)
-the integrator re-evaluates it after 1, 2, 4, ... up to MAX_CHECK_INTERVAL steps while it does not move (a
-mass matrix and a Cholesky solve: ~0.7 ms for the 60-mode observatory, a fifth of one derivative) and rebuilds
+the integrator re-evaluates it after 1, 2, 4, ... steps while it does not move, up to MAX_CHECK_INTERVAL steps
+or MAX_CHECK_TIME of simulated time, whichever is longer (the configuration moves on the time scale of the
+scene, not of the step; a mass matrix and a Cholesky solve: ~0.7 ms for the 60-mode observatory, a fifth of one
+derivative, but 5-21 ms for the 196-mode general-mass one at order 1, about 15 derivatives: every 64 steps of
+1 ms that was 5-10 % of its run, every 250 steps it is 1-3 %) and rebuilds
 the matrix functions and the driven rows when ``||L(y) - L||_F / ||L||_F > DRIFT_TOLERANCE``; the check starts
 again every step after a rebuild. Independently, each step estimates the stiffness of ``N`` from its two stages
 at c = 1/2 (``rho = ||N3 - N2|| / ||Y3 - Y2||``, the Rayleigh-quotient estimate of HNW I Sec. IV.2, skipped
@@ -93,6 +116,9 @@ STIFF_REMAINDER_BOUND = 1.0
 DRIFT_TOLERANCE = 1e-3
 #: longest interval, in steps, between two evaluations of a callable linear part that has not moved
 MAX_CHECK_INTERVAL = 64
+#: simulated time (s) that the interval between two such evaluations may grow to when that is more than
+#: MAX_CHECK_INTERVAL steps (the longest interval is max(MAX_CHECK_INTERVAL, floor(MAX_CHECK_TIME / h)) steps)
+MAX_CHECK_TIME = 0.25
 #: largest difference between the eigen-decomposition's exponential and scipy's expm (balanced coordinates,
 #: where the exponential's entries are O(1)) accepted as working accuracy
 EXPM_AGREEMENT = 1e-9
@@ -100,12 +126,16 @@ EXPM_AGREEMENT = 1e-9
 FUNCTIONS = ((0.5, 0), (0.5, 1), (0.5, 2), (1.0, 0), (1.0, 1), (1.0, 2), (1.0, 3))
 PHI_AT_ZERO = np.array([1.0 / math.factorial(k) for _, k in FUNCTIONS])
 
-# Stage table. Each stage is (base, terms): Y = base + sum_t Phi[function_t] @ (C_t[0] y + h sum_j C_t[j] N_j)
-# with base -1 (none) or an earlier stage state (0: Y2, 2: Y4); columns of C: y, N1, N2, N3, N4.
-_STAGE2 = (-1, ((0, (1.0, 0.0, 0.0, 0.0, 0.0)), (1, (0.0, 0.5, 0.0, 0.0, 0.0))))
+# Stage table. Each stage is (base, terms): Y = base + sum_t Phi[function_t] @ (h sum_j C_t[j] X_j) with base -1
+# (the step's start y) or an earlier stage state (0: Y2, 2: Y4) and X = F, N1, N2, N3, N4 (F = f(t, y), the slope at
+# the step's start). phi_0(c h L) y + c h phi_1(c h L) N1 = y + c h phi_1(c h L) F (phi_0(z) = 1 + z phi_1(z) and
+# F = L y + N1): the exponential of each stage folds into its phi_1 term (module docstring, "Cost").
+_STAGE2 = (-1, ((1, (0.5, 0.0, 0.0, 0.0, 0.0)),))
 _STAGE3 = (0, ((2, (0.0, -1.0, 1.0, 0.0, 0.0)),))
-_STAGE4 = (-1, ((3, (1.0, 0.0, 0.0, 0.0, 0.0)), (4, (0.0, 1.0, 0.0, 0.0, 0.0)), (5, (0.0, -2.0, 0.0, 2.0, 0.0))))
+_STAGE4 = (-1, ((4, (1.0, 0.0, 0.0, 0.0, 0.0)), (5, (0.0, -2.0, 0.0, 2.0, 0.0))))
 _FINAL = (2, ((5, (0.0, -1.0, 2.0, 0.0, -1.0)), (6, (0.0, 4.0, -4.0, -4.0, 4.0))))
+#: most terms of a stage
+MAX_TERMS = 2
 
 
 def _table(stage):
@@ -187,6 +217,19 @@ class LinearPart:
         self.L_norm = float(np.abs(L).sum(axis=1).max()) if m else 0.0
         self.is_linear = np.zeros(n, dtype=np.bool_)
         self.is_linear[indices] = True
+        # rows of L that copy one linear component (d eta/dt = eta_dot: a single entry, exactly 1): there
+        # N = f - L y is f_a - y_b, zero when the model's f copies the same rate (module docstring, "Cost")
+        nonzero = L != 0.0
+        single = nonzero.sum(axis=1) == 1
+        copies = single & (L[np.arange(m), np.argmax(nonzero, axis=1) if m else np.zeros(0, np.int64)] == 1.0)
+        self.copy_rows = np.flatnonzero(copies).astype(np.int64)
+        self.other_rows = np.flatnonzero(~copies).astype(np.int64)
+        self.copied = np.argmax(nonzero[self.copy_rows], axis=1).astype(np.int64) if m else np.zeros(0, np.int64)
+        #: state components of the two kinds of rows and the components the copy rows copy
+        self.copy_components = indices[self.copy_rows]
+        self.other_components = indices[self.other_rows]
+        self.copied_components = indices[self.copied]
+        self.L_other = np.ascontiguousarray(self.L[self.other_rows])
         if m:
             import scipy.linalg  # here, not at module level: scipy.linalg costs ~0.3 s at every start
 
@@ -229,10 +272,16 @@ class LinearPart:
         return out
 
     def stage_matrices(self, h):
-        """For each stage of :data:`STAGES`, its phi matrices side by side (m x n_terms m, C order)."""
-        phi = self.real_functions(h)
-        return tuple(np.ascontiguousarray(np.hstack([phi[f] for f in functions])) if self.m else
-                     np.zeros((0, 0)) for _, functions, _ in STAGES)
+        """The nominal step's matrices: for each stage of :data:`STAGES` the columns of the other rows
+        (``other_rows``) of its phi matrices side by side (m x n_terms n_other, C order: one BLAS gemv), and the
+        columns of the copy rows of every function of :data:`FUNCTIONS` ((len(FUNCTIONS), m, n_copy): a term
+        whose vector is not zero on the copy rows, F's, adds that product)."""
+        m = self.m
+        phi = self.real_functions(h) if m else np.zeros((len(FUNCTIONS), 0, 0))
+        other = tuple(np.ascontiguousarray(np.hstack([phi[f][:, self.other_rows] for f in functions]))
+                      if m else np.zeros((0, 0)) for _, functions, _ in STAGES)
+        copies = np.ascontiguousarray(phi[:, :, self.copy_rows]) if m else np.zeros((len(FUNCTIONS), 0, 0))
+        return other, copies
 
     def diagonal_functions(self, h):
         """phi_k(c h lambda) of :data:`FUNCTIONS`, (len(FUNCTIONS), m) complex (eigenbasis steps)."""
@@ -243,8 +292,10 @@ class LinearPart:
 
 
 @njit(cache=True)
-def remainder(f, y, indices, L, y_lin, product, out):
-    """out = f - L y on the linear components, f elsewhere (N = f - L y); y_lin, product are scratch (m,)."""
+def remainder(f, y, indices, L_other, other_components, copy_components, copied_components, y_lin, product, out):
+    """out = f - L y on the linear components, f elsewhere (N = f - L y): on the rows of L that copy a component
+    (``copy_components`` <- ``copied_components``) ``f - y`` directly, on the others one BLAS gemv with their rows
+    ``L_other``; y_lin (m,), product (n_other,) scratch."""
     for i in range(f.shape[0]):
         out[i] = f[i]
     m = indices.shape[0]
@@ -252,9 +303,12 @@ def remainder(f, y, indices, L, y_lin, product, out):
         return
     for a in range(m):
         y_lin[a] = y[indices[a]]
-    np.dot(L, y_lin, product)  # BLAS gemv
-    for a in range(m):
-        out[indices[a]] -= product[a]
+    n_other = other_components.shape[0]
+    np.dot(L_other, y_lin, product[:n_other])  # BLAS gemv
+    for a in range(n_other):
+        out[other_components[a]] -= product[a]
+    for a in range(copy_components.shape[0]):
+        out[copy_components[a]] = f[copy_components[a]] - y[copied_components[a]]
 
 
 @njit(cache=True)
@@ -278,31 +332,30 @@ def remainder_stiffness(N2, N3, Y2, Y3, indices, L_norm):
 
 
 @njit(cache=True)
-def _term_vectors(coefficients, y, N, h, W):
-    """W[t] = C[t, 0] y + h sum_j C[t, j + 1] N[j], reading only the rows with a non-zero coefficient (the
+def _term_vectors(coefficients, F, N, h, W):
+    """W[t] = h (C[t, 0] F + sum_j C[t, j + 1] N[j]), reading only the rows with a non-zero coefficient (the
     stages not yet computed in this step hold the previous step's values)."""
-    n = y.shape[0]
+    n = F.shape[0]
     for t in range(coefficients.shape[0]):
-        c0 = coefficients[t, 0]
         for i in range(n):
-            W[t, i] = c0 * y[i] if c0 != 0.0 else 0.0
-        for j in range(N.shape[0]):
-            c = h * coefficients[t, j + 1]
+            W[t, i] = 0.0
+        for j in range(N.shape[0] + 1):
+            c = h * coefficients[t, j]
             if c != 0.0:
+                X = F if j == 0 else N[j - 1]
                 for i in range(n):
-                    W[t, i] += c * N[j, i]
+                    W[t, i] += c * X[i]
 
 
 @njit(cache=True, inline="always")
-def _outside_linear_part(phi_at_zero, functions, coefficients, y, N, h, base, is_linear, out, W):
+def _outside_linear_part(phi_at_zero, functions, coefficients, F, N, h, base, is_linear, out, W):
     """The stage's term vectors into ``W`` and ``out = base + sum_t phi_{f_t}(0) W_t`` on the components outside
-    the linear part (``base`` on the linear ones, which the caller completes); ``base`` may be empty (zero)."""
-    n = y.shape[0]
+    the linear part (``base`` on the linear ones, which the caller completes)."""
+    n = F.shape[0]
     n_terms = functions.shape[0]
-    _term_vectors(coefficients, y, N, h, W)
-    has_base = base.shape[0] == n
+    _term_vectors(coefficients, F, N, h, W)
     for i in range(n):
-        acc = base[i] if has_base else 0.0
+        acc = base[i]
         if not is_linear[i]:
             for t in range(n_terms):
                 acc += phi_at_zero[functions[t]] * W[t, i]
@@ -310,32 +363,47 @@ def _outside_linear_part(phi_at_zero, functions, coefficients, y, N, h, base, is
 
 
 @njit(cache=True)
-def stage_real(Phi_stage, phi_at_zero, functions, coefficients, y, N, h, base, indices, is_linear, out, W, w_stack,
-               product):
+def stage_real(Phi_other, Phi_copies, phi_at_zero, functions, coefficients, F, N, h, base, indices,
+               other_components, copy_components, is_linear, out, W, w_stack, w_copies, product):
     """One stage with the real matrices: out = base + sum_t Phi[f_t] W_t on the linear components and
-    base + sum_t phi_{f_t}(0) W_t elsewhere; ``base`` may be empty (zero). ``Phi_stage`` holds the stage's
-    matrices side by side (m x n_terms m), so the linear components cost one BLAS gemv. Returns True if out is
-    finite."""
+    base + sum_t phi_{f_t}(0) W_t elsewhere. ``Phi_other`` holds the columns of the stage's matrices for the rows
+    of L that are not copies side by side (m x n_terms n_other: one BLAS gemv); the columns of the copy rows
+    (``Phi_copies[f_t]``, m x n_copy) are multiplied only for a term whose vector is not zero there (F's: on the
+    copy rows N is f - y = 0 when the model's rate is the copied component). Returns True if out is finite."""
     n_terms = functions.shape[0]
-    _outside_linear_part(phi_at_zero, functions, coefficients, y, N, h, base, is_linear, out, W)
+    _outside_linear_part(phi_at_zero, functions, coefficients, F, N, h, base, is_linear, out, W)
     m = indices.shape[0]
-    if m:
+    if m == 0:
+        return kernels.all_finite(out)
+    n_other = other_components.shape[0]
+    n_copy = copy_components.shape[0]
+    if n_other:
         for t in range(n_terms):
-            for b in range(m):
-                w_stack[t * m + b] = W[t, indices[b]]
-        np.dot(Phi_stage, w_stack[:n_terms * m], product)
+            for b in range(n_other):
+                w_stack[t * n_other + b] = W[t, other_components[b]]
+        np.dot(Phi_other, w_stack[:n_terms * n_other], product)
         for a in range(m):
             out[indices[a]] += product[a]
+    for t in range(n_terms):
+        zero = True
+        for b in range(n_copy):
+            w_copies[b] = W[t, copy_components[b]]
+            if w_copies[b] != 0.0:
+                zero = False
+        if not zero:
+            np.dot(Phi_copies[functions[t]], w_copies, product)
+            for a in range(m):
+                out[indices[a]] += product[a]
     return kernels.all_finite(out)
 
 
 @njit(cache=True)
-def stage_eigen(V, Vinv, phi_diag, phi_at_zero, functions, coefficients, y, N, h, base, indices, is_linear, out,
+def stage_eigen(V, Vinv, phi_diag, phi_at_zero, functions, coefficients, F, N, h, base, indices, is_linear, out,
                 W, z_acc, z_in, z_out):
     """As :func:`stage_real` with the linear components in the eigenbasis:
     out_lin = base_lin + Re(V sum_t phi_{f_t} (Vinv W_t,lin)) (complex BLAS gemv; z_* are (m,) scratch)."""
     n_terms = functions.shape[0]
-    _outside_linear_part(phi_at_zero, functions, coefficients, y, N, h, base, is_linear, out, W)
+    _outside_linear_part(phi_at_zero, functions, coefficients, F, N, h, base, is_linear, out, W)
     m = indices.shape[0]
     if m == 0:
         return kernels.all_finite(out)
@@ -470,12 +538,12 @@ class ExponentialRK4(Integrator):
         n = self.n
         self.N = np.empty((4, n))
         self.Y = np.empty((4, n))  # stage states Y2, Y3, Y4 and the new state
-        self.W = np.empty((3, n))
-        self.no_base = np.empty(0)
+        self.W = np.empty((MAX_TERMS, n))
         self.warned_stiff = False
         self.last_rho = 0.0
         self.check_interval = 1
         self.steps_since_check = 0
+        self.max_check_interval = max(MAX_CHECK_INTERVAL, int(MAX_CHECK_TIME / self.h))
         self._set_linear_part(self.t, self.y)
 
     def _set_linear_part(self, t, y):
@@ -501,11 +569,12 @@ class ExponentialRK4(Integrator):
         self.part = part
         self.y_lin = np.empty(part.m)
         self.product = np.empty(part.m)
-        self.w_stack = np.empty(3 * part.m)
+        self.w_stack = np.empty(MAX_TERMS * part.other_rows.size)
+        self.w_copies = np.empty(part.copy_rows.size)
         self.z_acc = np.empty(part.m, dtype=np.complex128)
         self.z_in = np.empty(part.m, dtype=np.complex128)
         self.z_out = np.empty(part.m, dtype=np.complex128)
-        self.Phi_stages = part.stage_matrices(self.h)
+        self.Phi_other, self.Phi_copies = part.stage_matrices(self.h)
         self.phi_diag_h = None
         self.phi_diag = None
 
@@ -531,7 +600,7 @@ class ExponentialRK4(Integrator):
         drift = np.linalg.norm(L - self.base_L) / scale if same_shape and scale > 0.0 else np.inf
         if drift <= DRIFT_TOLERANCE:
             if drift <= 0.25 * DRIFT_TOLERANCE:
-                self.check_interval = min(2 * self.check_interval, MAX_CHECK_INTERVAL)
+                self.check_interval = min(2 * self.check_interval, self.max_check_interval)
             return False
         self.check_interval = 1
         self._set_linear_part(t, y)
@@ -560,16 +629,17 @@ class ExponentialRK4(Integrator):
 
     def _stage(self, k, h, nominal, out):
         base_index, functions, coefficients = STAGES[k]
-        base = self.no_base if base_index < 0 else self.Y[base_index]
+        base = self.y if base_index < 0 else self.Y[base_index]
         part = self.part
         W = self.W[:functions.shape[0]]
         if nominal:
-            return stage_real(self.Phi_stages[k], PHI_AT_ZERO, functions, coefficients, self.y, self.N, h, base,
-                              part.indices, part.is_linear, out, W, self.w_stack, self.product)
+            return stage_real(self.Phi_other[k], self.Phi_copies, PHI_AT_ZERO, functions, coefficients, self.f,
+                              self.N, h, base, part.indices, part.other_components, part.copy_components,
+                              part.is_linear, out, W, self.w_stack, self.w_copies, self.product)
         if self.phi_diag_h != h:
             self.phi_diag = part.diagonal_functions(h)
             self.phi_diag_h = h
-        return stage_eigen(part.V, part.Vinv, self.phi_diag, PHI_AT_ZERO, functions, coefficients, self.y, self.N,
+        return stage_eigen(part.V, part.Vinv, self.phi_diag, PHI_AT_ZERO, functions, coefficients, self.f, self.N,
                            h, base, part.indices, part.is_linear, out, W, self.z_acc, self.z_in, self.z_out)
 
     def _evaluate_remainder(self, j, t, y):
@@ -577,8 +647,13 @@ class ExponentialRK4(Integrator):
         self.nfev += 1
         if not kernels.all_finite(f):
             return f
-        remainder(f, y, self.part.indices, self.part.L, self.y_lin, self.product, self.N[j])
+        self._remainder(f, y, self.N[j])
         return None
+
+    def _remainder(self, f, y, out):
+        part = self.part
+        remainder(f, y, part.indices, part.L_other, part.other_components, part.copy_components,
+                  part.copied_components, self.y_lin, self.product, out)
 
     def _step_impl(self):
         t = self.t
@@ -591,7 +666,7 @@ class ExponentialRK4(Integrator):
             self._check_drift(t, self.y, force=False)
         refreshed = False
         while True:
-            remainder(self.f, self.y, self.part.indices, self.part.L, self.y_lin, self.product, self.N[0])
+            self._remainder(self.f, self.y, self.N[0])
             for k in range(3):
                 if not self._stage(k, h, nominal, self.Y[k]):
                     return self._fail(self._nonfinite_reason(f"stage {k + 2}", t + C_NODES[k] * h, self.Y[k]),

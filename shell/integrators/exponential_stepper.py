@@ -3,16 +3,17 @@
 The stepper holds the method's state and work arrays and the linear part's matrix functions (built in Python by
 :class:`ExponentialRK4`); its step is ExponentialRK4._step_impl with the same njit stage products (stage_real /
 stage_eigen), the same remainder N = f - L y, the same order of operations and the same lazy slope, so the compiled
-and the Python runs agree bit for bit. Python keeps what must be Python: the callable linear part (a mass matrix
-and a Cholesky solve in the models' ``stiff_linear_part``) and the rebuild of the matrix functions. The stepper
-keeps the integrator's check counters (``counters``: steps since the last check, the check interval, the step's
-flags) and asks (:class:`ExponentialStepping`) for a check of the linear part when one is due (after 1, 2, 4, ...
-64 steps: one request per 64 steps once the part stands still: LINEAR_CHECK), and when a step finds the remainder
-stiff (h rho(N) > 1: STIFF_REMAINDER); Python checks (and perhaps rebuilds the stepper) and the loop continues the
-step where it stopped (flag RESUME: the stages before are kept in S and N). Until the integrator exists the stepper
-is a placeholder (step 0) that asks for it (NEW_INTEGRATOR) where the Python loop makes it, at the start of the
-first integration after the updates at that instant, so that its linear part and driven rows are built at the same
-state. The dense output (for event location) is ExponentialDenseOutput's, from ``N`` and the step's start.
+and the Python runs agree bit for bit. Python keeps what must be Python: the callable linear part (a mass matrix and
+a Cholesky solve in the models' ``stiff_linear_part``) and the rebuild of the matrix functions. The stepper keeps
+the integrator's check counters (``counters``: steps since the last check, the check interval, the step's flags) and
+asks (:class:`ExponentialStepping`) for a check of the linear part when one is due (after 1, 2, 4, ... steps up to
+max(64 steps, 0.25 s): one request per 250 steps of 1 ms once the part stands still: LINEAR_CHECK), and when a step
+finds the remainder stiff (h rho(N) > 1: STIFF_REMAINDER); Python checks (and perhaps rebuilds the stepper) and the
+loop continues the step where it stopped (flag RESUME: the stages before are kept in S and N). Until the integrator
+exists the stepper is a placeholder (step 0) that asks for it (NEW_INTEGRATOR) where the Python loop makes it, at
+the start of the first integration after the updates at that instant, so that its linear part and driven rows are
+built at the same state. The dense output (for event location) is ExponentialDenseOutput's, from ``N`` and the
+step's start.
 """
 
 from __future__ import annotations
@@ -52,24 +53,28 @@ class ExponentialStepper(NamedTuple):
     YN: np.ndarray           # (n,) the new state; after a failure the offending state
     S: np.ndarray            # (4, n) stage states Y2, Y3, Y4 and the propagated state
     N: np.ndarray            # (4, n) remainders N1..N4 (the last step's: its dense output)
-    W: np.ndarray            # (3, n) term vectors
-    no_base: np.ndarray      # (0,)
+    W: np.ndarray            # (MAX_TERMS, n) term vectors
     indices: np.ndarray      # (m,) int64 the linear part's components
-    L: np.ndarray            # (m, m)
+    other_components: np.ndarray   # (n_other,) int64 those whose row of L is not a copy (LinearPart)
+    copy_components: np.ndarray    # (n_copy,) int64 those whose row copies one component
+    copied_components: np.ndarray  # (n_copy,) int64 the components they copy
+    L_other: np.ndarray      # (n_other, m) the other rows of L
     L_norm: float
     is_linear: np.ndarray    # (n,) bool
-    Phi: tuple               # 4 stage matrices phi_k(c h L) side by side (ExponentialRK4.Phi_stages)
-    stage_base: np.ndarray   # (4,) int64: -1 or the stage state added (exponential.STAGES)
+    Phi: tuple               # 4 stage matrices, other columns side by side (ExponentialRK4.Phi_other)
+    Phi_copies: np.ndarray   # (7, m, n_copy) their copy columns (ExponentialRK4.Phi_copies)
+    stage_base: np.ndarray   # (4,) int64: -1 (the step's start) or the stage state added (exponential.STAGES)
     stage_terms: np.ndarray  # (4,) int64
-    stage_functions: np.ndarray     # (4, 3) int64
-    stage_coefficients: np.ndarray  # (4, 3, 5)
+    stage_functions: np.ndarray     # (4, MAX_TERMS) int64
+    stage_coefficients: np.ndarray  # (4, MAX_TERMS, 5)
     phi_at_zero: np.ndarray  # (7,)
     phi_c: np.ndarray        # (7,) c of exponential.FUNCTIONS
     phi_k: np.ndarray        # (7,) int64 k of exponential.FUNCTIONS
     c_nodes: np.ndarray      # (3,)
     y_lin: np.ndarray        # (m,) scratch
     product: np.ndarray      # (m,)
-    w_stack: np.ndarray      # (3 m,)
+    w_stack: np.ndarray      # (MAX_TERMS n_other,)
+    w_copies: np.ndarray     # (n_copy,)
     V: np.ndarray            # (m, m) complex: eigenvectors (shortened steps)
     Vinv: np.ndarray
     lam: np.ndarray          # (m,) complex eigenvalues
@@ -93,20 +98,25 @@ def exponential_stepper(integ, Y=None, F=None) -> ExponentialStepper:
     m = part.m
     base = np.array([stage[0] for stage in EX.STAGES], dtype=np.int64)
     terms = np.array([stage[1].shape[0] for stage in EX.STAGES], dtype=np.int64)
-    functions = np.zeros((4, 3), dtype=np.int64)
-    coefficients = np.zeros((4, 3, 5))
+    functions = np.zeros((4, EX.MAX_TERMS), dtype=np.int64)
+    coefficients = np.zeros((4, EX.MAX_TERMS, 5))
     for j, (_, fn, co) in enumerate(EX.STAGES):
         functions[j, :fn.shape[0]] = fn
         coefficients[j, :fn.shape[0]] = co
     complex_m = (lambda: np.zeros(m, dtype=np.complex128))
+    n_other = part.other_rows.size
     return ExponentialStepper(
         float(integ.h), (integ.y if Y is None else Y).copy(), (integ.f if F is None else F).copy(), np.zeros(n),
-        np.zeros((4, n)), np.zeros((4, n)), np.zeros((3, n)), np.zeros(0), part.indices.astype(np.int64),
-        np.ascontiguousarray(part.L), float(part.L_norm), part.is_linear.copy(),
-        tuple(np.ascontiguousarray(P, dtype=np.float64).reshape(P.shape if m else (0, 0)) for P in integ.Phi_stages),
+        np.zeros((4, n)), np.zeros((4, n)), np.zeros((EX.MAX_TERMS, n)), part.indices.astype(np.int64),
+        part.other_components.astype(np.int64), part.copy_components.astype(np.int64),
+        part.copied_components.astype(np.int64), np.ascontiguousarray(part.L_other).reshape(n_other, m),
+        float(part.L_norm), part.is_linear.copy(),
+        tuple(np.ascontiguousarray(P, dtype=np.float64).reshape(P.shape if m else (0, 0)) for P in integ.Phi_other),
+        np.ascontiguousarray(integ.Phi_copies, dtype=np.float64).reshape(len(EX.FUNCTIONS), m, part.copy_rows.size),
         base, terms, functions, coefficients, EX.PHI_AT_ZERO.copy(), np.array([c for c, _ in EX.FUNCTIONS]),
         np.array([k for _, k in EX.FUNCTIONS], dtype=np.int64), np.array(EX.C_NODES), np.zeros(m), np.zeros(m),
-        np.zeros(3 * m), np.ascontiguousarray(part.V, dtype=np.complex128),
+        np.zeros(EX.MAX_TERMS * n_other), np.zeros(part.copy_rows.size),
+        np.ascontiguousarray(part.V, dtype=np.complex128),
         np.ascontiguousarray(part.Vinv, dtype=np.complex128), np.ascontiguousarray(part.lam, dtype=np.complex128),
         np.zeros((len(EX.FUNCTIONS), m), dtype=np.complex128), np.zeros((4, m), dtype=np.complex128), complex_m(),
         complex_m(), complex_m(), complex_m(), np.zeros((3, n)), np.zeros((4, m), dtype=np.complex128),
@@ -117,15 +127,17 @@ def exponential_stepper(integ, Y=None, F=None) -> ExponentialStepper:
 def exponential_placeholder(n: int) -> ExponentialStepper:
     """A stepper of the right type with step 0: the loop asks Python for the integrator before using it."""
     empty_c = np.zeros(0, dtype=np.complex128)
+    empty_i = np.zeros(0, dtype=np.int64)
     return ExponentialStepper(
-        0.0, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((4, n)), np.zeros((4, n)), np.zeros((3, n)), np.zeros(0),
-        np.zeros(0, dtype=np.int64), np.zeros((0, 0)), 0.0, np.zeros(n, dtype=np.bool_), (np.zeros((0, 0)),) * 4,
-        np.zeros(4, dtype=np.int64), np.zeros(4, dtype=np.int64), np.zeros((4, 3), dtype=np.int64),
-        np.zeros((4, 3, 5)), np.zeros(7), np.zeros(7), np.zeros(7, dtype=np.int64), np.zeros(3), np.zeros(0),
-        np.zeros(0), np.zeros(0), np.zeros((0, 0), dtype=np.complex128), np.zeros((0, 0), dtype=np.complex128),
-        empty_c, np.zeros((7, 0), dtype=np.complex128), np.zeros((4, 0), dtype=np.complex128), empty_c, empty_c,
-        empty_c, empty_c, np.zeros((3, n)), np.zeros((4, 0), dtype=np.complex128), False, np.zeros(3, dtype=np.int64),
-        np.array([np.nan, 0.0]))
+        0.0, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((4, n)), np.zeros((4, n)), np.zeros((EX.MAX_TERMS, n)),
+        empty_i, empty_i, empty_i, empty_i, np.zeros((0, 0)), 0.0, np.zeros(n, dtype=np.bool_),
+        (np.zeros((0, 0)),) * 4, np.zeros((len(EX.FUNCTIONS), 0, 0)),
+        np.zeros(4, dtype=np.int64), np.zeros(4, dtype=np.int64), np.zeros((4, EX.MAX_TERMS), dtype=np.int64),
+        np.zeros((4, EX.MAX_TERMS, 5)), np.zeros(7), np.zeros(7), np.zeros(7, dtype=np.int64), np.zeros(3),
+        np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 0), dtype=np.complex128),
+        np.zeros((0, 0), dtype=np.complex128), empty_c, np.zeros((7, 0), dtype=np.complex128),
+        np.zeros((4, 0), dtype=np.complex128), empty_c, empty_c, empty_c, empty_c, np.zeros((3, n)),
+        np.zeros((4, 0), dtype=np.complex128), False, np.zeros(3, dtype=np.int64), np.array([np.nan, 0.0]))
 
 
 @njit(cache=True)
@@ -146,16 +158,23 @@ def _phi_diagonal(st, h):
 def _stage(st, j, h, nominal, out):
     """Stage ``j`` of exponential.STAGES into ``out`` (ExponentialRK4._stage); True if out is finite."""
     base_index = st.stage_base[j]
-    base = st.no_base if base_index < 0 else st.S[base_index]
+    base = st.Y if base_index < 0 else st.S[base_index]
     n_terms = st.stage_terms[j]
     functions = st.stage_functions[j, :n_terms]
     coefficients = st.stage_coefficients[j, :n_terms]
     W = st.W[:n_terms]
     if nominal:
-        return EX.stage_real(st.Phi[j], st.phi_at_zero, functions, coefficients, st.Y, st.N, h, base, st.indices,
-                             st.is_linear, out, W, st.w_stack, st.product)
-    return EX.stage_eigen(st.V, st.Vinv, st.phi_diag, st.phi_at_zero, functions, coefficients, st.Y, st.N, h, base,
+        return EX.stage_real(st.Phi[j], st.Phi_copies, st.phi_at_zero, functions, coefficients, st.F, st.N, h, base,
+                             st.indices, st.other_components, st.copy_components, st.is_linear, out, W, st.w_stack,
+                             st.w_copies, st.product)
+    return EX.stage_eigen(st.V, st.Vinv, st.phi_diag, st.phi_at_zero, functions, coefficients, st.F, st.N, h, base,
                           st.indices, st.is_linear, out, W, st.z_acc, st.z_in, st.z_out)
+
+
+@njit(cache=True, inline="always")
+def _remainder(st, f, y, out):
+    EX.remainder(f, y, st.indices, st.L_other, st.other_components, st.copy_components, st.copied_components,
+                 st.y_lin, st.product, out)
 
 
 @njit(cache=True)
@@ -205,7 +224,7 @@ def _step(system, st, t, h, t_new, skip_slope, ints, reals):
     if flags & RESUME:
         first = 2
     else:
-        EX.remainder(F, Y, st.indices, st.L, st.y_lin, st.product, N[0])
+        _remainder(st, F, Y, N[0])
     for j in range(first, 3):
         t_stage = t + st.c_nodes[j] * h
         if not _stage(st, j, h, nominal, S[j]):
@@ -214,7 +233,7 @@ def _step(system, st, t, h, t_new, skip_slope, ints, reals):
         ints[I_NFEV] += 1
         if not all_finite(f):
             return _failed(st, reals, ints, t_stage, S[j], 1)
-        EX.remainder(f, S[j], st.indices, st.L, st.y_lin, st.product, N[j + 1])
+        _remainder(st, f, S[j], N[j + 1])
         if j == 1 and not (flags & STIFF_DONE):
             rho, noise = EX.remainder_stiffness(N[1], N[2], S[0], S[1], st.indices, st.L_norm)
             if not (h * noise > 0.1 * EX.STIFF_REMAINDER_BOUND):  # ExponentialRK4._remainder_is_stiff

@@ -255,6 +255,25 @@ def test_a_linear_part_that_does_not_move_is_checked_ever_more_rarely():
     assert integ.njev == len(evaluations) == 21 and integ.nlu == 1
 
 
+def test_at_a_short_step_the_checks_are_spaced_in_time():
+    """The longest interval between checks is max(64 steps, 0.25 s): at 1 ms, 250 steps (the configuration moves
+    on the scene's time scale; one check of the 196-mode observatory costs 15 derivatives)."""
+    omega = 300.0
+    L = np.array([[0.0, 1.0], [-omega ** 2, 0.0]])
+    evaluations = []
+
+    def linear_part(t, y):
+        evaluations.append(t)
+        return np.array([0, 1]), L
+
+    integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 2.0, 1e-3, linear_part=linear_part)
+    # 2000 steps: the start, checks at steps 1, 3, 7, ..., 255 (intervals 1, 2, ..., 128), then every 250 steps
+    # (505, 755, ..., 1755): 1 + 8 + 6
+    assert integ.max_check_interval == 250
+    assert integ.njev == len(evaluations) == 15 and integ.nlu == 1
+    np.testing.assert_allclose(np.diff(evaluations)[-6:], 0.25, rtol=1e-9)
+
+
 # --- interface ----------------------------------------------------------------------------------------------
 def test_registered_and_lazy_derivative():
     assert INTEGRATORS["etdrk4"].uses_linear_part and INTEGRATORS["etdrk4"].fixed_step
@@ -310,3 +329,92 @@ def test_linear_part_decomposition_reproduces_expm():
     np.testing.assert_allclose(phi1, np.linalg.solve(0.01 * A, scipy.linalg.expm(0.01 * A) - np.eye(16)), rtol=0,
                                atol=1e-9 * np.abs(phi1).max())
     assert math.isclose(part.L_norm, np.abs(A).sum(axis=1).max())
+
+
+# --- the nominal step's products: copy rows and the phi_1 form of the stages -----------------------------------
+def phi_blocks(A):
+    """phi_0..phi_3 of A from one exponential of a block matrix (Van Loan 1978; Saad 1992): expm of
+    [[A, I, 0, 0], [0, 0, I, 0], [0, 0, 0, I], [0, 0, 0, 0]] has e^A, phi_1(A), phi_2(A), phi_3(A) in its first block
+    row: an algorithm independent of the integrator's eigen-decomposition."""
+    m = A.shape[0]
+    big = np.zeros((4 * m, 4 * m))
+    big[:m, :m] = A
+    for k in range(3):
+        big[k * m:(k + 1) * m, (k + 1) * m:(k + 2) * m] = np.eye(m)
+    E = scipy.linalg.expm(big)
+    return [E[:m, k * m:(k + 1) * m] for k in range(4)]
+
+
+def krogstad_step(fun, L, y, h, zero_rows=()):
+    """One step of Krogstad's scheme as published (8 products with phi_0 .. phi_3; module docstring); N set to zero
+    on ``zero_rows`` (what skipping those columns would compute)."""
+    half, full = phi_blocks(0.5 * h * L), phi_blocks(h * L)
+
+    def N(t, Y):
+        out = fun(t, Y) - L @ Y
+        out[list(zero_rows)] = 0.0
+        return out
+
+    N1 = N(0.0, y)
+    Y2 = half[0] @ y + 0.5 * h * half[1] @ N1
+    N2 = N(0.5 * h, Y2)
+    Y3 = Y2 + h * half[2] @ (N2 - N1)
+    N3 = N(0.5 * h, Y3)
+    Y4 = full[0] @ y + h * full[1] @ N1 + 2 * h * full[2] @ (N3 - N1)
+    N4 = N(h, Y4)
+    return Y4 + h * full[2] @ (-N1 + 2 * N2 - N4) + 4 * h * full[3] @ (N1 - N2 - N3 + N4)
+
+
+@pytest.mark.parametrize("rate_offset", [0.0, 1.0])
+def test_one_step_equals_krogstad_as_published(rate_offset):
+    """A nonlinear chain (cubic springs in N): one nominal step equals Krogstad's published 8-product formula with
+    phi functions from a block exponential, to round-off (1e-12 of the state). With ``rate_offset`` 0 the model's
+    x' is v itself (N is exactly zero on the copy rows, whose columns the products skip); with 1, x' = v + 1e-3
+    sin(x) makes N non-zero there and those columns must be multiplied."""
+    A = damped_chain(5, seed=4)
+    n = 5
+
+    def fun(t, y):
+        out = A @ y
+        out[n:] += 3e5 * y[:n] ** 3 + np.cos(7.0 * t)
+        out[:n] = y[n:] + rate_offset * 1e-3 * np.sin(40.0 * y[:n])
+        return out
+
+    part = LinearPart(np.arange(2 * n), A, 2 * n, "test")
+    assert list(part.copy_rows) == list(range(n)) and list(part.copied) == list(range(n, 2 * n))
+    rng = np.random.default_rng(2)
+    y0 = np.r_[rng.uniform(-0.02, 0.02, n), rng.uniform(-1.0, 1.0, n)]
+    h = 2e-3
+    integ = make_integrator("etdrk4", fun, 0.0, y0, 1.0, step=h, linear_part=(np.arange(2 * n), A))
+    integ.step()
+    reference = krogstad_step(fun, A, y0, h)
+    np.testing.assert_allclose(integ.y, reference, rtol=0, atol=1e-12 * np.abs(reference).max())
+    if rate_offset:  # the copy columns matter here: without them the step would be this far off
+        skipped = krogstad_step(fun, A, y0, h, zero_rows=range(n))
+        assert np.abs(reference - skipped).max() > 1e4 * 1e-12 * np.abs(reference).max()
+
+
+def test_constant_forcing_on_the_copy_rows_is_exact():
+    """y' = L y + c with c on the row x' = v as well: N is not zero on the copy row, its columns are multiplied, and
+    the step stays exact (closed form through expm)."""
+    omega = 3e3
+    L = np.array([[0.0, 1.0], [-omega ** 2, -2 * 0.01 * omega]])
+    c = np.array([4e-3, 7.0])
+    y0 = np.array([2e-6, -0.3])
+    integ = run("etdrk4", lambda t, y: L @ y + c, y0, 0.5, 0.05, linear_part=(np.array([0, 1]), L))
+    static = -np.linalg.solve(L, c)
+    exact = static + scipy.linalg.expm(0.5 * L) @ (y0 - static)
+    np.testing.assert_allclose(integ.y, exact, rtol=0, atol=1e-15 * omega)
+
+
+def test_copy_rows_are_single_entries_of_exactly_one():
+    """Only a row with one non-zero entry, exactly 1, is a copy row (its N is computed as f_a - y_b)."""
+    L = np.array([[0.0, 1.0, 0.0, 0.0],      # copy of component 1
+                  [-4.0, 0.0, 0.0, 0.0],
+                  [0.0, 0.0, 0.0, 2.0],      # a single entry, but 2
+                  [0.0, 1.0, -9.0, 1.0]])    # entries of 1 among others
+    part = LinearPart(np.array([3, 0, 2, 1]), L, 5, "test")
+    assert list(part.copy_rows) == [0] and list(part.copied) == [1]
+    assert list(part.copy_components) == [3] and list(part.copied_components) == [0]
+    assert list(part.other_rows) == [1, 2, 3] and list(part.other_components) == [0, 2, 1]
+    np.testing.assert_array_equal(part.L_other, L[1:])

@@ -223,3 +223,29 @@ def test_vibrating_node_senses_the_oscillating_specific_force(tmp_path):
     assert_allclose(log["imu.delta_velocity"][1:, 1], expected, rtol=0, atol=1e-8 * amplitude * omega)
     assert_allclose(log["imu.delta_velocity"][1:, [0, 2]], 0.0, atol=1e-15)
     assert_allclose(log["imu.delta_angle"], 0.0, atol=0)     # pure translation
+
+
+def test_the_sample_reads_no_input():
+    """Imu.update_reads_inputs is False (a sample evaluates no output stage for it: no forward dynamics per
+    sample): its update must give the same record with non-finite inputs as with real ones."""
+    import textwrap
+
+    from shell.models.imu import imu_sample
+    from shell.scenario import build_simulation, parse_scenario
+
+    imu = Imu("imu", period=0.01, gyro_random_walk="0.15 deg/hour**0.5", accel_bias_instability="0.1 m/s**2")
+    assert imu.update_reads_inputs is False
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=imu.x_layout.size)
+    noise = rng.normal(size=imu.noise_size)
+    records = []
+    for u in (rng.normal(size=imu.u_layout.size), np.full(imu.u_layout.size, np.nan)):
+        z = imu.initial_discrete_state()
+        imu_sample(0.01, x, z, u, imu.p, noise.copy())
+        records.append(z)
+    assert np.all(np.isfinite(records[1]))
+    np.testing.assert_array_equal(records[0], records[1])
+    # so the scene's diagram gives its samples no output stage to evaluate (the engine's forward dynamics)
+    sim = build_simulation(parse_scenario(textwrap.dedent(SPINNING), "scene.yaml", None))
+    d = sim.diagram
+    assert d.input_stages[d.model_index["imu"]] == ()
