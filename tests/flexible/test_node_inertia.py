@@ -121,9 +121,10 @@ def test_formed_modal_mass_equals_the_node_sum(terms, offsets, n):
     ``m (lambda_j' dP gamma_j + gamma_j' dP' lambda_j)``, ``dP = (theta x p)~``; mode counts below, at and past
     the tile's four (every remainder of the blocks and of the row pairs). Also ``node_inertia_times`` against the
     formed matrix. Tolerance 1e-13 of the sum of the summands' sizes (``|lambda|' |dJ| |lambda|``; the sum itself
-    cancels to zero at one mode, plus the 2 that ``G`` holds on entry): the same ~30 N products summed in another order."""
-    from dynamics.kernels.node_inertia import NODE_STATE, node_inertia_modal_mass, node_inertia_terms, node_inertia_times
-    from dynamics.kernels.node_inertia import node_params
+    cancels to zero at one mode, plus the 2 that ``G`` holds on entry): the same ~30 N products summed in another
+    order."""
+    from dynamics.kernels.node_inertia import (
+        NODE_STATE, node_inertia_modal_mass, node_inertia_terms, node_inertia_times, node_params)
     from dynamics.layout import NODE_F2, NODE_G1, NODE_G2
 
     bits = sum({"G1": NODE_G1, "G2": NODE_G2, "F2": NODE_F2}[t] for t in terms.split())
