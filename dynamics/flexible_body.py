@@ -19,13 +19,15 @@ keeps their non-zero blocks, :class:`ModalMassTerms`, and each block has its own
 term   block of M(eta)                 integrals              cost per evaluation
 =====  ==============================  =====================  ===================================
 R1     rigid/rigid, first order        J1, p1                 O(n)
-C1     rigid/modal, first order        F1, E1                 O(n^2)
+C1     rigid/modal, first order        F1, E1                 O(n^2) as a table, O(N n) summed over
+                                                              every node
 G1     modal/modal, first order        G1                     O(n^3) as a table, O(N_r n) summed over
                                                               the nodes; makes the modal mass eta-
                                                               dependent (dynamics.kernels.articulated_body
                                                               refines against the constant G0, or
                                                               factors G(eta): O(n^3))
-J2     rotational, second order        J2                     O(n^2)
+J2     rotational, second order        J2                     O(n^2) as a table, O(N n) over every
+                                                              node (with C1)
 F2     rotational/modal, second order  F2                     O(n^3) as a table, O(N_r n) over nodes
 G2     modal/modal, second order       G2                     O(n^4) as a table, O(N_r n) over nodes
 P2     rotational/translational,       geometric stiffness    O(n^2)
@@ -33,6 +35,12 @@ P2     rotational/translational,       geometric stiffness    O(n^2)
 =====  ==============================  =====================  ===================================
 
 Geometric stiffening (:func:`add_geometric_stiffening`, issue 15) adds to C1 and J2 and brings P2.
+
+C1 and J2 are sums over every node with mass of products of its shapes, mass, position, offset and inertia
+(the integrals F1, E1, J2 of TM eqs. E.2.4-E.2.5): :class:`NodeMass` holds those per-node invariants and
+:mod:`dynamics.kernels.node_mass` evaluates the two terms from them in O(N n) per evaluation (N nodes), where
+that is cheaper than reading the tables (:func:`node_mass_is_cheaper`: from about 1.7 N modes at order 2, 3.4 N
+at order 1). Geometric stiffening's parts of C1 and J2 are not node sums: a body with it keeps both as tables.
 
 G1, F2 and G2 come only from nodes with rotational inertia or centre-of-mass offsets (zero for point
 masses, TM eq. E.3.1): they are the turning of each such node's own inertia with its elastic rotation
@@ -114,6 +122,30 @@ class NodeInertia:
 
 
 @dataclass
+class NodeMass:
+    """Every node of a flexible body with mass or inertia (mass ``mass`` m_j, CG offset ``cg`` p_j, inertia
+    ``inertia`` J_j about the node, undeformed position ``positions`` l0_j and mode shapes ``shapes`` (N, 6, n) =
+    [lambda_j; gamma_j]): the engine evaluates the ``terms`` (of "C1", "J2") of M(eta) as sums over them
+    (:mod:`dynamics.kernels.node_mass`) instead of tables."""
+
+    mass: np.ndarray  # (N,)
+    cg: np.ndarray  # (N, 3)
+    inertia: np.ndarray  # (N, 3, 3) about the node
+    positions: np.ndarray  # (N, 3)
+    shapes: np.ndarray  # (N, 6, n)
+    terms: tuple = ()
+
+    @property
+    def count(self):
+        return int(self.mass.shape[0])
+
+    @property
+    def rotary(self):
+        """Whether any node has rotary inertia or a CG offset (else the rotation shapes are not read)."""
+        return bool(np.any(self.inertia) or np.any(self.cg))
+
+
+@dataclass
 class FlexibleBodyData:
     """Modal data of one flexible body, ready for the engine (SI units, body frame).
 
@@ -122,7 +154,8 @@ class FlexibleBodyData:
     :func:`flexible_body_from_modal_body` builds, without the O(n^3) arrays). ``node_inertia`` (a
     :class:`NodeInertia`) holds the terms G1, F2, G2 as per-node invariants instead of tables (then absent
     from ``terms``). ``note`` records a choice made for the user (an order chosen by default), reported by the
-    compiled system."""
+    compiled system. ``mass_nodes`` (a :class:`NodeMass`) holds the terms C1 and J2 as sums over every node
+    instead of tables (then absent from ``terms``)."""
 
     n_modes: int
     order: int
@@ -142,6 +175,7 @@ class FlexibleBodyData:
     geometric_stiffening: bool = False  # the terms of add_geometric_stiffening are in
     stiffness_available: bool = False  # the body file holds geometric stiffness (used or not)
     first_frequency_hz: float | None = None  # the body's lowest elastic frequency mounted (None: its lowest mode's)
+    mass_nodes: NodeMass | None = None
 
     @property
     def lowest_frequency_hz(self):
@@ -373,6 +407,45 @@ def nodal_is_cheaper(n, count, terms, tables_available=True):
     return nodal < table
 
 
+def node_mass_from_nodes(mass, cg, inertia, positions, shapes, order):
+    """The :class:`NodeMass` of the nodes with mass or inertia among ``mass`` (N,), ``cg`` (N, 3), ``inertia``
+    (N, 3, 3), ``positions`` (N, 3) and ``shapes`` (N, 6, n), for the terms of modal-integral ``order`` (C1 at 1,
+    C1 and J2 at 2); None at order 0 or when no node has mass."""
+    terms = ("C1",) if order == 1 else ("C1", "J2") if order == 2 else ()
+    mass = np.asarray(mass, dtype=np.float64)
+    cg = np.asarray(cg, dtype=np.float64)
+    inertia = np.asarray(inertia, dtype=np.float64)
+    sel = (mass != 0.0) | (np.abs(inertia).reshape(len(mass), -1).max(axis=1, initial=0.0) > 0.0)
+    if not terms or not np.any(sel):
+        return None
+    return NodeMass(mass=mass[sel], cg=cg[sel], inertia=inertia[sel],
+                    positions=np.asarray(positions, dtype=np.float64)[sel],
+                    shapes=np.ascontiguousarray(np.asarray(shapes, dtype=np.float64)[sel]), terms=terms)
+
+
+def node_mass_is_cheaper(n, nodes):
+    """Whether the terms of ``nodes`` (a :class:`NodeMass`) cost less per evaluation summed over the nodes than as
+    tables of a body of ``n`` modes, counted in multiply-adds. Tables: C1 three per entry (``3 n^2`` entries,
+    ``6 n^2`` with CG offsets), J2 one (``9 n^2``); over the nodes: 6 per entry of the ``3N x n`` translation
+    shapes (two passes: the shapes times eta and the rates, then C(eta) and the modal forces), as many of the
+    rotation shapes when nodes have rotary inertia, 3 more with CG offsets, and some 150 per node. Both are bound
+    by reading their data at a few hundred modes (the tables ``12 n^2`` numbers once, the shapes ``4 x 3N n``
+    numbers in two passes each): ``TABLE_WEIGHT`` is the measured ratio. On the 101-grid tube of
+    ``benchmarks/flexible_scaling.py --deck-only`` (rotary inertia on every grid) the node sums are cheaper from
+    about 150 modes at order 2 (C1 and J2) and 400 at order 1 (C1 only); this rule puts the switch at 170 and
+    340."""
+    rows = 6 if np.any(nodes.cg) else 3
+    table = 3.0 * rows * n * n * ("C1" in nodes.terms) + 9.0 * n * n * ("J2" in nodes.terms)
+    per_entry = 6.0 + (6.0 if nodes.rotary else 0.0) + (3.0 if np.any(nodes.cg) else 0.0)
+    nodal = 3.0 * nodes.count * n * per_entry + 150.0 * nodes.count
+    return nodal < TABLE_WEIGHT * table
+
+
+TABLE_WEIGHT = 1.2
+"""Cost of a multiply-add of the C1 and J2 tables relative to one of the node sums (:func:`node_mass_is_cheaper`;
+measured 2026-12-07 on the tube of ``benchmarks/flexible_scaling.py --deck-only``: 0.9 to 1.4)."""
+
+
 def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=None, integrals="general",
                                   omit_terms=(), geometric_stiffening=None, preload=None):
     """Build :class:`FlexibleBodyData` from a ``dynamics.flex.body_file.ModalBody`` (a body file).
@@ -426,8 +499,22 @@ def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=No
     if preload and (gs is None or geometric_stiffening is False):
         raise ModelDefinitionError(f"{body.source}: preload {sorted(preload)} needs the body file's geometric "
                                    "stiffness (fem2modal --preload) with geometric stiffening on")
-    if gs is not None and geometric_stiffening is not False:
+    stiffening = gs is not None and geometric_stiffening is not False
+    if stiffening:
         terms, K = add_geometric_stiffening(terms, K, gs.select(keep), preload, body.source)
+    mass_nodes = None
+    if not stiffening:  # geometric stiffening adds parts to C1 and J2 that are not node sums: tables then
+        if integrals == "general":
+            mass_nodes = node_mass_from_nodes(body.node_mass, body.node_cm_offset, body.node_inertia,
+                                              body.grid_positions, shapes, order)
+        else:
+            count = len(body.node_mass)
+            mass_nodes = node_mass_from_nodes(body.node_mass, np.zeros((count, 3)), np.zeros((count, 3, 3)),
+                                              body.grid_positions, shapes, order)
+        if mass_nodes is not None and node_mass_is_cheaper(int(keep.size), mass_nodes):
+            terms = dataclasses.replace(terms, C1=None, J2=None)
+        else:
+            mass_nodes = None
     if damping_ratio is None:
         C = np.asarray(body.modal_damping)[np.ix_(keep, keep)]
     else:
@@ -440,8 +527,8 @@ def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=No
                             grid_positions=body.grid_positions, grid_shapes=shapes,
                             frequencies_hz=np.asarray(body.frequencies_hz)[keep], source=body.source,
                             terms=terms, node_inertia=nodes,
-                            geometric_stiffening=gs is not None and geometric_stiffening is not False,
-                            stiffness_available=gs is not None, first_frequency_hz=_first_frequency(body, keep))
+                            geometric_stiffening=stiffening, stiffness_available=gs is not None,
+                            first_frequency_hz=_first_frequency(body, keep), mass_nodes=mass_nodes)
     return data.without(omit_terms)
 
 

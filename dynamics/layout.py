@@ -77,7 +77,11 @@ FX_NODE_TERMS = 31  # which terms they carry: a sum of NODE_G1, NODE_G2, NODE_F2
 FX_P_NODES = 32  # pool: theta_j = lambda_j eta, u_j = gamma_j eta and scratch of each such node (NODE_STATE per node)
 FX_REFINE = 33  # > 0: G(eta) = G0 + node terms, refined against the constant G0 (GINV_KIND of G0) for at
 #                most this many passes (the cost of factoring G(eta) instead); 0: not refined
-N_FX = 34
+FX_MASS_NODES = 34  # params: the node data of the terms C1, J2 over the nodes (dynamics.kernels.node_mass), -1: none
+FX_MASS_NODE_COUNT = 35  # how many nodes (every node with mass or inertia)
+FX_MASS_NODE_TERMS = 36  # which terms they carry: a sum of MASS_C1, MASS_J2 (then absent as tables)
+FX_P_MASS_NODES = 37  # pool: scratch of those nodes (dynamics.kernels.node_mass.MASS_NODE_STATE per node)
+N_FX = 38
 
 # n-vectors of a flexible body in the pool (FX_P_VEC + k n)
 PV_FORCE = 0  # modal bias minus applied modal forces (ABA) / modal body force (RNEA)
@@ -92,6 +96,10 @@ N_PV = 6
 NODE_G1 = 1
 NODE_G2 = 2
 NODE_F2 = 4
+
+# the terms C1 and J2 summed over every node (FX_MASS_NODE_TERMS bits; data: dynamics.kernels.node_mass)
+MASS_C1 = 1
+MASS_J2 = 2
 
 # how G^-1 is applied
 GINV_DIAGONAL = 0

@@ -35,6 +35,7 @@ from dynamics.engine import borrowed
 from dynamics.errors import ModelDefinitionError, SingularConfigurationError
 from dynamics.hinges import HINGE_TYPES, HINGES
 from dynamics.kernels.node_inertia import NODE_STATE, node_params
+from dynamics.kernels.node_mass import MASS_NODE_STATE, node_mass_params
 from dynamics.reconfigure import reconfigure
 from dynamics.spatial import spatial_inertia as _spatial_inertia
 
@@ -454,6 +455,23 @@ class MultibodySystem:
                                            f"{shapes.shape}")
             fx[L.FX_NODES] = params.push(node_params(nodes.mass, nodes.cg, nodes.inertia, shapes))
             fx[L.FX_P_NODES] = pool.reserve(NODE_STATE * nodes.count)
+        mass_nodes = data.mass_nodes
+        fx[L.FX_MASS_NODE_COUNT] = 0
+        fx[L.FX_MASS_NODE_TERMS] = 0
+        if mass_nodes is not None:
+            twice = sorted(t for t in mass_nodes.terms if getattr(terms, t) is not None)
+            if twice:
+                raise ModelDefinitionError(f"{where}: terms {twice} are given both as tables and over the nodes")
+            shapes = np.asarray(mass_nodes.shapes, dtype=np.float64)
+            if shapes.shape != (mass_nodes.count, 6, n):
+                raise ModelDefinitionError(f"{where}: mass_nodes shapes must have shape {(mass_nodes.count, 6, n)}, "
+                                           f"got {shapes.shape}")
+            bits = {"C1": L.MASS_C1, "J2": L.MASS_J2}
+            fx[L.FX_MASS_NODE_COUNT] = mass_nodes.count
+            fx[L.FX_MASS_NODE_TERMS] = sum(bits[t] for t in mass_nodes.terms)
+            fx[L.FX_MASS_NODES] = params.push(node_mass_params(mass_nodes.mass, mass_nodes.cg, mass_nodes.inertia,
+                                                               mass_nodes.positions, shapes))
+            fx[L.FX_P_MASS_NODES] = pool.reserve(MASS_NODE_STATE * mass_nodes.count)
         varying = terms.G1 is not None or terms.G2 is not None
         quasi_static = has_quasi_static_modes(data)
         budget = refinement_budget(n, nodes.count) if node_terms & (L.NODE_G1 | L.NODE_G2) else 0

@@ -1,8 +1,9 @@
 """Per-body inertia and forces for the recursions: the rigid bias ``V x* I V``, a flexible body's ``M(eta)``
 blocks and gyroscopic, Coriolis and elastic forces (:func:`dynamics.flexible_kernels.modal_mass_and_bias`,
-TM-2020-5008164 eqs. E.2.2-E.2.6, with the terms of nodes with rotary inertia summed over the nodes by
-:mod:`dynamics.kernels.node_inertia`), products with its modal mass, and the generalized forces of node forces
-``[X'; Psi' X'] f`` (a force in node axes at the deformed node).
+TM-2020-5008164 eqs. E.2.2-E.2.6, the terms of nodes with rotary inertia summed over the nodes by
+:mod:`dynamics.kernels.node_inertia`, C1 and J2 over every node by :mod:`dynamics.kernels.node_mass`), products
+with its modal mass, and the generalized forces of node forces ``[X'; Psi' X'] f`` (a force in node axes at the
+deformed node).
 """
 
 from __future__ import annotations
@@ -11,10 +12,12 @@ from numba import njit
 
 from dynamics import flexible_kernels as FK
 from dynamics.kernels.node_inertia import NODE_STATE, node_inertia_modal_mass, node_inertia_terms, node_inertia_times
+from dynamics.kernels.node_mass import MASS_NODE_STATE, node_mass_terms
 from dynamics.layout import (
-    FLEX, FX_NODES, FX_NODE_COUNT, FX_NODE_TERMS, FX_P_G, FX_P_MDRE, FX_P_MRE, FX_P_MRR, FX_P_NODES, FX_P_VEC,
-    FX_REFINE, INERTIA, MAT_IAP, NODE_BODY, NODE_FRAME, NODE_SHAPE, NQ_HINGE, NU_HINGE, N_FX, N_MODES,
-    PV_FORCE, P_L, P_R, P_TMP83, P_V1, Q_START, U_START, VEC_P, VEC_V, view)
+    FLEX, FX_MASS_NODE_COUNT, FX_MASS_NODE_TERMS, FX_MASS_NODES, FX_NODES, FX_NODE_COUNT, FX_NODE_TERMS, FX_P_G,
+    FX_P_MASS_NODES, FX_P_MDRE, FX_P_MRE, FX_P_MRR, FX_P_NODES, FX_P_VEC, FX_REFINE, INERTIA, MAT_IAP, NODE_BODY,
+    NODE_FRAME, NODE_SHAPE, NQ_HINGE, NU_HINGE, N_FX, N_MODES, PV_FORCE, P_L, P_R, P_TMP83, P_V1, Q_START, U_START,
+    VEC_P, VEC_V, view)
 from dynamics.spatial import force_to_parent_add
 
 
@@ -71,6 +74,11 @@ def flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, with_bi
                            u[ue:ue + n], with_bias, Mre, ws_vec[i, VEC_P], bm, state)
         if form_G:
             node_inertia_modal_mass(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], state, Gm)
+    if fx[FX_MASS_NODES] >= 0:
+        count = fx[FX_MASS_NODE_COUNT]
+        node_mass_terms(params, fx[FX_MASS_NODES], count, n, fx[FX_MASS_NODE_TERMS], q[qe:qe + n], ws_vec[i, VEC_V],
+                        u[ue:ue + n], with_bias, Mrr, Mre, ws_vec[i, VEC_P], bm,
+                        pool[fx[FX_P_MASS_NODES]:fx[FX_P_MASS_NODES] + MASS_NODE_STATE * count])
 
 
 @njit(cache=True)

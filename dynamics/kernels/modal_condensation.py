@@ -20,6 +20,7 @@ from dynamics.layout import (
     FX_P_W, FX_P_ZM, FX_RANK, FX_REFINE, FX_ZM0, GINV_FACTORED, MAT_IA, MAT_TMP, NODE_F2, NODE_NEXT_SLOT, NODE_SLOT,
     NU_HINGE, N_FX, N_MODES, OUTBOARD_NODE, PARENT_NODE, PV_DG, PV_FORCE, PV_RHS, PV_TMP, PV_Y, P_TMP83, ROT_PB, SL_G,
     SL_PSI, SL_Y, U_START, VEC_A, VEC_P, VEC_POS, view)
+from dynamics.layout import FX_MASS_NODE_TERMS, MASS_C1
 from dynamics.spatial import force_to_parent_add, inertia_to_parent_add
 
 
@@ -95,7 +96,8 @@ def condense_inertia(i, topology, nodes, params, factored, ws_mat, pool):
             FK.modal_mass_solve_rows(fx, kind, params, n, Gm, view(pool, s + SL_PSI, 6, n), 6,
                                      view(pool, s + SL_PSI + 6 * n, 6, n))
         FK.modal_mass_solve_rows(fx, kind, params, n, Gm, Mre, 6, ZM)
-    elif fx[FX_C1] >= 0 or fx[FX_F2] >= 0 or (fx[FX_NODE_TERMS] & NODE_F2) != 0:
+    elif (fx[FX_C1] >= 0 or fx[FX_F2] >= 0 or (fx[FX_NODE_TERMS] & NODE_F2) != 0
+          or (fx[FX_MASS_NODE_TERMS] & MASS_C1) != 0):
         FK.modal_mass_solve_rows(fx, kind, params, n, Gm, Mre, 6, ZM)
     else:
         o = fx[FX_ZM0]
