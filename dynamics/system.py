@@ -99,11 +99,18 @@ MIN_REFINEMENT_BUDGET = 5
 
 def refinement_budget(n, count):
     """How many refinements of a body of ``n`` modes whose modal mass varies through the terms of ``count`` nodes
-    (a product of 6 n per node and the bias and acceleration passes, ~40 n) cost as much as forming ``G(eta)``
-    over the nodes (3 n^2 per node) and factoring it (n^3 / 3, and 14 n^2 for its solves) per evaluation: the
-    forward dynamics refines against the constant ``G0`` while the iterations it predicts stay within this
-    budget, and factors ``G(eta)`` past it (:mod:`dynamics.kernels.articulated_body`)."""
-    return int((3.0 * count * n * n + n ** 3 / 3.0 + 14.0 * n * n) / (6.0 * count * n + 40.0 * n))
+    cost as much as forming ``G(eta)`` over the nodes and factoring it, per evaluation: the forward dynamics
+    refines against the constant ``G0`` while the iterations it predicts stay within this budget, and factors
+    ``G(eta)`` past it (:mod:`dynamics.kernels.articulated_body`); a body whose budget is below
+    ``MIN_REFINEMENT_BUDGET`` factors ``G(eta)`` from the start. A refinement costs the product with ``dG`` over
+    the nodes (6 n per node) and the bias and acceleration passes (~40 n); forming costs the products
+    ``dJ lambda_s`` (9 n per node) and the lower triangle of ``Lambda' (dJ lambda)`` (1.5 n^2 per node, formed as
+    a matrix product: ~1.7x the multiply-adds per second of the refinement's matrix-vector products,
+    :func:`dynamics.kernels.node_inertia.node_inertia_modal_mass`), factoring n^3 / 6 and its solves 14 n^2. Measured
+    (benchmarks/flexible_vs_exudyn.py's beam, 105 nodes): factoring wins at 20 modes (4-5 refinements there),
+    refining at 100."""
+    form = (1.5 * count * n * n + 9.0 * count * n) / 1.7 + n ** 3 / 6.0 + 14.0 * n * n
+    return int(form / (6.0 * count * n + 40.0 * n))
 
 
 def choose_solver(topology):

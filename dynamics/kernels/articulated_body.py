@@ -18,7 +18,10 @@ round-off of the sums that form them), or stagnates at round-off;
 when the passes it still needs (predicted from its contraction rate) would cost more than forming ``G(eta)``
 and factoring it (the body's budget, ``dynamics.system.refinement_budget``: node rotations of a tenth of a
 radian and more on a body of a few tens of modes), the forward dynamics is solved again with ``G(eta)``
-formed and factored (O(N_r n^2 + n^3)), the result being the same to round-off either way.
+formed and factored (O(N_r n^2 + n^3)), the result being the same to round-off either way. A body whose budget
+is below ``dynamics.system.MIN_REFINEMENT_BUDGET`` (few modes for its nodes: the formation, a tiled matrix product,
+costs less than the four or five refinements deformations of 1e-4..1e-3 rad take) is not refined at all: its
+``G(eta)`` is formed and factored on every evaluation.
 """
 
 from __future__ import annotations

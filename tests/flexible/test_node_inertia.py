@@ -105,3 +105,55 @@ def test_dense_solver_with_node_terms():
     for _ in range(3):
         q, u, tau = _state(aba, 5, rng)
         assert rel(dense.forward_dynamics(q, u, tau), aba.forward_dynamics(q, u, tau)) < 1e-11
+
+
+def _skew(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+@pytest.mark.parametrize("terms", ["G1", "G2", "G1 G2 F2"])
+@pytest.mark.parametrize("offsets", [False, True])
+@pytest.mark.parametrize("n", [1, 3, 4, 5, 8, 11])
+def test_formed_modal_mass_equals_the_node_sum(terms, offsets, n):
+    """``node_inertia_modal_mass`` (formed by blocks of TILE modes, two rows at a time, lower triangle mirrored)
+    against the node sum of its docstring written out here with NumPy, node by node: ``lambda_j' dJ_j lambda_j``
+    with ``dJ = theta~ J - J theta~`` [G1] ``- theta~ J theta~`` [G2] and, with G1, the offsets'
+    ``m (lambda_j' dP gamma_j + gamma_j' dP' lambda_j)``, ``dP = (theta x p)~``; mode counts below, at and past
+    the tile's four (every remainder of the blocks and of the row pairs). Also ``node_inertia_times`` against the
+    formed matrix. Tolerance 1e-13 of the sum of the summands' sizes (``|lambda|' |dJ| |lambda|``; the sum itself
+    cancels to zero at one mode, plus the 2 that ``G`` holds on entry): the same ~30 N products summed in another
+    order."""
+    from dynamics.kernels.node_inertia import (
+        NODE_STATE, node_inertia_modal_mass, node_inertia_terms, node_inertia_times, node_params)
+    from dynamics.layout import NODE_F2, NODE_G1, NODE_G2
+
+    bits = sum({"G1": NODE_G1, "G2": NODE_G2, "F2": NODE_F2}[t] for t in terms.split())
+    model = random_node_model(7, n, seed=90 + n)
+    if not offsets:
+        model.cg[:] = 0.0
+    count = len(model.mass)
+    rng = np.random.default_rng(n)
+    eta, e, V = 0.3 * rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(6)
+    params = np.concatenate([[7.0, 8.0], node_params(model.mass, model.cg, model.inertia, model.shapes)])
+    state = np.zeros(NODE_STATE * count)
+    node_inertia_terms(params, 2, count, n, bits, eta, V, e, True, np.zeros((6, n)), np.zeros(6), np.zeros(n), state)
+    G = np.full((n, n), 2.0)
+    node_inertia_modal_mass(params, 2, count, n, bits, state, G)
+    ref = np.full((n, n), 2.0)
+    size = np.zeros((n, n))
+    for j in range(count):
+        lam, gam = model.shapes[j, :3], model.shapes[j, 3:]
+        theta = lam @ eta
+        t, J = _skew(theta), model.inertia[j]
+        dJ = (t @ J - J @ t if "G1" in terms else 0.0) - (t @ J @ t if "G2" in terms else 0.0)
+        ref += lam.T @ dJ @ lam
+        size += np.abs(lam).T @ np.abs(dJ) @ np.abs(lam)
+        if "G1" in terms:
+            dP = _skew(np.cross(theta, model.cg[j]))
+            ref += model.mass[j] * (lam.T @ dP @ gam + gam.T @ dP.T @ lam)
+            part = np.abs(lam).T @ np.abs(dP) @ np.abs(gam)
+            size += model.mass[j] * (part + part.T)
+    assert np.abs(G - ref).max() <= 1e-13 * (size.max() + 2.0)  # G held 2 on entry: it is added to
+    x, out = rng.standard_normal(n), np.zeros(n)
+    node_inertia_times(params, 2, count, n, bits, state, x, out)
+    assert np.abs(out - (ref - 2.0) @ x).max() <= 1e-13 * size.max() * np.abs(x).sum()
