@@ -19,8 +19,10 @@ Reported:
   ``--duration`` s, at orders 0, 1 and 2 and at 1 and 2 without the terms of the nodes' rotary inertia, with the
   machine's load average; for orders 0, 1, 2 where the last run's step went (:func:`breakdown`: the integrator's
   linear algebra, the checks of its linear part, the rest: derivatives, updates, log); and order 1 without the
-  sixteen nodes that only the linearization uses (each node's kinematics and force projection are computed at
-  every derivative evaluation: about 40 % of the order-1 derivative here);
+  sixteen nodes that only the linearization uses (before the engine model computed only the nodes a scene reads,
+  their kinematics were about 40 % of the order-1 derivative; now what is left of their cost is this difference);
+* the node mask before/after (:func:`node_mask`, first; alone with ``--nodes-only``): per order, interleaved, every
+  node's kinematics computed (what the engine model did before) against only the nodes something reads;
 * accuracy at order 1: the IMU's rate and the controller node's attitude (angle from the command) over the run,
   etdrk4 at 1 ms against RK4 at 0.05 ms, largest difference relative to the peak of the reference;
 * the same scene with an unbalanced wheel (products of inertia 0.005 kg m^2, centre of mass 1 mm off the axis):
@@ -30,7 +32,7 @@ Reported:
   by 5 outputs (IMU rate, the controller node's angular velocity and attitude, the tip position, the wheels'
   rates), 4-point central differences with Richardson (``shell.analysis.linearize``), wall time.
 
-    python3 benchmarks/flexible_observatory.py [--duration 1] [--repeat 3] [--skip-reference]
+    python3 benchmarks/flexible_observatory.py [--duration 1] [--repeat 3] [--skip-reference] [--nodes-only]
 """
 
 from __future__ import annotations
@@ -182,17 +184,44 @@ def series(sim, duration):
     return rate, 2.0 * np.arccos(np.clip(w, -1.0, 1.0))
 
 
+def node_mask(tmp, args):
+    """Before/after of computing only the nodes a scene reads (the engine model's node mask), interleaved in one
+    process, per order: "every node" sets the mask to every node (what the model computed before: the kinematics
+    of all 19 nodes in its outputs and after the forward dynamics), "read" leaves it as the diagram built it (the
+    IMU's, the controller's and the logged tip node; not the sixteen thruster nodes)."""
+    for order in (0, 1, 2):
+        costs = {"every node": [], "read": []}
+        for r in range(args.repeat):
+            for variant in costs:
+                sim = build(tmp, scene("beam.h5", order, "etdrk4", 1e-3, args.duration + 0.01), f"m{order}.yaml")
+                model = next(m for m in sim.models if m.path == "multibody")
+                if variant == "every node":
+                    model.ports.node_read[:] = 1
+                cpu, _ = timed_run(sim, args.duration)
+                costs[variant].append(cpu / args.duration)
+        before, after = np.median(costs["every node"]), np.median(costs["read"])
+        print(f"order {order}, node mask: every node {before:.3f}, nodes read ({', '.join(model.nodes_read)}) "
+              f"{after:.3f} CPU s per simulated s: {before / after:.2f}x (real-time factor {1 / after:.2f}; runs "
+              f"{', '.join(f'{c:.3f}' for c in costs['every node'])} / {', '.join(f'{c:.3f}' for c in costs['read'])}"
+              f"; load {os.getloadavg()[0]:.2f})", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--duration", type=float, default=1.0)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--skip-reference", action="store_true")
+    ap.add_argument("--nodes-only", action="store_true",
+                    help="only the before/after of the node mask (every node computed vs the nodes read)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "beam.dat").write_text(beam_deck())
         assert cli(["fem2modal", str(Path(tmp) / "beam.dat"), "--modes", "196", "--modal-integrals", "-q",
                     "-o", str(Path(tmp) / "beam.h5")]) == 0
         print(f"load average {os.getloadavg()[0]:.2f}")
+        node_mask(tmp, args)
+        if args.nodes_only:
+            return
         for order, omit in ((0, ()), (1, ()), (2, ()), (1, ("G1",)), (2, ("G1", "F2", "G2"))):
             costs = []
             for r in range(args.repeat):
@@ -206,7 +235,7 @@ def main():
             if not omit:
                 print(f"  last run, {breakdown(sim, cpu, args.duration)}", flush=True)
         costs = []
-        for r in range(args.repeat):  # the sixteen nodes are the linearization's inputs; the run does not use them
+        for r in range(args.repeat):  # the sixteen nodes are the linearization's inputs; the run reads none of them
             sim = build(tmp, scene("beam.h5", 1, "etdrk4", 1e-3, args.duration + 0.01, thrusters=False), "o1n.yaml")
             cpu, _ = timed_run(sim, args.duration)
             costs.append(cpu / args.duration)

@@ -86,6 +86,8 @@ class Diagram:
         self.model_index = {m.path: i for i, m in enumerate(self.models)}
         self._layout()
         self._wire()
+        for c in self.connections:  # a model computing only what is read learns what its connections read
+            c.source_model.output_read(c.source_port)
         self._order_outputs()
         self._order_updates()
         self._collect_zero_crossings(stop_events)
@@ -345,6 +347,7 @@ class Diagram:
         model_path, _, leaf = self.split_name(name)
         key = (model_path, leaf)
         if key in self.port_slices:
+            self.note_read(name)
             return "signal", self.port_slices[key], self.port_info[key]
         if key in self.state_slices:
             return self.state_slices[key]
@@ -353,6 +356,14 @@ class Diagram:
                                                                   + model.discrete_states]
         raise ModelError(f"signal {name!r}: model {model_path} has no port or state {leaf!r}"
                          f"{model.missing_port_hint(leaf)}; it has {names}")
+
+    def note_read(self, name: str) -> bool:
+        """Tell the model of output port ``name`` that it is read (:meth:`shell.model.Model.output_read`): True when
+        the model did not compute it until now (its buffer value is stale until the next evaluation)."""
+        model_path, _, leaf = self.split_name(name)
+        if not any(p.name == leaf for p in self.models[self.model_index[model_path]].outputs):
+            return False
+        return bool(self.models[self.model_index[model_path]].output_read(leaf))
 
     def split_name(self, name: str):
         """(model path, ".", leaf) of a dotted port or state name; the longest model path wins."""

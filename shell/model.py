@@ -618,6 +618,14 @@ class Model:
         "force", ...) to this model's port names for node/hinge ``target``. Others refuse."""
         raise ModelError(f"model {self.path}: {type(self).__name__} has no nodes or hinges to attach to")
 
+    def output_read(self, name: str) -> bool:
+        """Output port ``name`` is read: connected to an input, logged, linearized or read by name (the diagram calls
+        this when it is built and whenever a name is resolved). A model that computes only the outputs something
+        reads (the multibody engine's node kinematics) starts computing ``name`` here and returns True when it did
+        not compute it until now (its value in the signal buffer is then stale until the next evaluation); the
+        default computes every output and returns False."""
+        return False
+
     def missing_port_hint(self, name: str) -> str:
         """What a refusal of the port or state ``name``, which this model does not have, should add (a port
         the model can have when the scene asks for it); empty when there is nothing to say."""

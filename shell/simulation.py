@@ -268,7 +268,11 @@ class Simulation:
         return self.plan.zero_crossings(t, y)
 
     def signal(self, name: str) -> np.ndarray:
-        """Current value of a port or state by dotted name (a copy, in the port's/state's unit)."""
+        """Current value of a port or state by dotted name (a copy, in the port's/state's unit); an output its model
+        did not compute until now (a node nothing else reads: :meth:`shell.model.Model.output_read`) is computed
+        first."""
+        if self.diagram.note_read(name):
+            self.evaluate()
         kind, sl, decl = self.diagram.locate(name)
         source = {"signal": self.signals, "x": self.x, "z": self.z}[kind]
         return source[sl].reshape(decl.shape).copy()

@@ -1,5 +1,6 @@
 """Node kinematics: pose, spatial velocity and classical acceleration of frames on (deforming) bodies,
-after a kinematics pass or reusing the workspace of a forward-dynamics call.
+after a kinematics pass or reusing the workspace of a forward-dynamics call; of every node, or (the ``_selected``
+variants, a mask array in the caller's data) of the nodes a scene reads.
 """
 
 from __future__ import annotations
@@ -17,16 +18,20 @@ from dynamics.spatial import motion_cross_motion_add, motion_to_child
 
 @njit(cache=True)
 def _node_outputs(topology, nodes, params, q, u, udot, ground_linear, rotation, position, velocity, acceleration,
-                  ws_rot, ws_vec, pool):
+                  ws_rot, ws_vec, pool, active):
     """Per node, from the bodies' world poses, velocities and accelerations in the workspace (minus the
     uniform ``ground_linear`` acceleration they may include): pose, velocity and classical acceleration
-    of the (deformed) node (see :func:`node_kinematics`)."""
+    of the (deformed) node (see :func:`node_kinematics`); with a non-empty ``active`` (nnodes,) only the nodes
+    with ``active[n] != 0`` (the rows of the others are left as they are)."""
     tmp83 = view(pool, P_TMP83, 8, 3)
     w = pool[P_W:P_W + 6]
     wd = pool[P_WD:P_WD + 6]
     tmp = pool[P_V1:P_V1 + 6]
     Xw = pool[P_V2:P_V2 + 6]
+    selected = active.shape[0] > 0
     for nd in range(nodes.shape[0]):
+        if selected and active[nd] == 0:
+            continue
         b = nodes[nd, NODE_BODY]
         n = topology[b, N_MODES]
         fr = nodes[nd, NODE_FRAME]
@@ -79,6 +84,14 @@ def _node_outputs(topology, nodes, params, q, u, udot, ground_linear, rotation, 
 @njit(cache=True)
 def node_kinematics(topology, nodes, joint_rot, joint_vec, params, q, u, udot, rotation, position, velocity,
                     acceleration, ws_rot, ws_vec, ws_mat, pool):
+    """:func:`node_kinematics_selected` of every node."""
+    node_kinematics_selected(topology, nodes, joint_rot, joint_vec, params, q, u, udot, rotation, position, velocity,
+                             acceleration, ws_rot, ws_vec, ws_mat, pool, nodes[0:0, 0])
+
+
+@njit(cache=True)
+def node_kinematics_selected(topology, nodes, joint_rot, joint_vec, params, q, u, udot, rotation, position, velocity,
+                             acceleration, ws_rot, ws_vec, ws_mat, pool, active):
     """Pose, spatial velocity and acceleration of every node (a frame on a body, deforming with it).
 
     Outputs per node n: ``rotation[n]`` node -> world, ``position[n]`` in the world, ``velocity[n]`` the
@@ -86,6 +99,10 @@ def node_kinematics(topology, nodes, joint_rot, joint_vec, params, q, u, udot, r
     ``acceleration[n] = [omega_dot; a]`` in node axes with ``a`` the classical (not spatial) acceleration
     of the node origin, ``a = a_spatial + omega x v``. Accelerations are relative to the inertial frame:
     gravity is *not* included (an accelerometer reads ``a - g``).
+
+    ``active`` (nnodes,) int64: only the nodes with ``active[n] != 0`` are computed (a scene's model computes the
+    nodes whose outputs something reads; the rows of the others are left unchanged); empty: every node. The
+    bodies' kinematics pass is done in full either way (a node's pose needs its body's).
     """
     nb = topology.shape[0]
     zero = pool[P_ZERO:P_ZERO + 6]
@@ -98,17 +115,26 @@ def node_kinematics(topology, nodes, joint_rot, joint_vec, params, q, u, udot, r
         add_hinge_acceleration(i, topology, nodes, udot, ws_vec, ws_mat, pool, A)
     accumulate_world_poses(topology, ws_rot, ws_vec)
     _node_outputs(topology, nodes, params, q, u, udot, zero[0:3], rotation, position, velocity, acceleration,
-                  ws_rot, ws_vec, pool)
+                  ws_rot, ws_vec, pool, active)
 
 
 @njit(cache=True)
 def node_kinematics_after_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, udot, rotation, position,
                                    velocity, acceleration, ws_rot, ws_vec, ws_mat, pool):
-    """:func:`node_kinematics` reusing the workspace of a :func:`forward_dynamics` (or
+    """:func:`node_kinematics_after_dynamics_selected` of every node."""
+    node_kinematics_after_dynamics_selected(topology, nodes, joint_rot, joint_vec, params, q, u, udot, rotation,
+                                            position, velocity, acceleration, ws_rot, ws_vec, ws_mat, pool,
+                                            nodes[0:0, 0])
+
+
+@njit(cache=True)
+def node_kinematics_after_dynamics_selected(topology, nodes, joint_rot, joint_vec, params, q, u, udot, rotation,
+                                            position, velocity, acceleration, ws_rot, ws_vec, ws_mat, pool, active):
+    """:func:`node_kinematics_selected` reusing the workspace of a :func:`forward_dynamics` (or
     :func:`forward_dynamics_dense`) call at the same ``q``, ``u`` that returned ``udot``: only the world
     poses and the per-node terms are computed (O(N + nodes x n)), and the ground's fictitious acceleration
     ``[0; -g]`` contained in the forward-dynamics accelerations is removed. Precondition (not checked):
     no other kernel used the workspace in between."""
     accumulate_world_poses(topology, ws_rot, ws_vec)
     _node_outputs(topology, nodes, params, q, u, udot, params[GROUND_ACCEL + 3:GROUND_ACCEL + 6], rotation, position,
-                  velocity, acceleration, ws_rot, ws_vec, pool)
+                  velocity, acceleration, ws_rot, ws_vec, pool, active)

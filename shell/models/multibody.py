@@ -52,6 +52,13 @@ Attaching a model to node N binds its inputs named attitude, rotation, position,
 linear_velocity, angular_acceleration, linear_acceleration to N's outputs, and its outputs named torque
 and force to N's inputs; attaching to hinge B binds q, u, u_dot, and torque/prescribed_accel outputs.
 
+Node kinematics are computed only for the nodes whose outputs something reads ("model no more than a scene
+needs"): a connection (decided when the diagram is built), a logged signal, a linearization's output or a name read
+later (:meth:`MultibodyModel.output_read`, called by :meth:`shell.diagram.Diagram.note_read`). The choice is an
+int64 mask in the per-run data (``EnginePorts.node_read``, shared by every run of the model), read by the one compiled
+kernel of the path; the outputs of a node nothing reads are NaN, and the run summary names those nodes. A node that
+only receives a force needs no kinematics: the forward dynamics projects its force (and skips an exactly-zero one).
+
 Hinge ports of mixed dimension (free: [rad, m] coordinates, [rad/s, m/s] velocities) are declared
 without a unit and carry SI values; single-kind hinges declare rad, m, rad/s, N m or N.
 """
@@ -66,6 +73,8 @@ from numba import njit
 from dynamics import constraint_kernels as CK
 from dynamics import engine as E
 from dynamics import kernels as K
+from dynamics import single_body as SB
+from dynamics.kernels.node_frames import node_kinematics_after_dynamics_selected, node_kinematics_selected
 from dynamics.errors import ModelDefinitionError
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES, HINGES
 
@@ -131,6 +140,7 @@ class EnginePorts(NamedTuple):
     hinge_q: np.ndarray         # (k, 3) [y start, q start, count] of <body>.q and <body>.modal_q outputs
     hinge_u: np.ndarray         # (k, 3) the same for <body>.u and <body>.modal_u
     hinge_udot: np.ndarray      # (k, 3) the same for <body>.u_dot and <body>.modal_u_dot
+    node_read: np.ndarray       # (nnodes,) int64: 1 for a node whose outputs something reads (MultibodyModel.output_read)
 
 
 class EngineWork(NamedTuple):
@@ -197,12 +207,50 @@ def _coordinate_outputs(x, ports, out):
 
 @njit(cache=True, inline="always")
 def _acceleration_outputs(ports, work, out):
-    """The nodes' angular and linear accelerations (left in ``work.acceleration``) into the output block."""
+    """The nodes' angular and linear accelerations (left in ``work.acceleration``) into the output block; NaN for a
+    node nothing reads (its kinematics were not computed: see :meth:`MultibodyModel.output_read`)."""
     for n in range(ports.accel_offsets.shape[0]):
         a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
+        read = ports.node_read[n] != 0
         for k in range(3):
-            out[a + k] = work.acceleration[n, k]
-            out[b + k] = work.acceleration[n, 3 + k]
+            out[a + k] = work.acceleration[n, k] if read else np.nan
+            out[b + k] = work.acceleration[n, 3 + k] if read else np.nan
+
+
+@njit(cache=True, inline="always")
+def _tree_node_kinematics(d, q, u, udot, active, rotation, position, velocity, acceleration):
+    """Node kinematics of the nodes with ``active[n] != 0`` (articulated and dense paths, constrained scenes)."""
+    node_kinematics_selected(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, udot, rotation, position,
+                             velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat, d.pool, active)
+
+
+@njit(cache=True, inline="always")
+def _tree_node_kinematics_after_dynamics(d, q, u, udot, active, rotation, position, velocity, acceleration):
+    """:func:`_tree_node_kinematics` reusing the forward dynamics' workspace
+    (:func:`dynamics.engine.node_kinematics_after_dynamics`)."""
+    node_kinematics_after_dynamics_selected(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, udot,
+                                            rotation, position, velocity, acceleration, d.ws_rot, d.ws_vec, d.ws_mat,
+                                            d.pool, active)
+
+
+@njit(cache=True, inline="always")
+def _single_body_node_kinematics(d, q, u, udot, active, rotation, position, velocity, acceleration):
+    """Every node of a single rigid body (a few flops per node: not worth a mask; the outputs of the nodes nothing
+    reads are still made NaN by the writers)."""
+    SB.node_kinematics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, udot, rotation, position,
+                       velocity, acceleration, d.ws_rot, d.ws_vec)
+
+
+@njit(cache=True, inline="always")
+def _single_body_node_kinematics_after_dynamics(d, q, u, udot, active, rotation, position, velocity, acceleration):
+    SB.node_kinematics_after_dynamics(d.nodes, d.params, rotation, position, velocity, acceleration, d.ws_rot,
+                                      d.ws_vec)
+
+
+#: path name -> (node kinematics, node kinematics after the forward dynamics) taking the node mask
+_NODE_KINEMATICS = {"single_body": (_single_body_node_kinematics, _single_body_node_kinematics_after_dynamics),
+                    "articulated": (_tree_node_kinematics, _tree_node_kinematics_after_dynamics),
+                    "dense": (_tree_node_kinematics, _tree_node_kinematics_after_dynamics)}
 
 
 def _engine_kernel(path):
@@ -210,8 +258,7 @@ def _engine_kernel(path):
     path's code only, so a rigid single-body scene compiles neither the articulated-body recursion nor the
     dense solver (measured on the demo from an empty cache: see docs/benchmarks.md, "Compile time")."""
     forward_dynamics = path.forward_dynamics
-    node_kinematics = path.node_kinematics
-    node_kinematics_after_dynamics = path.node_kinematics_after_dynamics
+    node_kinematics, node_kinematics_after_dynamics = _NODE_KINEMATICS[path.name]
 
     def engine_kernel(op, t, x, z, u, p, d, out):
         """Every kernel of the engine model in one compiled function, its op kernel (:mod:`shell.kernel_protocol`:
@@ -226,17 +273,17 @@ def _engine_kernel(path):
         if op == STATE_OUTPUTS:
             _coordinate_outputs(x, ports, out)
             if ports.node_offsets.shape[0]:
-                node_kinematics(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
-                                work.acceleration)
-                _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets)
+                node_kinematics(engine, x[:nq], x[nq:], work.zero_u, ports.node_read, work.rotation, work.position,
+                                work.velocity, work.acceleration)
+                _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets, ports.node_read)
         elif op == FEEDTHROUGH_OUTPUTS:
             _gather_inputs(x, u, d)
             _record_status(forward_dynamics(engine, x[:nq], x[nq:], work.tau, work.node_forces, work.udot,
                                             work.tau_out), d)
             _copy_blocks(work.udot, ports.hinge_udot, out)
             if ports.accel_offsets.shape[0]:  # reusing the workspace the forward dynamics just left
-                node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
-                                               work.velocity, work.acceleration)
+                node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, ports.node_read, work.rotation,
+                                               work.position, work.velocity, work.acceleration)
                 _acceleration_outputs(ports, work, out)
         elif op == DERIVATIVES or op == DERIVATIVES_AFTER_FEEDTHROUGH:
             if op == DERIVATIVES:
@@ -288,9 +335,9 @@ def engine_kernel_constrained(op, t, x, z, u, p, d, out):
     if op == STATE_OUTPUTS:
         _coordinate_outputs(x, ports, out)
         if ports.node_offsets.shape[0]:
-            E.node_kinematics_tree(engine, x[:nq], x[nq:], work.zero_u, work.rotation, work.position, work.velocity,
-                                   work.acceleration)
-            _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets)
+            _tree_node_kinematics(engine, x[:nq], x[nq:], work.zero_u, ports.node_read, work.rotation, work.position,
+                                  work.velocity, work.acceleration)
+            _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets, ports.node_read)
         if closure.energy_out.shape[0]:
             _energy_output(engine, c, x[:nq], x[nq:], closure, out)
     elif op == FEEDTHROUGH_OUTPUTS or op == DERIVATIVES:
@@ -303,8 +350,8 @@ def engine_kernel_constrained(op, t, x, z, u, p, d, out):
                 for k in range(6):
                     out[closure.load_out[i] + k] = closure.loads[i, k]
             if ports.accel_offsets.shape[0]:
-                E.node_kinematics_tree(engine, x[:nq], x[nq:], work.udot, work.rotation, work.position,
-                                       work.velocity, work.acceleration)
+                _tree_node_kinematics(engine, x[:nq], x[nq:], work.udot, ports.node_read, work.rotation,
+                                      work.position, work.velocity, work.acceleration)
                 _acceleration_outputs(ports, work, out)
             if closure.hinge_load_out.shape[0]:  # last: its Newton-Euler pass reuses the engine's workspace
                 CK.hinge_loads(engine, c, x[:nq], x[nq:], work.udot, closure.hinge_loads)
@@ -351,11 +398,22 @@ ENGINE_KERNELS = {name: _engine_kernel(path) for name, path in E.PATHS.items()}
 
 
 @njit(cache=True)
-def _node_outputs(rotation, position, velocity, y, offsets):
+def _node_outputs(rotation, position, velocity, y, offsets, read):
     """Write node kinematics into the output block; offsets[n] = (attitude, rotation, position,
-    angular_velocity, linear_velocity) start indices in y."""
+    angular_velocity, linear_velocity) start indices in y; NaN for a node with ``read[n] == 0`` (nothing reads its
+    outputs: its kinematics were not computed)."""
     for n in range(offsets.shape[0]):
         o = offsets[n]
+        if read[n] == 0:
+            for k in range(4):
+                y[o[0] + k] = np.nan
+            for k in range(9):
+                y[o[1] + k] = np.nan
+            for k in range(3):
+                y[o[2] + k] = np.nan
+                y[o[3] + k] = np.nan
+                y[o[4] + k] = np.nan
+            continue
         rotation_to_quaternion_into(rotation[n], y[o[0]:o[0] + 4])
         for a in range(3):
             for b in range(3):
@@ -421,6 +479,11 @@ class MultibodyModel(Model):
         notes = [f"{self.path}: {note}" for note in s.notes]
         if s.topology[:, K.FLEXIBLE].any():
             notes.insert(0, f"{self.path}: forward dynamics by {s.solver_reason}")
+        skipped = [n for n, r in zip(s.node_names, self.ports.node_read) if not r]
+        if skipped:
+            notes.append(f"{self.path}: node kinematics of {len(s.node_names) - len(skipped)} of {len(s.node_names)} "
+                         f"nodes (those whose outputs are connected, logged or read); not computed, outputs NaN until "
+                         f"read: {', '.join(skipped)}")
         if self.constrained is not None and self.constrained.forces:
             from dynamics.force_elements import ELEMENT_TYPES
 
@@ -543,7 +606,8 @@ class MultibodyModel(Model):
                       for node in s.node_names]).reshape(-1, 5),
             as_index([[y_layout.offsets[f"{node}.angular_acceleration"],
                        y_layout.offsets[f"{node}.linear_acceleration"]] for node in s.node_names]).reshape(-1, 2),
-            blocks("q"), blocks("u"), blocks("u_dot"))
+            blocks("q"), blocks("u"), blocks("u_dot"), np.zeros(len(s.node_names), dtype=np.int64))
+        self._node_index = {node: n for n, node in enumerate(s.node_names)}
         self._load_out = as_index([y_layout.offsets[f"{c.label}.load"] for c in
                                    (self.constrained.constraints if self.constrained is not None else ())])
         self._hinge_load_out = as_index([y_layout.offsets[f"{body}.hinge_load"] for body in s.body_names
@@ -668,6 +732,24 @@ class MultibodyModel(Model):
                                      f"{exc}") from None
             x[:system.nq] = q
             x[system.nq:] = u
+
+    def output_read(self, name: str) -> bool:
+        """A node's kinematics are computed only for the nodes whose outputs something reads ("model no more than a
+        scene needs"): a connection (a model attached to the node), a logged signal, a linearization's output, a
+        name read (:meth:`shell.diagram.Diagram.note_read`). Marks the node of output ``name`` read (in
+        ``ports.node_read``, which every run's data share: a mask in the data, one compiled kernel for every scene);
+        True when it was not read until now. The outputs of a node nothing reads are NaN, never a stale value."""
+        node, _, signal = name.rpartition(".")
+        index = self._node_index.get(node)
+        if index is None or signal not in NODE_OUTPUTS or self.ports.node_read[index]:
+            return False
+        self.ports.node_read[index] = 1
+        return True
+
+    @property
+    def nodes_read(self) -> tuple:
+        """The names of the nodes whose kinematics the engine model computes (:meth:`output_read`)."""
+        return tuple(n for n, r in zip(self.system.node_names, self.ports.node_read) if r)
 
     def missing_port_hint(self, name: str) -> str:
         """The optional outputs are ports only when the scene asks for them: name the ``outputs:`` entry that would
