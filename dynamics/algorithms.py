@@ -248,7 +248,7 @@ def kinetic_energy(model, data, q, u):
 
 
 def potential_energy(model, data, q):
-    """Potential energy: uniform gravity ``-sum m g . r_com`` (zero at the world origin) plus the elastic energy
+    """Potential energy: uniform gravity ``-sum m g'r_com`` (zero at the world origin) plus the elastic energy
     ``1/2 eta' K eta`` of flexible bodies."""
     return float(energy_momentum(model, data, q, data.zero_u)[1])
 

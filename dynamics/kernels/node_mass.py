@@ -10,7 +10,7 @@ and ``d = theta x p``. With those (``~`` the cross-product matrix) the blocks of
 terms of ``Y_j' M_nd,j Y_j``, E.1.34, linear and quadratic in eta; point masses keep the first term of each),
 
     C(eta) = sum_r eta_r C1[r] = sum_j [m (u + d)~ gamma_j + B_j lambda_j;  -m d~ lambda_j]     (6 x n)
-        B_j = theta~ J - J theta~ - m u~ p~ - m l0~ d~,
+    with B_j = theta~ J - J theta~ - m u~ p~ - m l0~ d~,
     J2 eta eta = sum_j Q_j,  Q_j = -m u~ u~ - theta~ J theta~ - m (u~ d~ + d~ u~)                 (3 x 3)
 
 (F1, E1 and J2 of :func:`dynamics.flex.modal_integrals.modal_integrals` contracted with eta). The body's
