@@ -145,7 +145,7 @@ def _layout(o, N, n):
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
-def _shapes_times(params, at, n, width, x, y, out_x, out_y, with_y):
+def shapes_times(params, at, n, width, x, y, out_x, out_y, with_y):
     """``out_x = S' x`` (and with ``with_y`` ``out_y = S' y``) for the n x ``width`` shapes S at ``params[at:]``."""
     for r in range(width):
         out_x[r] = 0.0
@@ -211,9 +211,9 @@ def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br
     Z = state[S_Z * N:(S_Z + 3) * N]
     W = state[S_W * N:(S_W + 9) * N]
     D = state[S_D * N:(S_D + 9) * N]
-    _shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
+    shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
     if offset:
-        _shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
+        shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
     else:
         for r in range(width):
             uu[r] = 0.0
@@ -384,9 +384,9 @@ def node_inertia_times(params, o, count, n, terms, state, x, out):
     width = 3 * N
     A = state[S_A * N:(S_A + 3) * N]
     Z = state[S_Z * N:(S_Z + 3) * N]
-    _shapes_times(params, lam, n, width, x, x, A, A, False)  # alpha = lambda x
+    shapes_times(params, lam, n, width, x, x, A, A, False)  # alpha = lambda x
     if offset:
-        _shapes_times(params, gam, n, width, x, x, Z, Z, False)  # beta = gamma x
+        shapes_times(params, gam, n, width, x, x, Z, Z, False)  # beta = gamma x
     for j in range(N):
         # a = dJ alpha + m (theta x p) x beta, z = m alpha x (theta x p)
         al0, al1, al2 = A[j], A[N + j], A[2 * N + j]

@@ -56,6 +56,7 @@ import numpy as np
 from numba import njit
 
 from dynamics.flexible_kernels import FAST_SUMS
+from dynamics.kernels.node_inertia import shapes_times
 from dynamics.layout import MASS_C1, MASS_J2
 
 # where each node's numbers sit in the body's FX_P_MASS_NODES block, in units of the node count N (node-minor):
@@ -97,25 +98,6 @@ def _cross(a0, a1, a2, b0, b1, b2):
 @njit(cache=True, inline="always")
 def _vec(x, N, j):
     return x[j], x[N + j], x[2 * N + j]
-
-
-@njit(cache=True, fastmath=FAST_SUMS)
-def _shapes_times(params, at, n, width, x, y, out_x, out_y, with_y):
-    """``out_x = S' x`` (and with ``with_y`` ``out_y = S' y``) for the n x ``width`` shapes S at ``params[at:]``."""
-    for r in range(width):
-        out_x[r] = 0.0
-        out_y[r] = 0.0
-    for s in range(n):
-        row = params[at + s * width:at + (s + 1) * width]
-        xs = x[s]
-        if with_y:
-            ys = y[s]
-            for r in range(width):
-                out_x[r] += row[r] * xs
-                out_y[r] += row[r] * ys
-        else:
-            for r in range(width):
-                out_x[r] += row[r] * xs
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
@@ -189,9 +171,9 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
     Z = state[S_Z * N:(S_Z + 3) * N]
     WG = state[S_WG * N:(S_WG + 9) * N]
     WL = state[S_WL * N:(S_WL + 18) * N]
-    _shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
+    shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
     if rotary:
-        _shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
+        shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
     w0, w1, w2 = V[0], V[1], V[2]
     v0, v1, v2 = V[3], V[4], V[5]
     # sums over the nodes: Q (3 x 3), C(eta) e and C(e) e (6 each), Qdot w (3)
