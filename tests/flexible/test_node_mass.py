@@ -24,6 +24,7 @@ from dynamics.flexible_body import node_mass_from_nodes, node_mass_is_cheaper
 
 from .random_flexible import flexible_body_data, random_node_model
 from .test_brute_force import rel
+from .test_node_inertia import _state
 
 
 def _with_node_mass(data, model, order):
@@ -41,15 +42,6 @@ def _system(data, wheel):
         mb.add_body("wheel", "body", mass=4.0, inertia=[0.08, 0.05, 0.05], com=(0.01, 0.0, 0.02), hinge="revolute",
                     axis=(1.0, 0.0, 0.0), parent_node="mount")
     return mb.compile(solver="aba")
-
-
-def _state(system, n, rng, size=0.1):
-    q = system.neutral_configuration()
-    q[:4] = rng.standard_normal(4)
-    q[:4] /= np.linalg.norm(q[:4])
-    q[4:7] = rng.standard_normal(3)
-    q[7:7 + n] = size * rng.standard_normal(n)
-    return q, rng.standard_normal(system.nu), rng.standard_normal(system.nu)
 
 
 def _hinged_state(system, rng):
