@@ -86,7 +86,7 @@ def _calls(c, bits, NI, NM):
         "node_inertia_terms (forces)": lambda: NI.node_inertia_terms(ip, 1, N, n, bits, eta, V, e, True, Mre, br, bm,
                                                                      state),
         "  shapes_times Lambda (eta, e)": lambda: NI.shapes_times(ip, lam, n, width, eta, e, th, thd, True),
-        "  back sweep Lambda (a, Q lambda)": lambda: NI._back_products(ip, lam, n, width, A, W, True, True, Mre, bm),
+        "  back sweep Lambda (a, Q lambda)": lambda: NI.columns_times(ip, lam, n, width, W, A, 0, True, True, Mre, bm),
         "node_inertia_terms (no forces)": lambda: NI.node_inertia_terms(ip, 1, N, n, bits, eta, V, e, False, Mre, br,
                                                                         bm, state),
         "node_inertia_times": lambda: NI.node_inertia_times(ip, 1, N, n, bits, state, x, out),
@@ -96,7 +96,7 @@ def _calls(c, bits, NI, NM):
         "node_mass_terms C1 J2 (forces)": lambda: NM.node_mass_terms(mp, 1, Nm, n, mbits, eta, V, e, True, Mrr, Mre,
                                                                      br, bm, mstate),
     }
-    return {k: fn for k, fn in calls.items() if all(hasattr(NI, f) for f in ("_back_products",) if "sweep" in k)}
+    return {k: fn for k, fn in calls.items() if "sweep" not in k or hasattr(NI, "columns_times")}
 
 
 def _modules_at(ref):
