@@ -165,10 +165,10 @@ def _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, factored,
 
 
 @njit(cache=True)
-def _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool):
-    """Pass 3 (outward): every body's acceleration, the free DOFs' accelerations, the prescribed DOFs' forces
-    and the modal accelerations."""
-    for i in range(topology.shape[0]):
+def _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, first, stop):
+    """Pass 3 (outward) over bodies ``first`` to ``stop - 1`` (their parents' accelerations known): their
+    accelerations, the free DOFs' accelerations, the prescribed DOFs' forces and the modal accelerations."""
+    for i in range(first, stop):
         A = ws_vec[i, VEC_A]
         parent = topology[i, PARENT]
         if topology[i, GENERAL]:
@@ -302,6 +302,7 @@ def _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, 
     nb = topology.shape[0]
     ground = params[GROUND_ACCEL:GROUND_ACCEL + 6]
     refine = False
+    last = -1
     budget = 1 << 30
     for i in range(nb):
         if topology[i, GENERAL]:
@@ -322,6 +323,7 @@ def _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, 
             _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, factored, ws_vec, ws_mat, pool)
             if topology[i, FLEX + FX_REFINE] and not factored:
                 refine = True
+                last = i
                 budget = min(budget, topology[i, FLEX + FX_REFINE])
                 n = topology[i, N_MODES]
                 pv = topology[i, FLEX + FX_P_VEC]
@@ -360,16 +362,31 @@ def _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, 
             inertia_to_parent_add(R, r, ws_mat[i, MAT_IAP], ws_mat[parent, MAT_IA], ws_mat[i, MAT_TMP])
             force_to_parent_add(R, r, ws_vec[i, VEC_AUX], ws_vec[parent, VEC_P])
 
-    _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool)
-    pool[P_REFINEMENTS] = 0.0
     if not refine:
+        _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, 0, nb)
+        pool[P_REFINEMENTS] = 0.0
         return 0
+    # the bodies after the last refined one are no refined body's ancestors: their accelerations are computed once,
+    # from the accepted iterate
+    stop = last + 1
+    _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, 0, stop)
+    status = _refine(topology, nodes, params, tau, udot, tau_out, ground, ws_rot, ws_vec, ws_mat, pool, budget, stop)
+    if status == 0:
+        _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, stop, nb)
+    return status
+
+
+@njit(cache=True)
+def _refine(topology, nodes, params, tau, udot, tau_out, ground, ws_rot, ws_vec, ws_mat, pool, budget, stop):
+    """The refinement passes of :func:`_forward_dynamics` (module docstring) after its first solve, over the bodies
+    before ``stop``: 0 when converged, NOT_CONVERGED when the passes it predicts exceed ``budget``."""
+    pool[P_REFINEMENTS] = 0.0
     _refinement_products(topology, params, udot, pool)
     _refinement_change(topology, udot, pool)
     previous = 0.0
     for it in range(1, budget + 1):
-        _bias_pass(topology, nodes, params, tau, factored, ws_rot, ws_vec, ws_mat, pool)
-        _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool)
+        _bias_pass(topology, nodes, params, tau, False, ws_rot, ws_vec, ws_mat, pool)
+        _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, 0, stop)
         pool[P_REFINEMENTS] = it
         change, scale = _refinement_change(topology, udot, pool)
         if change <= REFINED * scale:
