@@ -12,7 +12,13 @@ through the terms of its nodes with rotary inertia, ``G(eta) = G0 + dG(eta)`` (`
 O(n^2)), and the system ``(K0 + dK) udot = f`` is solved by the iteration ``K0 udot_{k+1} = f - dK udot_k``
 (Richardson, converging as ``rho^k`` with ``rho`` the spectral radius of ``K0^-1 dK``, of the order of the
 nodes' elastic rotation angles: three to five passes to round-off for deformations of 1e-4..1e-3 rad),
-each pass one product with ``dG`` over the nodes (O(N_r n)) and the bias and acceleration passes. The
+each pass one product with ``dG`` over the nodes (O(N_r n)) and the bias and acceleration passes (the latter over
+the bodies up to the last refined one: those after it, in body order, are no refined body's ancestors, and get
+their accelerations once, from the accepted iterate). Richardson is kept because nothing cheaper converges
+faster here: the spectrum of ``K0^-1 dK`` is symmetric about zero and spread (each node's ``dJ = theta~ J - J
+theta~`` is a commutator, indefinite with a zero diagonal in the modal basis), so CG or Chebyshev gain about half a
+pass, and neither ``diag(dG)`` nor the exact ``dG`` of the 10..80 highest or lowest modes in the preconditioner
+lowers ``rho`` by 10 % (measured 2026-12-07 on the 196-mode tube of ``benchmarks/flexible_scaling.py``). The
 iteration stops when the next change of the modal accelerations would be below 1e-14 of their size (the
 round-off of the sums that form them), or stagnates at round-off;
 when the passes it still needs (predicted from its contraction rate) would cost more than forming ``G(eta)``
