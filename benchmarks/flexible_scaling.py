@@ -39,7 +39,8 @@ C1, J2 too on some), with or without a wheel on a node: the articulated-body rec
 interleaved, and what ``dynamics.system.choose_solver`` picks for each.
 
 Timing: minimum over interleaved batches of the wall time of one call (process-level ratios on a shared
-machine; set OPENBLAS_NUM_THREADS=1). Run: ``python benchmarks/flexible_scaling.py [--quick] [--deck-only] [--solvers]``.
+machine; set OPENBLAS_NUM_THREADS=1).
+Run: ``python benchmarks/flexible_scaling.py [--quick] [--deck-only] [--solvers]``.
 """
 
 from __future__ import annotations

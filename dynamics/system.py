@@ -122,8 +122,8 @@ def refinement_cost(n, count):
 def refinement_budget(n, count):
     """How many refinements of a body of ``n`` modes whose modal mass varies through the terms of ``count`` nodes
     cost as much as forming ``G(eta)`` over the nodes (:func:`modal_mass_formation_cost`) and factoring it (its
-    Cholesky factorization n^3 / 6 and solves 14 n^2), per evaluation: the forward dynamics refines against the constant ``G0`` while the
-    iterations it predicts stay within this budget, and factors ``G(eta)`` past it
+    Cholesky factorization n^3 / 6 and solves 14 n^2), per evaluation: the forward dynamics refines against the
+    constant ``G0`` while the iterations it predicts stay within this budget, and factors ``G(eta)`` past it
     (:mod:`dynamics.kernels.articulated_body`); a body whose budget is below ``MIN_REFINEMENT_BUDGET`` factors
     ``G(eta)`` from the start. Measured (benchmarks/flexible_vs_exudyn.py's beam, 105 nodes): factoring wins at 20
     modes (4-5 refinements there), refining at 100."""
