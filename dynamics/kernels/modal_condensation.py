@@ -256,7 +256,8 @@ def condense_bias(i, topology, nodes, params, tau, factored, ws_vec, pool):
     rigid hinge step follows unchanged), and ``y = E'^-1 d_m`` kept for the acceleration pass
     (``etaddot = y - W' a``), with ``d_m = tau_m - (modal bias - applied modal forces) - (G(eta) - G0) etaddot
     - sum_j Psi_j' g_j + Pc' pA`` (the third term: the refinement's, zero on a first pass). Sums over modes
-    reassociated (``FAST_SUMS``: vectorized; round-off only). O((13 + 2 r + 6 m) n) for m nodes with children."""
+    reassociated (``FAST_SUMS``: vectorized; round-off only). About (9 + 2 r + 6 m) n multiply-adds with a
+    diagonal G0 (m nodes with children, the outboard node counted)."""
     n = topology[i, N_MODES]
     pA = ws_vec[i, VEC_P]
     nd = topology[i, FIRST_SLOT]
