@@ -17,7 +17,7 @@ from scipy.integrate import solve_ivp
 from scipy.special import sici
 
 from shell.integrators import INTEGRATORS, StiffRemainderWarning, make_integrator
-from shell.integrators.exponential import LinearPart, phi_functions
+from shell.integrators.exponential import FUNCTIONS, LinearPart, phi_functions
 
 
 def run(method, fun, y0, t_end, step, **options):
@@ -418,3 +418,47 @@ def test_copy_rows_are_single_entries_of_exactly_one():
     assert list(part.copy_components) == [3] and list(part.copied_components) == [0]
     assert list(part.other_rows) == [1, 2, 3] and list(part.other_components) == [0, 2, 1]
     np.testing.assert_array_equal(part.L_other, L[1:])
+
+
+def test_zero_columns_of_L_take_the_unit_columns_of_the_phi_functions():
+    """A rigid-body rate w that nothing in L depends on (w' couples to the chain, x'' does not see w: the observatory's
+    free-hinge and rotor rates) and a driven row s' = c v (an IMU's integral, found by the integrator) give zero
+    columns of L, where phi_k(c h L) is the unit column over k!: the products skip them and add W / k! on their own row.
+    One nominal step equals Krogstad's published step with phi functions from a block exponential to round-off
+    (1e-12 of the state); N is large on those rows (gyroscopic-like w^2 terms, a forcing), so leaving their terms out
+    would be 1e4 times the tolerance off."""
+    A = damped_chain(5, seed=7)
+    n = 5
+    a = np.linspace(1e3, 5e3, n)
+    c = np.linspace(0.5, 1.5, n)
+    L_given = np.zeros((2 * n + 1, 2 * n + 1))
+    L_given[:2 * n, :2 * n] = A
+    L_given[2 * n, :n] = -a  # w' = -a x: a row of L, its column zero
+
+    def fun(t, y):
+        x, v, w = y[:n], y[n:2 * n], y[2 * n]
+        out = np.empty(2 * n + 2)
+        out[:2 * n] = A @ y[:2 * n]
+        out[n:2 * n] += 3e5 * x ** 3 + 0.4 * w ** 2
+        out[:n] = v
+        out[2 * n] = -a @ x + np.cos(9.0 * t) + 2.0 * w * v[0]
+        out[2 * n + 1] = c @ v
+        return out
+
+    rng = np.random.default_rng(5)
+    y0 = np.r_[rng.uniform(-0.02, 0.02, n), rng.uniform(-1.0, 1.0, n), 0.7, 0.0]
+    h = 2e-3
+    integ = make_integrator("etdrk4", fun, 0.0, y0, 1.0, step=h, linear_part=(np.arange(2 * n + 1), L_given))
+    part = integ.part
+    assert list(part.indices) == list(range(2 * n + 2))  # the driven row s joined the linear part
+    assert list(part.zero_columns) == [2 * n, 2 * n + 1]
+    assert list(part.dense_other_rows) == list(range(n, 2 * n)) and list(part.dense_copy_rows) == list(range(n))
+    phi = part.real_functions(h)
+    for f, (_, k) in enumerate(FUNCTIONS):
+        np.testing.assert_allclose(phi[f][:, part.zero_columns], np.eye(2 * n + 2)[:, part.zero_columns] /
+                                   math.factorial(k), rtol=0, atol=1e-14)
+    integ.step()
+    reference = krogstad_step(fun, part.L, y0, h)
+    np.testing.assert_allclose(integ.y, reference, rtol=0, atol=1e-12 * np.abs(reference).max())
+    without = krogstad_step(fun, part.L, y0, h, zero_rows=list(range(n)) + [2 * n, 2 * n + 1])
+    assert np.abs(reference - without).max() > 1e4 * 1e-12 * np.abs(reference).max()
