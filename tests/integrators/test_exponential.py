@@ -462,3 +462,14 @@ def test_zero_columns_of_L_take_the_unit_columns_of_the_phi_functions():
     np.testing.assert_allclose(integ.y, reference, rtol=0, atol=1e-12 * np.abs(reference).max())
     without = krogstad_step(fun, part.L, y0, h, zero_rows=list(range(n)) + [2 * n, 2 * n + 1])
     assert np.abs(reference - without).max() > 1e4 * 1e-12 * np.abs(reference).max()
+
+
+def test_drift_of_the_linear_part_is_the_frobenius_norm_of_the_difference():
+    """The check's drift ||L(y) - L|| / ||L|| sums the squared differences without forming L(y) - L: equal to numpy's
+    Frobenius norm to round-off (1e-13: a sum of 1e4 squares)."""
+    from shell.integrators.exponential import frobenius_distance
+
+    rng = np.random.default_rng(9)
+    A, B = rng.standard_normal((2, 97, 103)) * 1e6
+    assert math.isclose(frobenius_distance(A, B), np.linalg.norm(A - B), rel_tol=1e-13)
+    assert frobenius_distance(A, A) == 0.0
