@@ -6,7 +6,7 @@ stage_eigen), the same remainder N = f - L y, the same order of operations and t
 and the Python runs agree bit for bit. Python keeps what must be Python: the callable linear part (a mass matrix and
 a Cholesky solve in the models' ``stiff_linear_part``) and the rebuild of the matrix functions. The stepper keeps
 the integrator's check counters (``counters``: steps since the last check, the check interval, the step's flags) and
-asks (:class:`ExponentialStepping`) for a check of the linear part when one is due (after 1, 2, 4, ... steps up to
+asks (:class:`ExponentialStepping`) for a check of the linear part when one is due (after 2, 4, 8, ... steps up to
 max(64 steps, 0.25 s): one request per 250 steps of 1 ms once the part stands still: LINEAR_CHECK), and when a step
 finds the remainder stiff (h rho(N) > 1: STIFF_REMAINDER); Python checks (and perhaps rebuilds the stepper) and the
 loop continues the step where it stopped (flag RESUME: the stages before are kept in S and N). Until the integrator

@@ -231,8 +231,9 @@ def test_a_moving_configuration_refreshes_the_callable_linear_part():
         warnings.simplefilter("error", StiffRemainderWarning)
         integ = run("etdrk4", fun, y0, 1.0, 0.01, linear_part=linear_part)
         fixed = run("etdrk4", fun, y0, 1.0, 0.01, linear_part=linear_part(0.0, y0))
-    # L moves by 0.3 % per step (h omega = 3.0 .. 3.4): re-evaluated every step, rebuilt when it moved > 0.1 %
-    assert integ.njev == 2 * 100 - 2 and integ.nlu == 99
+    # L moves by 0.3 % per step (h omega = 3.0 .. 3.4): re-evaluated every step from the third on (the build is the
+    # first step's check), rebuilt when it moved > 0.1 %: the build, 98 checks, 98 rebuilds
+    assert integ.njev == 2 * 100 - 3 and integ.nlu == 99
     assert abs(integ.y[0] - ref[0]) < 5e-6  # measured 2.9e-6 against the amplitude 1e-3
     assert abs(fixed.y[0] - ref[0]) > 1e-4  # measured 1.8e-4: the frozen linear part misses the stiffening
     # at twice the step the frozen part's remainder is stiff: the monitor says so
@@ -250,9 +251,10 @@ def test_a_linear_part_that_does_not_move_is_checked_ever_more_rarely():
         return np.array([0, 1]), L
 
     integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 10.0, 0.01, linear_part=linear_part)
-    # 1000 steps: one evaluation at the start, checks at steps 1, 3, 7, ..., 127 (intervals 1, 2, ..., 64), then
-    # every 64 steps up to step 959: 1 + 7 + 13
-    assert integ.njev == len(evaluations) == 21 and integ.nlu == 1
+    # 1000 steps: one evaluation at the start (the build, which is step 1's check: the same state), checks at steps
+    # 3, 7, ..., 127 (intervals 2, ..., 64), then every 64 steps up to step 959: 1 + 6 + 13
+    assert integ.njev == len(evaluations) == 20 and integ.nlu == 1
+    np.testing.assert_allclose(evaluations[:3], [0.0, 0.02, 0.06], rtol=1e-12)
 
 
 def test_at_a_short_step_the_checks_are_spaced_in_time():
@@ -267,10 +269,10 @@ def test_at_a_short_step_the_checks_are_spaced_in_time():
         return np.array([0, 1]), L
 
     integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 2.0, 1e-3, linear_part=linear_part)
-    # 2000 steps: the start, checks at steps 1, 3, 7, ..., 255 (intervals 1, 2, ..., 128), then every 250 steps
-    # (505, 755, ..., 1755): 1 + 8 + 6
+    # 2000 steps: the start (step 1's check), checks at steps 3, 7, ..., 255 (intervals 2, ..., 128), then every 250
+    # steps (505, 755, ..., 1755): 1 + 7 + 6
     assert integ.max_check_interval == 250
-    assert integ.njev == len(evaluations) == 15 and integ.nlu == 1
+    assert integ.njev == len(evaluations) == 14 and integ.nlu == 1
     np.testing.assert_allclose(np.diff(evaluations)[-6:], 0.25, rtol=1e-9)
 
 
