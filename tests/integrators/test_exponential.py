@@ -193,6 +193,10 @@ def test_without_linear_part_it_is_rk4():
     b = run("rk4", fun, y0, 1.0, 0.01)
     # same RK4 weights, summed in another order (y1 written from Y4): equal to a few ulps
     np.testing.assert_allclose(a.y, b.y, rtol=5e-14, atol=1e-17)
+    # a linear part whose L is zero: every column is a zero column (phi_k = I / k!, no product): RK4 again
+    c = run("etdrk4", fun, y0, 1.0, 0.01, linear_part=(np.array([0, 1]), np.zeros((2, 2))))
+    assert list(c.part.zero_columns) == [0, 1] and c.part.L_other.shape == (2, 0)
+    np.testing.assert_allclose(c.y, b.y, rtol=5e-14, atol=1e-17)
 
 
 # --- components driven by the linear part ------------------------------------------------------------------
