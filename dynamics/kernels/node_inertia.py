@@ -33,8 +33,8 @@ The shape passes take four rows of the shapes per sweep over the 3N entries (:fu
 rows at a time against four vectors (:func:`columns_times`, which :mod:`dynamics.kernels.node_mass` shares).
 Against one row at a time (2026-12-07, ``benchmarks/node_terms_passes.py``: the tube of
 ``benchmarks/flexible_scaling.py``, 101 nodes, 196 modes, and the hub beam of ``benchmarks/flexible_vs_exudyn.py``,
-105 nodes, 20 modes; interleaved medians, load 4 on 2 cores): the shapes times eta and the rates 0.63x and 0.67x, a
-product with the modal mass 0.79x and 0.89x, the terms with their forces 0.77x and 0.95x. The per-node algebra runs
+105 nodes, 20 modes; interleaved medians, load 0.9 on 2 cores): the shapes times eta and the rates 0.56x and 0.72x,
+a product with the modal mass 0.78x and 0.82x, the terms with their forces 0.75x and 0.93x. The per-node algebra runs
 scalar: its ~40 node-minor streams are slices of two arrays to LLVM, which cannot prove that they do not overlap
 (numba marks no array ``noalias``) and does not version a loop on that many checks; four nodes written out side by
 side were not vectorized either (tried 2026-12-07).
@@ -46,8 +46,8 @@ body with few modes, ``dynamics.system.refinement_budget``, and the composite-in
 block of four modes s the products ``dJ lambda_s`` as loops over the nodes that LLVM vectorizes, then the lower
 triangle's dot products two rows of ``Lambda`` at a time against the four (a 2 x 4 register tile); 0.3-0.5x of the
 dot products one at a time it replaces (2026-12-07, 105 nodes, 20 modes, loaded machine). The tile indexes the rows
-of ``Lambda`` rather than taking a view of each (a view costs a reference count's increment and decrement): 0.78x
-(20 modes) and 0.79x (196 modes) of the formation with views. The bias ``Lambda a`` and the ``Q lambda`` columns
+of ``Lambda`` rather than taking a view of each (a view costs a reference count's increment and decrement): 0.76x
+(20 modes) and 0.67x (196 modes) of the formation with views. The bias ``Lambda a`` and the ``Q lambda`` columns
 share one sweep over ``Lambda`` the same way.
 
 Data (:mod:`dynamics.layout`): ``FX_NODES`` points at what :func:`node_params` packs for ``FX_NODE_COUNT``

@@ -39,8 +39,8 @@ per-node 3-vectors: ``b_m`` gains ``Lambda' a + Gamma' z`` with the per-node coe
 together, and the same two over ``Lambda`` when nodes have rotary inertia or CG offsets (a third pass for the
 translational rows ``-m d~ lambda`` with CG offsets; the passes are node_inertia's,
 :func:`dynamics.kernels.node_inertia.shapes_times` four rows of the shapes at a time and
-:func:`dynamics.kernels.node_inertia.columns_times` two: :func:`node_mass_terms` 0.85x of its passes one row at a
-time at 20 and 196 modes, 2026-12-07): 6 multiply-adds per entry of each 3N x n shape array
+:func:`dynamics.kernels.node_inertia.columns_times` two: :func:`node_mass_terms` 0.82x and 0.70x of its passes one row
+at a time at 20 and 196 modes, 2026-12-07): 6 multiply-adds per entry of each 3N x n shape array
 (``12 x 3N n`` with rotary inertia), against 3 per entry of the C1 table (``3 n^2``) and one per entry of J2
 (``9 n^2``), and ``4 x 3N n`` numbers read against ``12 n^2``: the node sums win where the modes outnumber the
 nodes (at order 2 from about 1.5 N modes, at order 1, C1 alone, from about 4 N on the tube of
