@@ -28,6 +28,16 @@ algebra per node, and the products back (``lambda' a``, ``gamma' z`` and the 3 x
 forms each node's ``dJ`` and ``Q`` once per evaluation, which every product with the modal mass (a refinement
 pass) then reuses. Against the per-node records they replace (same data, one process, 2026-11-28): the terms with
 their forces 0.63x (105 nodes, 20 modes) and 0.51x (101 nodes, 196 modes), a product with ``dG`` 0.19x and 0.26x.
+The shape passes take four rows of the shapes per sweep over the 3N entries (:func:`shapes_times`,
+``_shapes_dot``: a quarter of the loads and stores of the outputs), and the 3 x n columns with the dot back two
+rows at a time against four vectors (:func:`columns_times`, which :mod:`dynamics.kernels.node_mass` shares).
+Against one row at a time (2026-12-07, ``benchmarks/node_terms_passes.py``: the tube of
+``benchmarks/flexible_scaling.py``, 101 nodes, 196 modes, and the hub beam of ``benchmarks/flexible_vs_exudyn.py``,
+105 nodes, 20 modes; interleaved medians, load 0.9 on 2 cores): the shapes times eta and the rates 0.56x and 0.72x,
+a product with the modal mass 0.78x and 0.82x, the terms with their forces 0.75x and 0.93x. The per-node algebra runs
+scalar: its ~40 node-minor streams are slices of two arrays to LLVM, which cannot prove that they do not overlap
+(numba marks no array ``noalias``) and does not version a loop on that many checks; four nodes written out side by
+side were not vectorized either (tried 2026-12-07).
 The result equals the tables' to round-off (``tests/flexible/test_node_inertia.py``).
 
 Where the modal mass is formed rather than refined (:func:`node_inertia_modal_mass`: the factored modal mass of a
@@ -35,8 +45,10 @@ body with few modes, ``dynamics.system.refinement_budget``, and the composite-in
 ``Lambda' D Lambda`` (``D`` the block diagonal of the nodes' ``dJ``) is formed as a symmetric matrix product: per
 block of four modes s the products ``dJ lambda_s`` as loops over the nodes that LLVM vectorizes, then the lower
 triangle's dot products two rows of ``Lambda`` at a time against the four (a 2 x 4 register tile); 0.3-0.5x of the
-dot products one at a time it replaces (2026-12-07, 105 nodes, 20 modes, loaded machine). The bias ``Lambda a`` and
-the ``Q lambda`` columns share one sweep over ``Lambda`` the same way.
+dot products one at a time it replaces (2026-12-07, 105 nodes, 20 modes, loaded machine). The tile indexes the rows
+of ``Lambda`` rather than taking a view of each (a view costs a reference count's increment and decrement): 0.76x
+(20 modes) and 0.67x (196 modes) of the formation with views. The bias ``Lambda a`` and the ``Q lambda`` columns
+share one sweep over ``Lambda`` the same way.
 
 Data (:mod:`dynamics.layout`): ``FX_NODES`` points at what :func:`node_params` packs for ``FX_NODE_COUNT``
 nodes (whether any node has a CG offset; the masses, offsets and inertias node-minor; the rotation shapes
@@ -79,8 +91,51 @@ def node_params(mass, cg, inertia, shapes):
 
 
 @njit(cache=True, inline="always")
-def _cross(a0, a1, a2, b0, b1, b2):
+def cross3(a0, a1, a2, b0, b1, b2):
+    """``a x b`` of two 3-vectors given by their components."""
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(cache=True, inline="always")
+def add_scaled3(a0, a1, a2, s, x0, x1, x2):
+    """``a + s x`` of two 3-vectors given by their components."""
+    return a0 + s * x0, a1 + s * x1, a2 + s * x2
+
+
+@njit(cache=True, inline="always")
+def add_cross3(a0, a1, a2, s, b0, b1, b2, c0, c1, c2):
+    """``a + s (b x c)`` of 3-vectors given by their components."""
+    x0, x1, x2 = cross3(b0, b1, b2, c0, c1, c2)
+    return a0 + s * x0, a1 + s * x1, a2 + s * x2
+
+
+@njit(cache=True, inline="always")
+def node_vector(x, N, j):
+    """Node j's 3-vector of the node-minor ``x`` (component a at ``x[a N + j]``)."""
+    return x[j], x[N + j], x[2 * N + j]
+
+
+@njit(cache=True, inline="always")
+def store_node_vector(x, N, j, v0, v1, v2):
+    """Node j's 3-vector ``v`` into the node-minor ``x``."""
+    x[j] = v0
+    x[N + j] = v1
+    x[2 * N + j] = v2
+
+
+@njit(cache=True, inline="always")
+def node_vectors(state, N):
+    """The six slots of 3 N numbers (node-minor) that begin the scratch of both node kernels (this module's
+    ``NODE_STATE`` and :data:`dynamics.kernels.node_mass.MASS_NODE_STATE` numbers per node): ``theta``, ``u``,
+    their rates, and the coefficients of ``lambda'`` and of ``gamma'``."""
+    return (node_slot(state, N, S_THETA, 3), node_slot(state, N, S_U, 3), node_slot(state, N, S_THETA_DOT, 3),
+            node_slot(state, N, S_U_DOT, 3), node_slot(state, N, S_A, 3), node_slot(state, N, S_Z, 3))
+
+
+@njit(cache=True, inline="always")
+def node_slot(state, N, start, size):
+    """The ``size`` N numbers of the scratch ``state`` of N nodes that start at ``start`` N (the ``S_*`` slots)."""
+    return state[start * N:(start + size) * N]
 
 
 @njit(cache=True, inline="always")
@@ -146,48 +201,97 @@ def _layout(o, N, n):
 
 @njit(cache=True, fastmath=FAST_SUMS)
 def shapes_times(params, at, n, width, x, y, out_x, out_y, with_y):
-    """``out_x = S' x`` (and with ``with_y`` ``out_y = S' y``) for the n x ``width`` shapes S at ``params[at:]``."""
+    """``out_x = S' x`` (and with ``with_y`` ``out_y = S' y``) for the n x ``width`` shapes S at ``params[at:]``:
+    four rows of S per sweep over the outputs (a quarter of their loads and stores; 0.55-0.85x of one row at a
+    time, 2026-12-07), LLVM vectorizing over the entries."""
+    S = params[at:at + n * width].reshape((n, width))
     for r in range(width):
         out_x[r] = 0.0
         out_y[r] = 0.0
-    for s in range(n):
-        row = params[at + s * width:at + (s + 1) * width]
-        xs = x[s]
+    s = 0
+    while s + 4 <= n:
+        x0, x1, x2, x3 = x[s], x[s + 1], x[s + 2], x[s + 3]
         if with_y:
-            ys = y[s]
+            y0, y1, y2, y3 = y[s], y[s + 1], y[s + 2], y[s + 3]
             for r in range(width):
-                out_x[r] += row[r] * xs
-                out_y[r] += row[r] * ys
+                a0, a1, a2, a3 = S[s, r], S[s + 1, r], S[s + 2, r], S[s + 3, r]
+                out_x[r] += a0 * x0 + a1 * x1 + a2 * x2 + a3 * x3
+                out_y[r] += a0 * y0 + a1 * y1 + a2 * y2 + a3 * y3
         else:
             for r in range(width):
-                out_x[r] += row[r] * xs
+                out_x[r] += S[s, r] * x0 + S[s + 1, r] * x1 + S[s + 2, r] * x2 + S[s + 3, r] * x3
+        s += 4
+    for s in range(s, n):
+        xs = x[s]
+        ys = y[s]
+        for r in range(width):
+            out_x[r] += S[s, r] * xs
+            if with_y:
+                out_y[r] += S[s, r] * ys
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
 def _shapes_dot(params, at, n, width, a, out):
-    """``out += S a`` for the n x ``width`` shapes S at ``params[at:]``."""
-    for s in range(n):
-        row = params[at + s * width:at + (s + 1) * width]
+    """``out += S a`` for the n x ``width`` shapes S at ``params[at:]``: the dot products of four rows at a time
+    with ``a`` (one load of ``a`` per four multiply-adds)."""
+    S = params[at:at + n * width].reshape((n, width))
+    s = 0
+    while s + 4 <= n:
+        c0 = c1 = c2 = c3 = 0.0
+        for r in range(width):
+            z = a[r]
+            c0 += S[s, r] * z
+            c1 += S[s + 1, r] * z
+            c2 += S[s + 2, r] * z
+            c3 += S[s + 3, r] * z
+        out[s] += c0
+        out[s + 1] += c1
+        out[s + 2] += c2
+        out[s + 3] += c3
+        s += 4
+    for s in range(s, n):
         acc = 0.0
         for r in range(width):
-            acc += row[r] * a[r]
+            acc += S[s, r] * a[r]
         out[s] += acc
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
-def _columns_times(params, lam, n, width, W, Mre):
-    """``Mre[a, s] += sum_(b, j) Q_j[a, b] lambda_j[b, s]`` (the omega rows) for the ``Q_j`` in ``W``."""
-    for s in range(n):
-        row = params[lam + s * width:lam + (s + 1) * width]
-        r0 = r1 = r2 = 0.0
-        for r in range(width):
-            x = row[r]
-            r0 += W[r] * x
-            r1 += W[width + r] * x
-            r2 += W[2 * width + r] * x
-        Mre[0, s] += r0
-        Mre[1, s] += r1
-        Mre[2, s] += r2
+def columns_times(params, at, n, width, W, z, first, with_c, with_dot, Mre, bm):
+    """For the n x ``width`` shapes S at ``params[at:]``: with ``with_c`` ``Mre[first + a, s] += sum_(b, j)
+    W_j[a, b] S_j[b, s]`` (a < 3; ``W``: the nodes' 3 x 3 matrices node-minor, entry (a, b) of node j at
+    ``W[(3 a + b) N + j]``), with ``with_dot`` ``bm += S z``: both in one sweep over S, two rows at a time against
+    the four vectors (:func:`_tile_dots`; 0.87x of one row at a time at 196 modes, 2026-12-07)."""
+    if not with_c:
+        if with_dot:
+            _shapes_dot(params, at, n, width, z, bm)
+        return
+    S = params[at:at + n * width].reshape((n, width))
+    W0, W1, W2 = W[:width], W[width:2 * width], W[2 * width:3 * width]
+    if not with_dot:  # one row at a time (a 2 x 3 tile measured no faster, 2026-12-07)
+        for s in range(n):
+            r0 = r1 = r2 = 0.0
+            for r in range(width):
+                x = S[s, r]
+                r0 += W0[r] * x
+                r1 += W1[r] * x
+                r2 += W2[r] * x
+            Mre[first, s] += r0
+            Mre[first + 1, s] += r1
+            Mre[first + 2, s] += r2
+        return
+    for s in range(0, n, 2):
+        two = s + 1 < n
+        a0, a1, a2, a3, b0, b1, b2, b3 = _tile_dots(S, s, s + 1 if two else s, W0, W1, W2, z, 4, two)
+        Mre[first, s] += a0
+        Mre[first + 1, s] += a1
+        Mre[first + 2, s] += a2
+        bm[s] += a3
+        if two:
+            Mre[first, s + 1] += b0
+            Mre[first + 1, s + 1] += b1
+            Mre[first + 2, s + 1] += b2
+            bm[s + 1] += b3
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
@@ -203,14 +307,9 @@ def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br
     width = 3 * N
     offset = params[o] != 0.0
     ma, pa, jb, lam, gam = _layout(o, N, n)
-    th = state[S_THETA * N:(S_THETA + 3) * N]
-    uu = state[S_U * N:(S_U + 3) * N]
-    thd = state[S_THETA_DOT * N:(S_THETA_DOT + 3) * N]
-    ud = state[S_U_DOT * N:(S_U_DOT + 3) * N]
-    A = state[S_A * N:(S_A + 3) * N]
-    Z = state[S_Z * N:(S_Z + 3) * N]
-    W = state[S_W * N:(S_W + 9) * N]
-    D = state[S_D * N:(S_D + 9) * N]
+    th, uu, thd, ud, A, Z = node_vectors(state, N)
+    W = node_slot(state, N, S_W, 9)
+    D = node_slot(state, N, S_D, 9)
     shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
     if offset:
         shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
@@ -223,14 +322,15 @@ def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br
     for j in range(N):
         m = params[ma + j]
         p0, p1, p2 = params[pa + j], params[pa + N + j], params[pa + 2 * N + j]
-        t0, t1, t2 = th[j], th[N + j], th[2 * N + j]
-        u0, u1, u2 = uu[j], uu[N + j], uu[2 * N + j]
-        c0, c1, c2 = _cross(t0, t1, t2, p0, p1, p2)  # theta x p (zero without an offset)
+        t0, t1, t2 = node_vector(th, N, j)
+        u0, u1, u2 = node_vector(uu, N, j)
+        c0, c1, c2 = cross3(t0, t1, t2, p0, p1, p2)  # theta x p (zero without an offset)
         J = _inertia(params, jb, N, j)
         # the node's matrices of this evaluation: J theta~, theta~ J theta~ (Q = -theta~ J theta~ - m u~ dP) and
         # dJ = theta~ J - J theta~ [G1] - theta~ J theta~ [G2], kept for the products with the modal mass
         P = _times_cross(J, t0, t1, t2)
-        S = _cross_times(t0, t1, t2, P)
+        # theta~ J theta~ only where G2 or F2 reads it (order 1 keeps G1 alone)
+        S = _cross_times(t0, t1, t2, P) if g2 or f2 else (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         if g1 or g2:
             R = _cross_times(t0, t1, t2, J)
             if g1 and g2:
@@ -246,117 +346,87 @@ def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br
         Q = (-S[0], -S[1], -S[2], -S[3], -S[4], -S[5], -S[6], -S[7], -S[8])
         if offset:
             # - m u x (c x e_b), column by column
-            x0, x1, x2 = _cross(u0, u1, u2, 0.0, c2, -c1)
-            y0, y1, y2 = _cross(u0, u1, u2, -c2, 0.0, c0)
-            z0, z1, z2 = _cross(u0, u1, u2, c1, -c0, 0.0)
+            x0, x1, x2 = cross3(u0, u1, u2, 0.0, c2, -c1)
+            y0, y1, y2 = cross3(u0, u1, u2, -c2, 0.0, c0)
+            z0, z1, z2 = cross3(u0, u1, u2, c1, -c0, 0.0)
             Q = (Q[0] - m * x0, Q[1] - m * y0, Q[2] - m * z0, Q[3] - m * x1, Q[4] - m * y1, Q[5] - m * z1,
                  Q[6] - m * x2, Q[7] - m * y2, Q[8] - m * z2)
         if f2:
             _store9(W, N, j, Q)
         if with_bias:
-            d0, d1, d2 = thd[j], thd[N + j], thd[2 * N + j]
-            v0, v1, v2 = ud[j], ud[N + j], ud[2 * N + j]
+            d0, d1, d2 = node_vector(thd, N, j)
+            v0, v1, v2 = node_vector(ud, N, j)
             # coefficients of lambda' and gamma' in b_m
             a0 = a1 = a2 = 0.0
             z0 = z1 = z2 = 0.0
             if g1:
                 j0, j1, j2 = _mat3(J, d0, d1, d2)
-                x0, x1, x2 = _cross(d0, d1, d2, j0, j1, j2)
-                a0 += 2.0 * x0
-                a1 += 2.0 * x1
-                a2 += 2.0 * x2
+                x0, x1, x2 = cross3(d0, d1, d2, j0, j1, j2)
+                a0, a1, a2 = add_scaled3(a0, a1, a2, 2.0, x0, x1, x2)
                 if offset:
-                    h0, h1, h2 = _cross(d0, d1, d2, p0, p1, p2)  # thd x p
-                    x0, x1, x2 = _cross(h0, h1, h2, v0, v1, v2)
-                    y0, y1, y2 = _cross(v0, v1, v2, d0, d1, d2)
-                    yy0, yy1, yy2 = _cross(p0, p1, p2, y0, y1, y2)
+                    h0, h1, h2 = cross3(d0, d1, d2, p0, p1, p2)  # thd x p
+                    x0, x1, x2 = cross3(h0, h1, h2, v0, v1, v2)
+                    y0, y1, y2 = cross3(v0, v1, v2, d0, d1, d2)
+                    yy0, yy1, yy2 = cross3(p0, p1, p2, y0, y1, y2)
                     a0 += m * (x0 - yy0)
                     a1 += m * (x1 - yy1)
                     a2 += m * (x2 - yy2)
-                    x0, x1, x2 = _cross(d0, d1, d2, h0, h1, h2)
-                    z0 += m * x0
-                    z1 += m * x1
-                    z2 += m * x2
+                    x0, x1, x2 = cross3(d0, d1, d2, h0, h1, h2)
+                    z0, z1, z2 = add_scaled3(z0, z1, z2, m, x0, x1, x2)
             if g2 or f2:
                 jw0, jw1, jw2 = _mat3(P, d0, d1, d2)  # J (theta x thd)
-                x0, x1, x2 = _cross(d0, d1, d2, jw0, jw1, jw2)  # thd x J (theta x thd)
+                x0, x1, x2 = cross3(d0, d1, d2, jw0, jw1, jw2)  # thd x J (theta x thd)
                 if g2:
-                    a0 -= 2.0 * x0
-                    a1 -= 2.0 * x1
-                    a2 -= 2.0 * x2
+                    a0, a1, a2 = add_scaled3(a0, a1, a2, -2.0, x0, x1, x2)
                 if f2:
                     # b_r += dQ/dt thd + omega x (Q thd)
                     q0, q1, q2 = _mat3(Q, d0, d1, d2)
-                    r0, r1, r2 = _cross(w0, w1, w2, q0, q1, q2)
+                    r0, r1, r2 = cross3(w0, w1, w2, q0, q1, q2)
                     br0 += r0 - x0
                     br1 += r1 - x1
                     br2 += r2 - x2
                     # b_m (lambda'): dQ/dt' omega - dT/dtheta
                     ja0, ja1, ja2 = _mat3(P, w0, w1, w2)  # J (theta x omega)
-                    y0, y1, y2 = _cross(d0, d1, d2, w0, w1, w2)  # thd x omega
+                    y0, y1, y2 = cross3(d0, d1, d2, w0, w1, w2)  # thd x omega
                     jc0, jc1, jc2 = _mat3(J, y0, y1, y2)
-                    x0, x1, x2 = _cross(d0, d1, d2, ja0, ja1, ja2)
-                    y0, y1, y2 = _cross(t0, t1, t2, jc0, jc1, jc2)
-                    s0, s1, s2 = _cross(w0, w1, w2, jw0, jw1, jw2)
+                    x0, x1, x2 = cross3(d0, d1, d2, ja0, ja1, ja2)
+                    y0, y1, y2 = cross3(t0, t1, t2, jc0, jc1, jc2)
+                    s0, s1, s2 = cross3(w0, w1, w2, jw0, jw1, jw2)
                     a0 -= 2.0 * x0 + y0 + s0
                     a1 -= 2.0 * x1 + y1 + s1
                     a2 -= 2.0 * x2 + y2 + s2
                     if offset:
-                        h0, h1, h2 = _cross(d0, d1, d2, p0, p1, p2)  # thd x p
+                        h0, h1, h2 = cross3(d0, d1, d2, p0, p1, p2)  # thd x p
                         # b_r: - m [ud x ((theta x p) x thd) + u x ((thd x p) x thd)]
-                        x0, x1, x2 = _cross(c0, c1, c2, d0, d1, d2)
-                        y0, y1, y2 = _cross(v0, v1, v2, x0, x1, x2)
-                        s0, s1, s2 = _cross(h0, h1, h2, d0, d1, d2)
-                        r0, r1, r2 = _cross(u0, u1, u2, s0, s1, s2)
+                        x0, x1, x2 = cross3(c0, c1, c2, d0, d1, d2)
+                        y0, y1, y2 = cross3(v0, v1, v2, x0, x1, x2)
+                        s0, s1, s2 = cross3(h0, h1, h2, d0, d1, d2)
+                        r0, r1, r2 = cross3(u0, u1, u2, s0, s1, s2)
                         br0 -= m * (y0 + r0)
                         br1 -= m * (y1 + r1)
                         br2 -= m * (y2 + r2)
                         # gamma': - m omega x ((theta x p) x thd)
-                        y0, y1, y2 = _cross(w0, w1, w2, x0, x1, x2)
-                        z0 -= m * y0
-                        z1 -= m * y1
-                        z2 -= m * y2
+                        y0, y1, y2 = cross3(w0, w1, w2, x0, x1, x2)
+                        z0, z1, z2 = add_scaled3(z0, z1, z2, -m, y0, y1, y2)
                         # lambda': - m [(thd x p) x (u x omega) + (theta x p) x (ud x omega)]
                         #          + m p x (thd x (omega x u))
-                        x0, x1, x2 = _cross(u0, u1, u2, w0, w1, w2)
-                        y0, y1, y2 = _cross(h0, h1, h2, x0, x1, x2)
-                        x0, x1, x2 = _cross(v0, v1, v2, w0, w1, w2)
-                        s0, s1, s2 = _cross(c0, c1, c2, x0, x1, x2)
-                        x0, x1, x2 = _cross(w0, w1, w2, u0, u1, u2)
-                        r0, r1, r2 = _cross(d0, d1, d2, x0, x1, x2)
-                        x0, x1, x2 = _cross(p0, p1, p2, r0, r1, r2)
+                        x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
+                        y0, y1, y2 = cross3(h0, h1, h2, x0, x1, x2)
+                        x0, x1, x2 = cross3(v0, v1, v2, w0, w1, w2)
+                        s0, s1, s2 = cross3(c0, c1, c2, x0, x1, x2)
+                        x0, x1, x2 = cross3(w0, w1, w2, u0, u1, u2)
+                        r0, r1, r2 = cross3(d0, d1, d2, x0, x1, x2)
+                        x0, x1, x2 = cross3(p0, p1, p2, r0, r1, r2)
                         a0 += m * (x0 - y0 - s0)
                         a1 += m * (x1 - y1 - s1)
                         a2 += m * (x2 - y2 - s2)
-            A[j] = a0
-            A[N + j] = a1
-            A[2 * N + j] = a2
-            Z[j] = z0
-            Z[N + j] = z1
-            Z[2 * N + j] = z2
+            store_node_vector(A, N, j, a0, a1, a2)
+            store_node_vector(Z, N, j, z0, z1, z2)
     br[0] += br0
     br[1] += br1
     br[2] += br2
-    if with_bias and f2:
-        # b_m += Lambda A and the omega rows of M_re += the Q lambda columns in one sweep over Lambda
-        L2 = params[lam:lam + n * width].reshape((n, width))
-        for s in range(0, n, 2):
-            two = s + 1 < n
-            a0, a1, a2, a3, b0, b1, b2, b3 = _tile_dots(L2[s], L2[s + 1] if two else L2[s], A, W[:width],
-                                                         W[width:2 * width], W[2 * width:], 4, two)
-            bm[s] += a0
-            Mre[0, s] += a1
-            Mre[1, s] += a2
-            Mre[2, s] += a3
-            if two:
-                bm[s + 1] += b0
-                Mre[0, s + 1] += b1
-                Mre[1, s + 1] += b2
-                Mre[2, s + 1] += b3
-    elif with_bias:
-        _shapes_dot(params, lam, n, width, A, bm)
-    elif f2:
-        _columns_times(params, lam, n, width, W, Mre)
+    # b_m += Lambda A and the omega rows of M_re += the Q lambda columns, in one sweep over Lambda
+    columns_times(params, lam, n, width, W, A, 0, f2, with_bias, Mre, bm)
     if with_bias and offset:
         _shapes_dot(params, gam, n, width, Z, bm)
 
@@ -370,7 +440,7 @@ def _modal_mass_data(params, o, count, n, terms, state):
     N = count
     ma, pa, _, lam, gam = _layout(o, N, n)
     return (g1 or (terms & NODE_G2) != 0, g1 and params[o] != 0.0, ma, pa, lam, gam,
-            state[S_THETA * N:(S_THETA + 3) * N], state[S_D * N:(S_D + 9) * N])
+            node_slot(state, N, S_THETA, 3), node_slot(state, N, S_D, 9))
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
@@ -382,30 +452,24 @@ def node_inertia_times(params, o, count, n, terms, state, x, out):
         return
     N = count
     width = 3 * N
-    A = state[S_A * N:(S_A + 3) * N]
-    Z = state[S_Z * N:(S_Z + 3) * N]
+    A, Z = node_vectors(state, N)[4:]
     shapes_times(params, lam, n, width, x, x, A, A, False)  # alpha = lambda x
     if offset:
         shapes_times(params, gam, n, width, x, x, Z, Z, False)  # beta = gamma x
     for j in range(N):
         # a = dJ alpha + m (theta x p) x beta, z = m alpha x (theta x p)
-        al0, al1, al2 = A[j], A[N + j], A[2 * N + j]
+        al0, al1, al2 = node_vector(A, N, j)
         a0, a1, a2 = _node_matrix_times(D, N, j, al0, al1, al2)
         if offset:
             m = params[ma + j]
-            c0, c1, c2 = _cross(th[j], th[N + j], th[2 * N + j], params[pa + j], params[pa + N + j],
-                                params[pa + 2 * N + j])
-            x0, x1, x2 = _cross(c0, c1, c2, Z[j], Z[N + j], Z[2 * N + j])
-            a0 += m * x0
-            a1 += m * x1
-            a2 += m * x2
-            z0, z1, z2 = _cross(al0, al1, al2, c0, c1, c2)
-            Z[j] = m * z0
-            Z[N + j] = m * z1
-            Z[2 * N + j] = m * z2
-        A[j] = a0
-        A[N + j] = a1
-        A[2 * N + j] = a2
+            t0, t1, t2 = node_vector(th, N, j)
+            c0, c1, c2 = cross3(t0, t1, t2, params[pa + j], params[pa + N + j], params[pa + 2 * N + j])
+            b0, b1, b2 = node_vector(Z, N, j)
+            x0, x1, x2 = cross3(c0, c1, c2, b0, b1, b2)
+            a0, a1, a2 = add_scaled3(a0, a1, a2, m, x0, x1, x2)
+            z0, z1, z2 = cross3(al0, al1, al2, c0, c1, c2)
+            store_node_vector(Z, N, j, m * z0, m * z1, m * z2)
+        store_node_vector(A, N, j, a0, a1, a2)
     _shapes_dot(params, lam, n, width, A, out)
     if offset:
         _shapes_dot(params, gam, n, width, Z, out)
@@ -416,16 +480,18 @@ TILE = 4
 ``dJ lambda_s`` kept in the pass scratch at a time (``S_A`` to ``S_W + 9``: 15 N numbers, so at most 5)."""
 
 
-@njit(cache=True, fastmath=FAST_SUMS)
-def _tile_dots(row0, row1, y0, y1, y2, y3, count, two):
-    """The dot products of ``row0`` (and with ``two`` ``row1``) with the first ``count`` (1..4) of ``y0 .. y3``:
-    with four, the 2 x 4 sums of one sweep over the entries, which LLVM keeps in vector registers (a register
-    tile as in a GEMM kernel: six loads per eight multiply-adds)."""
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def _tile_dots(S, r0, r1, y0, y1, y2, y3, count, two):
+    """The dot products of row ``r0`` of ``S`` (and with ``two`` row ``r1``) with the first ``count`` (1..4) of
+    ``y0 .. y3``: with four, the 2 x 4 sums of one sweep over the entries, which LLVM keeps in vector registers (a
+    register tile as in a GEMM kernel: six loads per eight multiply-adds). The rows are indexed in ``S``, not taken
+    as views: a view per call costs a reference count's increment and decrement (0.75x of the formation at 20
+    modes, 2026-12-07)."""
     a0 = a1 = a2 = a3 = b0 = b1 = b2 = b3 = 0.0
     if count == 4 and two:
-        for k in range(row0.shape[0]):
-            x = row0[k]
-            z = row1[k]
+        for k in range(S.shape[1]):
+            x = S[r0, k]
+            z = S[r1, k]
             a0 += x * y0[k]
             a1 += x * y1[k]
             a2 += x * y2[k]
@@ -435,15 +501,15 @@ def _tile_dots(row0, row1, y0, y1, y2, y3, count, two):
             b2 += z * y2[k]
             b3 += z * y3[k]
         return a0, a1, a2, a3, b0, b1, b2, b3
-    for k in range(row0.shape[0]):
-        x = row0[k]
+    for k in range(S.shape[1]):
+        x = S[r0, k]
         a0 += x * y0[k]
         a1 += x * y1[k]
         a2 += x * y2[k]
         a3 += x * y3[k]
     if two:
-        for k in range(row0.shape[0]):
-            z = row1[k]
+        for k in range(S.shape[1]):
+            z = S[r1, k]
             b0 += z * y0[k]
             b1 += z * y1[k]
             b2 += z * y2[k]
@@ -481,7 +547,7 @@ def node_inertia_modal_mass(params, o, count, n, terms, state, G):
     L3 = params[lam:lam + n * width].reshape((n, 3, N))
     L2 = params[lam:lam + n * width].reshape((n, width))
     D3 = D.reshape((3, 3, N))
-    Y = state[S_A * N:(S_A + 3 * TILE) * N]
+    Y = node_slot(state, N, S_A, 3 * TILE)
     Y3 = Y.reshape((TILE, 3, N))
     Y2 = Y.reshape((TILE, width))
     for s0 in range(0, n, TILE):
@@ -492,28 +558,25 @@ def node_inertia_modal_mass(params, o, count, n, terms, state, G):
                 for j in range(N):
                     Y3[t, a, j] = D3[a, 0, j] * L3[s, 0, j] + D3[a, 1, j] * L3[s, 1, j] + D3[a, 2, j] * L3[s, 2, j]
         rows = s0 + ns
+        y0, y1, y2, y3 = Y2[0], Y2[min(1, ns - 1)], Y2[min(2, ns - 1)], Y2[min(3, ns - 1)]
         for r in range(0, rows, 2):
             two = r + 1 < rows
-            row0 = L2[r]
-            row1 = L2[r + 1] if two else row0
-            a0, a1, a2, a3, b0, b1, b2, b3 = _tile_dots(row0, row1, Y2[0], Y2[min(1, ns - 1)], Y2[min(2, ns - 1)],
-                                                         Y2[min(3, ns - 1)], ns, two)
+            a0, a1, a2, a3, b0, b1, b2, b3 = _tile_dots(L2, r, r + 1 if two else r, y0, y1, y2, y3, ns, two)
             _tile_store(G, r, s0, ns, a0, a1, a2, a3)
             if two:
                 _tile_store(G, r + 1, s0, ns, b0, b1, b2, b3)
-    Y = state[S_A * N:(S_A + 3) * N]
+    Y = node_vectors(state, N)[4]
     if offset:
         # Y = m dP gamma[:, s] = m (theta x p) x gamma[:, s]: G += Lambda Y' + Y Lambda'
         for s in range(n):
             row = params[gam + s * width:gam + (s + 1) * width]
             for j in range(N):
                 m = params[ma + j]
-                c0, c1, c2 = _cross(th[j], th[N + j], th[2 * N + j],
-                                    params[pa + j], params[pa + N + j], params[pa + 2 * N + j])
-                y0, y1, y2 = _cross(c0, c1, c2, row[j], row[N + j], row[2 * N + j])
-                Y[j] = m * y0
-                Y[N + j] = m * y1
-                Y[2 * N + j] = m * y2
+                t0, t1, t2 = node_vector(th, N, j)
+                c0, c1, c2 = cross3(t0, t1, t2, params[pa + j], params[pa + N + j], params[pa + 2 * N + j])
+                g0, g1, g2 = node_vector(row, N, j)
+                y0, y1, y2 = cross3(c0, c1, c2, g0, g1, g2)
+                store_node_vector(Y, N, j, m * y0, m * y1, m * y2)
             for r in range(n):
                 other = params[lam + r * width:lam + (r + 1) * width]
                 acc = 0.0

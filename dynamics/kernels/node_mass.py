@@ -37,7 +37,10 @@ per-node 3-vectors: ``b_m`` gains ``Lambda' a + Gamma' z`` with the per-node coe
 ``theta``). Per evaluation: one pass over the stacked translation shapes ``Gamma`` (n x 3N, node-minor as in
 :mod:`dynamics.kernels.node_inertia`) for ``u`` and ``ud``, one for ``C(eta)``'s three rows and ``Gamma' z``
 together, and the same two over ``Lambda`` when nodes have rotary inertia or CG offsets (a third pass for the
-translational rows ``-m d~ lambda`` with CG offsets): 6 multiply-adds per entry of each 3N x n shape array
+translational rows ``-m d~ lambda`` with CG offsets; the passes are node_inertia's,
+:func:`dynamics.kernels.node_inertia.shapes_times` four rows of the shapes at a time and
+:func:`dynamics.kernels.node_inertia.columns_times` two: :func:`node_mass_terms` 0.82x and 0.70x of its passes one row
+at a time at 20 and 196 modes, 2026-12-07): 6 multiply-adds per entry of each 3N x n shape array
 (``12 x 3N n`` with rotary inertia), against 3 per entry of the C1 table (``3 n^2``) and one per entry of J2
 (``9 n^2``), and ``4 x 3N n`` numbers read against ``12 n^2``: the node sums win where the modes outnumber the
 nodes (at order 2 from about 1.5 N modes, at order 1, C1 alone, from about 4 N on the tube of
@@ -55,17 +58,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dynamics.flexible_kernels import FAST_SUMS
-from dynamics.kernels.node_inertia import shapes_times
+from dynamics.kernels.node_inertia import (add_cross3, add_scaled3, columns_times, cross3, node_slot, node_vector,
+                                           node_vectors, shapes_times, store_node_vector)
 from dynamics.layout import MASS_C1, MASS_J2
 
 # where each node's numbers sit in the body's FX_P_MASS_NODES block, in units of the node count N (node-minor):
-S_THETA = 0  # theta = lambda eta (3 N)
-S_U = 3  # u = gamma eta (3 N)
-S_THETA_DOT = 6  # lambda e (3 N)
-S_U_DOT = 9  # gamma e (3 N)
-S_A = 12  # the coefficients of lambda' (3 N) ...
-S_Z = 15  # ... and of gamma' (3 N) in b_m
+# theta, u, their rates and the coefficients of lambda' and gamma' in b_m first, 3 N each, as in node_inertia
+# (:func:`dynamics.kernels.node_inertia.node_vectors`), then
 S_WG = 18  # m (u + d)~ (9 N, entry (a, b) at (3 a + b) N): C(eta)[:3] += sum_j W_j gamma_j
 S_WL = 27  # B_j (9 N), then -m d~ (9 N): C(eta) += sum_j W_j lambda_j
 MASS_NODE_STATE = 45
@@ -88,46 +87,6 @@ def node_mass_params(mass, cg, inertia, positions, shapes):
     if rotary:
         parts.append(np.transpose(shapes[:, :3, :], (2, 1, 0)).reshape(n, 3 * count).ravel())
     return np.concatenate(parts)
-
-
-@njit(cache=True, inline="always")
-def _cross(a0, a1, a2, b0, b1, b2):
-    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
-
-
-@njit(cache=True, inline="always")
-def _vec(x, N, j):
-    return x[j], x[N + j], x[2 * N + j]
-
-
-@njit(cache=True, fastmath=FAST_SUMS)
-def _columns_and_dot(params, at, n, width, W, first, with_c, z, with_dot, Mre, bm):
-    """For the n x ``width`` shapes S at ``params[at:]``: with ``with_c`` ``Mre[first + a, s] += sum_(b, j)
-    W_j[a, b] S_j[b, s]`` (a < 3, ``W`` 3 x ``width``), with ``with_dot`` ``bm[s] += sum_r z[r] S[s, r]``; one
-    read of S for both."""
-    for s in range(n):
-        row = params[at + s * width:at + (s + 1) * width]
-        r0 = r1 = r2 = t = 0.0
-        if with_c and with_dot:
-            for r in range(width):
-                x = row[r]
-                r0 += W[r] * x
-                r1 += W[width + r] * x
-                r2 += W[2 * width + r] * x
-                t += z[r] * x
-        elif with_c:
-            for r in range(width):
-                x = row[r]
-                r0 += W[r] * x
-                r1 += W[width + r] * x
-                r2 += W[2 * width + r] * x
-        elif with_dot:
-            for r in range(width):
-                t += z[r] * row[r]
-        Mre[first, s] += r0
-        Mre[first + 1, s] += r1
-        Mre[first + 2, s] += r2
-        bm[s] += t
 
 
 @njit(cache=True, inline="always")
@@ -163,14 +122,9 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
     ja = pa + 3 * N
     gam = ja + 9 * N
     lam = gam + 3 * N * n
-    th = state[S_THETA * N:(S_THETA + 3) * N]
-    uu = state[S_U * N:(S_U + 3) * N]
-    thd = state[S_THETA_DOT * N:(S_THETA_DOT + 3) * N]
-    ud = state[S_U_DOT * N:(S_U_DOT + 3) * N]
-    A = state[S_A * N:(S_A + 3) * N]
-    Z = state[S_Z * N:(S_Z + 3) * N]
-    WG = state[S_WG * N:(S_WG + 9) * N]
-    WL = state[S_WL * N:(S_WL + 18) * N]
+    th, uu, thd, ud, A, Z = node_vectors(state, N)
+    WG = node_slot(state, N, S_WG, 9)
+    WL = node_slot(state, N, S_WL, 18)
     shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
     if rotary:
         shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
@@ -183,9 +137,9 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
     g0 = g1 = g2 = 0.0
     for j in range(N):
         m = params[ma + j]
-        u0, u1, u2 = _vec(uu, N, j)
+        u0, u1, u2 = node_vector(uu, N, j)
         if with_bias:
-            e0, e1, e2 = _vec(ud, N, j)
+            e0, e1, e2 = node_vector(ud, N, j)
         else:
             e0 = e1 = e2 = 0.0
         t0 = t1 = t2 = s0 = s1 = s2 = 0.0  # theta, theta_dot
@@ -194,17 +148,17 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
         l0 = l1 = l2 = 0.0
         J00 = J01 = J02 = J10 = J11 = J12 = J20 = J21 = J22 = 0.0
         if rotary:
-            t0, t1, t2 = _vec(th, N, j)
+            t0, t1, t2 = node_vector(th, N, j)
             if with_bias:
-                s0, s1, s2 = _vec(thd, N, j)
+                s0, s1, s2 = node_vector(thd, N, j)
             J00, J01, J02 = params[ja + j], params[ja + N + j], params[ja + 2 * N + j]
             J10, J11, J12 = params[ja + 3 * N + j], params[ja + 4 * N + j], params[ja + 5 * N + j]
             J20, J21, J22 = params[ja + 6 * N + j], params[ja + 7 * N + j], params[ja + 8 * N + j]
             if offset:
                 p0, p1, p2 = params[pa + j], params[pa + N + j], params[pa + 2 * N + j]
                 l0, l1, l2 = params[la + j], params[la + N + j], params[la + 2 * N + j]
-                d0, d1, d2 = _cross(t0, t1, t2, p0, p1, p2)
-                f0, f1, f2 = _cross(s0, s1, s2, p0, p1, p2)
+                d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
+                f0, f1, f2 = cross3(s0, s1, s2, p0, p1, p2)
         a0 = a1 = a2 = z0 = z1 = z2 = 0.0
         B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
         if c1:
@@ -244,17 +198,13 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                 WL[8 * N + j] = B22
             if with_bias:
                 # C(eta) e and C(e) e: m (u + d) x ud + B thd, -m d x thd (and with the rates)
-                x0, x1, x2 = _cross(u0 + d0, u1 + d1, u2 + d2, e0, e1, e2)
-                y0, y1, y2 = _cross(e0 + f0, e1 + f1, e2 + f2, e0, e1, e2)
-                h0 += m * x0
-                h1 += m * x1
-                h2 += m * x2
-                k0 += m * y0
-                k1 += m * y1
-                k2 += m * y2
+                x0, x1, x2 = cross3(u0 + d0, u1 + d1, u2 + d2, e0, e1, e2)
+                y0, y1, y2 = cross3(e0 + f0, e1 + f1, e2 + f2, e0, e1, e2)
+                h0, h1, h2 = add_scaled3(h0, h1, h2, m, x0, x1, x2)
+                k0, k1, k2 = add_scaled3(k0, k1, k2, m, y0, y1, y2)
                 # w x (ud + dd) and the gradient in u: z = m w x (ud + dd) - m ud x w + m (p x thd) x w
-                x0, x1, x2 = _cross(w0, w1, w2, e0 + f0, e1 + f1, e2 + f2)
-                y0, y1, y2 = _cross(e0, e1, e2, w0, w1, w2)
+                x0, x1, x2 = cross3(w0, w1, w2, e0 + f0, e1 + f1, e2 + f2)
+                y0, y1, y2 = cross3(e0, e1, e2, w0, w1, w2)
                 z0 += m * (x0 - y0)
                 z1 += m * (x1 - y1)
                 z2 += m * (x2 - y2)
@@ -266,17 +216,14 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                     js0 = J00 * s0 + J01 * s1 + J02 * s2
                     js1 = J10 * s0 + J11 * s1 + J12 * s2
                     js2 = J20 * s0 + J21 * s1 + J22 * s2
-                    x0, x1, x2 = _cross(s0, s1, s2, js0, js1, js2)
-                    k0 += x0
-                    k1 += x1
-                    k2 += x2
+                    k0, k1, k2 = add_cross3(k0, k1, k2, 1.0, s0, s1, s2, js0, js1, js2)
                     jw0 = J00 * w0 + J01 * w1 + J02 * w2
                     jw1 = J10 * w0 + J11 * w1 + J12 * w2
                     jw2 = J20 * w0 + J21 * w1 + J22 * w2
                     # a: -J (thd x w) + thd x (J w) [C(e)' V] - (J thd) x w + thd x (J w) [-d/dtheta]
-                    x0, x1, x2 = _cross(s0, s1, s2, w0, w1, w2)
-                    y0, y1, y2 = _cross(s0, s1, s2, jw0, jw1, jw2)
-                    c0, c1_, c2 = _cross(js0, js1, js2, w0, w1, w2)
+                    x0, x1, x2 = cross3(s0, s1, s2, w0, w1, w2)
+                    y0, y1, y2 = cross3(s0, s1, s2, jw0, jw1, jw2)
+                    c0, c1_, c2 = cross3(js0, js1, js2, w0, w1, w2)
                     a0 += -(J00 * x0 + J01 * x1 + J02 * x2) + 2.0 * y0 - c0
                     a1 += -(J10 * x0 + J11 * x1 + J12 * x2) + 2.0 * y1 - c1_
                     a2 += -(J20 * x0 + J21 * x1 + J22 * x2) + 2.0 * y2 - c2
@@ -284,46 +231,26 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                         h3 -= m * (d1 * s2 - d2 * s1)
                         h4 -= m * (d2 * s0 - d0 * s2)
                         h5 -= m * (d0 * s1 - d1 * s0)
-                        x0, x1, x2 = _cross(f0, f1, f2, s0, s1, s2)  # dd x thd
+                        x0, x1, x2 = cross3(f0, f1, f2, s0, s1, s2)  # dd x thd
                         k3 -= m * x0
                         k4 -= m * x1
                         k5 -= m * x2
-                        y0, y1, y2 = _cross(l0, l1, l2, x0, x1, x2)
-                        k0 -= m * y0
-                        k1 -= m * y1
-                        k2 -= m * y2
-                        x0, x1, x2 = _cross(p0, p1, p2, s0, s1, s2)  # p x thd
-                        y0, y1, y2 = _cross(e0, e1, e2, x0, x1, x2)  # ud x (p x thd)
-                        k0 -= m * y0
-                        k1 -= m * y1
-                        k2 -= m * y2
-                        y0, y1, y2 = _cross(x0, x1, x2, w0, w1, w2)  # (p x thd) x w
-                        z0 += m * y0
-                        z1 += m * y1
-                        z2 += m * y2
+                        k0, k1, k2 = add_cross3(k0, k1, k2, -m, l0, l1, l2, x0, x1, x2)
+                        x0, x1, x2 = cross3(p0, p1, p2, s0, s1, s2)  # p x thd
+                        k0, k1, k2 = add_cross3(k0, k1, k2, -m, e0, e1, e2, x0, x1, x2)  # ud x (p x thd)
+                        z0, z1, z2 = add_cross3(z0, z1, z2, m, x0, x1, x2, w0, w1, w2)  # (p x thd) x w
                         # a (C(e)' V): -m p x (ud x w) - m dd x (l0 x w) + m dd x v
-                        x0, x1, x2 = _cross(e0, e1, e2, w0, w1, w2)
-                        y0, y1, y2 = _cross(p0, p1, p2, x0, x1, x2)
-                        a0 -= m * y0
-                        a1 -= m * y1
-                        a2 -= m * y2
-                        x0, x1, x2 = _cross(l0, l1, l2, w0, w1, w2)
-                        y0, y1, y2 = _cross(f0, f1, f2, x0, x1, x2)
-                        a0 -= m * y0
-                        a1 -= m * y1
-                        a2 -= m * y2
-                        y0, y1, y2 = _cross(f0, f1, f2, v0, v1, v2)
-                        a0 += m * y0
-                        a1 += m * y1
-                        a2 += m * y2
+                        x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
+                        a0, a1, a2 = add_cross3(a0, a1, a2, -m, p0, p1, p2, x0, x1, x2)
+                        x0, x1, x2 = cross3(l0, l1, l2, w0, w1, w2)
+                        a0, a1, a2 = add_cross3(a0, a1, a2, -m, f0, f1, f2, x0, x1, x2)
+                        a0, a1, a2 = add_cross3(a0, a1, a2, m, f0, f1, f2, v0, v1, v2)
                         # a (-d/dtheta through d): -p x g, g = m ud x w - m thd x (w x l0) - m thd x v
-                        x0, x1, x2 = _cross(e0, e1, e2, w0, w1, w2)
-                        y0, y1, y2 = _cross(w0, w1, w2, l0, l1, l2)
-                        c0, c1_, c2 = _cross(s0, s1, s2, y0 + v0, y1 + v1, y2 + v2)
-                        y0, y1, y2 = _cross(p0, p1, p2, m * (x0 - c0), m * (x1 - c1_), m * (x2 - c2))
-                        a0 -= y0
-                        a1 -= y1
-                        a2 -= y2
+                        x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
+                        y0, y1, y2 = cross3(w0, w1, w2, l0, l1, l2)
+                        c0, c1_, c2 = cross3(s0, s1, s2, y0 + v0, y1 + v1, y2 + v2)
+                        a0, a1, a2 = add_cross3(a0, a1, a2, -1.0, p0, p1, p2, m * (x0 - c0), m * (x1 - c1_),
+                                                m * (x2 - c2))
         if j2:
             # Q = -m u~ u~ - theta~ J theta~ - m (u~ d~ + d~ u~) (symmetric), a~ b~ = b a' - (a . b) 1
             uu_ = u0 * u0 + u1 * u1 + u2 * u2
@@ -335,21 +262,12 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
             q22 += m * (uu_ - u2 * u2)
             if with_bias:
                 # Qdot w = -m (ud x (u x w) + u x (ud x w)) - ...; gradient in u: -m w x (w x u) + m w x (d x w)
-                x0, x1, x2 = _cross(u0, u1, u2, w0, w1, w2)
-                y0, y1, y2 = _cross(e0, e1, e2, x0, x1, x2)
-                g0 -= m * y0
-                g1 -= m * y1
-                g2 -= m * y2
-                x0, x1, x2 = _cross(e0, e1, e2, w0, w1, w2)
-                y0, y1, y2 = _cross(u0, u1, u2, x0, x1, x2)
-                g0 -= m * y0
-                g1 -= m * y1
-                g2 -= m * y2
-                x0, x1, x2 = _cross(w0, w1, w2, u0, u1, u2)
-                y0, y1, y2 = _cross(w0, w1, w2, x0, x1, x2)
-                z0 += m * y0
-                z1 += m * y1
-                z2 += m * y2
+                x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
+                g0, g1, g2 = add_cross3(g0, g1, g2, -m, e0, e1, e2, x0, x1, x2)
+                x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
+                g0, g1, g2 = add_cross3(g0, g1, g2, -m, u0, u1, u2, x0, x1, x2)
+                x0, x1, x2 = cross3(w0, w1, w2, u0, u1, u2)
+                z0, z1, z2 = add_cross3(z0, z1, z2, m, w0, w1, w2, x0, x1, x2)
             if rotary:
                 # theta~ J theta~ = theta~ (J theta~): columns of J theta~ are J (theta x e_b)
                 X00 = t2 * J01 - t1 * J02
@@ -377,66 +295,36 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                     q22 -= m * (2.0 * d2 * u2 - 2.0 * ud_)
                 if with_bias:
                     # Qdot w: -(thd x (J (theta x w)) + theta x (J (thd x w)))
-                    x0, x1, x2 = _cross(t0, t1, t2, w0, w1, w2)
+                    x0, x1, x2 = cross3(t0, t1, t2, w0, w1, w2)
                     y0 = J00 * x0 + J01 * x1 + J02 * x2
                     y1 = J10 * x0 + J11 * x1 + J12 * x2
                     y2 = J20 * x0 + J21 * x1 + J22 * x2
-                    c0, c1_, c2 = _cross(s0, s1, s2, y0, y1, y2)
-                    g0 -= c0
-                    g1 -= c1_
-                    g2 -= c2
-                    c0, c1_, c2 = _cross(w0, w1, w2, y0, y1, y2)  # gradient in theta: w x (J (theta x w))
-                    a0 -= c0
-                    a1 -= c1_
-                    a2 -= c2
-                    x0, x1, x2 = _cross(s0, s1, s2, w0, w1, w2)
+                    g0, g1, g2 = add_cross3(g0, g1, g2, -1.0, s0, s1, s2, y0, y1, y2)
+                    # gradient in theta: w x (J (theta x w))
+                    a0, a1, a2 = add_cross3(a0, a1, a2, -1.0, w0, w1, w2, y0, y1, y2)
+                    x0, x1, x2 = cross3(s0, s1, s2, w0, w1, w2)
                     y0 = J00 * x0 + J01 * x1 + J02 * x2
                     y1 = J10 * x0 + J11 * x1 + J12 * x2
                     y2 = J20 * x0 + J21 * x1 + J22 * x2
-                    c0, c1_, c2 = _cross(t0, t1, t2, y0, y1, y2)
-                    g0 -= c0
-                    g1 -= c1_
-                    g2 -= c2
+                    g0, g1, g2 = add_cross3(g0, g1, g2, -1.0, t0, t1, t2, y0, y1, y2)
                     if offset:
                         # Qdot w: -m (ud x (d x w) + u x (dd x w) + dd x (u x w) + d x (ud x w))
-                        x0, x1, x2 = _cross(d0, d1, d2, w0, w1, w2)
-                        y0, y1, y2 = _cross(e0, e1, e2, x0, x1, x2)
-                        g0 -= m * y0
-                        g1 -= m * y1
-                        g2 -= m * y2
+                        x0, x1, x2 = cross3(d0, d1, d2, w0, w1, w2)
+                        g0, g1, g2 = add_cross3(g0, g1, g2, -m, e0, e1, e2, x0, x1, x2)
                         # gradient in u: m w x (d x w)
-                        y0, y1, y2 = _cross(w0, w1, w2, x0, x1, x2)
-                        z0 -= m * y0
-                        z1 -= m * y1
-                        z2 -= m * y2
-                        x0, x1, x2 = _cross(f0, f1, f2, w0, w1, w2)
-                        y0, y1, y2 = _cross(u0, u1, u2, x0, x1, x2)
-                        g0 -= m * y0
-                        g1 -= m * y1
-                        g2 -= m * y2
-                        x0, x1, x2 = _cross(u0, u1, u2, w0, w1, w2)
-                        y0, y1, y2 = _cross(f0, f1, f2, x0, x1, x2)
-                        g0 -= m * y0
-                        g1 -= m * y1
-                        g2 -= m * y2
+                        z0, z1, z2 = add_cross3(z0, z1, z2, -m, w0, w1, w2, x0, x1, x2)
+                        x0, x1, x2 = cross3(f0, f1, f2, w0, w1, w2)
+                        g0, g1, g2 = add_cross3(g0, g1, g2, -m, u0, u1, u2, x0, x1, x2)
+                        x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
+                        g0, g1, g2 = add_cross3(g0, g1, g2, -m, f0, f1, f2, x0, x1, x2)
                         # gradient in theta through d: m p x (w x (u x w))
-                        y0, y1, y2 = _cross(w0, w1, w2, x0, x1, x2)
-                        c0, c1_, c2 = _cross(p0, p1, p2, y0, y1, y2)
-                        a0 -= m * c0
-                        a1 -= m * c1_
-                        a2 -= m * c2
-                        x0, x1, x2 = _cross(e0, e1, e2, w0, w1, w2)
-                        y0, y1, y2 = _cross(d0, d1, d2, x0, x1, x2)
-                        g0 -= m * y0
-                        g1 -= m * y1
-                        g2 -= m * y2
+                        y0, y1, y2 = cross3(w0, w1, w2, x0, x1, x2)
+                        a0, a1, a2 = add_cross3(a0, a1, a2, -m, p0, p1, p2, y0, y1, y2)
+                        x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
+                        g0, g1, g2 = add_cross3(g0, g1, g2, -m, d0, d1, d2, x0, x1, x2)
         if with_bias:
-            A[j] = a0
-            A[N + j] = a1
-            A[2 * N + j] = a2
-            Z[j] = z0
-            Z[N + j] = z1
-            Z[2 * N + j] = z2
+            store_node_vector(A, N, j, a0, a1, a2)
+            store_node_vector(Z, N, j, z0, z1, z2)
     if j2:
         Mrr[0, 0] += q00
         Mrr[0, 1] += q01
@@ -450,11 +338,11 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
         h0 += q00 * w0 + q01 * w1 + q02 * w2
         h1 += q01 * w0 + q11 * w1 + q12 * w2
         h2 += q02 * w0 + q12 * w1 + q22 * w2
-    _columns_and_dot(params, gam, n, width, WG, 0, c1, Z, with_bias, Mre, bm)
+    columns_times(params, gam, n, width, WG, Z, 0, c1, with_bias, Mre, bm)
     if rotary:
-        _columns_and_dot(params, lam, n, width, WL, 0, c1, A, with_bias, Mre, bm)
+        columns_times(params, lam, n, width, WL, A, 0, c1, with_bias, Mre, bm)
         if offset and c1:
-            _columns_and_dot(params, lam, n, width, WL[9 * N:], 3, True, A, False, Mre, bm)
+            columns_times(params, lam, n, width, WL[9 * N:], A, 3, True, False, Mre, bm)
     if not with_bias:
         return
     # b_r += ad*_V (dh) + [Qdot w; 0] + C(e) e

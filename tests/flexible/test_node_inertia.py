@@ -157,3 +157,31 @@ def test_formed_modal_mass_equals_the_node_sum(terms, offsets, n):
     x, out = rng.standard_normal(n), np.zeros(n)
     node_inertia_times(params, 2, count, n, bits, state, x, out)
     assert np.abs(out - (ref - 2.0) @ x).max() <= 1e-13 * size.max() * np.abs(x).sum()
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 6, 7, 9])
+def test_shape_passes_equal_numpy(n):
+    """The passes over the stacked shapes (four rows at a time in ``shapes_times`` and ``_shapes_dot``, two in
+    ``columns_times``'s register tile; every remainder of both) against NumPy's products, with and without their
+    optional halves. Tolerance 1e-14 of the sum of the products' sizes: the same sums in another order."""
+    from dynamics.kernels.node_inertia import columns_times, shapes_times
+
+    rng = np.random.default_rng(n)
+    width = 3 * 5
+    S = rng.standard_normal((n, width))
+    params = np.concatenate([[9.0, 9.0, 9.0], S.ravel(), [9.0]])
+    x, y = rng.standard_normal(n), rng.standard_normal(n)
+    W, z = rng.standard_normal(3 * width), rng.standard_normal(width)
+    size = np.abs(S).sum()
+    for with_y in (False, True):
+        out_x, out_y = np.full(width, 7.0), np.full(width, 7.0)
+        shapes_times(params, 3, n, width, x, y, out_x, out_y, with_y)
+        assert np.abs(out_x - S.T @ x).max() <= 1e-14 * size * np.abs(x).max()
+        assert np.abs(out_y - (S.T @ y if with_y else 0.0)).max() <= 1e-14 * size * np.abs(y).max()
+    for with_c, with_dot in ((True, True), (True, False), (False, True)):
+        Mre, bm = np.full((6, n), 2.0), np.full(n, 3.0)
+        columns_times(params, 3, n, width, W, z, 3, with_c, with_dot, Mre, bm)
+        rows = W.reshape(3, width) @ S.T
+        assert np.abs(Mre[:3] - 2.0).max() == 0.0
+        assert np.abs(Mre[3:] - (2.0 + rows if with_c else 2.0)).max() <= 1e-14 * size * np.abs(W).max()
+        assert np.abs(bm - (3.0 + S @ z if with_dot else 3.0)).max() <= 1e-14 * size * np.abs(z).max()
