@@ -58,8 +58,9 @@ later (:meth:`MultibodyModel.output_read`, called by :meth:`shell.diagram.Diagra
 int64 mask in the per-run data (``EnginePorts.node_read``, shared by every run of the model), read by the one compiled
 kernel of the path; the outputs of a node nothing reads are NaN, and the run summary names those nodes. A node that
 only receives a force needs no kinematics: the forward dynamics projects its force (and skips an exactly-zero one).
-Within a derivative evaluation (the integrator's right-hand side: :data:`shell.kernel_protocol.STATE_OUTPUTS_FOR_DERIVATIVES`
-and :data:`~shell.kernel_protocol.FEEDTHROUGH_OUTPUTS_FOR_DERIVATIVES`) only the nodes a derivative reads are computed
+Within a derivative evaluation (the integrator's right-hand side: the op codes
+:data:`shell.kernel_protocol.STATE_OUTPUTS_FOR_DERIVATIVES` and
+:data:`~shell.kernel_protocol.FEEDTHROUGH_OUTPUTS_FOR_DERIVATIVES`) only the nodes a derivative reads are computed
 (``EnginePorts.node_read_in_derivatives``: a connection to a model with continuous states, or through feedthrough
 stages to one, such as an IMU integrating its node's motion); the outputs of the nodes read only at samples, by logs
 or by name are NaN there, and computed at the evaluations that read them (a sample's, a log's, ``evaluate``). The state
@@ -516,9 +517,10 @@ class MultibodyModel(Model):
         sampled = [n for n, r, d in zip(s.node_names, self.ports.node_read, self.ports.node_read_in_derivatives)
                    if r and not d]
         if sampled:
+            derivatives = ", ".join(self.nodes_read_in_derivatives) or "no node"
             notes.append(f"{self.path}: between samples (the integrator's derivative evaluations) node kinematics of "
-                         f"{', '.join(self.nodes_read_in_derivatives) or 'no node'} only; computed at the samples, logs "
-                         f"and reads that need them: {', '.join(sampled)}")
+                         f"{derivatives} only; computed at the samples, logs and reads that need them: "
+                         f"{', '.join(sampled)}")
         if self.constrained is not None and self.constrained.forces:
             from dynamics.force_elements import ELEMENT_TYPES
 

@@ -83,7 +83,8 @@ log:
 """
     if hold_c:  # a sampled reader of c: a zero-order hold at half the log's rate, logged
         signals = signals + ["hold.y"]
-        text = text.replace("models:\n", "models:\n  hold: {type: SampleHold, rate: 50 Hz, config: {unit: m, shape: [3]}}\n")
+        hold = "  hold: {type: SampleHold, rate: 50 Hz, config: {unit: m, shape: [3]}}\n"
+        text = text.replace("models:\n", "models:\n" + hold)
         text = text.replace("connections:\n", "connections:\n  - multibody.c.position -> hold.u\n")
         text = text.replace(f"signals: {signals[:-1]}", f"signals: {signals}")
     path = body_file.parent / f"scene_{'_'.join(logged)}_{attach_c}_{hold_c}.yaml"
@@ -182,8 +183,8 @@ def test_a_derivative_evaluation_computes_the_nodes_derivatives_read(body_file, 
     else:
         xdot = sim.diagram.derivatives(sim.context, sim.t, y)
     system = model.system
-    x = y[sim.diagram.x_block[sim.diagram.model_index["multibody"]]]
-    q, u, udot = x[:system.nq], x[system.nq:], xdot[sim.diagram.x_block[sim.diagram.model_index["multibody"]]][system.nq:]
+    block = sim.diagram.x_block[sim.diagram.model_index["multibody"]]
+    q, u, udot = y[block][:system.nq], y[block][system.nq:], xdot[block][system.nq:]
     kin = system.node_kinematics(q, u, udot)
     a = node_outputs(sim, "a")
     index = system.node_names.index("a")
