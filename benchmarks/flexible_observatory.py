@@ -151,7 +151,8 @@ def breakdown(sim, cpu, duration, rounds=7, reps=100):
             W = integ.W[:functions.shape[0]]
             EX.stage_real(integ.Phi_other[k], integ.Phi_copies, EX.PHI_AT_ZERO, functions, coefficients, f,
                           integ.N, integ.h, y if base_index < 0 else Y[base_index], integ.part.indices,
-                          integ.part.other_components, integ.part.copy_components, integ.part.is_linear, Y[k],
+                          integ.part.dense_other_components, integ.part.dense_copy_components,
+                          integ.part.zero_components, integ.part.is_linear, Y[k],
                           W, integ.w_stack, integ.w_copies, integ.product)
             if k < 3:
                 integ._remainder(f, Y[k], integ.N[k + 1])

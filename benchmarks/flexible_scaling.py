@@ -33,8 +33,14 @@ Part 2, bodies: chains (each body hinged at the previous one's tip node) and ran
 flexible bodies with 10 modes each (order 1, point-mass nodes); ABA against the dense solve
 (``compile(solver="dense")``) in the same process, and the log-log slopes for N >= 4.
 
+Part 3, the solver choice on bodies whose nodes have rotary inertia (``--solvers``): random bodies of 5 to 107 nodes
+(rotary inertia and CG offsets) and 6 to 30 modes, orders 1 and 2, the terms G1, F2, G2 summed over the nodes (and
+C1, J2 too on some), with or without a wheel on a node: the articulated-body recursion and the dense solve per call,
+interleaved, and what ``dynamics.system.choose_solver`` picks for each.
+
 Timing: minimum over interleaved batches of the wall time of one call (process-level ratios on a shared
-machine; set OPENBLAS_NUM_THREADS=1). Run: ``python benchmarks/flexible_scaling.py [--quick]``.
+machine; set OPENBLAS_NUM_THREADS=1).
+Run: ``python benchmarks/flexible_scaling.py [--quick] [--deck-only] [--solvers]``.
 """
 
 from __future__ import annotations
@@ -252,6 +258,69 @@ def bodies_table(counts, n_modes=10):
               f"{np.polyfit(logn, np.log([r[2] for r in big]), 1)[0]:.2f}")
 
 
+def node_body(n_nodes, n_modes, order, node_mass=False, seed=3):
+    """FlexibleBodyData of a random body of ``n_nodes`` nodes with rotary inertia and CG offsets, the terms G1, F2, G2
+    summed over the nodes and, with ``node_mass``, C1 and J2 too (the rest as tables)."""
+    import dataclasses
+
+    from dynamics.flex.modal_integrals import modal_integrals as integrals
+    from dynamics.flexible_body import node_inertia_from_nodes, node_mass_from_nodes
+
+    rng = np.random.default_rng(seed)
+    mass = rng.uniform(0.5, 2.0, n_nodes)
+    cg = rng.uniform(-0.05, 0.05, (n_nodes, 3))
+    inertia = np.array([0.01 * (a @ a.T + 0.5 * np.eye(3)) for a in rng.standard_normal((n_nodes, 3, 3))])
+    position = np.column_stack([np.linspace(0.0, 2.0, n_nodes), rng.uniform(-0.4, 0.4, (n_nodes, 2))])
+    shapes = 0.3 * rng.standard_normal((n_nodes, 6, n_modes))
+    omega = 2 * np.pi * np.sort(rng.uniform(0.5, 5.0, n_modes))
+    mi = integrals(mass, cg, inertia, position, shapes[:, :3], shapes[:, 3:], order=order, omit=("G1", "F2", "G2"))
+    data = FlexibleBodyData(n_modes=n_modes, order=order, M0=rigid_mass_block(mi), M1=None, M2=None,
+                            stiffness=np.diag(omega**2), damping=np.diag(0.02 * omega),
+                            grid_ids=np.arange(1, n_nodes + 1), grid_positions=position, grid_shapes=shapes,
+                            frequencies_hz=omega / (2 * np.pi), terms=mass_terms_from_integrals(mi, order),
+                            node_inertia=node_inertia_from_nodes(mass, cg, inertia, shapes, order))
+    if node_mass:
+        data = dataclasses.replace(data, terms=dataclasses.replace(data.terms, C1=None, J2=None),
+                                   mass_nodes=node_mass_from_nodes(mass, cg, inertia, position, shapes, order))
+    return data
+
+
+SOLVER_DECKS = [  # nodes, modes, order, C1 and J2 over the nodes, a wheel on a node
+    (9, 6, 1, False, False), (9, 6, 2, False, False), (9, 6, 2, True, False), (5, 12, 2, True, False),
+    (30, 12, 1, False, True), (107, 20, 2, False, False), (107, 20, 1, False, True), (20, 30, 2, True, False),
+]
+
+
+def solvers_table():
+    """Part 3 (module docstring)."""
+    from dynamics.system import choose_solver
+
+    print("\nPart 3: bodies with rotary node inertia (G1, F2, G2 over the nodes), forward dynamics per call (us)")
+    print("| nodes | modes | order | C1, J2 over nodes | wheel | ABA | dense | dense / ABA | chosen |")
+    print("| ---: | ---: | ---: | --- | --- | ---: | ---: | ---: | --- |")
+    rng = np.random.default_rng(0)
+    for n_nodes, n_modes, order, node_mass, wheel in SOLVER_DECKS:
+        data = node_body(n_nodes, n_modes, order, node_mass)
+        systems = []
+        for solver in ("aba", "dense"):
+            mb = Multibody()
+            mb.add_flexible_body("body", None, modal=data, hinge="free")
+            if wheel:
+                mb.add_node("mount", "body", grid=3)
+                mb.add_body("wheel", "body", mass=4.0, inertia=[0.08, 0.05, 0.05], hinge="revolute",
+                            axis=(1.0, 0.0, 0.0), parent_node="mount")
+            systems.append(mb.compile(solver=solver))
+        aba, dense = systems
+        q = aba.neutral_configuration()
+        q[7:7 + n_modes] = 0.01 * rng.standard_normal(n_modes)
+        u, tau = rng.standard_normal(aba.nu), rng.standard_normal(aba.nu)
+        a, d = aba.forward_dynamics(q, u, tau), dense.forward_dynamics(q, u, tau)
+        assert np.linalg.norm(a - d) < 1e-9 * np.linalg.norm(d)
+        t_aba, t_dense = best([lambda: aba.forward_dynamics(q, u, tau), lambda: dense.forward_dynamics(q, u, tau)])
+        print(f"| {n_nodes} | {n_modes} | {order} | {'yes' if node_mass else 'no'} | {'yes' if wheel else 'no'} | "
+              f"{t_aba * 1e6:.1f} | {t_dense * 1e6:.1f} | {t_dense / t_aba:.2f} | {choose_solver(aba.topology)[0]} |")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--modes", type=int, nargs="+", default=[10, 50, 200, 1000])
@@ -259,15 +328,20 @@ def main(argv=None):
     parser.add_argument("--deck-modes", type=int, nargs="+", default=[25, 50, 100, 196, 400])
     parser.add_argument("--quick", action="store_true", help="modes 10 50 200, bodies 1 4 16")
     parser.add_argument("--deck-only", action="store_true", help="part 0 only")
+    parser.add_argument("--solvers", action="store_true", help="part 3 only")
     args = parser.parse_args(argv)
     if args.quick:
         args.modes, args.bodies = [10, 50, 200], [1, 4, 16]
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    if args.solvers:
+        solvers_table()
+        return
     deck_table(args.deck_modes)
     if args.deck_only:
         return
     modes_table(args.modes)
     bodies_table(args.bodies)
+    solvers_table()
 
 
 if __name__ == "__main__":

@@ -94,39 +94,85 @@ def _modal_mass_inverse(G0, where):
 
 MIN_REFINEMENT_BUDGET = 5
 """A body whose modal mass varies through node terms is refined when five refinements (what deformations of
-1e-4..1e-3 rad take) cost less than forming and factoring ``G(eta)``."""
+1e-4..1e-3 rad take) cost less than forming and factoring ``G(eta)``; :func:`choose_solver` prices a refined body
+at that many."""
+
+REFINEMENT_PASS = 40.0
+"""Multiply-adds per mode of a refinement's bias and acceleration passes (:mod:`dynamics.kernels.articulated_body`:
+the modal elimination's bias part and the modal accelerations), in the units of :func:`modal_mass_formation_cost`:
+with it :func:`refinement_budget` puts the crossover between refining and factoring where it was measured (the beam
+of benchmarks/flexible_vs_exudyn.py factors at 20 modes and refines at 100)."""
+
+
+def modal_mass_formation_cost(n, count):
+    """Multiply-adds of forming ``G(eta)`` of a body of ``n`` modes over the terms of ``count`` nodes, per
+    evaluation: the products ``dJ lambda_s`` (9 n per node) and the lower triangle of ``Lambda' (dJ lambda)``
+    (1.5 n^2 per node, formed as a matrix product: ~1.7x the multiply-adds per second of the refinement's
+    matrix-vector products, :func:`dynamics.kernels.node_inertia.node_inertia_modal_mass`)."""
+    return (1.5 * count * n * n + 9.0 * count * n) / 1.7
+
+
+def refinement_cost(n, count):
+    """Multiply-adds of one refinement of a body of ``n`` modes whose modal mass varies through the terms of
+    ``count`` nodes: the product with ``dG`` over the nodes (6 n per node) and the bias and acceleration passes
+    (``REFINEMENT_PASS`` n)."""
+    return 6.0 * count * n + REFINEMENT_PASS * n
 
 
 def refinement_budget(n, count):
     """How many refinements of a body of ``n`` modes whose modal mass varies through the terms of ``count`` nodes
-    cost as much as forming ``G(eta)`` over the nodes and factoring it, per evaluation: the forward dynamics
-    refines against the constant ``G0`` while the iterations it predicts stay within this budget, and factors
-    ``G(eta)`` past it (:mod:`dynamics.kernels.articulated_body`); a body whose budget is below
-    ``MIN_REFINEMENT_BUDGET`` factors ``G(eta)`` from the start. A refinement costs the product with ``dG`` over
-    the nodes (6 n per node) and the bias and acceleration passes (~40 n); forming costs the products
-    ``dJ lambda_s`` (9 n per node) and the lower triangle of ``Lambda' (dJ lambda)`` (1.5 n^2 per node, formed as
-    a matrix product: ~1.7x the multiply-adds per second of the refinement's matrix-vector products,
-    :func:`dynamics.kernels.node_inertia.node_inertia_modal_mass`), factoring n^3 / 6 and its solves 14 n^2. Measured
-    (benchmarks/flexible_vs_exudyn.py's beam, 105 nodes): factoring wins at 20 modes (4-5 refinements there),
-    refining at 100."""
-    form = (1.5 * count * n * n + 9.0 * count * n) / 1.7 + n ** 3 / 6.0 + 14.0 * n * n
-    return int(form / (6.0 * count * n + 40.0 * n))
+    cost as much as forming ``G(eta)`` over the nodes (:func:`modal_mass_formation_cost`) and factoring it (its
+    Cholesky factorization n^3 / 6 and solves 14 n^2), per evaluation: the forward dynamics refines against the
+    constant ``G0`` while the iterations it predicts stay within this budget, and factors ``G(eta)`` past it
+    (:mod:`dynamics.kernels.articulated_body`); a body whose budget is below ``MIN_REFINEMENT_BUDGET`` factors
+    ``G(eta)`` from the start. Measured (benchmarks/flexible_vs_exudyn.py's beam, 105 nodes): factoring wins at 20
+    modes (4-5 refinements there), refining at 100."""
+    return int((modal_mass_formation_cost(n, count) + n ** 3 / 6.0 + 14.0 * n * n) / refinement_cost(n, count))
+
+
+def _node_mass_cost(fx, n):
+    """Multiply-adds of the terms C1 and J2 summed over a body's nodes (:mod:`dynamics.kernels.node_mass`), with
+    their forces: ~9 per entry of the 3N x n shapes (6 for the translation shapes, as many again for the rotation
+    shapes of nodes with rotary inertia: :func:`dynamics.flexible_body.node_mass_is_cheaper`), 150 per node."""
+    if fx[L.FX_MASS_NODES] < 0:
+        return 0.0
+    count = float(fx[L.FX_MASS_NODE_COUNT])
+    return 27.0 * count * n + 150.0 * count
 
 
 def choose_solver(topology):
-    """``("aba" | "dense", reason)``: the forward-dynamics solver with the lower estimated cost.
+    """``("aba" | "dense", reason)``: the forward-dynamics solver with the lower estimated cost
+    (:func:`solver_costs`)."""
+    aba, dense = solver_costs(topology)
+    if dense < aba:
+        return "dense", (f"dense M udot = tau - h (estimated {dense:.3g} multiply-adds against {aba:.3g} for "
+                         f"the articulated-body recursion)")
+    return "aba", (f"articulated-body recursion (estimated {aba:.3g} multiply-adds against {dense:.3g} for the "
+                   f"dense M udot = tau - h)")
+
+
+def solver_costs(topology):
+    """``(aba, dense)``: the estimated cost of a forward dynamics by the articulated-body recursion and by the dense
+    solve.
 
     The estimate (in multiply-adds, ~1 ns each here) counts only what differs between the two. The
     articulated-body recursion costs ~600 per rigid body and, per flexible body, ~6000 fixed (the modal
-    elimination's small dense steps) plus its applications of ``G^-1`` (7 n or 7 n^2 for a constant modal
-    mass; with G1 or G2 tables a Cholesky factorization n^3/3 and 2 n^2 per solved row), the Woodbury rank
-    terms 3 r^2 n, the node terms 30 n per node and, for a refined modal mass, about five refinements. The dense path costs an inverse dynamics and a composite-inertia pass (~1100 per
-    rigid body, ~4000 + 8 n^2 per flexible body, the mass-matrix columns carried to the root, the modal
-    mass formed a second time: n^3 with G1, 3 n^3 with F2, n^4 with G2) and the Cholesky factorization
-    nu^3/3 + 2 nu^2 of the mass matrix. The constants were fitted to ``benchmarks/flexible_scaling.py``
-    and the solver comparison in docs/engine.md ("Scaling"): dense wins, by 10-40 %, for small systems
-    (a flexible body of up to ~10 modes, a few bodies of a few modes), the recursion everywhere else;
-    near the crossover the two differ by less than the timing noise."""
+    elimination's small dense steps) plus its applications of ``G^-1`` (7 n or n^2 per row for a constant modal
+    mass, and the six rows of ``M_re G^-1`` again per call when ``M_re`` varies: C1 as a table or over the nodes,
+    F2; with G1 or G2 tables a Cholesky factorization n^3/3 and 2 n^2 per solved row), the Woodbury rank terms
+    3 r^2 n, the terms of the nodes' rotary inertia (G1, F2, G2 over N nodes) with their forces 30 n + 100 per node
+    and, for a modal mass that varies through them, ``MIN_REFINEMENT_BUDGET`` refinements (:func:`refinement_cost`)
+    or ``G(eta)`` formed over the nodes (:func:`modal_mass_formation_cost`). The dense path costs an inverse
+    dynamics and a composite-inertia pass (~1100 per rigid body, ~4000 + 8 n^2 per flexible body, the mass-matrix
+    columns carried to the root), each with the body's terms: the modal mass formed a second time (n^3 with G1,
+    3 n^3 with F2, n^4 with G2 tables), the node terms once more without their forces (15 n + 100 per node),
+    ``G(eta)`` formed over the nodes in both passes where the recursion factors it (once where it refines), C1 and
+    J2 over the nodes once more (:func:`_node_mass_cost`); and the Cholesky factorization nu^3/3 + 2 nu^2 of the
+    mass matrix. The constants were fitted to ``benchmarks/flexible_scaling.py``, the solver comparison in
+    docs/engine.md ("Scaling") and, for the node terms, eight bodies of 5-107 nodes and 6-30 modes
+    (``benchmarks/flexible_scaling.py --solvers``; the recursion 1.2-1.7x faster on all of them): dense wins, by
+    10-40 %, for small systems of tables or point masses (a flexible body of up to ~10 modes, a few bodies of a
+    few modes), the recursion everywhere else; near the crossover the two differ by less than the timing noise."""
     aba = dense = 0.0
     nu_total = 0
     depth = np.zeros(topology.shape[0], dtype=np.int64)
@@ -143,26 +189,27 @@ def choose_solver(topology):
         fx = t[L.FLEX:]
         kind = int(fx[L.FX_GINV_KIND])
         r = int(fx[L.FX_RANK])
-        varying = fx[L.FX_C1] >= 0 or fx[L.FX_F2] >= 0 or (fx[L.FX_NODE_TERMS] & L.NODE_F2) != 0
+        varying = (fx[L.FX_C1] >= 0 or fx[L.FX_F2] >= 0 or (fx[L.FX_NODE_TERMS] & L.NODE_F2) != 0
+                   or (fx[L.FX_MASS_NODE_TERMS] & L.MASS_C1) != 0)
         count = int(fx[L.FX_NODE_COUNT]) if fx[L.FX_NODES] >= 0 else 0
-        aba += 6000.0 + 3.0 * r * r * n + 30.0 * count * n + (5.0 * (6.0 * count * n + 40.0 * n) if fx[L.FX_REFINE]
-                                                               else 0.0)
+        node_terms = (30.0 * n + 100.0) * count
+        formed = modal_mass_formation_cost(n, count) if fx[L.FX_NODE_TERMS] & (L.NODE_G1 | L.NODE_G2) else 0.0
+        aba += 6000.0 + 3.0 * r * r * n + node_terms
+        if fx[L.FX_REFINE]:
+            aba += MIN_REFINEMENT_BUDGET * refinement_cost(n, count)
+        else:
+            aba += formed
         if kind == L.GINV_DIAGONAL:
             aba += 7.0 * n * (1 + 6 * varying)
         elif kind == L.GINV_DENSE:
             aba += 1.0 * n * n * (1 + 6 * varying)
         else:
             aba += n ** 3 / 3.0 + 2.0 * n * n * (r + 13)
-        dense += 4000.0 + 8.0 * n * n + 30.0 * count * n
+        dense += 4000.0 + 8.0 * n * n + node_terms + (15.0 * n + 100.0) * count + _node_mass_cost(fx, n)
         dense += (n ** 3 if fx[L.FX_G1] >= 0 else 0) + (3 * n ** 3 if fx[L.FX_F2] >= 0 else 0) + \
-            (n ** 4 if fx[L.FX_G2] >= 0 else 0) + (3.0 * count * n * n if fx[L.FX_NODE_TERMS] & (L.NODE_G1 | L.NODE_G2)
-                                                   else 0)
+            (n ** 4 if fx[L.FX_G2] >= 0 else 0) + (formed if fx[L.FX_REFINE] else 2.0 * formed)
     dense += nu_total ** 3 / 3.0 + 2.0 * nu_total ** 2
-    if dense < aba:
-        return "dense", (f"dense M udot = tau - h (estimated {dense:.3g} multiply-adds against {aba:.3g} for "
-                         f"the articulated-body recursion)")
-    return "aba", (f"articulated-body recursion (estimated {aba:.3g} multiply-adds against {dense:.3g} for the "
-                   f"dense M udot = tau - h)")
+    return aba, dense
 
 
 _PER_RUN = ("params", "masses", "definitions", "spatial_inertia", "ground_accel")

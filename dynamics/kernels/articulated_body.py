@@ -12,7 +12,13 @@ through the terms of its nodes with rotary inertia, ``G(eta) = G0 + dG(eta)`` (`
 O(n^2)), and the system ``(K0 + dK) udot = f`` is solved by the iteration ``K0 udot_{k+1} = f - dK udot_k``
 (Richardson, converging as ``rho^k`` with ``rho`` the spectral radius of ``K0^-1 dK``, of the order of the
 nodes' elastic rotation angles: three to five passes to round-off for deformations of 1e-4..1e-3 rad),
-each pass one product with ``dG`` over the nodes (O(N_r n)) and the bias and acceleration passes. The
+each pass one product with ``dG`` over the nodes (O(N_r n)) and the bias and acceleration passes (the latter over
+the bodies up to the last refined one: those after it, in body order, are no refined body's ancestors, and get
+their accelerations once, from the accepted iterate). Richardson is kept because nothing cheaper converges
+faster here: the spectrum of ``K0^-1 dK`` is symmetric about zero and spread (each node's ``dJ = theta~ J - J
+theta~`` is a commutator, indefinite with a zero diagonal in the modal basis), so CG or Chebyshev gain about half a
+pass, and neither ``diag(dG)`` nor the exact ``dG`` of the 10..80 highest or lowest modes in the preconditioner
+lowers ``rho`` by 10 % (measured 2026-12-07 on the 196-mode tube of ``benchmarks/flexible_scaling.py``). The
 iteration stops when the next change of the modal accelerations would be below 1e-14 of their size (the
 round-off of the sums that form them), or stagnates at round-off;
 when the passes it still needs (predicted from its contraction rate) would cost more than forming ``G(eta)``
@@ -165,10 +171,10 @@ def _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, factored,
 
 
 @njit(cache=True)
-def _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool):
-    """Pass 3 (outward): every body's acceleration, the free DOFs' accelerations, the prescribed DOFs' forces
-    and the modal accelerations."""
-    for i in range(topology.shape[0]):
+def _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, first, stop):
+    """Pass 3 (outward) over bodies ``first`` to ``stop - 1`` (their parents' accelerations known): their
+    accelerations, the free DOFs' accelerations, the prescribed DOFs' forces and the modal accelerations."""
+    for i in range(first, stop):
         A = ws_vec[i, VEC_A]
         parent = topology[i, PARENT]
         if topology[i, GENERAL]:
@@ -302,6 +308,7 @@ def _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, 
     nb = topology.shape[0]
     ground = params[GROUND_ACCEL:GROUND_ACCEL + 6]
     refine = False
+    last = -1
     budget = 1 << 30
     for i in range(nb):
         if topology[i, GENERAL]:
@@ -322,6 +329,7 @@ def _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, 
             _flexible_inertia_and_bias(i, topology, params, q, u, body_forces, factored, ws_vec, ws_mat, pool)
             if topology[i, FLEX + FX_REFINE] and not factored:
                 refine = True
+                last = i
                 budget = min(budget, topology[i, FLEX + FX_REFINE])
                 n = topology[i, N_MODES]
                 pv = topology[i, FLEX + FX_P_VEC]
@@ -360,16 +368,31 @@ def _forward_dynamics(topology, nodes, joint_rot, joint_vec, params, q, u, tau, 
             inertia_to_parent_add(R, r, ws_mat[i, MAT_IAP], ws_mat[parent, MAT_IA], ws_mat[i, MAT_TMP])
             force_to_parent_add(R, r, ws_vec[i, VEC_AUX], ws_vec[parent, VEC_P])
 
-    _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool)
-    pool[P_REFINEMENTS] = 0.0
     if not refine:
+        _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, 0, nb)
+        pool[P_REFINEMENTS] = 0.0
         return 0
+    # the bodies after the last refined one are no refined body's ancestors: their accelerations are computed once,
+    # from the accepted iterate
+    stop = last + 1
+    _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, 0, stop)
+    status = _refine(topology, nodes, params, tau, udot, tau_out, ground, ws_rot, ws_vec, ws_mat, pool, budget, stop)
+    if status == 0:
+        _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, stop, nb)
+    return status
+
+
+@njit(cache=True)
+def _refine(topology, nodes, params, tau, udot, tau_out, ground, ws_rot, ws_vec, ws_mat, pool, budget, stop):
+    """The refinement passes of :func:`_forward_dynamics` (module docstring) after its first solve, over the bodies
+    before ``stop``: 0 when converged, NOT_CONVERGED when the passes it predicts exceed ``budget``."""
+    pool[P_REFINEMENTS] = 0.0
     _refinement_products(topology, params, udot, pool)
     _refinement_change(topology, udot, pool)
     previous = 0.0
     for it in range(1, budget + 1):
-        _bias_pass(topology, nodes, params, tau, factored, ws_rot, ws_vec, ws_mat, pool)
-        _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool)
+        _bias_pass(topology, nodes, params, tau, False, ws_rot, ws_vec, ws_mat, pool)
+        _acceleration_pass(topology, nodes, ground, tau, udot, tau_out, ws_rot, ws_vec, ws_mat, pool, 0, stop)
         pool[P_REFINEMENTS] = it
         change, scale = _refinement_change(topology, udot, pool)
         if change <= REFINED * scale:

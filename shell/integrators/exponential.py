@@ -65,11 +65,18 @@ matrix), so the nominal step reads as few as the method allows.
   products of the N-differences take only the columns of the other rows (``other_rows``: u and driven rows, half
   of m), and a term whose vector is not exactly zero on the copy rows (F, or N of a model whose rate is not a
   copy) adds the product with those columns (``Phi_copies``): the same result, nothing assumed.
+* A zero column of L (a rigid-body or rotor rate that no row of L reads, a driven row: 26 of the observatory's 418)
+  has ``L e_j = 0``, hence ``phi_k(c h L) e_j = e_j / k!`` exactly: the products and the remainder skip these
+  columns (``zero_columns``) and add ``W_j / k!`` on row j.
 
-Per step the observatory reads 2 full phi_1 matrices, 4 half-width phi_2/phi_3 blocks and 4 times the half of L
-(~6 m x m matrices, against 12 with the published form: 8 phi products and 4 full L y products): 243 us of
-linear algebra per step against 382 (1.57x, both in one process, 2026-12-07, load 4.3). The result equals the
-published form to round-off (tests/integrators/test_exponential.py, phi functions from a block exponential).
+Per step the observatory reads 5.7 m^2 matrix entries (2 phi_1 matrices over their 392 non-zero columns, 4 phi_2/phi_3
+blocks over the 196 columns of the other rows, 4 times L's 222 other rows over its 392 non-zero columns), against
+6.2 m^2 before the zero columns were skipped and 12 m^2 with the published form (8 phi products and 4 full L y
+products): 382 -> 243 us of linear algebra per step for the first two changes (1.57x, 2026-12-07, load 4.3), and
+1.08-1.14x more for the zero columns (1.19-1.28x on the 50-mode tube, m = 126; the four remainders and stages in
+sequence inside one compiled loop, before and after in one process, interleaved, medians, load 3.8-4.0). The result
+equals the published form to round-off (tests/integrators/test_exponential.py, phi functions from a block
+exponential).
 
 Dense output: the continuous extension of the same quadrature, exact for the linear part,
 ``y(t + theta h) = phi_0(theta h L) y + theta h [phi_1 n0 + theta phi_2 n1 + 2 theta^2 phi_3 n2](theta h L)``
@@ -89,11 +96,14 @@ defective) and zero columns, so their integrals of the modal motion are exact to
 Changing configuration: ``L`` is built at the configuration where the integrator starts. If hinged parts
 then rotate far enough to change the mass matrix, the difference ``(L(q) - L(q0)) y`` is a stiff term inside
 ``N`` that the explicit part integrates badly. With a callable ``linear_part(t, y)`` (what the shell passes)
-the integrator re-evaluates it after 1, 2, 4, ... steps while it does not move, up to MAX_CHECK_INTERVAL steps
+the integrator re-evaluates it after 2, 4, 8, ... steps while it does not move (the build is the first step's
+check: a check at that same state would find no drift), up to MAX_CHECK_INTERVAL steps
 or MAX_CHECK_TIME of simulated time, whichever is longer (the configuration moves on the time scale of the
 scene, not of the step; a mass matrix and a Cholesky solve: ~0.7 ms for the 60-mode observatory, a fifth of one
 derivative, but 5-21 ms for the 196-mode general-mass one at order 1, about 15 derivatives: every 64 steps of
-1 ms that was 5-10 % of its run, every 250 steps it is 1-3 %) and rebuilds
+1 ms that was 5-10 % of its run, every 250 steps it is 1-3 %; of one check ~6.3 ms are the callable's and
+0.04-0.05 ms the drift, :func:`frobenius_distance`, against 0.13-0.16 ms for numpy's norm of the m x m difference,
+0.56 ms when that difference lands on fresh pages) and rebuilds
 the matrix functions and the driven rows when ``||L(y) - L||_F / ||L||_F > DRIFT_TOLERANCE``; the check starts
 again every step after a rebuild. Independently, each step estimates the stiffness of ``N`` from its two stages
 at c = 1/2 (``rho = ||N3 - N2|| / ||Y3 - Y2||``, the Rayleigh-quotient estimate of HNW I Sec. IV.2, skipped
@@ -229,7 +239,20 @@ class LinearPart:
         self.copy_components = indices[self.copy_rows]
         self.other_components = indices[self.other_rows]
         self.copied_components = indices[self.copied]
-        self.L_other = np.ascontiguousarray(self.L[self.other_rows])
+        # zero columns of L (rigid-body and rotor rates, driven rows): L e_j = 0 gives phi_k(c h L) e_j = e_j / k!
+        # exactly, so the products skip them (module docstring, "Cost")
+        zero = ~nonzero.any(axis=0)
+        self.zero_columns = np.flatnonzero(zero).astype(np.int64)
+        self.nonzero_columns = np.flatnonzero(~zero).astype(np.int64)
+        self.zero_components = indices[self.zero_columns]
+        self.nonzero_components = indices[self.nonzero_columns]
+        #: the columns the stage products read: copy rows and other rows whose column of L is not zero
+        self.dense_copy_rows = self.copy_rows[~zero[self.copy_rows]]
+        self.dense_other_rows = self.other_rows[~zero[self.other_rows]]
+        self.dense_copy_components = indices[self.dense_copy_rows]
+        self.dense_other_components = indices[self.dense_other_rows]
+        #: the other rows of L over its non-zero columns (the remainder's product)
+        self.L_other = np.ascontiguousarray(self.L[np.ix_(self.other_rows, self.nonzero_columns)])
         if m:
             import scipy.linalg  # here, not at module level: scipy.linalg costs ~0.3 s at every start
 
@@ -273,14 +296,15 @@ class LinearPart:
 
     def stage_matrices(self, h):
         """The nominal step's matrices: for each stage of :data:`STAGES` the columns of the other rows
-        (``other_rows``) of its phi matrices side by side (m x n_terms n_other, C order: one BLAS gemv), and the
-        columns of the copy rows of every function of :data:`FUNCTIONS` ((len(FUNCTIONS), m, n_copy): a term
-        whose vector is not zero on the copy rows, F's, adds that product)."""
+        (``dense_other_rows``: not copies, column of L not zero) of its phi matrices side by side (m x n_terms
+        n_other, C order: one BLAS gemv), and the columns of the copy rows (``dense_copy_rows``) of every function of
+        :data:`FUNCTIONS` ((len(FUNCTIONS), m, n_copy): a term whose vector is not zero on the copy rows, F's, adds
+        that product). The zero columns of L are not stored: there phi_k(c h L) is the unit column over k!."""
         m = self.m
         phi = self.real_functions(h) if m else np.zeros((len(FUNCTIONS), 0, 0))
-        other = tuple(np.ascontiguousarray(np.hstack([phi[f][:, self.other_rows] for f in functions]))
+        other = tuple(np.ascontiguousarray(np.hstack([phi[f][:, self.dense_other_rows] for f in functions]))
                       if m else np.zeros((0, 0)) for _, functions, _ in STAGES)
-        copies = np.ascontiguousarray(phi[:, :, self.copy_rows]) if m else np.zeros((len(FUNCTIONS), 0, 0))
+        copies = np.ascontiguousarray(phi[:, :, self.dense_copy_rows]) if m else np.zeros((len(FUNCTIONS), 0, 0))
         return other, copies
 
     def diagonal_functions(self, h):
@@ -292,23 +316,39 @@ class LinearPart:
 
 
 @njit(cache=True)
-def remainder(f, y, indices, L_other, other_components, copy_components, copied_components, y_lin, product, out):
+def remainder(f, y, nonzero_components, L_other, other_components, copy_components, copied_components, y_lin,
+              product, out):
     """out = f - L y on the linear components, f elsewhere (N = f - L y): on the rows of L that copy a component
     (``copy_components`` <- ``copied_components``) ``f - y`` directly, on the others one BLAS gemv with their rows
-    ``L_other``; y_lin (m,), product (n_other,) scratch."""
+    over the non-zero columns of L (``L_other``, ``nonzero_components``); y_lin (m,), product (m,) scratch."""
     for i in range(f.shape[0]):
         out[i] = f[i]
-    m = indices.shape[0]
-    if m == 0:
+    n_columns = nonzero_components.shape[0]
+    if n_columns == 0 and copy_components.shape[0] == 0:
         return
-    for a in range(m):
-        y_lin[a] = y[indices[a]]
+    for a in range(n_columns):
+        y_lin[a] = y[nonzero_components[a]]
     n_other = other_components.shape[0]
-    np.dot(L_other, y_lin, product[:n_other])  # BLAS gemv
+    if n_columns:
+        np.dot(L_other, y_lin[:n_columns], product[:n_other])  # BLAS gemv
+    else:
+        product[:n_other] = 0.0
     for a in range(n_other):
         out[other_components[a]] -= product[a]
     for a in range(copy_components.shape[0]):
         out[copy_components[a]] = f[copy_components[a]] - y[copied_components[a]]
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def frobenius_distance(A, B):
+    """||A - B||_F of two matrices of the same shape without forming A - B (one pass over both, vectorized: the
+    sum's order is the compiler's, the same in every run)."""
+    total = 0.0
+    for i in range(A.shape[0]):
+        for j in range(A.shape[1]):
+            d = A[i, j] - B[i, j]
+            total += d * d
+    return np.sqrt(total)
 
 
 @njit(cache=True)
@@ -364,17 +404,22 @@ def _outside_linear_part(phi_at_zero, functions, coefficients, F, N, h, base, is
 
 @njit(cache=True)
 def stage_real(Phi_other, Phi_copies, phi_at_zero, functions, coefficients, F, N, h, base, indices,
-               other_components, copy_components, is_linear, out, W, w_stack, w_copies, product):
+               other_components, copy_components, zero_components, is_linear, out, W, w_stack, w_copies, product):
     """One stage with the real matrices: out = base + sum_t Phi[f_t] W_t on the linear components and
     base + sum_t phi_{f_t}(0) W_t elsewhere. ``Phi_other`` holds the columns of the stage's matrices for the rows
     of L that are not copies side by side (m x n_terms n_other: one BLAS gemv); the columns of the copy rows
     (``Phi_copies[f_t]``, m x n_copy) are multiplied only for a term whose vector is not zero there (F's: on the
-    copy rows N is f - y = 0 when the model's rate is the copied component). Returns True if out is finite."""
+    copy rows N is f - y = 0 when the model's rate is the copied component); the columns of L that are zero
+    (``zero_components``, in neither) add phi_{f_t}(0) W_t on their own row. Returns True if out is finite."""
     n_terms = functions.shape[0]
     _outside_linear_part(phi_at_zero, functions, coefficients, F, N, h, base, is_linear, out, W)
     m = indices.shape[0]
     if m == 0:
         return kernels.all_finite(out)
+    for a in range(zero_components.shape[0]):
+        j = zero_components[a]
+        for t in range(n_terms):
+            out[j] += phi_at_zero[functions[t]] * W[t, j]
     n_other = other_components.shape[0]
     n_copy = copy_components.shape[0]
     if n_other:
@@ -391,7 +436,7 @@ def stage_real(Phi_other, Phi_copies, phi_at_zero, functions, coefficients, F, N
             if w_copies[b] != 0.0:
                 zero = False
         if not zero:
-            np.dot(Phi_copies[functions[t]], w_copies, product)
+            np.dot(Phi_copies[functions[t]], w_copies[:n_copy], product)
             for a in range(m):
                 out[indices[a]] += product[a]
     return kernels.all_finite(out)
@@ -541,8 +586,9 @@ class ExponentialRK4(Integrator):
         self.W = np.empty((MAX_TERMS, n))
         self.warned_stiff = False
         self.last_rho = 0.0
-        self.check_interval = 1
-        self.steps_since_check = 0
+        # the build is the first step's check (at its start, drift 0): the next after 2 steps, as after any such check
+        self.check_interval = 2
+        self.steps_since_check = -1
         self.max_check_interval = max(MAX_CHECK_INTERVAL, int(MAX_CHECK_TIME / self.h))
         self._set_linear_part(self.t, self.y)
 
@@ -552,6 +598,7 @@ class ExponentialRK4(Integrator):
         self.njev += 1
         part = LinearPart(indices, L, self.n, self.name)
         self.base_indices, self.base_L = part.indices, part.L
+        self.base_L_norm = float(np.linalg.norm(part.L))  # the drift's scale, once per build
         self.nlu += 1
         if part.m == 0:
             warnings.warn(f"{self.name}: the linear part is empty (no flexible modes); the method is the classical "
@@ -594,10 +641,10 @@ class ExponentialRK4(Integrator):
         interval while it does not move, rebuild when it moved. Returns True if it was rebuilt."""
         indices, L = self.linear_part_option(t, y.copy())
         self.njev += 1
-        L = np.asarray(L, dtype=np.float64)
-        scale = np.linalg.norm(self.base_L)
+        L = np.ascontiguousarray(L, dtype=np.float64)
+        scale = self.base_L_norm
         same_shape = L.shape == self.base_L.shape and np.array_equal(np.asarray(indices), self.base_indices)
-        drift = np.linalg.norm(L - self.base_L) / scale if same_shape and scale > 0.0 else np.inf
+        drift = frobenius_distance(L, self.base_L) / scale if same_shape and scale > 0.0 else np.inf
         if drift <= DRIFT_TOLERANCE:
             if drift <= 0.25 * DRIFT_TOLERANCE:
                 self.check_interval = min(2 * self.check_interval, self.max_check_interval)
@@ -634,8 +681,9 @@ class ExponentialRK4(Integrator):
         W = self.W[:functions.shape[0]]
         if nominal:
             return stage_real(self.Phi_other[k], self.Phi_copies, PHI_AT_ZERO, functions, coefficients, self.f,
-                              self.N, h, base, part.indices, part.other_components, part.copy_components,
-                              part.is_linear, out, W, self.w_stack, self.w_copies, self.product)
+                              self.N, h, base, part.indices, part.dense_other_components,
+                              part.dense_copy_components, part.zero_components, part.is_linear, out, W, self.w_stack,
+                              self.w_copies, self.product)
         if self.phi_diag_h != h:
             self.phi_diag = part.diagonal_functions(h)
             self.phi_diag_h = h
@@ -652,7 +700,7 @@ class ExponentialRK4(Integrator):
 
     def _remainder(self, f, y, out):
         part = self.part
-        remainder(f, y, part.indices, part.L_other, part.other_components, part.copy_components,
+        remainder(f, y, part.nonzero_components, part.L_other, part.other_components, part.copy_components,
                   part.copied_components, self.y_lin, self.product, out)
 
     def _step_impl(self):

@@ -6,7 +6,7 @@ stage_eigen), the same remainder N = f - L y, the same order of operations and t
 and the Python runs agree bit for bit. Python keeps what must be Python: the callable linear part (a mass matrix and
 a Cholesky solve in the models' ``stiff_linear_part``) and the rebuild of the matrix functions. The stepper keeps
 the integrator's check counters (``counters``: steps since the last check, the check interval, the step's flags) and
-asks (:class:`ExponentialStepping`) for a check of the linear part when one is due (after 1, 2, 4, ... steps up to
+asks (:class:`ExponentialStepping`) for a check of the linear part when one is due (after 2, 4, 8, ... steps up to
 max(64 steps, 0.25 s): one request per 250 steps of 1 ms once the part stands still: LINEAR_CHECK), and when a step
 finds the remainder stiff (h rho(N) > 1: STIFF_REMAINDER); Python checks (and perhaps rebuilds the stepper) and the
 loop continues the step where it stopped (flag RESUME: the stages before are kept in S and N). Until the integrator
@@ -58,7 +58,11 @@ class ExponentialStepper(NamedTuple):
     other_components: np.ndarray   # (n_other,) int64 those whose row of L is not a copy (LinearPart)
     copy_components: np.ndarray    # (n_copy,) int64 those whose row copies one component
     copied_components: np.ndarray  # (n_copy,) int64 the components they copy
-    L_other: np.ndarray      # (n_other, m) the other rows of L
+    nonzero_components: np.ndarray  # (m_nz,) int64 those whose column of L is not zero
+    zero_components: np.ndarray     # (m - m_nz,) int64 those whose column of L is zero
+    dense_other_components: np.ndarray  # other components whose column is not zero (the stage products' columns)
+    dense_copy_components: np.ndarray   # copy components whose column is not zero
+    L_other: np.ndarray      # (n_other, m_nz) the other rows of L over its non-zero columns
     L_norm: float
     is_linear: np.ndarray    # (n,) bool
     Phi: tuple               # 4 stage matrices, other columns side by side (ExponentialRK4.Phi_other)
@@ -109,10 +113,14 @@ def exponential_stepper(integ, Y=None, F=None) -> ExponentialStepper:
         float(integ.h), (integ.y if Y is None else Y).copy(), (integ.f if F is None else F).copy(), np.zeros(n),
         np.zeros((4, n)), np.zeros((4, n)), np.zeros((EX.MAX_TERMS, n)), part.indices.astype(np.int64),
         part.other_components.astype(np.int64), part.copy_components.astype(np.int64),
-        part.copied_components.astype(np.int64), np.ascontiguousarray(part.L_other).reshape(n_other, m),
+        part.copied_components.astype(np.int64), part.nonzero_components.astype(np.int64),
+        part.zero_components.astype(np.int64), part.dense_other_components.astype(np.int64),
+        part.dense_copy_components.astype(np.int64),
+        np.ascontiguousarray(part.L_other).reshape(n_other, part.nonzero_columns.size),
         float(part.L_norm), part.is_linear.copy(),
         tuple(np.ascontiguousarray(P, dtype=np.float64).reshape(P.shape if m else (0, 0)) for P in integ.Phi_other),
-        np.ascontiguousarray(integ.Phi_copies, dtype=np.float64).reshape(len(EX.FUNCTIONS), m, part.copy_rows.size),
+        np.ascontiguousarray(integ.Phi_copies, dtype=np.float64).reshape(len(EX.FUNCTIONS), m,
+                                                                          part.dense_copy_rows.size),
         base, terms, functions, coefficients, EX.PHI_AT_ZERO.copy(), np.array([c for c, _ in EX.FUNCTIONS]),
         np.array([k for _, k in EX.FUNCTIONS], dtype=np.int64), np.array(EX.C_NODES), np.zeros(m), np.zeros(m),
         np.zeros(EX.MAX_TERMS * n_other), np.zeros(part.copy_rows.size),
@@ -130,7 +138,8 @@ def exponential_placeholder(n: int) -> ExponentialStepper:
     empty_i = np.zeros(0, dtype=np.int64)
     return ExponentialStepper(
         0.0, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((4, n)), np.zeros((4, n)), np.zeros((EX.MAX_TERMS, n)),
-        empty_i, empty_i, empty_i, empty_i, np.zeros((0, 0)), 0.0, np.zeros(n, dtype=np.bool_),
+        empty_i, empty_i, empty_i, empty_i, empty_i, empty_i, empty_i, empty_i, np.zeros((0, 0)), 0.0,
+        np.zeros(n, dtype=np.bool_),
         (np.zeros((0, 0)),) * 4, np.zeros((len(EX.FUNCTIONS), 0, 0)),
         np.zeros(4, dtype=np.int64), np.zeros(4, dtype=np.int64), np.zeros((4, EX.MAX_TERMS), dtype=np.int64),
         np.zeros((4, EX.MAX_TERMS, 5)), np.zeros(7), np.zeros(7), np.zeros(7, dtype=np.int64), np.zeros(3),
@@ -165,16 +174,16 @@ def _stage(st, j, h, nominal, out):
     W = st.W[:n_terms]
     if nominal:
         return EX.stage_real(st.Phi[j], st.Phi_copies, st.phi_at_zero, functions, coefficients, st.F, st.N, h, base,
-                             st.indices, st.other_components, st.copy_components, st.is_linear, out, W, st.w_stack,
-                             st.w_copies, st.product)
+                             st.indices, st.dense_other_components, st.dense_copy_components, st.zero_components,
+                             st.is_linear, out, W, st.w_stack, st.w_copies, st.product)
     return EX.stage_eigen(st.V, st.Vinv, st.phi_diag, st.phi_at_zero, functions, coefficients, st.F, st.N, h, base,
                           st.indices, st.is_linear, out, W, st.z_acc, st.z_in, st.z_out)
 
 
 @njit(cache=True, inline="always")
 def _remainder(st, f, y, out):
-    EX.remainder(f, y, st.indices, st.L_other, st.other_components, st.copy_components, st.copied_components,
-                 st.y_lin, st.product, out)
+    EX.remainder(f, y, st.nonzero_components, st.L_other, st.other_components, st.copy_components,
+                 st.copied_components, st.y_lin, st.product, out)
 
 
 @njit(cache=True)

@@ -17,7 +17,7 @@ from scipy.integrate import solve_ivp
 from scipy.special import sici
 
 from shell.integrators import INTEGRATORS, StiffRemainderWarning, make_integrator
-from shell.integrators.exponential import LinearPart, phi_functions
+from shell.integrators.exponential import FUNCTIONS, LinearPart, phi_functions
 
 
 def run(method, fun, y0, t_end, step, **options):
@@ -193,6 +193,10 @@ def test_without_linear_part_it_is_rk4():
     b = run("rk4", fun, y0, 1.0, 0.01)
     # same RK4 weights, summed in another order (y1 written from Y4): equal to a few ulps
     np.testing.assert_allclose(a.y, b.y, rtol=5e-14, atol=1e-17)
+    # a linear part whose L is zero: every column is a zero column (phi_k = I / k!, no product): RK4 again
+    c = run("etdrk4", fun, y0, 1.0, 0.01, linear_part=(np.array([0, 1]), np.zeros((2, 2))))
+    assert list(c.part.zero_columns) == [0, 1] and c.part.L_other.shape == (2, 0)
+    np.testing.assert_allclose(c.y, b.y, rtol=5e-14, atol=1e-17)
 
 
 # --- components driven by the linear part ------------------------------------------------------------------
@@ -231,8 +235,9 @@ def test_a_moving_configuration_refreshes_the_callable_linear_part():
         warnings.simplefilter("error", StiffRemainderWarning)
         integ = run("etdrk4", fun, y0, 1.0, 0.01, linear_part=linear_part)
         fixed = run("etdrk4", fun, y0, 1.0, 0.01, linear_part=linear_part(0.0, y0))
-    # L moves by 0.3 % per step (h omega = 3.0 .. 3.4): re-evaluated every step, rebuilt when it moved > 0.1 %
-    assert integ.njev == 2 * 100 - 2 and integ.nlu == 99
+    # L moves by 0.3 % per step (h omega = 3.0 .. 3.4): re-evaluated every step from the third on (the build is the
+    # first step's check), rebuilt when it moved > 0.1 %: the build, 98 checks, 98 rebuilds
+    assert integ.njev == 2 * 100 - 3 and integ.nlu == 99
     assert abs(integ.y[0] - ref[0]) < 5e-6  # measured 2.9e-6 against the amplitude 1e-3
     assert abs(fixed.y[0] - ref[0]) > 1e-4  # measured 1.8e-4: the frozen linear part misses the stiffening
     # at twice the step the frozen part's remainder is stiff: the monitor says so
@@ -250,9 +255,10 @@ def test_a_linear_part_that_does_not_move_is_checked_ever_more_rarely():
         return np.array([0, 1]), L
 
     integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 10.0, 0.01, linear_part=linear_part)
-    # 1000 steps: one evaluation at the start, checks at steps 1, 3, 7, ..., 127 (intervals 1, 2, ..., 64), then
-    # every 64 steps up to step 959: 1 + 7 + 13
-    assert integ.njev == len(evaluations) == 21 and integ.nlu == 1
+    # 1000 steps: one evaluation at the start (the build, which is step 1's check: the same state), checks at steps
+    # 3, 7, ..., 127 (intervals 2, ..., 64), then every 64 steps up to step 959: 1 + 6 + 13
+    assert integ.njev == len(evaluations) == 20 and integ.nlu == 1
+    np.testing.assert_allclose(evaluations[:3], [0.0, 0.02, 0.06], rtol=1e-12)
 
 
 def test_at_a_short_step_the_checks_are_spaced_in_time():
@@ -267,10 +273,10 @@ def test_at_a_short_step_the_checks_are_spaced_in_time():
         return np.array([0, 1]), L
 
     integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 2.0, 1e-3, linear_part=linear_part)
-    # 2000 steps: the start, checks at steps 1, 3, 7, ..., 255 (intervals 1, 2, ..., 128), then every 250 steps
-    # (505, 755, ..., 1755): 1 + 8 + 6
+    # 2000 steps: the start (step 1's check), checks at steps 3, 7, ..., 255 (intervals 2, ..., 128), then every 250
+    # steps (505, 755, ..., 1755): 1 + 7 + 6
     assert integ.max_check_interval == 250
-    assert integ.njev == len(evaluations) == 15 and integ.nlu == 1
+    assert integ.njev == len(evaluations) == 14 and integ.nlu == 1
     np.testing.assert_allclose(np.diff(evaluations)[-6:], 0.25, rtol=1e-9)
 
 
@@ -418,3 +424,58 @@ def test_copy_rows_are_single_entries_of_exactly_one():
     assert list(part.copy_components) == [3] and list(part.copied_components) == [0]
     assert list(part.other_rows) == [1, 2, 3] and list(part.other_components) == [0, 2, 1]
     np.testing.assert_array_equal(part.L_other, L[1:])
+
+
+def test_zero_columns_of_L_take_the_unit_columns_of_the_phi_functions():
+    """A rigid-body rate w that nothing in L depends on (w' couples to the chain, x'' does not see w: the observatory's
+    free-hinge and rotor rates) and a driven row s' = c v (an IMU's integral, found by the integrator) give zero
+    columns of L, where phi_k(c h L) is the unit column over k!: the products skip them and add W / k! on their own row.
+    One nominal step equals Krogstad's published step with phi functions from a block exponential to round-off
+    (1e-12 of the state); N is large on those rows (gyroscopic-like w^2 terms, a forcing), so leaving their terms out
+    would be 1e4 times the tolerance off."""
+    A = damped_chain(5, seed=7)
+    n = 5
+    a = np.linspace(1e3, 5e3, n)
+    c = np.linspace(0.5, 1.5, n)
+    L_given = np.zeros((2 * n + 1, 2 * n + 1))
+    L_given[:2 * n, :2 * n] = A
+    L_given[2 * n, :n] = -a  # w' = -a x: a row of L, its column zero
+
+    def fun(t, y):
+        x, v, w = y[:n], y[n:2 * n], y[2 * n]
+        out = np.empty(2 * n + 2)
+        out[:2 * n] = A @ y[:2 * n]
+        out[n:2 * n] += 3e5 * x ** 3 + 0.4 * w ** 2
+        out[:n] = v
+        out[2 * n] = -a @ x + np.cos(9.0 * t) + 2.0 * w * v[0]
+        out[2 * n + 1] = c @ v
+        return out
+
+    rng = np.random.default_rng(5)
+    y0 = np.r_[rng.uniform(-0.02, 0.02, n), rng.uniform(-1.0, 1.0, n), 0.7, 0.0]
+    h = 2e-3
+    integ = make_integrator("etdrk4", fun, 0.0, y0, 1.0, step=h, linear_part=(np.arange(2 * n + 1), L_given))
+    part = integ.part
+    assert list(part.indices) == list(range(2 * n + 2))  # the driven row s joined the linear part
+    assert list(part.zero_columns) == [2 * n, 2 * n + 1]
+    assert list(part.dense_other_rows) == list(range(n, 2 * n)) and list(part.dense_copy_rows) == list(range(n))
+    phi = part.real_functions(h)
+    for f, (_, k) in enumerate(FUNCTIONS):
+        np.testing.assert_allclose(phi[f][:, part.zero_columns], np.eye(2 * n + 2)[:, part.zero_columns] /
+                                   math.factorial(k), rtol=0, atol=1e-14)
+    integ.step()
+    reference = krogstad_step(fun, part.L, y0, h)
+    np.testing.assert_allclose(integ.y, reference, rtol=0, atol=1e-12 * np.abs(reference).max())
+    without = krogstad_step(fun, part.L, y0, h, zero_rows=list(range(n)) + [2 * n, 2 * n + 1])
+    assert np.abs(reference - without).max() > 1e4 * 1e-12 * np.abs(reference).max()
+
+
+def test_drift_of_the_linear_part_is_the_frobenius_norm_of_the_difference():
+    """The check's drift ||L(y) - L|| / ||L|| sums the squared differences without forming L(y) - L: equal to numpy's
+    Frobenius norm to round-off (1e-13: a sum of 1e4 squares)."""
+    from shell.integrators.exponential import frobenius_distance
+
+    rng = np.random.default_rng(9)
+    A, B = rng.standard_normal((2, 97, 103)) * 1e6
+    assert math.isclose(frobenius_distance(A, B), np.linalg.norm(A - B), rel_tol=1e-13)
+    assert frobenius_distance(A, A) == 0.0
