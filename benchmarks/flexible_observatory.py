@@ -23,7 +23,10 @@ Reported:
   sixteen nodes that only the linearization uses (before the engine model computed only the nodes a scene reads,
   their kinematics were about 40 % of the order-1 derivative; now what is left of their cost is this difference);
 * the node mask before/after (:func:`node_mask`, first; alone with ``--nodes-only``): per order, interleaved, every
-  node's kinematics computed (what the engine model did before) against only the nodes something reads;
+  node's kinematics computed in every evaluation (what the engine model did first), the nodes something reads
+  computed in every evaluation (what it did next), and those nodes per evaluation kind (now: a derivative evaluation
+  computes only the IMU's node, which the IMU's integrals read; the bus and tip nodes only at the controller's
+  samples and the log's instants);
 * accuracy at order 1 (:func:`accuracy`), balanced and unbalanced wheel: the IMU's rate and the controller node's
   attitude (angle from the command) over the run, etdrk4 at 1 ms and RK4 at 0.05 ms against RK4 at 6.25 us
   (:data:`REFERENCE_STEP`), largest difference relative to the peak of the reference, with the reference's own
@@ -241,25 +244,30 @@ def accuracy(tmp, duration, reference_step=REFERENCE_STEP):
 
 
 def node_mask(tmp, args):
-    """Before/after of computing only the nodes a scene reads (the engine model's node mask), interleaved in one
-    process, per order: "every node" sets the mask to every node (what the model computed before: the kinematics
-    of all 19 nodes in its outputs and after the forward dynamics), "read" leaves it as the diagram built it (the
-    IMU's, the controller's and the logged tip node; not the sixteen thruster nodes)."""
+    """Before/after of computing only the nodes a scene reads (the engine model's node masks), interleaved in one
+    process, per order: "every node" sets both masks to every node (what the model computed first: the kinematics of
+    all 19 nodes in its outputs and after the forward dynamics, in every evaluation), "read" computes the nodes
+    something reads (the IMU's, the controller's and the logged tip node; not the sixteen thruster nodes) in every
+    evaluation (the derivatives' mask set to the read nodes), "per kind" leaves the masks as the diagram built them
+    (the derivative evaluations compute only the IMU's node; the others at the samples and log instants)."""
     for order in (0, 1, 2):
-        costs = {"every node": [], "read": []}
+        costs = {"every node": [], "read": [], "per kind": []}
         for r in range(args.repeat):
             for variant in costs:
                 sim = build(tmp, scene("beam.h5", order, "etdrk4", 1e-3, args.duration + 0.01), f"m{order}.yaml")
                 model = next(m for m in sim.models if m.path == "multibody")
                 if variant == "every node":
                     model.ports.node_read[:] = 1
+                if variant != "per kind":
+                    model.ports.node_read_in_derivatives[:] = model.ports.node_read
                 cpu, _ = timed_run(sim, args.duration)
                 costs[variant].append(cpu / args.duration)
-        before, after = np.median(costs["every node"]), np.median(costs["read"])
-        print(f"order {order}, node mask: every node {before:.3f}, nodes read ({', '.join(model.nodes_read)}) "
-              f"{after:.3f} CPU s per simulated s: {before / after:.2f}x (real-time factor {1 / after:.2f}; runs "
-              f"{', '.join(f'{c:.3f}' for c in costs['every node'])} / {', '.join(f'{c:.3f}' for c in costs['read'])}"
-              f"; load {os.getloadavg()[0]:.2f})", flush=True)
+        every, read, kind = (np.median(costs[v]) for v in costs)
+        print(f"order {order}, node masks: every node {every:.3f}, nodes read ({', '.join(model.nodes_read)}) "
+              f"{read:.3f}, in derivatives only {', '.join(model.nodes_read_in_derivatives)} {kind:.3f} CPU s per "
+              f"simulated s: {every / read:.2f}x, then {read / kind:.2f}x (real-time factor {1 / kind:.2f}; runs "
+              + " / ".join(', '.join(f'{c:.3f}' for c in costs[v]) for v in costs)
+              + f"; load {os.getloadavg()[0]:.2f})", flush=True)
 
 
 def main():
@@ -271,7 +279,8 @@ def main():
                     help="RK4 step of the accuracy reference (s; its Richardson check runs at twice it)")
     ap.add_argument("--accuracy-only", action="store_true", help="only the accuracy against the reference")
     ap.add_argument("--nodes-only", action="store_true",
-                    help="only the before/after of the node mask (every node computed vs the nodes read)")
+                    help="only the before/after of the node masks (every node computed, the nodes read in every "
+                         "evaluation, the nodes read per evaluation kind)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "beam.dat").write_text(beam_deck())

@@ -8,7 +8,8 @@ flexible body (n > 0) needs, each function over plain arrays:
   R0``, ``l = l0 + gamma eta``, its relative spatial velocity per unit modal rate
   ``Psi = [A; gamma + l~ A]``, ``A = J_l(lambda eta) lambda`` (``J_l`` the left Jacobian of SO(3), so the
   node's rotation and angular velocity are exactly consistent), and the velocity-product term ``w'``
-  of ``d/dt (Psi eta_dot)``;
+  of ``d/dt (Psi eta_dot)``; :func:`node_motion` the same without forming ``Psi`` (``Psi eta_ddot`` from sums
+  over the shape: a node's acceleration);
 * :func:`psi_times_inverse_modal_mass`: ``Psi G^-1`` in O(n) from the precomputed ``Pi G^-1``;
 * :func:`modal_mass_and_bias`: the body mass matrix ``M(eta) = M0 + M1 eta + M2 eta eta`` (TM-2020-5008164
   eqs. E.2.2-E.2.6, stored as the blocks of :class:`dynamics.flexible_body.ModalMassTerms`) and the body's
@@ -76,32 +77,28 @@ def _skew_apply(p, x, out):
     out[2] = p[0] * x[1] - p[1] * x[0]
 
 
-@njit(cache=True)
-def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, w, wdot, tmp):
-    """Deformed pose of a node and its relative motion per unit modal rate.
-
-    ``shape`` (6, >=n) = Pi = [lambda; gamma]; ``l0``, ``R0`` undeformed position and node -> body
-    rotation. Writes ``R = exp((lambda eta)~) R0``, ``pos = l0 + gamma eta``, ``Psi`` (6, n) the node's
-    spatial velocity at the body origin per unit eta_dot, ``w = Psi eta_dot`` (6) and ``wdot`` (6) the
-    velocity-product part of d/dt (Psi eta_dot). ``tmp`` is a (8, 3) scratch array; on return
-    ``tmp[0]`` holds ``phi = lambda eta``.
-    """
-    phi = tmp[0]
-    phidot = tmp[1]
+@njit(cache=True, fastmath=FAST_SUMS)
+def _shape_sums(shape, n, x, rotation, translation):
+    """``rotation = lambda x``, ``translation = gamma x`` (``shape`` = Pi = [lambda; gamma], 6 x >=n): six sums over
+    the modes, each over a contiguous row (reassociated: vectorized, see :data:`FAST_SUMS`)."""
     for a in range(3):
         s = 0.0
-        sd = 0.0
-        g = l0[a]
-        gd = 0.0
+        g = 0.0
         for r in range(n):
-            s += shape[a, r] * eta[r]
-            sd += shape[a, r] * eta_dot[r]
-            g += shape[3 + a, r] * eta[r]
-            gd += shape[3 + a, r] * eta_dot[r]
-        phi[a] = s
-        phidot[a] = sd
-        pos[a] = g
-        tmp[2, a] = gd  # gamma eta_dot
+            s += shape[a, r] * x[r]
+            g += shape[3 + a, r] * x[r]
+        rotation[a] = s
+        translation[a] = g
+
+
+@njit(cache=True, inline="always")
+def _deformed_pose(shape, l0, R0, eta, n, R, pos, tmp):
+    """``phi = lambda eta`` into ``tmp[0]``, ``pos = l0 + gamma eta``, ``R = exp(phi~) R0`` (``tmp[3:6]`` scratch);
+    returns the SO(3) coefficients of ``phi`` (:func:`so3_coefficients`)."""
+    phi = tmp[0]
+    _shape_sums(shape, n, eta, phi, pos)
+    for a in range(3):
+        pos[a] += l0[a]
     ca, cb, cc, dbt, dct = so3_coefficients(phi)
     # exp(phi~) = I + a phi~ + b phi~^2 ; phi~^2 = phi phi' - |phi|^2 I
     t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
@@ -118,21 +115,15 @@ def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, w, wdot, tmp):
     for i in range(3):
         for j in range(3):
             R[i, j] = E[i, 0] * R0[0, j] + E[i, 1] * R0[1, j] + E[i, 2] * R0[2, j]
-    # Psi columns: A e_r = J_l lambda_r = lambda_r + b phi x lambda_r + c phi x (phi x lambda_r)
-    col = tmp[6]
-    cr = tmp[7]
-    for r in range(n):
-        for a in range(3):
-            col[a] = shape[a, r]
-        _skew_apply(phi, col, cr)
-        _skew_apply(phi, cr, tmp[5])  # tmp[5] = phi x (phi x lambda) (E no longer needed)
-        for a in range(3):
-            Psi[a, r] = col[a] + cb * cr[a] + cc * tmp[5, a]
-        for a in range(3):
-            col[a] = Psi[a, r]
-        _skew_apply(pos, col, cr)
-        for a in range(3):
-            Psi[3 + a, r] = shape[3 + a, r] + cr[a]
+    return ca, cb, cc, dbt, dct
+
+
+@njit(cache=True, inline="always")
+def _relative_velocity(pos, cb, cc, dbt, dct, w, wdot, tmp):
+    """``w = Psi eta_dot`` and ``w'`` (the velocity-product part of d/dt (Psi eta_dot)) from ``phi = tmp[0]``,
+    ``phidot = lambda eta_dot = tmp[1]`` and ``gamma eta_dot = tmp[2]`` (``tmp[3:7]`` scratch)."""
+    phi = tmp[0]
+    phidot = tmp[1]
     # omega_r = A eta_dot ; Adot eta_dot = Jdot phidot with
     # Jdot = bdot phi~ + b phidot~ + cdot phi~^2 + c (phidot~ phi~ + phi~ phidot~)
     pd = phi[0] * phidot[0] + phi[1] * phidot[1] + phi[2] * phidot[2]
@@ -162,6 +153,73 @@ def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, w, wdot, tmp):
         w[3 + a] = tmp[2, a] + v1[a]
 
 
+@njit(cache=True)
+def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, w, wdot, tmp):
+    """Deformed pose of a node and its relative motion per unit modal rate.
+
+    ``shape`` (6, >=n) = Pi = [lambda; gamma]; ``l0``, ``R0`` undeformed position and node -> body
+    rotation. Writes ``R = exp((lambda eta)~) R0``, ``pos = l0 + gamma eta``, ``Psi`` (6, n) the node's
+    spatial velocity at the body origin per unit eta_dot, ``w = Psi eta_dot`` (6) and ``wdot`` (6) the
+    velocity-product part of d/dt (Psi eta_dot). ``tmp`` is a (8, 3) scratch array; on return
+    ``tmp[0]`` holds ``phi = lambda eta``. Cost: the four sums ``lambda eta``, ``gamma eta``, ``lambda eta_dot``,
+    ``gamma eta_dot`` over the modes and ``Psi = [J_l lambda; gamma + l~ J_l lambda]`` (two 3 x 3 matrices applied
+    to the shape's columns): about 30 n flops. Where ``Psi`` is needed only times a vector (a node's acceleration),
+    :func:`node_motion` forms that product from the shape without ``Psi``.
+    """
+    ca, cb, cc, dbt, dct = _deformed_pose(shape, l0, R0, eta, n, R, pos, tmp)
+    _shape_sums(shape, n, eta_dot, tmp[1], tmp[2])
+    phi = tmp[0]
+    t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+    # A e_r = J_l lambda_r, J_l = I + b phi~ + c (phi phi' - |phi|^2 I); linear rows gamma_r + l x (A e_r)
+    J00 = 1.0 + cc * (phi[0] * phi[0] - t2)
+    J11 = 1.0 + cc * (phi[1] * phi[1] - t2)
+    J22 = 1.0 + cc * (phi[2] * phi[2] - t2)
+    J01 = -cb * phi[2] + cc * phi[0] * phi[1]
+    J10 = cb * phi[2] + cc * phi[0] * phi[1]
+    J02 = cb * phi[1] + cc * phi[0] * phi[2]
+    J20 = -cb * phi[1] + cc * phi[0] * phi[2]
+    J12 = -cb * phi[0] + cc * phi[1] * phi[2]
+    J21 = cb * phi[0] + cc * phi[1] * phi[2]
+    x, y, z = pos[0], pos[1], pos[2]
+    for r in range(n):
+        a0 = shape[0, r]
+        a1 = shape[1, r]
+        a2 = shape[2, r]
+        b0 = J00 * a0 + J01 * a1 + J02 * a2
+        b1 = J10 * a0 + J11 * a1 + J12 * a2
+        b2 = J20 * a0 + J21 * a1 + J22 * a2
+        Psi[0, r] = b0
+        Psi[1, r] = b1
+        Psi[2, r] = b2
+        Psi[3, r] = shape[3, r] + y * b2 - z * b1
+        Psi[4, r] = shape[4, r] + z * b0 - x * b2
+        Psi[5, r] = shape[5, r] + x * b1 - y * b0
+    _relative_velocity(pos, cb, cc, dbt, dct, w, wdot, tmp)
+
+
+@njit(cache=True)
+def node_motion(shape, l0, R0, eta, n, eta_dot, eta_ddot, R, pos, w, wdot, psi_acc, tmp):
+    """:func:`node_deformation` without ``Psi``: the deformed pose ``R``, ``pos``, ``w = Psi eta_dot``, ``w'`` and,
+    with a non-empty ``eta_ddot`` (n), ``psi_acc = Psi eta_ddot = [J_l (lambda eta_ddot); gamma eta_ddot + l x
+    J_l (lambda eta_ddot)]`` (linear in eta_ddot, so formed from two more sums over the shape instead of the 6 x n
+    ``Psi``): what a node's pose, velocity and acceleration need, in six (eight) sums over the modes plus O(1).
+    ``tmp`` (8, 3) scratch, ``tmp[0] = phi = lambda eta`` on return."""
+    ca, cb, cc, dbt, dct = _deformed_pose(shape, l0, R0, eta, n, R, pos, tmp)
+    if eta_ddot.shape[0] > 0:
+        la = tmp[6]
+        v1 = tmp[3]
+        v2 = tmp[4]
+        _shape_sums(shape, n, eta_ddot, la, tmp[7])
+        phi = tmp[0]
+        _skew_apply(phi, la, v1)
+        _skew_apply(phi, v1, v2)
+        for a in range(3):
+            psi_acc[a] = la[a] + cb * v1[a] + cc * v2[a]
+        _skew_apply(pos, psi_acc[0:3], v1)
+        for a in range(3):
+            psi_acc[3 + a] = tmp[7, a] + v1[a]
+    _shape_sums(shape, n, eta_dot, tmp[1], tmp[2])
+    _relative_velocity(pos, cb, cc, dbt, dct, w, wdot, tmp)
 
 
 @njit(cache=True)

@@ -27,6 +27,7 @@ from numba.experimental.function_type import _get_jit_address, _get_wrapper_addr
 
 from shell import compiled_loop as L
 from shell import kernel_protocol as KP
+from shell.diagram import stage_kernel
 
 
 class NotCompilable(Exception):
@@ -46,7 +47,9 @@ def _pointer(fn, signature, model, what):
                             f"the signature {signature}: {type(exc).__name__}: {str(exc).splitlines()[0][:200]}") from None
 
 
-_OP_CODES = {"state": KP.STATE_OUTPUTS, "feedthrough": KP.FEEDTHROUGH_OUTPUTS}
+_OP_CODES = {("state", False): KP.STATE_OUTPUTS, ("feedthrough", False): KP.FEEDTHROUGH_OUTPUTS,
+             ("state", True): KP.STATE_OUTPUTS_FOR_DERIVATIVES,
+             ("feedthrough", True): KP.FEEDTHROUGH_OUTPUTS_FOR_DERIVATIVES}
 
 
 def _op(kind, fn, gather, x, z, u, p, out, noise=(0, 0), rng=0, data=(0, 0), opcode=0):
@@ -124,14 +127,17 @@ class _Tables:
                 return _op(L.DATA, f, gather, *block, data=_range(self.flat_slices[i]))
             return _op(L.PLAIN, kinds.pointer("fns", fn, KP.KERNEL_SIGNATURE, m, what), gather, *block)
 
-        def stage_op(stage):
+        def stage_op(stage, for_derivatives=False):
+            """The row of an output stage; ``for_derivatives``: within the integrator's derivative evaluation (the
+            model's kernel for it, :func:`shell.diagram.stage_kernel`; an op kernel's op code for it)."""
             m = models[stage.model]
-            fn = m.state_outputs if stage.kind == "state" else m.feedthrough_outputs
-            return call(stage.model, fn, f"{stage.kind}-outputs", stage.gather, diagram.y_block[stage.model],
-                        _OP_CODES[stage.kind])
+            fn = stage_kernel(m, stage.kind, for_derivatives)
+            own = for_derivatives and getattr(m, f"{stage.kind}_outputs_for_derivatives") is not None
+            return call(stage.model, fn, f"{stage.kind}-outputs{' (derivatives)' if own else ''}", stage.gather,
+                        diagram.y_block[stage.model], _OP_CODES[(stage.kind, own)])
 
-        def derivative_rows(stages):
-            rows = [stage_op(s) for s in stages]
+        def derivative_rows(stages, for_derivatives=False):
+            rows = [stage_op(s, for_derivatives) for s in stages]
             reuse = diagram.feedthrough_precedes_derivatives(stages)
             for i in diagram.derivative_models:
                 m = models[i]
@@ -156,7 +162,8 @@ class _Tables:
                                     "compiled")
             normalizers.append(call(i, None, "normalize", (0, 0), slice(0, 0), KP.NORMALIZE))
         self.tables = (_table([stage_op(s) for s in diagram.output_order]),
-                       _table(derivative_rows(diagram.derivative_stages)), len(diagram.derivative_stages), _table(zc),
+                       _table(derivative_rows(diagram.derivative_stages, True)), len(diagram.derivative_stages),
+                       _table(zc),
                        _table(updates), _table(normalizers), _table(input_stage_rows),
                        _table([stage_op(s) for s in diagram.zero_crossing_stages]))
         # every kernel is in a table now (every output stage is in the full order): later stage tables reuse them

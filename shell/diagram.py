@@ -64,6 +64,16 @@ def gather_inputs(signals, source, destination, factor, start, stop):
         signals[destination[k]] = factor[k] * signals[source[k]]
 
 
+def stage_kernel(model, kind: str, for_derivatives: bool = False):
+    """The kernel of ``model``'s output stage ``kind`` ("state" or "feedthrough"); ``for_derivatives``: in a
+    derivative evaluation (its ``*_outputs_for_derivatives`` kernel when it has one, :mod:`shell.model`)."""
+    if for_derivatives:
+        fn = model.state_outputs_for_derivatives if kind == "state" else model.feedthrough_outputs_for_derivatives
+        if fn is not None:
+            return fn
+    return model.state_outputs if kind == "state" else model.feedthrough_outputs
+
+
 @dataclass(frozen=True)
 class Stage:
     """One output stage of the evaluation order: model ``model`` computes its ``kind`` outputs
@@ -86,9 +96,10 @@ class Diagram:
         self.model_index = {m.path: i for i, m in enumerate(self.models)}
         self._layout()
         self._wire()
-        for c in self.connections:  # a model computing only what is read learns what its connections read
-            c.source_model.output_read(c.source_port)
         self._order_outputs()
+        for c, in_derivatives in zip(self.connections, self.read_in_derivatives()):
+            # a model computing only what is read learns what its connections read, and which derivatives read
+            c.source_model.output_read(c.source_port, in_derivatives=in_derivatives)
         self._order_updates()
         self._collect_zero_crossings(stop_events)
         self.normalizers = tuple(i for i, m in enumerate(self.models) if hasattr(m, "normalize_state"))
@@ -329,6 +340,19 @@ class Diagram:
         return self.stages_closure([stage for m in self.models if m.x_layout.size or m.zero_crossings
                                     for stage, _ in feeding.get(m.path, [])], feeding)
 
+    def read_in_derivatives(self) -> tuple[bool, ...]:
+        """Per connection: a derivative evaluation reads its destination input: the destination has continuous
+        states or zero crossings (its derivatives read every input), or the input is a feedthrough input of a model
+        whose feedthrough stage the derivatives need (:meth:`stages_needed_by_derivatives`)."""
+        needed = self.stages_needed_by_derivatives()
+        read = []
+        for c in self.connections:
+            m = c.destination_model
+            port = self.port_info[(m.path, c.destination_port)]
+            read.append(bool(m.x_layout.size or m.zero_crossings
+                             or (port.feedthrough and (m.path, "feedthrough") in needed)))
+        return tuple(read)
+
     def stages_for(self, needed: set) -> tuple[Stage, ...]:
         """The stages of ``needed`` ((model path, kind) pairs) in evaluation order."""
         return tuple(s for s in self.output_order if (self.models[s.model].path, s.kind) in needed)
@@ -402,13 +426,16 @@ class Diagram:
                       self.n_gather)
 
     def derivatives(self, context: "Context", t: float, x: np.ndarray) -> np.ndarray:
-        """f(t, x): the integrator's right-hand side (continuous states of every model), a new array."""
+        """f(t, x): the integrator's right-hand side (continuous states of every model), a new array. Its output
+        stages are a derivative evaluation's (models' ``*_outputs_for_derivatives`` kernels: outputs that only samples,
+        logs and names read may be NaN after it)."""
         context.x[:] = x
-        self._derivatives(context, t, self.derivative_stages, self.gather_source, self.gather_factor)
+        self._derivatives(context, t, self.derivative_stages, self.gather_source, self.gather_factor,
+                          for_derivatives=True)
         return context.xdot.copy()
 
-    def _derivatives(self, context, t, stages, source, factor) -> None:
-        self._run_stages(context, t, stages, source, factor)
+    def _derivatives(self, context, t, stages, source, factor, for_derivatives=False) -> None:
+        self._run_stages(context, t, stages, source, factor, for_derivatives)
         gather_inputs(context.signals, source, self.gather_destination, factor, 0, self.n_gather)
         reuse = context.reuse_for(stages)
         i = -1
@@ -424,7 +451,7 @@ class Diagram:
             raise EvaluationError(f"model {self.models[i].path} failed computing derivatives at t = {t:.9g} s: "
                                   f"{type(exc).__name__}: {exc}") from exc
 
-    def _run_stages(self, context, t, stages, source=None, factor=None) -> None:
+    def _run_stages(self, context, t, stages, source=None, factor=None, for_derivatives=False) -> None:
         source = self.gather_source if source is None else source
         factor = self.gather_factor if factor is None else factor
         signals, destination = context.signals, self.gather_destination
@@ -435,7 +462,7 @@ class Diagram:
                 if k1 > k0:
                     gather_inputs(signals, source, destination, factor, k0, k1)
                 v = context.views[stage.model]
-                fn = v.model.state_outputs if stage.kind == "state" else v.model.feedthrough_outputs
+                fn = stage_kernel(v.model, stage.kind, for_derivatives)
                 if v.data is None:
                     fn(t, v.x, v.z, v.u, v.p, v.y)
                 else:

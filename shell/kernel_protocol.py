@@ -52,6 +52,11 @@ FEEDTHROUGH_OUTPUTS = 1            # out: the output block (feedthrough outputs)
 DERIVATIVES = 2                    # out: xdot
 DERIVATIVES_AFTER_FEEDTHROUGH = 3  # out: xdot, reusing what FEEDTHROUGH_OUTPUTS computed at the same state and inputs
 NORMALIZE = 4                      # x (passed in every array argument): renormalize its quaternions in place
+#: the output stages within a derivative evaluation (the integrator's right-hand side, where only the derivatives
+#: are read): as STATE_OUTPUTS and FEEDTHROUGH_OUTPUTS, but outputs that only sampled updates, logs and names read
+#: may be left out (NaN: never a stale value); used for a model that declares ``state_outputs_for_derivatives``
+STATE_OUTPUTS_FOR_DERIVATIVES = 5
+FEEDTHROUGH_OUTPUTS_FOR_DERIVATIVES = 6
 
 
 # -- typed data by reference ---------------------------------------------------------------------------------------

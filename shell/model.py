@@ -71,6 +71,11 @@ Writing a model's kernels (the conventions every built-in model follows):
 * ``update_reads_inputs = False`` marks a sampled model whose ``update`` reads none of its inputs (only its own
   states and parameters): its samples then evaluate no output stage for it (the IMU's, whose inputs need the
   engine's forward dynamics: one solve per sample saved). A test gives such an update non-finite inputs.
+* ``state_outputs_for_derivatives`` / ``feedthrough_outputs_for_derivatives`` (optional, same signatures): the
+  output kernels a *derivative evaluation* (the integrator's right-hand side, where only the derivatives are read)
+  calls instead of ``state_outputs`` / ``feedthrough_outputs``. They may leave out, as NaN, the outputs that no
+  derivative reads (:meth:`Model.output_read` says which are: ``in_derivatives``), which samples, logs and names
+  then get from the ordinary kernels (the engine's nodes that only a sampled controller or a log reads).
 """
 
 from __future__ import annotations
@@ -443,6 +448,9 @@ class Model:
     #: evaluation (same state and inputs), so it can reuse what that stage computed (the engine's
     #: accelerations: one forward-dynamics solve per evaluation)
     derivatives_after_feedthrough = None
+    #: optional: the output kernels of a derivative evaluation (module docstring), None: the ordinary ones
+    state_outputs_for_derivatives = None
+    feedthrough_outputs_for_derivatives = None
     #: the model keeps per-run data (arrays its kernels read and write besides x, z, u, p): its kernels
     #: take it as an extra argument after ``p``, and :meth:`create_data` makes it for each run's context
     uses_data = False
@@ -618,12 +626,13 @@ class Model:
         "force", ...) to this model's port names for node/hinge ``target``. Others refuse."""
         raise ModelError(f"model {self.path}: {type(self).__name__} has no nodes or hinges to attach to")
 
-    def output_read(self, name: str) -> bool:
+    def output_read(self, name: str, in_derivatives: bool = False) -> bool:
         """Output port ``name`` is read: connected to an input, logged, linearized or read by name (the diagram calls
-        this when it is built and whenever a name is resolved). A model that computes only the outputs something
-        reads (the multibody engine's node kinematics) starts computing ``name`` here and returns True when it did
-        not compute it until now (its value in the signal buffer is then stale until the next evaluation); the
-        default computes every output and returns False."""
+        this when it is built and whenever a name is resolved); ``in_derivatives``: connected to an input that a
+        derivative evaluation reads (of a model with continuous states, or through feedthrough stages to one). A
+        model that computes only the outputs something reads (the multibody engine's node kinematics) starts
+        computing ``name`` here and returns True when it did not compute it until now (its value in the signal buffer
+        is then stale until the next evaluation); the default computes every output and returns False."""
         return False
 
     def missing_port_hint(self, name: str) -> str:

@@ -318,6 +318,58 @@ def body_kinematics(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_r
 
 
 @njit(cache=True)
+def _motion_slot(nd, n, nodes, params, eta, eta_dot, pool):
+    """Deformed pose, w and w' of node ``nd`` into its slot, without its ``Psi`` (:func:`FK.node_motion`): what a
+    child's pose and velocity read (its ``Psi`` and Z are left as they are)."""
+    s = nodes[nd, NODE_SLOT]
+    fr = nodes[nd, NODE_FRAME]
+    FK.node_motion(view(params, nodes[nd, NODE_SHAPE], 6, n), params[fr + 9:fr + 12], view(params, fr, 3, 3), eta, n,
+                   eta_dot, eta[0:0], view(pool, s + SL_R, 3, 3), pool[s + SL_L:s + SL_L + 3],
+                   pool[s + SL_W:s + SL_W + 6], pool[s + SL_WD:s + SL_WD + 6], pool[s + SL_WD:s + SL_WD],
+                   view(pool, P_TMP83, 8, 3))
+
+
+@njit(cache=True)
+def body_motion(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool, bodies):
+    """Pose and velocity of body i (as :func:`body_kinematics` with ``velocity``) where only the bodies with
+    ``bodies[j] != 0`` are computed (body i's ancestors among them): the slot of a deforming parent node gets its
+    pose, ``w`` and ``w'`` (not ``Psi``) from the first of those bodies hanging from it; the slots of body i's own
+    nodes are left to its children. For the poses and velocities of nodes (:func:`dynamics.kernels.node_frames.
+    node_velocities_selected`)."""
+    if not topology[i, GENERAL]:
+        rigid_position(i, topology, joint_rot, joint_vec, q, ws_rot, ws_vec, ws_mat)
+        rigid_velocity(i, topology, joint_vec, u, ws_rot, ws_vec, ws_mat)
+        return
+    parent = topology[i, PARENT]
+    jnode = topology[i, PARENT_NODE]
+    if jnode >= 0 and parent >= 0 and topology[parent, FLEXIBLE]:
+        first = True
+        for j in range(parent + 1, i):
+            if bodies[j] != 0 and topology[j, PARENT_NODE] == jnode:
+                first = False
+                break
+        if first:
+            n = topology[parent, N_MODES]
+            qe = topology[parent, Q_START] + topology[parent, NQ_HINGE]
+            ue = topology[parent, U_START] + topology[parent, NU_HINGE]
+            _motion_slot(jnode, n, nodes, params, q[qe:qe + n], u[ue:ue + n], pool)
+    _general_position(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool)
+    _general_velocity(i, topology, nodes, joint_vec, u, ws_rot, ws_vec, ws_mat, pool)
+
+
+@njit(cache=True, fastmath=FK.FAST_SUMS)
+def _rows_times(M, x, n, out):
+    """``out[a] = sum_r M[a, r] x[r]`` for the six rows of a 6 x n ``Psi`` (reassociated sums: vectorized, see
+    :data:`dynamics.flexible_kernels.FAST_SUMS`; a sum over 196 modes in order is bound by the latency of its
+    additions, ~4x the vectorized time)."""
+    for a in range(6):
+        s = 0.0
+        for r in range(n):
+            s += M[a, r] * x[r]
+        out[a] = s
+
+
+@njit(cache=True)
 def _parent_acceleration_modal(i, topology, nodes, udot, ws_rot, ws_vec, pool, A):
     """A = X_i (a_parent + Psi_i etaddot_parent) for a body hanging from a node of a flexible parent."""
     parent = topology[i, PARENT]
@@ -326,11 +378,9 @@ def _parent_acceleration_modal(i, topology, nodes, udot, ws_rot, ws_vec, pool, A
     tmp = pool[P_V2:P_V2 + 6]
     Psi = view(pool, nodes[topology[i, PARENT_NODE], NODE_SLOT] + SL_PSI, 6, n_p)
     ue = topology[parent, U_START] + topology[parent, NU_HINGE]
+    _rows_times(Psi, udot[ue:ue + n_p], n_p, tmp)
     for a in range(6):
-        s_ = Ap[a]
-        for rr in range(n_p):
-            s_ += Psi[a, rr] * udot[ue + rr]
-        tmp[a] = s_
+        tmp[a] += Ap[a]
     motion_to_child(ws_rot[i, ROT_PB], ws_vec[i, VEC_POS], tmp, A)
 
 
@@ -377,12 +427,10 @@ def add_hinge_acceleration(i, topology, nodes, udot, ws_vec, ws_mat, pool, A):
     onode = topology[i, OUTBOARD_NODE]
     if onode >= 0:
         n = topology[i, N_MODES]
-        Pc = view(pool, nodes[onode, NODE_SLOT] + SL_PSI, 6, n)
+        tmp = pool[P_V2:P_V2 + 6]
+        _rows_times(view(pool, nodes[onode, NODE_SLOT] + SL_PSI, 6, n), udot[u0 + nu:u0 + nu + n], n, tmp)
         for a in range(6):
-            s_ = 0.0
-            for rr in range(n):
-                s_ += Pc[a, rr] * udot[u0 + nu + rr]
-            A[a] -= s_
+            A[a] -= tmp[a]
 
 
 @njit(cache=True)

@@ -58,6 +58,14 @@ later (:meth:`MultibodyModel.output_read`, called by :meth:`shell.diagram.Diagra
 int64 mask in the per-run data (``EnginePorts.node_read``, shared by every run of the model), read by the one compiled
 kernel of the path; the outputs of a node nothing reads are NaN, and the run summary names those nodes. A node that
 only receives a force needs no kinematics: the forward dynamics projects its force (and skips an exactly-zero one).
+Within a derivative evaluation (the integrator's right-hand side: the op codes
+:data:`shell.kernel_protocol.STATE_OUTPUTS_FOR_DERIVATIVES` and
+:data:`~shell.kernel_protocol.FEEDTHROUGH_OUTPUTS_FOR_DERIVATIVES`) only the nodes a derivative reads are computed
+(``EnginePorts.node_read_in_derivatives``: a connection to a model with continuous states, or through feedthrough
+stages to one, such as an IMU integrating its node's motion); the outputs of the nodes read only at samples, by logs
+or by name are NaN there, and computed at the evaluations that read them (a sample's, a log's, ``evaluate``). The state
+outputs (poses and velocities) come from the kinematics of only the bodies those nodes ride on and their ancestors
+(:func:`dynamics.kernels.node_frames.node_velocities_selected`).
 
 Hinge ports of mixed dimension (free: [rad, m] coordinates, [rad/s, m/s] velocities) are declared
 without a unit and carry SI values; single-kind hinges declare rad, m, rad/s, N m or N.
@@ -74,12 +82,14 @@ from dynamics import constraint_kernels as CK
 from dynamics import engine as E
 from dynamics import kernels as K
 from dynamics import single_body as SB
-from dynamics.kernels.node_frames import node_kinematics_after_dynamics_selected, node_kinematics_selected
+from dynamics.kernels.node_frames import (node_kinematics_after_dynamics_selected, node_kinematics_selected,
+                                          node_velocities_selected)
 from dynamics.errors import ModelDefinitionError
 from dynamics.hinges import HINGE_NQ, HINGE_NU, HINGE_TYPES, HINGES
 
-from shell.kernel_protocol import (DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, FEEDTHROUGH_OUTPUTS, NORMALIZE,
-                                   STATE_OUTPUTS)
+from shell.kernel_protocol import (DERIVATIVES, DERIVATIVES_AFTER_FEEDTHROUGH, FEEDTHROUGH_OUTPUTS,
+                                   FEEDTHROUGH_OUTPUTS_FOR_DERIVATIVES, NORMALIZE, STATE_OUTPUTS,
+                                   STATE_OUTPUTS_FOR_DERIVATIVES)
 from shell.model import InputPort, Model, ModelError, OutputPort, State
 from shell.ports import NODE_INPUTS, NODE_OUTPUTS
 from shell.registry import register_model
@@ -141,6 +151,7 @@ class EnginePorts(NamedTuple):
     hinge_u: np.ndarray         # (k, 3) the same for <body>.u and <body>.modal_u
     hinge_udot: np.ndarray      # (k, 3) the same for <body>.u_dot and <body>.modal_u_dot
     node_read: np.ndarray       # (nnodes,) int64: 1 for a node whose outputs something reads (MultibodyModel.output_read)
+    node_read_in_derivatives: np.ndarray  # (nnodes,) int64: 1 for a node whose outputs a derivative evaluation reads
 
 
 class EngineWork(NamedTuple):
@@ -155,6 +166,7 @@ class EngineWork(NamedTuple):
     position: np.ndarray        # (nnodes, 3)
     velocity: np.ndarray        # (nnodes, 6)
     acceleration: np.ndarray    # (nnodes, 6)
+    bodies: np.ndarray          # (nb,) int64 scratch: the bodies the selected nodes' poses and velocities need
     status: np.ndarray          # (1,) int64: 0, or 1 + the body whose articulated inertia was singular
 
 
@@ -206,15 +218,23 @@ def _coordinate_outputs(x, ports, out):
 
 
 @njit(cache=True, inline="always")
-def _acceleration_outputs(ports, work, out):
+def _acceleration_outputs(ports, work, active, out):
     """The nodes' angular and linear accelerations (left in ``work.acceleration``) into the output block; NaN for a
-    node nothing reads (its kinematics were not computed: see :meth:`MultibodyModel.output_read`)."""
+    node not in ``active`` (its kinematics were not computed: see :meth:`MultibodyModel.output_read`)."""
     for n in range(ports.accel_offsets.shape[0]):
         a, b = ports.accel_offsets[n, 0], ports.accel_offsets[n, 1]
-        read = ports.node_read[n] != 0
+        read = active[n] != 0
         for k in range(3):
             out[a + k] = work.acceleration[n, k] if read else np.nan
             out[b + k] = work.acceleration[n, 3 + k] if read else np.nan
+
+
+@njit(cache=True, inline="always")
+def _tree_node_velocities(d, q, u, active, work):
+    """Poses and velocities of the nodes with ``active[n] != 0`` from the kinematics of the bodies they need
+    (articulated and dense paths, constrained scenes: the state outputs)."""
+    node_velocities_selected(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, work.rotation,
+                             work.position, work.velocity, d.ws_rot, d.ws_vec, d.ws_mat, d.pool, active, work.bodies)
 
 
 @njit(cache=True, inline="always")
@@ -234,6 +254,13 @@ def _tree_node_kinematics_after_dynamics(d, q, u, udot, active, rotation, positi
 
 
 @njit(cache=True, inline="always")
+def _single_body_node_velocities(d, q, u, active, work):
+    """Every node of a single rigid body (:func:`_single_body_node_kinematics`, accelerations for zero ``udot``)."""
+    SB.node_kinematics(d.topology, d.nodes, d.joint_rot, d.joint_vec, d.params, q, u, work.zero_u, work.rotation,
+                       work.position, work.velocity, work.acceleration, d.ws_rot, d.ws_vec)
+
+
+@njit(cache=True, inline="always")
 def _single_body_node_kinematics(d, q, u, udot, active, rotation, position, velocity, acceleration):
     """Every node of a single rigid body (a few flops per node: not worth a mask; the outputs of the nodes nothing
     reads are still made NaN by the writers)."""
@@ -247,10 +274,10 @@ def _single_body_node_kinematics_after_dynamics(d, q, u, udot, active, rotation,
                                       d.ws_vec)
 
 
-#: path name -> (node kinematics, node kinematics after the forward dynamics) taking the node mask
-_NODE_KINEMATICS = {"single_body": (_single_body_node_kinematics, _single_body_node_kinematics_after_dynamics),
-                    "articulated": (_tree_node_kinematics, _tree_node_kinematics_after_dynamics),
-                    "dense": (_tree_node_kinematics, _tree_node_kinematics_after_dynamics)}
+#: path name -> (node poses and velocities, node kinematics after the forward dynamics) taking the node mask
+_NODE_KINEMATICS = {"single_body": (_single_body_node_velocities, _single_body_node_kinematics_after_dynamics),
+                    "articulated": (_tree_node_velocities, _tree_node_kinematics_after_dynamics),
+                    "dense": (_tree_node_velocities, _tree_node_kinematics_after_dynamics)}
 
 
 def _engine_kernel(path):
@@ -258,33 +285,35 @@ def _engine_kernel(path):
     path's code only, so a rigid single-body scene compiles neither the articulated-body recursion nor the
     dense solver (measured on the demo from an empty cache: see docs/benchmarks.md, "Compile time")."""
     forward_dynamics = path.forward_dynamics
-    node_kinematics, node_kinematics_after_dynamics = _NODE_KINEMATICS[path.name]
+    node_velocities, node_kinematics_after_dynamics = _NODE_KINEMATICS[path.name]
 
     def engine_kernel(op, t, x, z, u, p, d, out):
         """Every kernel of the engine model in one compiled function, its op kernel (:mod:`shell.kernel_protocol`:
-        ``op`` selects it), so the engine's code is compiled once, not once per kernel: state outputs, feedthrough outputs (forward dynamics and
-        node accelerations), derivatives (solving, or reusing the feedthrough stage's accelerations), and the
-        quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as borrowed
+        ``op`` selects it), so the engine's code is compiled once, not once per kernel: state outputs, feedthrough
+        outputs (forward dynamics and node accelerations), each of every node read or (``*_FOR_DERIVATIVES``) of
+        the nodes a derivative reads, derivatives (solving, or reusing the feedthrough stage's accelerations), and
+        the quaternion normalization of ``x`` (``out`` unused). The engine's arrays are used as borrowed
         references (:func:`dynamics.engine.borrowed`): their reference counting was about a third of the
         derivative of a single-body scene."""
         d = E.borrowed(d)
         engine, ports, work = d
         nq, nu = ports.nq, ports.nu
-        if op == STATE_OUTPUTS:
+        if op == STATE_OUTPUTS or op == STATE_OUTPUTS_FOR_DERIVATIVES:
             _coordinate_outputs(x, ports, out)
             if ports.node_offsets.shape[0]:
-                node_kinematics(engine, x[:nq], x[nq:], work.zero_u, ports.node_read, work.rotation, work.position,
-                                work.velocity, work.acceleration)
-                _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets, ports.node_read)
-        elif op == FEEDTHROUGH_OUTPUTS:
+                active = ports.node_read if op == STATE_OUTPUTS else ports.node_read_in_derivatives
+                node_velocities(engine, x[:nq], x[nq:], active, work)
+                _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets, active)
+        elif op == FEEDTHROUGH_OUTPUTS or op == FEEDTHROUGH_OUTPUTS_FOR_DERIVATIVES:
             _gather_inputs(x, u, d)
             _record_status(forward_dynamics(engine, x[:nq], x[nq:], work.tau, work.node_forces, work.udot,
                                             work.tau_out), d)
             _copy_blocks(work.udot, ports.hinge_udot, out)
             if ports.accel_offsets.shape[0]:  # reusing the workspace the forward dynamics just left
-                node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, ports.node_read, work.rotation,
+                active = ports.node_read if op == FEEDTHROUGH_OUTPUTS else ports.node_read_in_derivatives
+                node_kinematics_after_dynamics(engine, x[:nq], x[nq:], work.udot, active, work.rotation,
                                                work.position, work.velocity, work.acceleration)
-                _acceleration_outputs(ports, work, out)
+                _acceleration_outputs(ports, work, active, out)
         elif op == DERIVATIVES or op == DERIVATIVES_AFTER_FEEDTHROUGH:
             if op == DERIVATIVES:
                 _gather_inputs(x, u, d)
@@ -332,27 +361,28 @@ def engine_kernel_constrained(op, t, x, z, u, p, d, out):
     tree = (engine, ports, work)
     c = closure.data
     nq, nu = ports.nq, ports.nu
-    if op == STATE_OUTPUTS:
+    if op == STATE_OUTPUTS or op == STATE_OUTPUTS_FOR_DERIVATIVES:
         _coordinate_outputs(x, ports, out)
         if ports.node_offsets.shape[0]:
-            _tree_node_kinematics(engine, x[:nq], x[nq:], work.zero_u, ports.node_read, work.rotation, work.position,
-                                  work.velocity, work.acceleration)
-            _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets, ports.node_read)
+            active = ports.node_read if op == STATE_OUTPUTS else ports.node_read_in_derivatives
+            _tree_node_velocities(engine, x[:nq], x[nq:], active, work)
+            _node_outputs(work.rotation, work.position, work.velocity, out, ports.node_offsets, active)
         if closure.energy_out.shape[0]:
             _energy_output(engine, c, x[:nq], x[nq:], closure, out)
-    elif op == FEEDTHROUGH_OUTPUTS or op == DERIVATIVES:
+    elif op == FEEDTHROUGH_OUTPUTS or op == FEEDTHROUGH_OUTPUTS_FOR_DERIVATIVES or op == DERIVATIVES:
         _gather_inputs(x, u, tree)
         _record_status(CK.forward_dynamics(engine, c, x[:nq], x[nq:], work.tau, work.node_forces, work.udot,
                                            work.tau_out, closure.loads), tree)
-        if op == FEEDTHROUGH_OUTPUTS:
+        if op != DERIVATIVES:
             _copy_blocks(work.udot, ports.hinge_udot, out)
             for i in range(closure.load_out.shape[0]):
                 for k in range(6):
                     out[closure.load_out[i] + k] = closure.loads[i, k]
             if ports.accel_offsets.shape[0]:
-                _tree_node_kinematics(engine, x[:nq], x[nq:], work.udot, ports.node_read, work.rotation,
+                active = ports.node_read if op == FEEDTHROUGH_OUTPUTS else ports.node_read_in_derivatives
+                _tree_node_kinematics(engine, x[:nq], x[nq:], work.udot, active, work.rotation,
                                       work.position, work.velocity, work.acceleration)
-                _acceleration_outputs(ports, work, out)
+                _acceleration_outputs(ports, work, active, out)
             if closure.hinge_load_out.shape[0]:  # last: its Newton-Euler pass reuses the engine's workspace
                 CK.hinge_loads(engine, c, x[:nq], x[nq:], work.udot, closure.hinge_loads)
                 for i in range(closure.hinge_load_out.shape[0]):
@@ -484,6 +514,13 @@ class MultibodyModel(Model):
             notes.append(f"{self.path}: node kinematics of {len(s.node_names) - len(skipped)} of {len(s.node_names)} "
                          f"nodes (those whose outputs are connected, logged or read); not computed, outputs NaN until "
                          f"read: {', '.join(skipped)}")
+        sampled = [n for n, r, d in zip(s.node_names, self.ports.node_read, self.ports.node_read_in_derivatives)
+                   if r and not d]
+        if sampled:
+            derivatives = ", ".join(self.nodes_read_in_derivatives) or "no node"
+            notes.append(f"{self.path}: between samples (the integrator's derivative evaluations) node kinematics of "
+                         f"{derivatives} only; computed at the samples, logs and reads that need them: "
+                         f"{', '.join(sampled)}")
         if self.constrained is not None and self.constrained.forces:
             from dynamics.force_elements import ELEMENT_TYPES
 
@@ -606,7 +643,8 @@ class MultibodyModel(Model):
                       for node in s.node_names]).reshape(-1, 5),
             as_index([[y_layout.offsets[f"{node}.angular_acceleration"],
                        y_layout.offsets[f"{node}.linear_acceleration"]] for node in s.node_names]).reshape(-1, 2),
-            blocks("q"), blocks("u"), blocks("u_dot"), np.zeros(len(s.node_names), dtype=np.int64))
+            blocks("q"), blocks("u"), blocks("u_dot"), np.zeros(len(s.node_names), dtype=np.int64),
+            np.zeros(len(s.node_names), dtype=np.int64))
         self._node_index = {node: n for n, node in enumerate(s.node_names)}
         self._load_out = as_index([y_layout.offsets[f"{c.label}.load"] for c in
                                    (self.constrained.constraints if self.constrained is not None else ())])
@@ -626,7 +664,8 @@ class MultibodyModel(Model):
         nu, nn = system.nu, system.nnodes
         work = EngineWork(np.zeros(nu), np.zeros(nu), np.zeros(nu), np.zeros(nu), np.zeros((nn, 6)),
                           np.zeros((nn, 3, 3)), np.zeros((nn, 3)), np.zeros((nn, 6)), np.zeros((nn, 6)),
-                          np.zeros(1 if constrained is None else 2, dtype=np.int64))
+                          np.zeros(system.nbodies, dtype=np.int64), np.zeros(1 if constrained is None else 2,
+                                                                             dtype=np.int64))
         if constrained is None:
             return system, (E.engine_data(system), self.ports, work)
         loads = np.zeros((len(constrained.constraints), 6))
@@ -733,18 +772,29 @@ class MultibodyModel(Model):
             x[:system.nq] = q
             x[system.nq:] = u
 
-    def output_read(self, name: str) -> bool:
+    def output_read(self, name: str, in_derivatives: bool = False) -> bool:
         """A node's kinematics are computed only for the nodes whose outputs something reads ("model no more than a
         scene needs"): a connection (a model attached to the node), a logged signal, a linearization's output, a
         name read (:meth:`shell.diagram.Diagram.note_read`). Marks the node of output ``name`` read (in
-        ``ports.node_read``, which every run's data share: a mask in the data, one compiled kernel for every scene);
-        True when it was not read until now. The outputs of a node nothing reads are NaN, never a stale value."""
+        ``ports.node_read``, which every run's data share: a mask in the data, one compiled kernel for every scene)
+        and, ``in_derivatives``, read by derivative evaluations too (``ports.node_read_in_derivatives``); True when it
+        was not read until now. The outputs of a node nothing reads are NaN, never a stale value; so are, within a
+        derivative evaluation, those of a node only samples, logs and names read."""
         node, _, signal = name.rpartition(".")
         index = self._node_index.get(node)
-        if index is None or signal not in NODE_OUTPUTS or self.ports.node_read[index]:
+        if index is None or signal not in NODE_OUTPUTS:
+            return False
+        if in_derivatives:
+            self.ports.node_read_in_derivatives[index] = 1
+        if self.ports.node_read[index]:
             return False
         self.ports.node_read[index] = 1
         return True
+
+    @property
+    def nodes_read_in_derivatives(self) -> tuple:
+        """The names of the nodes whose kinematics derivative evaluations compute (:meth:`output_read`)."""
+        return tuple(n for n, r in zip(self.system.node_names, self.ports.node_read_in_derivatives) if r)
 
     @property
     def nodes_read(self) -> tuple:
@@ -792,6 +842,12 @@ class MultibodyModel(Model):
 
     def feedthrough_outputs(self, t, x, z, u, p, d, y):
         self.compiled_kernel(FEEDTHROUGH_OUTPUTS, t, x, z, u, p, d, y)
+
+    def state_outputs_for_derivatives(self, t, x, z, u, p, d, y):
+        self.compiled_kernel(STATE_OUTPUTS_FOR_DERIVATIVES, t, x, z, u, p, d, y)
+
+    def feedthrough_outputs_for_derivatives(self, t, x, z, u, p, d, y):
+        self.compiled_kernel(FEEDTHROUGH_OUTPUTS_FOR_DERIVATIVES, t, x, z, u, p, d, y)
 
     def derivatives(self, t, x, z, u, p, d, xdot):
         self.compiled_kernel(DERIVATIVES, t, x, z, u, p, d, xdot)
