@@ -153,6 +153,38 @@ def _relative_velocity(pos, cb, cc, dbt, dct, w, wdot, tmp):
         w[3 + a] = tmp[2, a] + v1[a]
 
 
+@njit(cache=True, inline="always")
+def _psi_columns(src, n, phi, pos, cb, cc, out):
+    """``out = [J_l a; g + l~ J_l a]`` (6 x n) for the columns ``[a; g]`` of ``src`` (6, >=n), with
+    ``J_l = I + b phi~ + c (phi phi' - |phi|^2 I)`` (``cb``, ``cc`` from :func:`so3_coefficients` of ``phi``) and
+    ``l = pos``: ``Psi`` from the shape ``Pi`` (:func:`node_deformation`), ``Psi G^-1`` from ``Pi G^-1``
+    (:func:`psi_times_inverse_modal_mass`)."""
+    t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+    J00 = 1.0 + cc * (phi[0] * phi[0] - t2)
+    J11 = 1.0 + cc * (phi[1] * phi[1] - t2)
+    J22 = 1.0 + cc * (phi[2] * phi[2] - t2)
+    J01 = -cb * phi[2] + cc * phi[0] * phi[1]
+    J10 = cb * phi[2] + cc * phi[0] * phi[1]
+    J02 = cb * phi[1] + cc * phi[0] * phi[2]
+    J20 = -cb * phi[1] + cc * phi[0] * phi[2]
+    J12 = -cb * phi[0] + cc * phi[1] * phi[2]
+    J21 = cb * phi[0] + cc * phi[1] * phi[2]
+    x, y, z = pos[0], pos[1], pos[2]
+    for r in range(n):
+        a0 = src[0, r]
+        a1 = src[1, r]
+        a2 = src[2, r]
+        b0 = J00 * a0 + J01 * a1 + J02 * a2
+        b1 = J10 * a0 + J11 * a1 + J12 * a2
+        b2 = J20 * a0 + J21 * a1 + J22 * a2
+        out[0, r] = b0
+        out[1, r] = b1
+        out[2, r] = b2
+        out[3, r] = src[3, r] + y * b2 - z * b1
+        out[4, r] = src[4, r] + z * b0 - x * b2
+        out[5, r] = src[5, r] + x * b1 - y * b0
+
+
 @njit(cache=True)
 def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, w, wdot, tmp):
     """Deformed pose of a node and its relative motion per unit modal rate.
@@ -168,32 +200,7 @@ def node_deformation(shape, l0, R0, eta, n, eta_dot, R, pos, Psi, w, wdot, tmp):
     """
     ca, cb, cc, dbt, dct = _deformed_pose(shape, l0, R0, eta, n, R, pos, tmp)
     _shape_sums(shape, n, eta_dot, tmp[1], tmp[2])
-    phi = tmp[0]
-    t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
-    # A e_r = J_l lambda_r, J_l = I + b phi~ + c (phi phi' - |phi|^2 I); linear rows gamma_r + l x (A e_r)
-    J00 = 1.0 + cc * (phi[0] * phi[0] - t2)
-    J11 = 1.0 + cc * (phi[1] * phi[1] - t2)
-    J22 = 1.0 + cc * (phi[2] * phi[2] - t2)
-    J01 = -cb * phi[2] + cc * phi[0] * phi[1]
-    J10 = cb * phi[2] + cc * phi[0] * phi[1]
-    J02 = cb * phi[1] + cc * phi[0] * phi[2]
-    J20 = -cb * phi[1] + cc * phi[0] * phi[2]
-    J12 = -cb * phi[0] + cc * phi[1] * phi[2]
-    J21 = cb * phi[0] + cc * phi[1] * phi[2]
-    x, y, z = pos[0], pos[1], pos[2]
-    for r in range(n):
-        a0 = shape[0, r]
-        a1 = shape[1, r]
-        a2 = shape[2, r]
-        b0 = J00 * a0 + J01 * a1 + J02 * a2
-        b1 = J10 * a0 + J11 * a1 + J12 * a2
-        b2 = J20 * a0 + J21 * a1 + J22 * a2
-        Psi[0, r] = b0
-        Psi[1, r] = b1
-        Psi[2, r] = b2
-        Psi[3, r] = shape[3, r] + y * b2 - z * b1
-        Psi[4, r] = shape[4, r] + z * b0 - x * b2
-        Psi[5, r] = shape[5, r] + x * b1 - y * b0
+    _psi_columns(shape, n, tmp[0], pos, cb, cc, Psi)
     _relative_velocity(pos, cb, cc, dbt, dct, w, wdot, tmp)
 
 
@@ -288,31 +295,7 @@ def psi_times_inverse_modal_mass(shape_ginv, n, phi, pos, Z):
     ``Psi G^-1 = [J_l (lambda G^-1); gamma G^-1 + l~ J_l (lambda G^-1)]`` (``phi``, ``pos`` from
     :func:`node_deformation`)."""
     ca, cb, cc, dbt, dct = so3_coefficients(phi)
-    t2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
-    # J_l = I + b phi~ + c (phi phi' - |phi|^2 I)
-    J00 = 1.0 + cc * (phi[0] * phi[0] - t2)
-    J11 = 1.0 + cc * (phi[1] * phi[1] - t2)
-    J22 = 1.0 + cc * (phi[2] * phi[2] - t2)
-    J01 = -cb * phi[2] + cc * phi[0] * phi[1]
-    J10 = cb * phi[2] + cc * phi[0] * phi[1]
-    J02 = cb * phi[1] + cc * phi[0] * phi[2]
-    J20 = -cb * phi[1] + cc * phi[0] * phi[2]
-    J12 = -cb * phi[0] + cc * phi[1] * phi[2]
-    J21 = cb * phi[0] + cc * phi[1] * phi[2]
-    x, y, z = pos[0], pos[1], pos[2]
-    for r in range(n):
-        a0 = shape_ginv[0, r]
-        a1 = shape_ginv[1, r]
-        a2 = shape_ginv[2, r]
-        b0 = J00 * a0 + J01 * a1 + J02 * a2
-        b1 = J10 * a0 + J11 * a1 + J12 * a2
-        b2 = J20 * a0 + J21 * a1 + J22 * a2
-        Z[0, r] = b0
-        Z[1, r] = b1
-        Z[2, r] = b2
-        Z[3, r] = shape_ginv[3, r] + y * b2 - z * b1
-        Z[4, r] = shape_ginv[4, r] + z * b0 - x * b2
-        Z[5, r] = shape_ginv[5, r] + x * b1 - y * b0
+    _psi_columns(shape_ginv, n, phi, pos, cb, cc, Z)
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
