@@ -446,25 +446,32 @@ def coordinate_rates(topology, q, u, qdot):
             qdot[q0 + k] = u[u0 + k]
 
 
+@njit(cache=True, inline="always")
+def world_pose(i, topology, ws_rot, ws_vec):
+    """Body i's body -> world rotation (``ws_rot[i, ROT_WB]``) and origin in the world (``ws_vec[i, VEC_WPOS,
+    0:3]``) from its parent-relative pose and its parent's world pose (already computed)."""
+    parent = topology[i, PARENT]
+    R_PB = ws_rot[i, ROT_PB]
+    r = ws_vec[i, VEC_POS]
+    R_WB = ws_rot[i, ROT_WB]
+    p = ws_vec[i, VEC_WPOS]
+    if parent < 0:
+        for a in range(3):
+            p[a] = r[a]
+            for b in range(3):
+                R_WB[a, b] = R_PB[a, b]
+    else:
+        R_WP = ws_rot[parent, ROT_WB]
+        pp = ws_vec[parent, VEC_WPOS]
+        for a in range(3):
+            p[a] = pp[a] + R_WP[a, 0] * r[0] + R_WP[a, 1] * r[1] + R_WP[a, 2] * r[2]
+            for b in range(3):
+                R_WB[a, b] = R_WP[a, 0] * R_PB[0, b] + R_WP[a, 1] * R_PB[1, b] + R_WP[a, 2] * R_PB[2, b]
+
+
 @njit(cache=True)
 def accumulate_world_poses(topology, ws_rot, ws_vec):
     """Body -> world rotations (``ws_rot[:, ROT_WB]``) and body origins in the world
     (``ws_vec[:, VEC_WPOS, 0:3]``) from the parent-relative poses."""
     for i in range(topology.shape[0]):
-        parent = topology[i, PARENT]
-        R_PB = ws_rot[i, ROT_PB]
-        r = ws_vec[i, VEC_POS]
-        R_WB = ws_rot[i, ROT_WB]
-        p = ws_vec[i, VEC_WPOS]
-        if parent < 0:
-            for a in range(3):
-                p[a] = r[a]
-                for b in range(3):
-                    R_WB[a, b] = R_PB[a, b]
-        else:
-            R_WP = ws_rot[parent, ROT_WB]
-            pp = ws_vec[parent, VEC_WPOS]
-            for a in range(3):
-                p[a] = pp[a] + R_WP[a, 0] * r[0] + R_WP[a, 1] * r[1] + R_WP[a, 2] * r[2]
-                for b in range(3):
-                    R_WB[a, b] = R_WP[a, 0] * R_PB[0, b] + R_WP[a, 1] * R_PB[1, b] + R_WP[a, 2] * R_PB[2, b]
+        world_pose(i, topology, ws_rot, ws_vec)

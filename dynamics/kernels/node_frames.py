@@ -15,10 +15,10 @@ from numba import njit
 
 from dynamics import flexible_kernels as FK
 from dynamics.kernels.kinematics import (
-    accumulate_world_poses, add_hinge_acceleration, body_kinematics, body_motion, parent_acceleration)
+    accumulate_world_poses, add_hinge_acceleration, body_kinematics, body_motion, parent_acceleration, world_pose)
 from dynamics.layout import (
     GROUND_ACCEL, NODE_BODY, NODE_FRAME, NODE_SHAPE, NQ_HINGE, NU_HINGE, N_MODES, PARENT, POOL_HEADER, P_L, P_R,
-    P_TMP83, P_V1, P_V2, P_W, P_WD, P_ZERO, Q_START, ROT_PB, ROT_WB, U_START, VEC_A, VEC_POS, VEC_V, VEC_WPOS, view)
+    P_TMP83, P_V1, P_V2, P_W, P_WD, P_ZERO, Q_START, ROT_WB, U_START, VEC_A, VEC_V, VEC_WPOS, view)
 from dynamics.spatial import motion_cross_motion_add, motion_to_child
 
 
@@ -182,22 +182,6 @@ def node_velocities_selected(topology, nodes, joint_rot, joint_vec, params, q, u
         if bodies[i] == 0:
             continue
         body_motion(i, topology, nodes, joint_rot, joint_vec, params, q, u, ws_rot, ws_vec, ws_mat, pool, bodies)
-        parent = topology[i, PARENT]
-        R_PB = ws_rot[i, ROT_PB]
-        r = ws_vec[i, VEC_POS]
-        R_WB = ws_rot[i, ROT_WB]
-        p = ws_vec[i, VEC_WPOS]
-        if parent < 0:
-            for a in range(3):
-                p[a] = r[a]
-                for b in range(3):
-                    R_WB[a, b] = R_PB[a, b]
-        else:
-            R_WP = ws_rot[parent, ROT_WB]
-            pp = ws_vec[parent, VEC_WPOS]
-            for a in range(3):
-                p[a] = pp[a] + R_WP[a, 0] * r[0] + R_WP[a, 1] * r[1] + R_WP[a, 2] * r[2]
-                for b in range(3):
-                    R_WB[a, b] = R_WP[a, 0] * R_PB[0, b] + R_WP[a, 1] * R_PB[1, b] + R_WP[a, 2] * R_PB[2, b]
+        world_pose(i, topology, ws_rot, ws_vec)
     _node_outputs(topology, nodes, params, q, u, u[0:0], params[GROUND_ACCEL + 3:GROUND_ACCEL + 6], rotation, position,
                   velocity, velocity, ws_rot, ws_vec, pool, active, False)
