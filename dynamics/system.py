@@ -119,6 +119,19 @@ def refinement_cost(n, count):
     return 6.0 * count * n + REFINEMENT_PASS * n
 
 
+def _node_set_shapes(where, name, node_set, terms, n):
+    """The shapes (count, 6, n) of a body's terms summed over nodes (``name``: node_inertia or mass_nodes), refused
+    when a term it sums is also given as a table or the shapes do not fit ``n`` modes."""
+    twice = sorted(t for t in node_set.terms if getattr(terms, t) is not None)
+    if twice:
+        raise ModelDefinitionError(f"{where}: terms {twice} are given both as tables and over the nodes")
+    shapes = np.asarray(node_set.shapes, dtype=np.float64)
+    if shapes.shape != (node_set.count, 6, n):
+        raise ModelDefinitionError(f"{where}: {name} shapes must have shape {(node_set.count, 6, n)}, got "
+                                   f"{shapes.shape}")
+    return shapes
+
+
 def refinement_budget(n, count):
     """How many refinements of a body of ``n`` modes whose modal mass varies through the terms of ``count`` nodes
     cost as much as forming ``G(eta)`` over the nodes (:func:`modal_mass_formation_cost`) and factoring it (its
@@ -414,30 +427,18 @@ class MultibodySystem:
         fx[L.FX_NODE_COUNT] = 0
         fx[L.FX_NODE_TERMS] = 0
         if nodes is not None:
-            twice = sorted(t for t in nodes.terms if getattr(terms, t) is not None)
-            if twice:
-                raise ModelDefinitionError(f"{where}: terms {twice} are given both as tables and over the nodes")
+            shapes = _node_set_shapes(where, "node_inertia", nodes, terms, n)
             bits = {"G1": L.NODE_G1, "G2": L.NODE_G2, "F2": L.NODE_F2}
             node_terms = sum(bits[t] for t in nodes.terms)
             fx[L.FX_NODE_COUNT] = nodes.count
             fx[L.FX_NODE_TERMS] = node_terms
-            shapes = np.asarray(nodes.shapes, dtype=np.float64)
-            if shapes.shape != (nodes.count, 6, n):
-                raise ModelDefinitionError(f"{where}: node_inertia shapes must have shape {(nodes.count, 6, n)}, got "
-                                           f"{shapes.shape}")
             fx[L.FX_NODES] = params.push(node_params(nodes.mass, nodes.cg, nodes.inertia, shapes))
             fx[L.FX_P_NODES] = pool.reserve(NODE_STATE * nodes.count)
         mass_nodes = data.mass_nodes
         fx[L.FX_MASS_NODE_COUNT] = 0
         fx[L.FX_MASS_NODE_TERMS] = 0
         if mass_nodes is not None:
-            twice = sorted(t for t in mass_nodes.terms if getattr(terms, t) is not None)
-            if twice:
-                raise ModelDefinitionError(f"{where}: terms {twice} are given both as tables and over the nodes")
-            shapes = np.asarray(mass_nodes.shapes, dtype=np.float64)
-            if shapes.shape != (mass_nodes.count, 6, n):
-                raise ModelDefinitionError(f"{where}: mass_nodes shapes must have shape {(mass_nodes.count, 6, n)}, "
-                                           f"got {shapes.shape}")
+            shapes = _node_set_shapes(where, "mass_nodes", mass_nodes, terms, n)
             bits = {"C1": L.MASS_C1, "J2": L.MASS_J2}
             fx[L.FX_MASS_NODE_COUNT] = mass_nodes.count
             fx[L.FX_MASS_NODE_TERMS] = sum(bits[t] for t in mass_nodes.terms)
