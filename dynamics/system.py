@@ -59,13 +59,51 @@ class _Packer:
         return np.concatenate(self.chunks)
 
 
+def _offdiagonal_ratio(a):
+    """The largest off-diagonal entry of the square matrix ``a`` relative to the geometric mean of its two diagonal
+    entries, ``max |a_ij| / sqrt(|a_ii a_jj|)`` over i != j (scale-free: the same for any scaling of the modes);
+    0 for a diagonal matrix, inf where an entry sits beside a zero diagonal entry."""
+    n = a.shape[0]
+    if n < 2:
+        return 0.0
+    off = np.abs(a - np.diag(np.diag(a)))
+    if not np.any(off):
+        return 0.0
+    d = np.sqrt(np.abs(np.diag(a)))
+    scale = np.outer(d, d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(off > 0.0, off / scale, 0.0)
+    return float(ratio.max())
+
+
 def _is_diagonal(a):
     """Diagonal to round-off: every off-diagonal entry below 1e-13 of the geometric mean of its two diagonal
-    entries (a mass-normalized modal mass or a modal stiffness from an eigen-solution is diagonal with
-    off-diagonal round-off of 1e-15 relative; treating it as diagonal changes results by as little)."""
-    d = np.sqrt(np.abs(np.diag(a)))
-    off = np.abs(a - np.diag(np.diag(a)))
-    return bool(np.all(off <= 1e-13 * np.outer(d, d)))
+    entries (a mass-normalized modal mass is diagonal with off-diagonal round-off of 1e-15 relative; treating it as
+    diagonal changes results by as little)."""
+    return _offdiagonal_ratio(a) <= 1e-13
+
+
+MODAL_DIAGONAL_TOLERANCE = 1e-9
+"""A flexible body's modal stiffness or damping is applied as its diagonal when every off-diagonal entry is below
+this fraction of the geometric mean of its two diagonal entries (:func:`_offdiagonal_ratio`). ``Phi' K Phi`` of an
+eigen-solution is diagonal only to the round-off of the finite-element stiffness it was projected from: off-diagonal
+entries of 1.1e-10 of that mean on the 101-grid tube of ``benchmarks/flexible_scaling.py`` (3e-15 of the largest
+diagonal entry), which kept a dense n x n product in every evaluation (at 196 modes, a third of the order-0 forward
+dynamics, 55 against 36 us). An off-diagonal entry ``r sqrt(k_ii k_jj)`` couples modes i and j by a force r times
+their own stiffness forces: it moves frequencies by O(r^2) and beats a degenerate pair at a relative rate r, so
+dropping r <= 1e-9 changes the elastic forces by at most 1e-9 of themselves. The diagonal is what the engine holds
+(every kernel, the energy and the linearization read the same matrix) and ``summary()`` names the largest ratio
+dropped; above the tolerance the matrix is kept whole (a damping matrix with real coupling, a stiffness from
+a reduction that is not an eigen-solution)."""
+
+
+def _modal_diagonal(a):
+    """``(matrix, diagonal, dropped)``: ``a`` itself, or its diagonal when :func:`_offdiagonal_ratio` is within
+    :data:`MODAL_DIAGONAL_TOLERANCE`, whether it is diagonal, and the ratio dropped (0 when exactly diagonal)."""
+    ratio = _offdiagonal_ratio(a)
+    if ratio <= MODAL_DIAGONAL_TOLERANCE:
+        return np.diag(np.diag(a)), True, ratio
+    return a, False, 0.0
 
 
 def has_quasi_static_modes(data) -> bool:
@@ -347,6 +385,13 @@ class MultibodySystem:
         flat = params.array()
         flat[6:6 + 36 * nb] = inertia.ravel()
         notes = [f"body '{b.name}': {b.flexible.note}" for b in bodies if b.flexible is not None and b.flexible.note]
+        for b in bodies:
+            for name in ("stiffness", "damping") if b.flexible is not None else ():
+                _, _, dropped = _modal_diagonal(np.asarray(getattr(b.flexible, name), dtype=np.float64))
+                if dropped > 0.0:
+                    notes.append(f"body '{b.name}': modal {name} applied as its diagonal (largest off-diagonal entry "
+                                 f"{dropped:.1e} of the geometric mean of its diagonal entries: round-off, within "
+                                 f"{MODAL_DIAGONAL_TOLERANCE:.0e})")
         for i, b in enumerate(bodies):
             t = topology[i]
             if t[L.FLEXIBLE] and t[L.N_MODES] > 40:
@@ -420,8 +465,8 @@ class MultibodySystem:
             if a.shape != (n, n) or not np.all(np.isfinite(a)):
                 raise ModelDefinitionError(f"{where}: the modal {name} must be a finite {n} x {n} matrix, got "
                                            f"shape {a.shape}")
+            a, fx[diag_col], _ = _modal_diagonal(a)
             fx[col] = params.push(a)
-            fx[diag_col] = _is_diagonal(a)
         nodes = data.node_inertia
         node_terms = 0
         fx[L.FX_NODE_COUNT] = 0

@@ -191,7 +191,9 @@ def test_order_2_without_the_g2_table_sums_over_the_nodes(fe_beam_body):
             mb.add_flexible_body("beam", None, modal=body, hinge="free")
         assert mb.bodies[0].flexible.order == 2
         systems.append(mb.compile())
-    assert systems[0].notes == () and mb_terms(systems[0]) == ("G1", "F2", "G2")
+    # no note but the round-off of the file's modal stiffness (dynamics.system.MODAL_DIAGONAL_TOLERANCE)
+    assert [n for n in systems[0].notes if "modal stiffness applied as its diagonal" not in n] == []
+    assert mb_terms(systems[0]) == ("G1", "F2", "G2")
     rng = np.random.default_rng(11)
     for _ in range(3):
         q, u, tau = random_state(systems[0], rng)
