@@ -46,11 +46,11 @@ A refinement's late products (:func:`node_inertia_times_single`, for corrections
 tube, 475 KB, about this EPYC's 512 KB L2: 2.5 doubles per cycle), and in float32 they move half the bytes and
 do eight products per vector instruction: 0.46x of the double product there, 0.70x at 20 modes (2026-12-07).
 Fusing the two double sweeps instead (by blocks of 2 to 24 nodes: a block's ``alpha``, its ``a``, its columns back
-while they are in cache) measured 2-4x slower (196 and 20 modes, 2026-12-07): a block's three component ranges are 2 x 3 short
-rows per mode, which LLVM vectorized over the modes with emulated gathers rather than along the rows (no
-``noalias`` or loop pragmas in numba), and a block's lines cannot stay in L1 anyway (196 modes x 3 ranges,
-each one or two 64-byte lines, exceeds 32 KB at any width); with the rows in L2 at best the two sweeps would gain
-about 18 % (the same sweeps on 230 KB of shapes run 0.82x per entry of 464 KB).
+while they are in cache) measured 2-4x slower (196 and 20 modes, 2026-12-07): a block's three component ranges are
+short pieces of each mode's row, which LLVM vectorized over the modes with emulated gathers rather than along the
+rows (numba has no ``noalias`` or loop pragmas), and a block's lines cannot stay in L1 anyway (196 modes x 3
+ranges, each one or two 64-byte lines, exceed 32 KB at any width); with the rows in L2 at best the two sweeps would
+gain about 18 % (the same sweeps on 230 KB of shapes run 0.82x per entry of 464 KB).
 
 Where the modal mass is formed rather than refined (:func:`node_inertia_modal_mass`: the factored modal mass of a
 body with few modes, ``dynamics.system.refinement_budget``, and the composite-inertia mass matrix),
