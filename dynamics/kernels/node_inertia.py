@@ -546,8 +546,10 @@ def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
     """``out += (G(eta) - G0 - tabled terms) (x - prev)`` as :func:`node_inertia_times` does for ``x``, its two
     sweeps over the shapes in single precision (the float32 copies of :func:`node_params`: half the bytes of
     sweeps that the cache's bandwidth bounds, and eight products per vector instruction instead of four) and the
-    per-node algebra in double. Relative error a few 1e-7 of the product (float32's 6e-8, summed over the modes
-    and the nodes): for the refinement's late corrections, where ``x - prev`` is a small fraction of ``x``
+    per-node algebra in double. Error about 1e-8 of the summands' size ``|Lambda|' |dJ| |Lambda| |x - prev|``
+    (float32's 6e-8 over sums of the modes and the nodes; ``tests/flexible/test_node_inertia.py``), which where the
+    sum cancels is a larger part of the product itself (4e-4 on the late corrections of the 196-mode tube): for the
+    refinement's late corrections only, where ``x - prev`` is a small fraction of ``x``
     (:mod:`dynamics.kernels.articulated_body`)."""
     varies, offset, ma, pa, lam, gam, th, D = _modal_mass_data(params, o, count, n, terms, state)
     if not varies:
