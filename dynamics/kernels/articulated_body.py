@@ -23,12 +23,10 @@ an iterate changes by less than ``SINGLE_BELOW`` = 1e-7 of the modal acceleratio
 correction ``dG (x_k - x_(k-1))`` added to the last product, its sweeps over the nodes' shapes in single precision
 (:func:`dynamics.kernels.node_inertia.node_inertia_times_single`: 0.46x of the double product on the 196-mode tube of
 ``benchmarks/flexible_scaling.py``, 7.5 against 14-17 us; its five products 54 against 71 us, 2026-12-07): its
-error, about 1e-8 of the summands'
-size of a correction below 1e-7 of the accelerations, is below the round-off of the accelerations (on that tube,
-where ``rho`` is about 0.01 and the third to fifth passes' products are so taken: the kept product differs from
-the double one by 3e-17 of the modal accelerations, and the result from the factored modal mass's by 4.1e-15 as
-with double products alone). The
-iteration stops when the next change of the modal accelerations would be below 1e-14 of their size (the
+error, about 1e-8 of the summands' size of a correction below 1e-7 of the accelerations, is below the round-off
+of the accelerations (on that tube, where ``rho`` is about 0.01 and the third to fifth passes' products are so
+taken: the kept product differs from the double one by 3e-17 of the modal accelerations, and the result from the
+factored modal mass's by 4.1e-15 as with double products alone). The iteration stops when the next change of the modal accelerations would be below 1e-14 of their size (the
 round-off of the sums that form them), or stagnates at round-off;
 when the passes it still needs (predicted from its contraction rate) would cost more than forming ``G(eta)``
 and factoring it (the body's budget, ``dynamics.system.refinement_budget``: node rotations of a tenth of a
