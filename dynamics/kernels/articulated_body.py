@@ -26,8 +26,9 @@ correction ``dG (x_k - x_(k-1))`` added to the last product, its sweeps over the
 error, about 1e-8 of the summands' size of a correction below 1e-7 of the accelerations, is below the round-off
 of the accelerations (on that tube, where ``rho`` is about 0.01 and the third to fifth passes' products are so
 taken: the kept product differs from the double one by 3e-17 of the modal accelerations, and the result from the
-factored modal mass's by 4.1e-15 as with double products alone). The iteration stops when the next change of the modal accelerations would be below 1e-14 of their size (the
-round-off of the sums that form them), or stagnates at round-off;
+factored modal mass's by 4.1e-15 as with double products alone). The iteration stops when the next change of the
+modal accelerations would be below 1e-14 of their size (the round-off of the sums that form them), or stagnates at
+round-off;
 when the passes it still needs (predicted from its contraction rate) would cost more than forming ``G(eta)``
 and factoring it (the body's budget, ``dynamics.system.refinement_budget``: node rotations of a tenth of a
 radian and more on a body of a few tens of modes), the forward dynamics is solved again with ``G(eta)``
