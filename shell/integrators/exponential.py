@@ -96,8 +96,9 @@ defective) and zero columns, so their integrals of the modal motion are exact to
 Changing configuration: ``L`` is built at the configuration where the integrator starts. If hinged parts
 then rotate far enough to change the mass matrix, the difference ``(L(q) - L(q0)) y`` is a stiff term inside
 ``N`` that the explicit part integrates badly. With a callable ``linear_part(t, y)`` (what the shell passes)
-the integrator re-evaluates it after 2, 4, 8, ... steps while it does not move (the build is the first step's
-check: a check at that same state would find no drift), up to MAX_CHECK_INTERVAL steps
+the integrator re-evaluates it after 2, 8, 32, ... steps while it does not move (the build is the first step's
+check: a check at that same state would find no drift; the interval grows 4x after a check that found a drift
+below 1/64 of DRIFT_TOLERANCE, 2x below a quarter of it: :func:`check_growth`), up to MAX_CHECK_INTERVAL steps
 or MAX_CHECK_TIME of simulated time, whichever is longer (the configuration moves on the time scale of the
 scene, not of the step; a mass matrix and a Cholesky solve: ~0.7 ms for the 60-mode observatory, a fifth of one
 derivative, but 5-21 ms for the 196-mode general-mass one at order 1, about 15 derivatives: every 64 steps of
@@ -156,6 +157,21 @@ def _table(stage):
 
 STAGES = tuple(_table(s) for s in (_STAGE2, _STAGE3, _STAGE4, _FINAL))
 C_NODES = (0.5, 0.5, 1.0)  # times of stages 2, 3, 4
+
+
+def check_growth(drift):
+    """The factor the interval between two checks of a callable linear part grows by after a check that found it
+    within DRIFT_TOLERANCE (module docstring, "Changing configuration"): 4 below 1/64 of the tolerance, 2 below a
+    quarter of it, else 1. The intervals grow geometrically, so the time since the build grows by about the same
+    factor: a drift growing as the square of that time stays within the tolerance over the next interval in both
+    cases (4 / 64 and 4 / 4 of it), and one growing as its cube too after a factor of 4 (4^3 / 64). Measured on the
+    196-mode observatory of benchmarks/flexible_observatory.py at order 1: a drift of 9e-10 after the first 2 steps
+    and at most 6e-8 over 2 s with balanced wheels (the checks go 2, 8, 32, 128, 250 steps apart instead of 2, 4,
+    ..., 128, 250: 7 instead of 9 in the first second), 4e-6 after 2 steps and at most 3.3e-4 with an unbalanced
+    wheel (intervals 2, 4, 8, ...: as before; never rebuilt)."""
+    if drift <= DRIFT_TOLERANCE / 64.0:
+        return 4
+    return 2 if drift <= 0.25 * DRIFT_TOLERANCE else 1
 
 
 class StiffRemainderWarning(UserWarning):
@@ -626,8 +642,8 @@ class ExponentialRK4(Integrator):
         self.phi_diag = None
 
     def _check_drift(self, t, y, force):
-        """Re-evaluate a callable linear part (every ``check_interval`` steps, doubling up to
-        MAX_CHECK_INTERVAL while it does not move, or now when ``force``) and rebuild the matrix functions when
+        """Re-evaluate a callable linear part (every ``check_interval`` steps, growing up to
+        MAX_CHECK_INTERVAL while it does not move: :func:`check_growth`, or now when ``force``) and rebuild the matrix functions when
         it moved by more than DRIFT_TOLERANCE. Returns True if it was rebuilt."""
         self.steps_since_check += 1
         if not force and self.steps_since_check < self.check_interval:
@@ -646,8 +662,7 @@ class ExponentialRK4(Integrator):
         same_shape = L.shape == self.base_L.shape and np.array_equal(np.asarray(indices), self.base_indices)
         drift = frobenius_distance(L, self.base_L) / scale if same_shape and scale > 0.0 else np.inf
         if drift <= DRIFT_TOLERANCE:
-            if drift <= 0.25 * DRIFT_TOLERANCE:
-                self.check_interval = min(2 * self.check_interval, self.max_check_interval)
+            self.check_interval = min(check_growth(drift) * self.check_interval, self.max_check_interval)
             return False
         self.check_interval = 1
         self._set_linear_part(t, y)

@@ -256,9 +256,30 @@ def test_a_linear_part_that_does_not_move_is_checked_ever_more_rarely():
 
     integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 10.0, 0.01, linear_part=linear_part)
     # 1000 steps: one evaluation at the start (the build, which is step 1's check: the same state), checks at steps
-    # 3, 7, ..., 127 (intervals 2, ..., 64), then every 64 steps up to step 959: 1 + 6 + 13
-    assert integ.njev == len(evaluations) == 20 and integ.nlu == 1
-    np.testing.assert_allclose(evaluations[:3], [0.0, 0.02, 0.06], rtol=1e-12)
+    # 3, 11, 43 (intervals 2, 8, 32: no drift, exponential.check_growth), then every 64 steps from 107 up to step
+    # 939: 1 + 3 + 14
+    assert integ.njev == len(evaluations) == 18 and integ.nlu == 1
+    np.testing.assert_allclose(evaluations[:4], [0.0, 0.02, 0.10, 0.42], rtol=1e-12)
+
+
+@pytest.mark.parametrize("drift, intervals", [(1e-5, [2, 8, 32, 64, 64]), (1e-4, [2, 4, 8, 16, 32, 64, 64]),
+                                              (5e-4, [2, 2, 2, 2])])
+def test_the_checks_are_spaced_by_the_drift_they_find(drift, intervals):
+    """A linear part that is ``drift`` (relative, Frobenius) away from the one the integrator was built with at every
+    check: the interval between checks grows 4x below 1/64 of the tolerance 1e-3, 2x below a quarter of it, and stays
+    above (exponential.check_growth; up to 64 steps at h = 0.01, MAX_CHECK_INTERVAL); no rebuild."""
+    omega = 300.0
+    L = np.array([[0.0, 1.0], [-omega ** 2, 0.0]])
+    evaluations = []
+
+    def linear_part(t, y):
+        evaluations.append(t)
+        return np.array([0, 1]), L * (1.0 + (drift if len(evaluations) > 1 else 0.0))
+
+    integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 5.0, 0.01, linear_part=linear_part)
+    steps = np.rint(np.diff(evaluations) / 0.01).astype(int)
+    np.testing.assert_array_equal(steps[:len(intervals)], intervals)
+    assert integ.nlu == 1
 
 
 def test_at_a_short_step_the_checks_are_spaced_in_time():
@@ -273,11 +294,11 @@ def test_at_a_short_step_the_checks_are_spaced_in_time():
         return np.array([0, 1]), L
 
     integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 2.0, 1e-3, linear_part=linear_part)
-    # 2000 steps: the start (step 1's check), checks at steps 3, 7, ..., 255 (intervals 2, ..., 128), then every 250
-    # steps (505, 755, ..., 1755): 1 + 7 + 6
+    # 2000 steps: the start (step 1's check), checks at steps 3, 11, 43, 171 (intervals 2, 8, 32, 128), then every
+    # 250 steps (421, 671, ..., 1921): 1 + 4 + 7
     assert integ.max_check_interval == 250
-    assert integ.njev == len(evaluations) == 14 and integ.nlu == 1
-    np.testing.assert_allclose(np.diff(evaluations)[-6:], 0.25, rtol=1e-9)
+    assert integ.njev == len(evaluations) == 12 and integ.nlu == 1
+    np.testing.assert_allclose(np.diff(evaluations)[-7:], 0.25, rtol=1e-9)
 
 
 # --- interface ----------------------------------------------------------------------------------------------
