@@ -91,7 +91,9 @@ observatory: 23 % error in the IMU rate at 1 ms). When the linear part is set, t
 m components are taken by forward differences (m evaluations of ``fun``); the rows outside it that depend on
 them join the linear part with their coupling ``C P`` to its oscillating modes (``P`` the spectral projector
 on the non-zero eigenvalues; the rigid-body directions are not stiff and would make the extended matrix
-defective) and zero columns, so their integrals of the modal motion are exact too (IMU rate error 9e-5).
+defective) and zero columns, so their integrals of the modal motion are exact too (IMU rate error 9e-5). The
+extended matrix's eigen-decomposition follows from L's (:meth:`LinearPart.extended`: its eigenvalues are L's and
+zeros), checked against expm like any other.
 
 Changing configuration: ``L`` is built at the configuration where the integrator starts. If hinged parts
 then rotate far enough to change the mass matrix, the difference ``(L(q) - L(q0)) y`` is a stiff term inside
@@ -220,7 +222,9 @@ def phi_into(z, k_max, out):
 class LinearPart:
     """The linear part over ``indices`` of an n-state system and its eigen-decomposition (module docstring)."""
 
-    def __init__(self, indices, L, n, name):
+    def __init__(self, indices, L, n, name, decomposition=None):
+        """``decomposition``: ``(lam, V, Vinv)`` of L in its own axes, known (:meth:`extended`), instead of numpy's
+        eigen-decomposition of the balanced L (:meth:`check_exponential` checks either)."""
         indices = np.asarray(indices)
         if indices.ndim != 1 or (indices.size and not np.issubdtype(indices.dtype, np.integer)):
             raise ValueError(f"{name}: linear_part indices must be a 1-D integer array, got {indices!r}")
@@ -273,17 +277,53 @@ class LinearPart:
             import scipy.linalg  # here, not at module level: scipy.linalg costs ~0.3 s at every start
 
             balanced, (scale, _) = scipy.linalg.matrix_balance(L, permute=False, separate=True)
-            lam, V = np.linalg.eig(balanced)
+            if decomposition is None:
+                lam, V = np.linalg.eig(balanced)
+                Vinv = np.linalg.inv(V)
+            else:
+                lam, V, Vinv = decomposition
+                V, Vinv = V / scale[:, None], Vinv * scale[None, :]
             self.lam = lam
             self.scale = scale
             self.V_balanced = V
-            self.Vinv_balanced = np.linalg.inv(V)
+            self.Vinv_balanced = Vinv
             self.balanced = balanced
             self.V = np.ascontiguousarray(scale[:, None] * V)
             self.Vinv = np.ascontiguousarray(self.Vinv_balanced / scale[None, :])
         else:
             self.lam = np.zeros(0, dtype=np.complex128)
             self.V = self.Vinv = np.zeros((0, 0), dtype=np.complex128)
+
+    def moving(self):
+        """The eigenvalues that are not zero to working accuracy (the oscillating modes; the zero ones are the
+        rigid-body velocities)."""
+        return np.abs(self.lam) > 1e3 * EPS * np.abs(self.lam).max()
+
+    def extended(self, rows, coupling, n):
+        """The linear part over ``indices`` and the driven ``rows``, ``[[L, 0], [C, 0]]`` with ``C = J P`` (``P`` the
+        spectral projector on :meth:`moving`), with its eigen-decomposition from L's: ``C`` annihilates L's
+        eigenvectors of eigenvalue zero, so ``V' = [[V, 0], [C V diag(1/lambda), I]]`` (``1/lambda`` zero where
+        lambda is) holds eigenvectors of the extended matrix for ``(lambda, 0, ..., 0)``, and ``V'^-1 = [[V^-1, 0],
+        [-C V diag(1/lambda) V^-1, I]]``: no second eigen-decomposition (at m = 402 + 16, 0.16 s of a 0.69 s build),
+        the same check against expm."""
+        m, r = self.m, rows.size
+        L_ext = np.zeros((m + r, m + r))
+        L_ext[:m, :m] = self.L
+        L_ext[m:, :m] = coupling
+        moving = self.moving()
+        inverse = np.zeros(m, dtype=np.complex128)
+        inverse[moving] = 1.0 / self.lam[moving]
+        W = (coupling @ self.V) * inverse
+        V = np.zeros((m + r, m + r), dtype=np.complex128)
+        V[:m, :m] = self.V
+        V[m:, :m] = W
+        V[m:, m:] = np.eye(r)
+        Vinv = np.zeros_like(V)
+        Vinv[:m, :m] = self.Vinv
+        Vinv[m:, :m] = -W @ self.Vinv
+        Vinv[m:, m:] = np.eye(r)
+        lam = np.concatenate([self.lam, np.zeros(r, dtype=self.lam.dtype)])
+        return LinearPart(np.concatenate([self.indices, rows]), L_ext, n, self.name, (lam, V, Vinv))
 
     def check_exponential(self, h):
         """Refuse a decomposition whose exponential e^{hL} disagrees with scipy's expm (module docstring)."""
@@ -303,11 +343,15 @@ class LinearPart:
                 f"rk4 with a step below the stability limit, or radau5")
 
     def real_functions(self, h):
-        """The real matrices phi_k(c h L) of :data:`FUNCTIONS`, stacked (len(FUNCTIONS), m, m), original axes."""
+        """The real matrices phi_k(c h L) of :data:`FUNCTIONS`, stacked (len(FUNCTIONS), m, m), original axes: the
+        real part of ``(V diag(phi_k(c h lambda))) V^-1`` as two real products (a complex one is four: at m = 418 the
+        seven functions took 0.15 s of a 0.69 s build)."""
         out = np.empty((len(FUNCTIONS), self.m, self.m))
+        Vinv_real, Vinv_imag = np.ascontiguousarray(self.Vinv.real), np.ascontiguousarray(self.Vinv.imag)
         for f, (c, k) in enumerate(FUNCTIONS):
-            values = phi_functions(c * h * self.lam, k)[k]
-            out[f] = ((self.V * values) @ self.Vinv).real
+            scaled = self.V * phi_functions(c * h * self.lam, k)[k]
+            np.matmul(scaled.real, Vinv_real, out=out[f])
+            out[f] -= scaled.imag @ Vinv_imag
         return out
 
     def stage_matrices(self, h):
@@ -559,7 +603,8 @@ class ExponentialRK4(Integrator):
 
     Options: ``step`` (required), ``linear_part`` (required): ``(indices, L)`` over the state vector, or a
     callable ``linear_part(t, y) -> (indices, L)`` re-evaluated when the remainder becomes stiff.
-    Counters: ``njev`` evaluations of the linear part, ``nlu`` eigen-decompositions.
+    Counters: ``njev`` evaluations of the linear part, ``nlu`` eigen-decompositions (that of the part with its
+    driven rows derived from the part's, :meth:`LinearPart.extended`).
     """
 
     name = "etdrk4"
@@ -622,11 +667,7 @@ class ExponentialRK4(Integrator):
         else:
             rows, coupling = self._driven_coupling(t, y, part)
             if rows.size:
-                m, r = part.m, rows.size
-                L_ext = np.zeros((m + r, m + r))
-                L_ext[:m, :m] = part.L
-                L_ext[m:, :m] = coupling
-                part = LinearPart(np.concatenate([part.indices, rows]), L_ext, self.n, self.name)
+                part = part.extended(rows, coupling, self.n)
                 self.nlu += 1
         part.check_exponential(self.h)
         self.part = part
@@ -685,8 +726,7 @@ class ExponentialRK4(Integrator):
         rows = np.flatnonzero(~part.is_linear & np.any(J != 0.0, axis=1))
         # spectral projector on the non-zero eigenvalues: the zero ones (rigid-body velocities) are not stiff,
         # and coupling a driven row to them would make the extended matrix defective (a Jordan block)
-        moving = np.abs(part.lam) > 1e3 * EPS * np.abs(part.lam).max()
-        P = ((part.V * moving) @ part.Vinv).real
+        P = ((part.V * part.moving()) @ part.Vinv).real
         return rows, J[rows] @ P
 
     def _stage(self, k, h, nominal, out):

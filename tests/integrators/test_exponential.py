@@ -344,6 +344,40 @@ def test_refusals():
                         linear_part=(np.array([0, 1]), jordan))
 
 
+def test_the_driven_rows_are_decomposed_from_the_linear_part():
+    """LinearPart.extended: the linear part with driven rows ``[[L, 0], [J P, 0]]`` (P the spectral projector on L's
+    non-zero eigenvalues) decomposed from L's eigen-decomposition instead of numpy's of the whole matrix. The damped
+    chain with two rigid rates appended (zero columns of L, eigenvalue 0, as a free body's) and three driven rows:
+    its eigenvectors are eigenvectors (residual 1.2e-18 of ||L|| ||V||), V^-1 is the inverse (2.2e-13, that of L's own
+    V and V^-1), and its phi matrices are those of numpy's decomposition of the whole matrix (measured 3e-15 to 2e-14
+    of their largest entries at h = 1e-4 .. 1e-2) and of scipy's expm (phi_0, an independent algorithm: 1.3e-14)."""
+    A = damped_chain(6, seed=7)
+    m = A.shape[0] + 2
+    L = np.zeros((m, m))
+    L[:m - 2, :m - 2] = A
+    L[m - 2:, :6] = np.random.default_rng(2).standard_normal((2, 6)) * 1e3  # rigid rates driven by the springs
+    part = LinearPart(np.arange(m), L, m + 3, "test")
+    assert np.count_nonzero(~part.moving()) == 2
+    J = np.random.default_rng(5).standard_normal((3, m))
+    coupling = J @ ((part.V * part.moving()) @ part.Vinv).real
+    rows = np.array([m, m + 1, m + 2])
+    derived = part.extended(rows, coupling, m + 3)
+    L_ext = np.zeros((m + 3, m + 3))
+    L_ext[:m, :m] = L
+    L_ext[m:, :m] = coupling
+    whole = LinearPart(np.arange(m + 3), L_ext, m + 3, "test")
+    np.testing.assert_array_equal(derived.L, whole.L)
+    scale = np.abs(L_ext).max() * np.abs(derived.V).max()
+    assert np.abs(L_ext @ derived.V - derived.V * derived.lam).max() <= 1e-14 * scale
+    assert np.abs(derived.V @ derived.Vinv - np.eye(m + 3)).max() <= 1e-12
+    derived.check_exponential(1e-3)
+    for h in (1e-4, 1e-3, 1e-2):
+        ours, reference = derived.real_functions(h), whole.real_functions(h)
+        for f in range(len(FUNCTIONS)):
+            assert np.abs(ours[f] - reference[f]).max() <= 1e-12 * np.abs(reference[f]).max()
+        np.testing.assert_allclose(ours[3], scipy.linalg.expm(h * L_ext), rtol=0, atol=1e-11 * np.abs(ours[3]).max())
+
+
 def test_linear_part_decomposition_reproduces_expm():
     A = damped_chain(8, seed=11)
     part = LinearPart(np.arange(16), A, 16, "test")
