@@ -106,7 +106,9 @@ scene, not of the step; a mass matrix and a Cholesky solve: ~0.7 ms for the 60-m
 derivative, but 5-21 ms for the 196-mode general-mass one at order 1, about 15 derivatives: every 64 steps of
 1 ms that was 5-10 % of its run, every 250 steps it is 1-3 %; of one check ~6.3 ms are the callable's and
 0.04-0.05 ms the drift, :func:`frobenius_distance`, against 0.13-0.16 ms for numpy's norm of the m x m difference,
-0.56 ms when that difference lands on fresh pages) and rebuilds
+0.56 ms when that difference lands on fresh pages; since modal_linear_part solves for only the columns of the
+inverse mass matrix it needs and keeps its spin-averaged copy, one check is 3.4-3.9 ms, 2-3 % of an order-1 run
+over its first 2 s) and rebuilds
 the matrix functions and the driven rows when ``||L(y) - L||_F / ||L||_F > DRIFT_TOLERANCE``; the check starts
 again every step after a rebuild. Independently, each step estimates the stiffness of ``N`` from its two stages
 at c = 1/2 (``rho = ||N3 - N2|| / ||Y3 - Y2||``, the Rayleigh-quotient estimate of HNW I Sec. IV.2, skipped
