@@ -73,6 +73,7 @@ def _calls(c, bits, NI, NM):
     state = np.zeros(NI.NODE_STATE * N)
     Mre, br, bm, G = np.zeros((6, n)), np.zeros(6), np.zeros(n), np.zeros((n, n))
     x, out = np.random.default_rng(0).standard_normal(n), np.zeros(n)
+    prev = x + 1e-8 * np.random.default_rng(1).standard_normal(n)
     mstate = np.zeros(NM.MASS_NODE_STATE * Nm)
     Mrr = np.zeros((6, 6))
     width = 3 * N
@@ -90,13 +91,15 @@ def _calls(c, bits, NI, NM):
         "node_inertia_terms (no forces)": lambda: NI.node_inertia_terms(ip, 1, N, n, bits, eta, V, e, False, Mre, br,
                                                                         bm, state),
         "node_inertia_times": lambda: NI.node_inertia_times(ip, 1, N, n, bits, state, x, out),
+        "node_inertia_times_single": lambda: NI.node_inertia_times_single(ip, 1, N, n, bits, state, x, prev, out),
         "  shapes_times Lambda (x)": lambda: NI.shapes_times(ip, lam, n, width, x, x, th, th, False),
         "  _shapes_dot Lambda": lambda: NI._shapes_dot(ip, lam, n, width, A, out),
         "node_inertia_modal_mass": lambda: NI.node_inertia_modal_mass(ip, 1, N, n, bits, state, G),
         "node_mass_terms C1 J2 (forces)": lambda: NM.node_mass_terms(mp, 1, Nm, n, mbits, eta, V, e, True, Mrr, Mre,
                                                                      br, bm, mstate),
     }
-    return {k: fn for k, fn in calls.items() if "sweep" not in k or hasattr(NI, "columns_times")}
+    return {k: fn for k, fn in calls.items() if ("sweep" not in k or hasattr(NI, "columns_times"))
+            and ("single" not in k or hasattr(NI, "node_inertia_times_single"))}
 
 
 def _modules_at(ref):

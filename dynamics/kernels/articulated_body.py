@@ -18,9 +18,17 @@ their accelerations once, from the accepted iterate). Richardson is kept because
 faster here: the spectrum of ``K0^-1 dK`` is symmetric about zero and spread (each node's ``dJ = theta~ J - J
 theta~`` is a commutator, indefinite with a zero diagonal in the modal basis), so CG or Chebyshev gain about half a
 pass, and neither ``diag(dG)`` nor the exact ``dG`` of the 10..80 highest or lowest modes in the preconditioner
-lowers ``rho`` by 10 % (measured 2026-12-07 on the 196-mode tube of ``benchmarks/flexible_scaling.py``). The
-iteration stops when the next change of the modal accelerations would be below 1e-14 of their size (the
-round-off of the sums that form them), or stagnates at round-off;
+lowers ``rho`` by 10 % (measured 2026-12-07 on the 196-mode tube of ``benchmarks/flexible_scaling.py``). Once
+an iterate changes by less than ``SINGLE_BELOW`` = 1e-7 of the modal accelerations, a pass's product is the
+correction ``dG (x_k - x_(k-1))`` added to the last product, its sweeps over the nodes' shapes in single precision
+(:func:`dynamics.kernels.node_inertia.node_inertia_times_single`: 0.46x of the double product on the 196-mode tube of
+``benchmarks/flexible_scaling.py``, 7.5 against 14-17 us; its five products 54 against 71 us, 2026-12-07): its
+error, about 1e-8 of the summands' size of a correction below 1e-7 of the accelerations, is below the round-off
+of the accelerations (on that tube, where ``rho`` is about 0.01 and the third to fifth passes' products are so
+taken: the kept product differs from the double one by 3e-17 of the modal accelerations, and the result from the
+factored modal mass's by 4.1e-15 as with double products alone). The iteration stops when the next change of the
+modal accelerations would be below 1e-14 of their size (the round-off of the sums that form them), or stagnates at
+round-off;
 when the passes it still needs (predicted from its contraction rate) would cost more than forming ``G(eta)``
 and factoring it (the body's budget, ``dynamics.system.refinement_budget``: node rotations of a tenth of a
 radian and more on a body of a few tens of modes), the forward dynamics is solved again with ``G(eta)``
@@ -39,7 +47,7 @@ from dynamics.kernels.body_terms import apply_node_forces, flexible_body_terms, 
 from dynamics.kernels.kinematics import general_kinematics, parent_acceleration_general, rigid_position, rigid_velocity
 from dynamics.kernels.modal_condensation import (
     condense_bias, condense_inertia, force_to_slot, inertia_to_slot, modal_accelerations, modal_mass_kind)
-from dynamics.kernels.node_inertia import NODE_STATE, node_inertia_times
+from dynamics.kernels.node_inertia import NODE_STATE, node_inertia_times, node_inertia_times_single
 from dynamics.kernels.small_linalg import spd_inverse
 from dynamics.layout import (
     FIRST_SLOT, FLEX, FLEXIBLE, FREE_DOFS, FX_NODES, FX_NODE_COUNT, FX_NODE_TERMS, FX_P_MRR, FX_P_NODES, FX_P_VEC,
@@ -54,6 +62,10 @@ NOT_CONVERGED = -1
 REFINED = 1e-14
 """The refinement stops when its next correction would be below this fraction of the largest modal acceleration:
 the round-off of the sums over modes and nodes that form them."""
+SINGLE_BELOW = 1e-7
+"""A refinement's product with ``dG`` is the correction ``dG (x_k - x_(k-1))`` in single precision
+(:func:`dynamics.kernels.node_inertia.node_inertia_times_single`) once the iterate changed by less than this
+fraction of the largest modal acceleration (module docstring)."""
 
 
 @njit(cache=True, inline="always")
@@ -263,8 +275,10 @@ def _bias_pass(topology, nodes, params, tau, factored, ws_rot, ws_vec, ws_mat, p
 
 
 @njit(cache=True)
-def _refinement_products(topology, params, udot, pool):
-    """``(G(eta) - G0) etaddot`` of every refined body into its ``PV_DG`` vector."""
+def _refinement_products(topology, params, udot, pool, single):
+    """``(G(eta) - G0) etaddot`` of every refined body into its ``PV_DG`` vector, or with ``single`` the correction
+    ``(G(eta) - G0) (etaddot - PV_PREV)`` added to it in single precision (module docstring); ``etaddot`` kept in
+    ``PV_PREV`` (the iterate the products are of)."""
     for i in range(topology.shape[0]):
         if not topology[i, FLEXIBLE] or not topology[i, FLEX + FX_REFINE]:
             continue
@@ -273,17 +287,24 @@ def _refinement_products(topology, params, udot, pool):
         pv = fx[FX_P_VEC]
         ue = topology[i, U_START] + topology[i, NU_HINGE]
         dg = pool[pv + PV_DG * n:pv + (PV_DG + 1) * n]
-        for s in range(n):
-            dg[s] = 0.0
+        prev = pool[pv + PV_PREV * n:pv + (PV_PREV + 1) * n]
+        x = udot[ue:ue + n]
         count = fx[FX_NODE_COUNT]
-        node_inertia_times(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS],
-                           pool[fx[FX_P_NODES]:fx[FX_P_NODES] + NODE_STATE * count], udot[ue:ue + n], dg)
+        state = pool[fx[FX_P_NODES]:fx[FX_P_NODES] + NODE_STATE * count]
+        if single:
+            node_inertia_times_single(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], state, x, prev, dg)
+        else:
+            for s in range(n):
+                dg[s] = 0.0
+            node_inertia_times(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], state, x, dg)
+        for s in range(n):
+            prev[s] = x[s]
 
 
 @njit(cache=True)
 def _refinement_change(topology, udot, pool):
-    """(largest change of a refined body's modal acceleration since the last call, largest modal acceleration),
-    keeping the accelerations in ``PV_PREV``."""
+    """(largest change of a refined body's modal acceleration since the iterate of the last products (``PV_PREV``),
+    largest modal acceleration)."""
     change = 0.0
     scale = 0.0
     for i in range(topology.shape[0]):
@@ -296,7 +317,6 @@ def _refinement_change(topology, udot, pool):
             a = udot[ue + s]
             change = max(change, abs(a - pool[pv + PV_PREV * n + s]))
             scale = max(scale, abs(a))
-            pool[pv + PV_PREV * n + s] = a
     return change, scale
 
 
@@ -387,8 +407,7 @@ def _refine(topology, nodes, params, tau, udot, tau_out, ground, ws_rot, ws_vec,
     """The refinement passes of :func:`_forward_dynamics` (module docstring) after its first solve, over the bodies
     before ``stop``: 0 when converged, NOT_CONVERGED when the passes it predicts exceed ``budget``."""
     pool[P_REFINEMENTS] = 0.0
-    _refinement_products(topology, params, udot, pool)
-    _refinement_change(topology, udot, pool)
+    _refinement_products(topology, params, udot, pool, False)
     previous = 0.0
     for it in range(1, budget + 1):
         _bias_pass(topology, nodes, params, tau, False, ws_rot, ws_vec, ws_mat, pool)
@@ -407,7 +426,7 @@ def _refine(topology, nodes, params, tau, udot, tau_out, ground, ws_rot, ws_vec,
             if rate >= 1.0 or it + np.log(REFINED * scale / change) / np.log(rate) > budget:
                 return 0 if change <= 10.0 * REFINED * scale else NOT_CONVERGED
         previous = change
-        _refinement_products(topology, params, udot, pool)
+        _refinement_products(topology, params, udot, pool, change <= SINGLE_BELOW * scale)
     return NOT_CONVERGED
 
 

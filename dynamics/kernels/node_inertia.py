@@ -40,6 +40,18 @@ scalar: its ~40 node-minor streams are slices of two arrays to LLVM, which canno
 side were not vectorized either (tried 2026-12-07).
 The result equals the tables' to round-off (``tests/flexible/test_node_inertia.py``).
 
+A refinement's late products (:func:`node_inertia_times_single`, for corrections below 1e-7 of the accelerations:
+:mod:`dynamics.kernels.articulated_body`) sweep single-precision copies of ``Lambda`` and ``Gamma`` that
+:func:`node_params` appends: the two sweeps of a product are bound by the cache's bandwidth (``Lambda`` of the 196-mode
+tube, 475 KB, about this EPYC's 512 KB L2: 2.5 doubles per cycle), and in float32 they move half the bytes and
+do eight products per vector instruction: 0.46x of the double product there, 0.70x at 20 modes (2026-12-07).
+Fusing the two double sweeps instead (by blocks of 2 to 24 nodes: a block's ``alpha``, its ``a``, its columns back
+while they are in cache) measured 2-4x slower (196 and 20 modes, 2026-12-07): a block's three component ranges are
+short pieces of each mode's row, which LLVM vectorized over the modes with emulated gathers rather than along the
+rows (numba has no ``noalias`` or loop pragmas), and a block's lines cannot stay in L1 anyway (196 modes x 3
+ranges, each one or two 64-byte lines, exceed 32 KB at any width); with the rows in L2 at best the two sweeps would
+gain about 18 % (the same sweeps on 230 KB of shapes run 0.82x per entry of 464 KB).
+
 Where the modal mass is formed rather than refined (:func:`node_inertia_modal_mass`: the factored modal mass of a
 body with few modes, ``dynamics.system.refinement_budget``, and the composite-inertia mass matrix),
 ``Lambda' D Lambda`` (``D`` the block diagonal of the nodes' ``dJ``) is formed as a symmetric matrix product: per
@@ -81,13 +93,16 @@ NODE_STATE = 36
 
 def node_params(mass, cg, inertia, shapes):
     """The node data as :mod:`dynamics.kernels.node_inertia` reads them from params: ``[any CG offset, m (N),
-    p (3 N), J (9 N), Lambda (n x 3 N), Gamma (n x 3 N)]``, node-minor (module docstring), from the masses (N),
-    CG offsets (N, 3), inertias (N, 3, 3) and shapes ``[lambda; gamma]`` (N, 6, n)."""
+    p (3 N), J (9 N), Lambda (n x 3 N), Gamma (n x 3 N), Lambda and Gamma in single precision (n x 3 N numbers:
+    2 n 3 N float32)]``, node-minor (module docstring), from the masses (N), CG offsets (N, 3), inertias (N, 3, 3)
+    and shapes ``[lambda; gamma]`` (N, 6, n)."""
     count, _, n = shapes.shape
     rotations = np.transpose(shapes[:, :3, :], (2, 1, 0)).reshape(n, 3 * count)
     translations = np.transpose(shapes[:, 3:, :], (2, 1, 0)).reshape(n, 3 * count)
+    single = np.concatenate([rotations.ravel(), translations.ravel()]).astype(np.float32).view(np.float64)
     return np.concatenate([[float(np.any(cg != 0.0))], mass, np.asarray(cg).T.ravel(),
-                           np.asarray(inertia).reshape(count, 9).T.ravel(), rotations.ravel(), translations.ravel()])
+                           np.asarray(inertia).reshape(count, 9).T.ravel(), rotations.ravel(), translations.ravel(),
+                           single])
 
 
 @njit(cache=True, inline="always")
@@ -443,6 +458,26 @@ def _modal_mass_data(params, o, count, n, terms, state):
             node_slot(state, N, S_THETA, 3), node_slot(state, N, S_D, 9))
 
 
+@njit(cache=True, inline="always")
+def _node_products(params, ma, pa, N, offset, th, D, A, Z):
+    """Per node, from ``alpha = lambda x`` in ``A`` and ``beta = gamma x`` in ``Z``: ``a = dJ alpha + m (theta x p) x
+    beta`` into ``A`` and ``z = m alpha x (theta x p)`` into ``Z`` (in double precision whatever ``A`` and ``Z``
+    hold)."""
+    for j in range(N):
+        al0, al1, al2 = node_vector(A, N, j)
+        a0, a1, a2 = _node_matrix_times(D, N, j, al0, al1, al2)
+        if offset:
+            m = params[ma + j]
+            t0, t1, t2 = node_vector(th, N, j)
+            c0, c1, c2 = cross3(t0, t1, t2, params[pa + j], params[pa + N + j], params[pa + 2 * N + j])
+            b0, b1, b2 = node_vector(Z, N, j)
+            x0, x1, x2 = cross3(c0, c1, c2, b0, b1, b2)
+            a0, a1, a2 = add_scaled3(a0, a1, a2, m, x0, x1, x2)
+            z0, z1, z2 = cross3(al0, al1, al2, c0, c1, c2)
+            store_node_vector(Z, N, j, m * z0, m * z1, m * z2)
+        store_node_vector(A, N, j, a0, a1, a2)
+
+
 @njit(cache=True, fastmath=FAST_SUMS)
 def node_inertia_times(params, o, count, n, terms, state, x, out):
     """``out += (G(eta) - G0 - tabled terms) x``: the node terms of the modal mass times ``x`` (n), with the
@@ -456,23 +491,83 @@ def node_inertia_times(params, o, count, n, terms, state, x, out):
     shapes_times(params, lam, n, width, x, x, A, A, False)  # alpha = lambda x
     if offset:
         shapes_times(params, gam, n, width, x, x, Z, Z, False)  # beta = gamma x
-    for j in range(N):
-        # a = dJ alpha + m (theta x p) x beta, z = m alpha x (theta x p)
-        al0, al1, al2 = node_vector(A, N, j)
-        a0, a1, a2 = _node_matrix_times(D, N, j, al0, al1, al2)
-        if offset:
-            m = params[ma + j]
-            t0, t1, t2 = node_vector(th, N, j)
-            c0, c1, c2 = cross3(t0, t1, t2, params[pa + j], params[pa + N + j], params[pa + 2 * N + j])
-            b0, b1, b2 = node_vector(Z, N, j)
-            x0, x1, x2 = cross3(c0, c1, c2, b0, b1, b2)
-            a0, a1, a2 = add_scaled3(a0, a1, a2, m, x0, x1, x2)
-            z0, z1, z2 = cross3(al0, al1, al2, c0, c1, c2)
-            store_node_vector(Z, N, j, m * z0, m * z1, m * z2)
-        store_node_vector(A, N, j, a0, a1, a2)
+    _node_products(params, ma, pa, N, offset, th, D, A, Z)
     _shapes_dot(params, lam, n, width, A, out)
     if offset:
         _shapes_dot(params, gam, n, width, Z, out)
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
+def _single_shapes_times(S, n, width, x, prev, out):
+    """``out = S' (x - prev)`` summed in single precision, for the n x ``width`` float32 shapes ``S`` (four rows of
+    S per sweep over the outputs, as :func:`shapes_times`)."""
+    for r in range(width):
+        out[r] = 0.0
+    s = 0
+    while s + 4 <= n:
+        x0, x1 = np.float32(x[s] - prev[s]), np.float32(x[s + 1] - prev[s + 1])
+        x2, x3 = np.float32(x[s + 2] - prev[s + 2]), np.float32(x[s + 3] - prev[s + 3])
+        for r in range(width):
+            out[r] += S[s, r] * x0 + S[s + 1, r] * x1 + S[s + 2, r] * x2 + S[s + 3, r] * x3
+        s += 4
+    for s in range(s, n):
+        xs = np.float32(x[s] - prev[s])
+        for r in range(width):
+            out[r] += S[s, r] * xs
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
+def _single_shapes_dot(S, n, width, a, out):
+    """``out += S a`` (``out`` double) summed in single precision, for the n x ``width`` float32 shapes ``S`` and
+    float32 ``a`` (four rows at a time, as :func:`_shapes_dot`)."""
+    s = 0
+    while s + 4 <= n:
+        c0 = c1 = c2 = c3 = np.float32(0.0)
+        for r in range(width):
+            z = a[r]
+            c0 += S[s, r] * z
+            c1 += S[s + 1, r] * z
+            c2 += S[s + 2, r] * z
+            c3 += S[s + 3, r] * z
+        out[s] += c0
+        out[s + 1] += c1
+        out[s + 2] += c2
+        out[s + 3] += c3
+        s += 4
+    for s in range(s, n):
+        acc = np.float32(0.0)
+        for r in range(width):
+            acc += S[s, r] * a[r]
+        out[s] += acc
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
+def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
+    """``out += (G(eta) - G0 - tabled terms) (x - prev)`` as :func:`node_inertia_times` does for ``x``, its two
+    sweeps over the shapes in single precision (the float32 copies of :func:`node_params`: half the bytes of
+    sweeps that the cache's bandwidth bounds, and eight products per vector instruction instead of four) and the
+    per-node algebra in double. Error about 1e-8 of the summands' size ``|Lambda|' |dJ| |Lambda| |x - prev|``
+    (float32's 6e-8 over sums of the modes and the nodes; ``tests/flexible/test_node_inertia.py``), which where the
+    sum cancels is a larger part of the product itself (4e-4 on the late corrections of the 196-mode tube): for the
+    refinement's late corrections only, where ``x - prev`` is a small fraction of ``x``
+    (:mod:`dynamics.kernels.articulated_body`)."""
+    varies, offset, ma, pa, lam, gam, th, D = _modal_mass_data(params, o, count, n, terms, state)
+    if not varies:
+        return
+    N = count
+    width = 3 * N
+    single = params[gam + n * width:gam + 2 * n * width].view(np.float32)
+    A = node_slot(state, N, S_A, 3).view(np.float32)[:width]
+    Z = node_slot(state, N, S_Z, 3).view(np.float32)[:width]
+    L32 = single[:n * width].reshape((n, width))
+    G32 = single[n * width:].reshape((n, width))
+    _single_shapes_times(L32, n, width, x, prev, A)
+    if offset:
+        _single_shapes_times(G32, n, width, x, prev, Z)
+    _node_products(params, ma, pa, N, offset, th, D, A, Z)
+    _single_shapes_dot(L32, n, width, A, out)
+    if offset:
+        _single_shapes_dot(G32, n, width, Z, out)
 
 
 TILE = 4
