@@ -300,6 +300,25 @@ def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br
     ``br`` (6) and ``bm`` (n); keep every node's ``theta`` and ``u`` in ``state`` (``NODE_STATE`` per node).
     ``o``: params offset of the :func:`node_params` of ``count`` nodes; ``terms``: NODE_* bits; ``V``, ``e``:
     body velocity and modal rates."""
+    node_inertia_pass(params, o, count, n, terms, eta, V, e, with_bias, br, state, False)
+    N = count
+    width = 3 * N
+    _, _, _, lam, gam = _layout(o, N, n)
+    # b_m += Lambda A and the omega rows of M_re += the Q lambda columns, in one sweep over Lambda
+    columns_times(params, lam, n, width, node_slot(state, N, S_W, 9), node_slot(state, N, S_A, 3), 0,
+                  (terms & NODE_F2) != 0, with_bias, Mre, bm)
+    if with_bias and params[o] != 0.0:
+        _shapes_dot(params, gam, n, width, node_slot(state, N, S_Z, 3), bm)
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
+def node_inertia_pass(params, o, count, n, terms, eta, V, e, with_bias, br, state, with_u):
+    """:func:`node_inertia_terms` but for its products back: the shapes times eta and the rates (``theta``,
+    ``u`` and their rates into ``state``; ``u`` zero without CG offsets unless ``with_u``), each node's ``dJ``
+    (``S_D``), ``Q`` (``S_W``, with F2) and, with ``with_bias``, the coefficients of ``lambda'`` and ``gamma'``
+    in ``b_m`` (``S_A``, ``S_Z``) and the node terms of ``b_r`` added to ``br``. Left for the caller: ``M_re[omega
+    rows] += sum_j Q_j lambda_j``, ``b_m += Lambda A + Gamma Z`` (:func:`columns_times`), which
+    :func:`dynamics.kernels.node_mass.node_mass_terms` folds into its own sweeps over the same shapes."""
     g1 = (terms & NODE_G1) != 0
     g2 = (terms & NODE_G2) != 0
     f2 = (terms & NODE_F2) != 0
@@ -311,7 +330,7 @@ def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br
     W = node_slot(state, N, S_W, 9)
     D = node_slot(state, N, S_D, 9)
     shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
-    if offset:
+    if offset or with_u:
         shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
     else:
         for r in range(width):
@@ -425,10 +444,6 @@ def node_inertia_terms(params, o, count, n, terms, eta, V, e, with_bias, Mre, br
     br[0] += br0
     br[1] += br1
     br[2] += br2
-    # b_m += Lambda A and the omega rows of M_re += the Q lambda columns, in one sweep over Lambda
-    columns_times(params, lam, n, width, W, A, 0, f2, with_bias, Mre, bm)
-    if with_bias and offset:
-        _shapes_dot(params, gam, n, width, Z, bm)
 
 
 @njit(cache=True, inline="always")
