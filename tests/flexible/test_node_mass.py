@@ -51,16 +51,22 @@ def _hinged_state(system, rng):
 
 
 @pytest.mark.parametrize("order", [1, 2])
-@pytest.mark.parametrize("nodes", ["all", "none", "some", "point masses"])
+@pytest.mark.parametrize("nodes", ["all", "none", "some", "point masses", "one point mass"])
 @pytest.mark.parametrize("rotary_terms", ["tables", "nodes"])
 def test_node_sums_equal_the_tables(order, nodes, rotary_terms):
     """Every algorithm, on a body with rotary node inertia and CG offsets on all, none or every other node, or of
-    point masses (no rotation shapes read), with G1, F2, G2 as tables or summed over the nodes too, and a wheel on
-    one of its nodes: C1 and J2 over the nodes against the same body with them as tables."""
+    point masses (no rotation shapes read), or with one point mass among nodes with rotary inertia, with G1, F2, G2
+    as tables or summed over the nodes too, and a wheel on one of its nodes: C1 and J2 over the nodes against the
+    same body with them as tables. Where G1, F2, G2 are summed over the same nodes, C1 and J2 share their shapes and
+    passes (one sweep back over each shape array for both kernels); with a point mass the node sets differ and
+    each kernel keeps its own."""
     n = 6
     model = random_node_model(9, n, seed=70 + order, point_masses=nodes == "point masses")
     if nodes in ("none", "some"):
         model.cg[::1 if nodes == "none" else 2] = 0.0
+    if nodes == "one point mass":
+        model.cg[4] = 0.0
+        model.inertia[4] = 0.0
     base = flexible_body_data(model, order, nodal=rotary_terms == "nodes")
     tables = _system(base, wheel=True)
     summed = _system(_with_node_mass(base, model, order), wheel=True)
@@ -69,8 +75,11 @@ def test_node_sums_equal_the_tables(order, nodes, rotary_terms):
     assert fx[L.FX_MASS_NODE_TERMS] == (L.MASS_C1 if order == 1 else L.MASS_C1 | L.MASS_J2)
     summed_terms = "C1 over 9 nodes" if order == 1 else "C1+J2 over 9 nodes"
     assert summed_terms in summed.summary() and summed_terms not in tables.summary()  # what was compiled is said
-    rotary, offset = summed.params[fx[L.FX_MASS_NODES]:fx[L.FX_MASS_NODES] + 2]
-    assert (rotary, offset) == (float(nodes != "point masses"), float(nodes in ("all", "some")))
+    rotary, offset, shared = summed.params[fx[L.FX_MASS_NODES]:fx[L.FX_MASS_NODES] + 3]
+    assert (rotary, offset) == (float(nodes != "point masses"), float(nodes in ("all", "some", "one point mass")))
+    sharing = rotary_terms == "nodes" and nodes in ("all", "none", "some")
+    assert shared == float(sharing)
+    assert ("shapes shared" in summed.summary()) == sharing
     rng = np.random.default_rng(order)
     for _ in range(3):
         q, u, tau = _state(summed, n, rng)
