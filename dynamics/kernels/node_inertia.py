@@ -372,75 +372,96 @@ def node_inertia_pass(params, o, count, n, terms, eta, V, e, with_bias, br, stat
                  Q[6] - m * x2, Q[7] - m * y2, Q[8] - m * z2)
         if f2:
             _store9(W, N, j, Q)
-        if with_bias:
-            d0, d1, d2 = node_vector(thd, N, j)
-            v0, v1, v2 = node_vector(ud, N, j)
-            # coefficients of lambda' and gamma' in b_m
-            a0 = a1 = a2 = 0.0
-            z0 = z1 = z2 = 0.0
-            if g1:
-                j0, j1, j2 = _mat3(J, d0, d1, d2)
-                x0, x1, x2 = cross3(d0, d1, d2, j0, j1, j2)
-                a0, a1, a2 = add_scaled3(a0, a1, a2, 2.0, x0, x1, x2)
-                if offset:
-                    h0, h1, h2 = cross3(d0, d1, d2, p0, p1, p2)  # thd x p
-                    x0, x1, x2 = cross3(h0, h1, h2, v0, v1, v2)
-                    y0, y1, y2 = cross3(v0, v1, v2, d0, d1, d2)
-                    yy0, yy1, yy2 = cross3(p0, p1, p2, y0, y1, y2)
-                    a0 += m * (x0 - yy0)
-                    a1 += m * (x1 - yy1)
-                    a2 += m * (x2 - yy2)
-                    x0, x1, x2 = cross3(d0, d1, d2, h0, h1, h2)
-                    z0, z1, z2 = add_scaled3(z0, z1, z2, m, x0, x1, x2)
-            if g2 or f2:
-                jw0, jw1, jw2 = _mat3(P, d0, d1, d2)  # J (theta x thd)
-                x0, x1, x2 = cross3(d0, d1, d2, jw0, jw1, jw2)  # thd x J (theta x thd)
-                if g2:
-                    a0, a1, a2 = add_scaled3(a0, a1, a2, -2.0, x0, x1, x2)
-                if f2:
-                    # b_r += dQ/dt thd + omega x (Q thd)
-                    q0, q1, q2 = _mat3(Q, d0, d1, d2)
-                    r0, r1, r2 = cross3(w0, w1, w2, q0, q1, q2)
-                    br0 += r0 - x0
-                    br1 += r1 - x1
-                    br2 += r2 - x2
-                    # b_m (lambda'): dQ/dt' omega - dT/dtheta
-                    ja0, ja1, ja2 = _mat3(P, w0, w1, w2)  # J (theta x omega)
-                    y0, y1, y2 = cross3(d0, d1, d2, w0, w1, w2)  # thd x omega
-                    jc0, jc1, jc2 = _mat3(J, y0, y1, y2)
-                    x0, x1, x2 = cross3(d0, d1, d2, ja0, ja1, ja2)
-                    y0, y1, y2 = cross3(t0, t1, t2, jc0, jc1, jc2)
-                    s0, s1, s2 = cross3(w0, w1, w2, jw0, jw1, jw2)
-                    a0 -= 2.0 * x0 + y0 + s0
-                    a1 -= 2.0 * x1 + y1 + s1
-                    a2 -= 2.0 * x2 + y2 + s2
-                    if offset:
-                        h0, h1, h2 = cross3(d0, d1, d2, p0, p1, p2)  # thd x p
-                        # b_r: - m [ud x ((theta x p) x thd) + u x ((thd x p) x thd)]
-                        x0, x1, x2 = cross3(c0, c1, c2, d0, d1, d2)
-                        y0, y1, y2 = cross3(v0, v1, v2, x0, x1, x2)
-                        s0, s1, s2 = cross3(h0, h1, h2, d0, d1, d2)
-                        r0, r1, r2 = cross3(u0, u1, u2, s0, s1, s2)
-                        br0 -= m * (y0 + r0)
-                        br1 -= m * (y1 + r1)
-                        br2 -= m * (y2 + r2)
-                        # gamma': - m omega x ((theta x p) x thd)
-                        y0, y1, y2 = cross3(w0, w1, w2, x0, x1, x2)
-                        z0, z1, z2 = add_scaled3(z0, z1, z2, -m, y0, y1, y2)
-                        # lambda': - m [(thd x p) x (u x omega) + (theta x p) x (ud x omega)]
-                        #          + m p x (thd x (omega x u))
-                        x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
-                        y0, y1, y2 = cross3(h0, h1, h2, x0, x1, x2)
-                        x0, x1, x2 = cross3(v0, v1, v2, w0, w1, w2)
-                        s0, s1, s2 = cross3(c0, c1, c2, x0, x1, x2)
-                        x0, x1, x2 = cross3(w0, w1, w2, u0, u1, u2)
-                        r0, r1, r2 = cross3(d0, d1, d2, x0, x1, x2)
-                        x0, x1, x2 = cross3(p0, p1, p2, r0, r1, r2)
-                        a0 += m * (x0 - y0 - s0)
-                        a1 += m * (x1 - y1 - s1)
-                        a2 += m * (x2 - y2 - s2)
-            store_node_vector(A, N, j, a0, a1, a2)
-            store_node_vector(Z, N, j, z0, z1, z2)
+    if not with_bias:
+        return
+    # the forces in loops of their own, without branches (each term scaled by its 0/1 flag, the offset terms zero
+    # without offsets) and with at most three streams stored each: with more stores (the matrices' 18, or A and Z
+    # together) or a branch per term, LLVM vectorizes no loop (it checks the stores against the loads at run time
+    # only up to a few pairs and does not unswitch that many conditions). J theta~ and Q thd again.
+    k1 = 1.0 if g1 else 0.0
+    k2 = 1.0 if g2 else 0.0
+    kf = 1.0 if f2 else 0.0
+    for j in range(N):
+        m = params[ma + j]
+        p0, p1, p2 = params[pa + j], params[pa + N + j], params[pa + 2 * N + j]
+        t0, t1, t2 = node_vector(th, N, j)
+        u0, u1, u2 = node_vector(uu, N, j)
+        d0, d1, d2 = node_vector(thd, N, j)
+        v0, v1, v2 = node_vector(ud, N, j)
+        c0, c1, c2 = cross3(t0, t1, t2, p0, p1, p2)  # theta x p
+        h0, h1, h2 = cross3(d0, d1, d2, p0, p1, p2)  # thd x p
+        J = _inertia(params, jb, N, j)
+        P = _times_cross(J, t0, t1, t2)
+        # coefficients of lambda' and gamma' in b_m; G1: 2 thd x (J thd), offsets m ((thd x p) x ud - p x (ud x
+        # thd)) and m thd x (thd x p)
+        j0, j1, j2 = _mat3(J, d0, d1, d2)
+        x0, x1, x2 = cross3(d0, d1, d2, j0, j1, j2)
+        a0, a1, a2 = 2.0 * k1 * x0, 2.0 * k1 * x1, 2.0 * k1 * x2
+        x0, x1, x2 = cross3(h0, h1, h2, v0, v1, v2)
+        y0, y1, y2 = cross3(v0, v1, v2, d0, d1, d2)
+        yy0, yy1, yy2 = cross3(p0, p1, p2, y0, y1, y2)
+        mk = m * k1
+        a0 += mk * (x0 - yy0)
+        a1 += mk * (x1 - yy1)
+        a2 += mk * (x2 - yy2)
+        # G2: -2 thd x J (theta x thd)
+        jw0, jw1, jw2 = _mat3(P, d0, d1, d2)  # J (theta x thd)
+        x0, x1, x2 = cross3(d0, d1, d2, jw0, jw1, jw2)  # thd x J (theta x thd)
+        a0, a1, a2 = add_scaled3(a0, a1, a2, -2.0 * k2, x0, x1, x2)
+        # F2: b_r += dQ/dt thd + omega x (Q thd), Q thd = -theta x (J (theta x thd)) - m u x ((theta x p) x thd)
+        x0, x1, x2 = cross3(t0, t1, t2, jw0, jw1, jw2)
+        y0, y1, y2 = cross3(c0, c1, c2, d0, d1, d2)
+        q0, q1, q2 = cross3(u0, u1, u2, y0, y1, y2)
+        r0, r1, r2 = cross3(w0, w1, w2, -x0 - m * q0, -x1 - m * q1, -x2 - m * q2)
+        x0, x1, x2 = cross3(d0, d1, d2, jw0, jw1, jw2)  # thd x J (theta x thd) again
+        g0, g1_, g2_ = r0 - x0, r1 - x1, r2 - x2
+        # b_m (lambda'): dQ/dt' omega - dT/dtheta
+        ja0, ja1, ja2 = _mat3(P, w0, w1, w2)  # J (theta x omega)
+        y0, y1, y2 = cross3(d0, d1, d2, w0, w1, w2)  # thd x omega
+        jc0, jc1, jc2 = _mat3(J, y0, y1, y2)
+        x0, x1, x2 = cross3(d0, d1, d2, ja0, ja1, ja2)
+        y0, y1, y2 = cross3(t0, t1, t2, jc0, jc1, jc2)
+        s0, s1, s2 = cross3(w0, w1, w2, jw0, jw1, jw2)
+        b0, b1, b2 = -(2.0 * x0 + y0 + s0), -(2.0 * x1 + y1 + s1), -(2.0 * x2 + y2 + s2)
+        # offsets, b_r: - m [ud x ((theta x p) x thd) + u x ((thd x p) x thd)]
+        x0, x1, x2 = cross3(c0, c1, c2, d0, d1, d2)
+        y0, y1, y2 = cross3(v0, v1, v2, x0, x1, x2)
+        s0, s1, s2 = cross3(h0, h1, h2, d0, d1, d2)
+        r0, r1, r2 = cross3(u0, u1, u2, s0, s1, s2)
+        g0 -= m * (y0 + r0)
+        g1_ -= m * (y1 + r1)
+        g2_ -= m * (y2 + r2)
+        # lambda': - m [(thd x p) x (u x omega) + (theta x p) x (ud x omega)] + m p x (thd x (omega x u))
+        x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
+        y0, y1, y2 = cross3(h0, h1, h2, x0, x1, x2)
+        x0, x1, x2 = cross3(v0, v1, v2, w0, w1, w2)
+        s0, s1, s2 = cross3(c0, c1, c2, x0, x1, x2)
+        x0, x1, x2 = cross3(w0, w1, w2, u0, u1, u2)
+        r0, r1, r2 = cross3(d0, d1, d2, x0, x1, x2)
+        x0, x1, x2 = cross3(p0, p1, p2, r0, r1, r2)
+        b0 += m * (x0 - y0 - s0)
+        b1 += m * (x1 - y1 - s1)
+        b2 += m * (x2 - y2 - s2)
+        br0 += kf * g0
+        br1 += kf * g1_
+        br2 += kf * g2_
+        store_node_vector(A, N, j, a0 + kf * b0, a1 + kf * b1, a2 + kf * b2)
+    if not offset:
+        for r in range(width):
+            Z[r] = 0.0
+    for j in range(N if offset else 0):
+        # gamma': G1 m thd x (thd x p), F2 - m omega x ((theta x p) x thd)
+        m = params[ma + j]
+        p0, p1, p2 = params[pa + j], params[pa + N + j], params[pa + 2 * N + j]
+        t0, t1, t2 = node_vector(th, N, j)
+        d0, d1, d2 = node_vector(thd, N, j)
+        c0, c1, c2 = cross3(t0, t1, t2, p0, p1, p2)
+        h0, h1, h2 = cross3(d0, d1, d2, p0, p1, p2)
+        x0, x1, x2 = cross3(d0, d1, d2, h0, h1, h2)
+        z0, z1, z2 = m * k1 * x0, m * k1 * x1, m * k1 * x2
+        x0, x1, x2 = cross3(c0, c1, c2, d0, d1, d2)
+        y0, y1, y2 = cross3(w0, w1, w2, x0, x1, x2)
+        store_node_vector(Z, N, j, z0 - m * kf * y0, z1 - m * kf * y1, z2 - m * kf * y2)
     br[0] += br0
     br[1] += br1
     br[2] += br2
