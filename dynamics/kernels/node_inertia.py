@@ -338,48 +338,60 @@ def node_inertia_pass(params, o, count, n, terms, eta, V, e, with_bias, br, stat
             ud[r] = 0.0
     w0, w1, w2 = V[0], V[1], V[2]
     br0 = br1 = br2 = 0.0
-    for j in range(N):
-        m = params[ma + j]
-        p0, p1, p2 = params[pa + j], params[pa + N + j], params[pa + 2 * N + j]
-        t0, t1, t2 = node_vector(th, N, j)
-        u0, u1, u2 = node_vector(uu, N, j)
-        c0, c1, c2 = cross3(t0, t1, t2, p0, p1, p2)  # theta x p (zero without an offset)
-        J = _inertia(params, jb, N, j)
-        # the node's matrices of this evaluation: J theta~, theta~ J theta~ (Q = -theta~ J theta~ - m u~ dP) and
-        # dJ = theta~ J - J theta~ [G1] - theta~ J theta~ [G2], kept for the products with the modal mass
-        P = _times_cross(J, t0, t1, t2)
-        # theta~ J theta~ only where G2 or F2 reads it (order 1 keeps G1 alone)
-        S = _cross_times(t0, t1, t2, P) if g2 or f2 else (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    # the node's matrices of this evaluation, row a of each per loop over the nodes (three streams stored: LLVM
+    # vectorizes it, see the forces below): dJ = theta~ J - J theta~ [G1] - theta~ J theta~ [G2], kept for the
+    # products with the modal mass, and Q = -theta~ J theta~ - m u~ dP [F2]. With J_k the rows of J, row a of
+    # J theta~ is J_a x theta, of theta~ J t[a+1] J_(a+2) - t[a+2] J_(a+1), of theta~ J theta~ the same with the rows
+    # of J theta~ (indices mod 3); -m u~ dP = -m ((theta x p) u' - (u . (theta x p)) 1).
+    k1 = 1.0 if g1 else 0.0
+    k2 = 1.0 if g2 else 0.0
+    for a in range(3):
+        a1 = (a + 1) % 3
+        a2 = (a + 2) % 3
+        Ja = params[jb + 3 * a * N:jb + 3 * (a + 1) * N]  # row a of every node's J, node-minor
+        J1 = params[jb + 3 * a1 * N:jb + 3 * (a1 + 1) * N]
+        J2 = params[jb + 3 * a2 * N:jb + 3 * (a2 + 1) * N]
+        Da = D[3 * a * N:3 * (a + 1) * N]
+        Wa = W[3 * a * N:3 * (a + 1) * N]
         if g1 or g2:
-            R = _cross_times(t0, t1, t2, J)
-            if g1 and g2:
-                dJ = (R[0] - P[0] - S[0], R[1] - P[1] - S[1], R[2] - P[2] - S[2], R[3] - P[3] - S[3],
-                      R[4] - P[4] - S[4], R[5] - P[5] - S[5], R[6] - P[6] - S[6], R[7] - P[7] - S[7],
-                      R[8] - P[8] - S[8])
-            elif g1:
-                dJ = (R[0] - P[0], R[1] - P[1], R[2] - P[2], R[3] - P[3], R[4] - P[4], R[5] - P[5], R[6] - P[6],
-                      R[7] - P[7], R[8] - P[8])
-            else:
-                dJ = (-S[0], -S[1], -S[2], -S[3], -S[4], -S[5], -S[6], -S[7], -S[8])
-            _store9(D, N, j, dJ)
-        Q = (-S[0], -S[1], -S[2], -S[3], -S[4], -S[5], -S[6], -S[7], -S[8])
-        if offset:
-            # - m u x (c x e_b), column by column
-            x0, x1, x2 = cross3(u0, u1, u2, 0.0, c2, -c1)
-            y0, y1, y2 = cross3(u0, u1, u2, -c2, 0.0, c0)
-            z0, z1, z2 = cross3(u0, u1, u2, c1, -c0, 0.0)
-            Q = (Q[0] - m * x0, Q[1] - m * y0, Q[2] - m * z0, Q[3] - m * x1, Q[4] - m * y1, Q[5] - m * z1,
-                 Q[6] - m * x2, Q[7] - m * y2, Q[8] - m * z2)
+            for j in range(N):
+                t0, t1, t2 = node_vector(th, N, j)
+                ta1, ta2 = th[a1 * N + j], th[a2 * N + j]
+                x0, x1, x2 = node_vector(J1, N, j)
+                y0, y1, y2 = node_vector(J2, N, j)
+                r0, r1, r2 = node_vector(Ja, N, j)
+                s0, s1, s2 = cross3(x0, x1, x2, t0, t1, t2)  # row a + 1 of J theta~
+                q0, q1, q2 = cross3(y0, y1, y2, t0, t1, t2)  # row a + 2
+                P0, P1, P2 = cross3(r0, r1, r2, t0, t1, t2)  # row a
+                # dJ row a: k1 (t[a+1] J_(a+2) - t[a+2] J_(a+1) - P_a) - k2 (t[a+1] P_(a+2) - t[a+2] P_(a+1))
+                store_node_vector(Da, N, j,
+                                  k1 * (ta1 * y0 - ta2 * x0 - P0) - k2 * (ta1 * q0 - ta2 * s0),
+                                  k1 * (ta1 * y1 - ta2 * x1 - P1) - k2 * (ta1 * q1 - ta2 * s1),
+                                  k1 * (ta1 * y2 - ta2 * x2 - P2) - k2 * (ta1 * q2 - ta2 * s2))
         if f2:
-            _store9(W, N, j, Q)
+            for j in range(N):
+                m = params[ma + j]
+                p0, p1, p2 = params[pa + j], params[pa + N + j], params[pa + 2 * N + j]
+                t0, t1, t2 = node_vector(th, N, j)
+                u0, u1, u2 = node_vector(uu, N, j)
+                ta1, ta2 = th[a1 * N + j], th[a2 * N + j]
+                x0, x1, x2 = node_vector(J1, N, j)
+                y0, y1, y2 = node_vector(J2, N, j)
+                s0, s1, s2 = cross3(x0, x1, x2, t0, t1, t2)
+                q0, q1, q2 = cross3(y0, y1, y2, t0, t1, t2)
+                c0, c1, c2 = cross3(t0, t1, t2, p0, p1, p2)  # theta x p (zero without an offset)
+                ca = c0 if a == 0 else (c1 if a == 1 else c2)
+                uc = u0 * c0 + u1 * c1 + u2 * c2
+                store_node_vector(Wa, N, j,
+                                  -(ta1 * q0 - ta2 * s0) - m * (ca * u0 - (uc if a == 0 else 0.0)),
+                                  -(ta1 * q1 - ta2 * s1) - m * (ca * u1 - (uc if a == 1 else 0.0)),
+                                  -(ta1 * q2 - ta2 * s2) - m * (ca * u2 - (uc if a == 2 else 0.0)))
     if not with_bias:
         return
     # the forces in loops of their own, without branches (each term scaled by its 0/1 flag, the offset terms zero
     # without offsets) and with at most three streams stored each: with more stores (the matrices' 18, or A and Z
     # together) or a branch per term, LLVM vectorizes no loop (it checks the stores against the loads at run time
     # only up to a few pairs and does not unswitch that many conditions). J theta~ and Q thd again.
-    k1 = 1.0 if g1 else 0.0
-    k2 = 1.0 if g2 else 0.0
     kf = 1.0 if f2 else 0.0
     for j in range(N):
         m = params[ma + j]
@@ -449,19 +461,20 @@ def node_inertia_pass(params, o, count, n, terms, eta, V, e, with_bias, br, stat
     if not offset:
         for r in range(width):
             Z[r] = 0.0
-    for j in range(N if offset else 0):
-        # gamma': G1 m thd x (thd x p), F2 - m omega x ((theta x p) x thd)
-        m = params[ma + j]
-        p0, p1, p2 = params[pa + j], params[pa + N + j], params[pa + 2 * N + j]
-        t0, t1, t2 = node_vector(th, N, j)
-        d0, d1, d2 = node_vector(thd, N, j)
-        c0, c1, c2 = cross3(t0, t1, t2, p0, p1, p2)
-        h0, h1, h2 = cross3(d0, d1, d2, p0, p1, p2)
-        x0, x1, x2 = cross3(d0, d1, d2, h0, h1, h2)
-        z0, z1, z2 = m * k1 * x0, m * k1 * x1, m * k1 * x2
-        x0, x1, x2 = cross3(c0, c1, c2, d0, d1, d2)
-        y0, y1, y2 = cross3(w0, w1, w2, x0, x1, x2)
-        store_node_vector(Z, N, j, z0 - m * kf * y0, z1 - m * kf * y1, z2 - m * kf * y2)
+    if offset:
+        for j in range(N):
+            # gamma': G1 m thd x (thd x p), F2 - m omega x ((theta x p) x thd)
+            m = params[ma + j]
+            p0, p1, p2 = params[pa + j], params[pa + N + j], params[pa + 2 * N + j]
+            t0, t1, t2 = node_vector(th, N, j)
+            d0, d1, d2 = node_vector(thd, N, j)
+            c0, c1, c2 = cross3(t0, t1, t2, p0, p1, p2)
+            h0, h1, h2 = cross3(d0, d1, d2, p0, p1, p2)
+            x0, x1, x2 = cross3(d0, d1, d2, h0, h1, h2)
+            z0, z1, z2 = m * k1 * x0, m * k1 * x1, m * k1 * x2
+            x0, x1, x2 = cross3(c0, c1, c2, d0, d1, d2)
+            y0, y1, y2 = cross3(w0, w1, w2, x0, x1, x2)
+            store_node_vector(Z, N, j, z0 - m * kf * y0, z1 - m * kf * y1, z2 - m * kf * y2)
     br[0] += br0
     br[1] += br1
     br[2] += br2
