@@ -94,7 +94,7 @@ def _calls(c, bits, NI, NM):
         "  _shapes_dot Lambda": lambda: NI._shapes_dot(ip, lam, n, width, A, out),
         "node_inertia_modal_mass": lambda: NI.node_inertia_modal_mass(ip, 1, N, n, bits, state, G),
     }
-    if hasattr(NM, "shares_node_inertia"):  # C1, J2 after node_inertia_pass, sharing its nodes where they are the same
+    if hasattr(NI, "node_inertia_pass"):  # C1, J2 after node_inertia_pass, sharing its nodes where they are the same
         calls["node_mass_terms C1 J2 (forces)"] = lambda: NM.node_mass_terms(mp, 1, Nm, n, mbits, eta, V, e, True, Mrr,
                                                                              Mre, br, bm, mstate, 1, bits, state)
         if c["shared"]:

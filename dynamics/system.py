@@ -31,9 +31,10 @@ from dynamics import algorithms as A
 from dynamics import layout as L
 from dynamics.data import Data, frozen
 from dynamics.errors import ModelDefinitionError
+from dynamics.flexible_body import same_nodes
 from dynamics.hinges import HINGE_TYPES, HINGES
 from dynamics.kernels.node_inertia import NODE_STATE, node_params
-from dynamics.kernels.node_mass import MASS_NODE_STATE, node_mass_params, shares_node_inertia
+from dynamics.kernels.node_mass import MASS_NODE_STATE, node_mass_params
 from dynamics.model import Model
 from dynamics.reconfigure import reconfigure
 from dynamics.spatial import spatial_inertia as _spatial_inertia
@@ -488,7 +489,7 @@ class MultibodySystem:
             fx[L.FX_MASS_NODE_COUNT] = mass_nodes.count
             fx[L.FX_MASS_NODE_TERMS] = sum(bits[t] for t in mass_nodes.terms)
             # the node-inertia nodes again (every node with mass has rotary inertia): their shapes and passes shared
-            shared = shares_node_inertia(mass_nodes, nodes)
+            shared = same_nodes(mass_nodes, nodes)
             fx[L.FX_MASS_NODES] = params.push(node_mass_params(mass_nodes.mass, mass_nodes.cg, mass_nodes.inertia,
                                                                mass_nodes.positions, shapes, shared))
             fx[L.FX_P_MASS_NODES] = pool.reserve(MASS_NODE_STATE * mass_nodes.count)

@@ -77,8 +77,8 @@ def node_mass_params(mass, cg, inertia, positions, shapes, shared=False):
     has an inertia or CG offset (else the rotation shapes are not needed), ``offset``: any has a CG offset. From
     the masses (N), CG offsets (N, 3), inertias (N, 3, 3), positions (N, 3) and shapes ``[lambda; gamma]``
     (N, 6, n). ``shared``: the nodes are those of the body's :mod:`dynamics.kernels.node_inertia` terms, in the
-    same order with the same data (:func:`shares_node_inertia`): the shapes are left out and read from there
-    (module docstring)."""
+    same order with the same data (:func:`dynamics.flexible_body.same_nodes`): the shapes are left out and read
+    from there (module docstring)."""
     count, _, n = shapes.shape
     cg = np.asarray(cg, dtype=np.float64)
     inertia = np.asarray(inertia, dtype=np.float64)
@@ -91,18 +91,6 @@ def node_mass_params(mass, cg, inertia, positions, shapes, shared=False):
         if rotary:
             parts.append(np.transpose(shapes[:, :3, :], (2, 1, 0)).reshape(n, 3 * count).ravel())
     return np.concatenate(parts)
-
-
-def shares_node_inertia(mass_nodes, node_inertia):
-    """Whether the C1/J2 nodes ``mass_nodes`` (:class:`dynamics.flexible_body.NodeMass`) are the G1/F2/G2 nodes
-    ``node_inertia`` (:class:`dynamics.flexible_body.NodeInertia`, or None) of the same body, same order, same
-    masses, offsets, inertias and shapes (every node with mass has rotary inertia: the beams and shells of real
-    decks): then :func:`node_mass_terms` shares their passes (``shared``)."""
-    if node_inertia is None or node_inertia.count != mass_nodes.count:
-        return False
-    return all(np.array_equal(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
-               for a, b in ((mass_nodes.mass, node_inertia.mass), (mass_nodes.cg, node_inertia.cg),
-                            (mass_nodes.inertia, node_inertia.inertia), (mass_nodes.shapes, node_inertia.shapes)))
 
 
 @njit(cache=True, inline="always")

@@ -20,7 +20,7 @@ import dynamics.flexible_body as FB
 from dynamics import Multibody
 from dynamics import layout as L
 from dynamics.errors import ModelDefinitionError
-from dynamics.flexible_body import node_mass_from_nodes, node_mass_is_cheaper
+from dynamics.flexible_body import node_inertia_from_nodes, node_mass_from_nodes, node_mass_is_cheaper, same_nodes
 
 from .random_flexible import flexible_body_data, random_node_model
 from .test_brute_force import rel
@@ -110,6 +110,13 @@ def test_the_cheaper_form_is_chosen():
     assert node_mass_is_cheaper(200, nodes)
     few = node_mass_from_nodes(model.mass, model.cg, model.inertia, model.position, np.zeros((100, 6, 5)), 2)
     assert not node_mass_is_cheaper(5, few)
+    # where the nodes are those of G1, F2, G2 too, their rotation-shape passes serve both: node sums from fewer modes
+    at = node_mass_from_nodes(model.mass, model.cg, model.inertia, model.position, np.zeros((100, 6, 120)), 2)
+    same = node_inertia_from_nodes(model.mass, model.cg, model.inertia, at.shapes, 2)
+    other = node_inertia_from_nodes(model.mass, model.cg, model.inertia, at.shapes + 1.0, 2)
+    assert same_nodes(at, same) and not same_nodes(at, other) and not same_nodes(at, None)
+    assert node_mass_is_cheaper(120, at, same) and not node_mass_is_cheaper(120, at, other)
+    assert not node_mass_is_cheaper(120, at)
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +134,7 @@ def test_body_file_node_sums_equal_its_tables(fe_beam_body, integrals, order, mo
     (computed by the FEM pipeline): the same dynamics to 1e-12."""
     systems = []
     for nodal in (False, True):
-        monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes, nodal=nodal: nodal)
+        monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes, node_inertia, nodal=nodal: nodal)
         mb = Multibody()
         # point masses on a line have no inertia about it: a revolute hinge across the beam for those
         hinge = {"hinge": "free"} if integrals == "general" else {"hinge": "revolute", "axis": (0.0, 0.0, 1.0)}
@@ -155,7 +162,7 @@ def test_geometric_stiffening_keeps_the_tables(monkeypatch, tmp_path):
     deck = tmp_path / "beam.dat"
     deck.write_text(rotating_beam_deck(10))
     body = fem2modal(str(deck), Fem2ModalOptions(n_modes=4, modal_integrals=True, geometric_stiffness=True))
-    monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes: True)
+    monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes, node_inertia: True)
     stiffened = FB.flexible_body_from_modal_body(body, order=2)
     assert stiffened.geometric_stiffening and stiffened.mass_nodes is None
     assert stiffened.terms.C1 is not None and stiffened.terms.J2 is not None and stiffened.terms.P2 is not None
