@@ -30,7 +30,9 @@ ENGINE_SECONDS = {"single_body": 10, "articulated": 60, "dense": 60, "constraine
 LOOP_SECONDS = 20
 MODEL_SECONDS = 3
 
-_MODEL_KERNELS = ("state_outputs", "feedthrough_outputs", "derivatives", "zero_crossing_values", "update")
+#: a model's numba kernels (the two ``*_for_derivatives`` are optional, :mod:`shell.model`; compiled where present)
+_MODEL_KERNELS = ("state_outputs", "feedthrough_outputs", "state_outputs_for_derivatives",
+                  "feedthrough_outputs_for_derivatives", "derivatives", "zero_crossing_values", "update")
 
 #: integrator families whose loop code differs (the fixed-step methods share one loop, the adaptive ones one driver)
 FAMILIES = (("rk4", "fixed-step Runge-Kutta: euler, heun, rk4, rk8"), ("etdrk4", "exponential RK4: etdrk4"),

@@ -124,3 +124,15 @@ def test_omit_terms_through_yaml(body_files, capsys):
     assert main(["check", str(tmp / "bad.yaml")]) != 0
     err = capsys.readouterr().err
     assert "bad.yaml:" in err and "omit_terms" in err and "expected a list of G1, F2, G2, given ['G3']" in err
+
+
+def test_check_says_the_modal_stiffness_is_applied_as_its_diagonal(body_files, capsys):
+    """fem2modal's Phi' K Phi is diagonal to round-off; the engine applies its diagonal and `flexshell check`
+    says so, with the largest ratio dropped (dynamics.system.MODAL_DIAGONAL_TOLERANCE)."""
+    from dynamics.system import MODAL_DIAGONAL_TOLERANCE, _offdiagonal_ratio
+
+    ratio = _offdiagonal_ratio(np.asarray(read_body_file(body_files / "beam.h5").modal_stiffness))
+    assert 0.0 < ratio <= MODAL_DIAGONAL_TOLERANCE
+    out, _ = check(body_files, scene("beam.h5"), capsys)
+    assert (f"body 'beam': modal stiffness applied as its diagonal (largest off-diagonal entry {ratio:.1e} of the "
+            "geometric mean of its diagonal entries") in out

@@ -285,7 +285,8 @@ def test_flexshell_compile_compiles_what_a_first_run_needs(tmp_path, capsys):
     assert all(engine_signature().args in kernel.overloads for kernel in ENGINE_KERNELS.values())
     steppers = {signature[2].instance_class.__name__ for signature in advance.signatures}  # advance(k, b, st
     assert {"RungeKuttaStepper", "ExponentialStepper"} <= steppers
-    kernels = ("state_outputs", "feedthrough_outputs", "derivatives", "zero_crossing_values", "update")
+    kernels = ("state_outputs", "feedthrough_outputs", "state_outputs_for_derivatives",
+               "feedthrough_outputs_for_derivatives", "derivatives", "zero_crossing_values", "update")
     uncompiled = [f"{name}.{kernel}" for name, cls in registered().items() for kernel in kernels
                   if isinstance(getattr(cls, kernel, None), CPUDispatcher) and not getattr(cls, kernel).overloads]
     assert not uncompiled
