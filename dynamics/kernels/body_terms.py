@@ -1,9 +1,9 @@
 """Per-body inertia and forces for the recursions: the rigid bias ``V x* I V``, a flexible body's ``M(eta)``
 blocks and gyroscopic, Coriolis and elastic forces (:func:`dynamics.flexible_kernels.modal_mass_and_bias`,
 TM-2020-5008164 eqs. E.2.2-E.2.6, the terms of nodes with rotary inertia summed over the nodes by
-:mod:`dynamics.kernels.node_inertia`, C1 and J2 over every node by :mod:`dynamics.kernels.node_mass`), products
-with its modal mass, and the generalized forces of node forces ``[X'; Psi' X'] f`` (a force in node axes at the
-deformed node).
+:mod:`dynamics.kernels.node_inertia`, C1 and J2 over every node by :mod:`dynamics.kernels.node_mass`, with
+node_inertia's passes where their nodes are the same), products with its modal mass, and the generalized forces of
+node forces ``[X'; Psi' X'] f`` (a force in node axes at the deformed node).
 """
 
 from __future__ import annotations

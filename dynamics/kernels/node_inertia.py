@@ -34,10 +34,15 @@ rows at a time against four vectors (:func:`columns_times`, which :mod:`dynamics
 Against one row at a time (2026-12-07, ``benchmarks/node_terms_passes.py``: the tube of
 ``benchmarks/flexible_scaling.py``, 101 nodes, 196 modes, and the hub beam of ``benchmarks/flexible_vs_exudyn.py``,
 105 nodes, 20 modes; interleaved medians, load 0.9 on 2 cores): the shapes times eta and the rates 0.56x and 0.72x,
-a product with the modal mass 0.78x and 0.82x, the terms with their forces 0.75x and 0.93x. The per-node algebra runs
-scalar: its ~40 node-minor streams are slices of two arrays to LLVM, which cannot prove that they do not overlap
-(numba marks no array ``noalias``) and does not version a loop on that many checks; four nodes written out side by
-side were not vectorized either (tried 2026-12-07).
+a product with the modal mass 0.78x and 0.82x, the terms with their forces 0.75x and 0.93x. The per-node algebra
+runs in several loops over the nodes, each storing at most three node-minor streams and without branches (a term
+left out is scaled by zero, offsets are zero without them): LLVM cannot prove numba's arrays disjoint (no
+``noalias``) and vectorizes a loop only when it can check its stores against its loads at run time in a few
+comparisons, which the one loop of ~40 streams (18 stored), or a branch per term, defeated (measured 2026-12-07 with
+``inspect_asm``: 4 stored streams vectorize, 6 do not; a loop over ``range(N if flag else 0)`` is not vectorized,
+``if flag:`` around ``range(N)`` is). So each row of ``dJ`` and of ``Q`` is a loop (``J theta~``'s rows again in
+each), the forces another with ``Q thd`` recomputed rather than read back, ``Z`` one more with offsets: the hub
+beam's terms 0.82x with forces and 0.77x without (main, interleaved, load 3).
 The result equals the tables' to round-off (``tests/flexible/test_node_inertia.py``).
 
 Where the modal mass is formed rather than refined (:func:`node_inertia_modal_mass`: the factored modal mass of a
@@ -162,33 +167,18 @@ def _times_cross(M, t0, t1, t2):
 
 
 @njit(cache=True, inline="always")
-def _cross_times(t0, t1, t2, M):
-    """``t~ M`` (row major): its columns are ``t x M[:, b]``."""
-    return (t1 * M[6] - t2 * M[3], t1 * M[7] - t2 * M[4], t1 * M[8] - t2 * M[5],
-            t2 * M[0] - t0 * M[6], t2 * M[1] - t0 * M[7], t2 * M[2] - t0 * M[8],
-            t0 * M[3] - t1 * M[0], t0 * M[4] - t1 * M[1], t0 * M[5] - t1 * M[2])
-
-
-@njit(cache=True, inline="always")
-def _store9(out, N, j, M):
-    """Node j's 3 x 3 ``M`` (row major) into ``out`` node-minor: entry k at ``out[k N + j]``."""
-    out[j] = M[0]
-    out[N + j] = M[1]
-    out[2 * N + j] = M[2]
-    out[3 * N + j] = M[3]
-    out[4 * N + j] = M[4]
-    out[5 * N + j] = M[5]
-    out[6 * N + j] = M[6]
-    out[7 * N + j] = M[7]
-    out[8 * N + j] = M[8]
-
-
-@njit(cache=True, inline="always")
 def _node_matrix_times(D, N, j, x0, x1, x2):
     """``dJ_j x`` for node j's 3 x 3 ``dJ`` kept node-minor in ``D`` (entry (a, b) at ``D[(3 a + b) N + j]``)."""
     return (D[j] * x0 + D[N + j] * x1 + D[2 * N + j] * x2,
             D[3 * N + j] * x0 + D[4 * N + j] * x1 + D[5 * N + j] * x2,
             D[6 * N + j] * x0 + D[7 * N + j] * x1 + D[8 * N + j] * x2)
+
+
+@njit(cache=True, inline="always")
+def shapes_at(o, N, n):
+    """params offsets of ``Lambda`` and ``Gamma`` in the :func:`node_params` of ``N`` nodes at ``o``."""
+    _, _, _, lam, gam = _layout(o, N, n)
+    return lam, gam
 
 
 @njit(cache=True, inline="always")

@@ -48,6 +48,16 @@ nodes (at order 2 from about 1.5 N modes, at order 1, C1 alone, from about 4 N o
 stiffening adds stiffness-derived parts to C1 and J2 that are not node sums: such a body keeps its tables.
 The result equals the tables' to round-off (``tests/flexible/test_node_mass.py``).
 
+Where the nodes are those of the terms G1, F2, G2 over the nodes (:mod:`dynamics.kernels.node_inertia`: every
+node with mass has rotary inertia, as on the beams and shells of real decks; :func:`dynamics.flexible_body.same_nodes`)
+the two kernels share their shapes and passes: the params hold ``Lambda`` and ``Gamma`` once (node_inertia's), the
+shapes times eta and the rates are :func:`dynamics.kernels.node_inertia.node_inertia_pass`'s (with ``u``), ``B_j``
+joins that pass's ``Q_j`` (the omega rows of ``M_re`` take ``sum_j (B_j + Q_j) lambda_j``) and the coefficients of
+``lambda'`` and ``gamma'`` in ``b_m`` add up, so one sweep back over each shape array serves both: of the eight
+sweeps over a ``3N x n`` array the two kernels made apart, four remain (the tube of
+``benchmarks/flexible_scaling.py`` at 196 modes: both kernels with their forces 0.69x-0.75x of apart, 2026-12-07,
+``benchmarks/node_terms_passes.py --before``; the choice between node sums and tables counts the shared passes).
+
 Data (:mod:`dynamics.layout`): ``FX_MASS_NODES`` points at what :func:`node_mass_params` packs for
 ``FX_MASS_NODE_COUNT`` nodes; ``FX_MASS_NODE_TERMS`` says which terms (``MASS_C1``, ``MASS_J2``);
 ``FX_P_MASS_NODES`` holds ``MASS_NODE_STATE`` numbers per node of scratch.
@@ -58,8 +68,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dynamics.kernels.node_inertia import (S_W, _layout, add_cross3, add_scaled3, columns_times, cross3, node_slot,
-                                           node_vector, node_vectors, shapes_times, store_node_vector)
+from dynamics.kernels.node_inertia import (S_W, add_cross3, add_scaled3, columns_times, cross3, node_slot, node_vector,
+                                           node_vectors, shapes_at, shapes_times, store_node_vector)
 from dynamics.layout import MASS_C1, MASS_J2, NODE_F2
 
 # where each node's numbers sit in the body's FX_P_MASS_NODES block, in units of the node count N (node-minor):
@@ -133,7 +143,7 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
     WL = node_slot(state, N, S_WL, 18)
     if shared:
         # theta, u, their rates and the coefficients of lambda', gamma' are the node-inertia pass's; B_j joins its Q_j
-        _, _, _, lam, gam = _layout(inertia_o, N, n)
+        lam, gam = shapes_at(inertia_o, N, n)
         th, uu, thd, ud, A, Z = node_vectors(inertia_state, N)
         WB = node_slot(inertia_state, N, S_W, 9)
         add_b = (inertia_terms & NODE_F2) != 0
