@@ -7,10 +7,11 @@ modes: G1, F2, G2 over the nodes, refined; C1 and J2 over the nodes at order 2) 
 formed and factored every evaluation), both through ``dynamics.flex.fem2modal``; the state is the tube
 benchmark's (static deflection of a lateral tip load, 1 cm at the tip, modal rates a tenth of the amplitude times
 each frequency, 0.05 rad/s about z). Rows: the whole kernel per call (``node_inertia_terms`` with its forces,
-``node_inertia_times``, ``node_inertia_modal_mass``, ``node_mass_terms``) and the passes it is made of
-(``shapes_times``: the stacked shapes times eta and the rates; the back products), in microseconds, medians of
-interleaved batches; the per-node algebra is the whole minus its passes. Run from the repository root:
-``python benchmarks/node_terms_passes.py [--rounds 15]``.
+``node_inertia_times``, ``node_inertia_modal_mass``, ``node_mass_terms``; both kernels of one evaluation, sharing
+their passes where their nodes are the same as on these decks, against ``--before``'s two apart) and the passes it
+is made of (``shapes_times``: the stacked shapes times eta and the rates; the back products), in microseconds,
+medians of interleaved batches; the per-node algebra is the whole minus its passes. Run from the repository root:
+``python benchmarks/node_terms_passes.py [--rounds 15] [--before REF]``.
 """
 
 from __future__ import annotations
