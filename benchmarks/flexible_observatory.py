@@ -18,8 +18,9 @@ Reported:
 * cost: CPU seconds per simulated second of ``flexshell run`` (process time of ``Simulation.run``, compilation
   excluded: a first short run compiles), real-time factor = 1 / that, median of ``--repeat`` runs of
   ``--duration`` s, at orders 0, 1 and 2 and at 1 and 2 without the terms of the nodes' rotary inertia, with the
-  machine's load average; for orders 0, 1, 2 where the last run's step went (:func:`breakdown`: the integrator's
-  linear algebra, the checks of its linear part, the rest: derivatives, updates, log); and order 1 without the
+  machine's load average; for orders 0, 1, 2 where the last run's step went (:func:`profile`: the derivative
+  evaluations, the integrator's linear algebra, what the two cost more for sharing the caches, the checks of its
+  linear part as counted in the run, the rest: updates, log, loop; alone with ``--profile-only``); and order 1 without the
   sixteen nodes that only the linearization uses (before the engine model computed only the nodes a scene reads,
   their kinematics were about 40 % of the order-1 derivative; now what is left of their cost is this difference);
 * the node mask before/after (:func:`node_mask`, first; alone with ``--nodes-only``): per order, interleaved, every
@@ -55,12 +56,13 @@ Reported:
   rates), 4-point central differences with Richardson (``shell.analysis.linearize``), wall time.
 
     python3 benchmarks/flexible_observatory.py [--duration 1] [--repeat 3] [--skip-reference] [--nodes-only]
-        [--accuracy-only] [--reference-step 6.25e-6]
+        [--profile-only] [--accuracy-only] [--reference-step 6.25e-6]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import tempfile
@@ -76,7 +78,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.flexible_scaling import beam_deck  # noqa: E402
+from numba import njit  # noqa: E402
+
 from shell.cli import main as cli  # noqa: E402
+from shell.compiled_loop import derivative_of  # noqa: E402
+from shell.integrators import exponential as EX  # noqa: E402
+from shell.integrators.exponential_stepper import exponential_stepper  # noqa: E402
 from shell.integrators.exponential import ExponentialRK4  # noqa: E402
 from shell.log_file import MemoryLog  # noqa: E402
 from shell.scenario import build_simulation, load_scenario  # noqa: E402
@@ -147,58 +154,122 @@ def build(tmp, text, name):
     return build_simulation(load_scenario(str(path)))
 
 
-def timed_run(sim, duration):
-    """CPU seconds of Simulation.run for ``duration`` s after a 2 ms run (compilation, matrix functions)."""
+@contextlib.contextmanager
+def timed_checks():
+    """A list of the CPU seconds of each check of the exponential integrator's linear part made inside (the compiled
+    loop asks ``ExponentialRK4.check_linear_part`` for them)."""
+    times = []
+    original = ExponentialRK4.check_linear_part
+
+    def timed(self, t, y):
+        c0 = time.process_time()
+        try:
+            return original(self, t, y)
+        finally:
+            times.append(time.process_time() - c0)
+
+    ExponentialRK4.check_linear_part = timed
+    try:
+        yield times
+    finally:
+        ExponentialRK4.check_linear_part = original
+
+
+def timed_run(sim, duration, checks=None, counts=None):
+    """CPU seconds of Simulation.run for ``duration`` s after a 2 ms run (compilation, matrix functions); ``checks``
+    (a :func:`timed_checks` list) keeps the checks of the timed part only, ``counts`` (a dict) receives its steps and
+    derivative evaluations."""
     sim.run(2e-3)
+    if checks is not None:
+        checks.clear()
+    steps, nfev = sim.counters["steps"], sim.counters["nfev"]
     c0 = time.process_time()
     result = sim.run(2e-3 + duration)
-    return time.process_time() - c0, result
+    cpu = time.process_time() - c0
+    if counts is not None:
+        counts.update(steps=sim.counters["steps"] - steps, nfev=sim.counters["nfev"] - nfev)
+    return cpu, result
 
 
-def breakdown(sim, cpu, duration, rounds=7, reps=100):
-    """Where the step's CPU time goes (after a timed run): the exponential integrator's linear algebra per nominal
-    step (the remainders and the four stage products, its compiled kernels timed alone), the check of its
-    linear part (one evaluation, spread over the longest check interval) and the rest (the derivative
-    evaluations, the models' updates, the log), with the derivative evaluations per step."""
-    from shell.integrators import exponential as EX
+def order_costs(tmp, args, orders=((0, ()), (1, ()), (2, ()), (1, ("G1",)), (2, ("G1", "F2", "G2")))):
+    """The cost at each order (median of ``--repeat`` runs) and, for the orders with every term, the profile of the
+    last run (:func:`profile`)."""
+    for order, omit in orders:
+        costs = []
+        counts = {}
+        with timed_checks() as checks:
+            for r in range(args.repeat):
+                sim = build(tmp, scene("beam.h5", order, "etdrk4", 1e-3, args.duration + 0.01, omit=omit),
+                            f"o{order}.yaml")
+                cpu, _ = timed_run(sim, args.duration, checks, counts)
+                costs.append(cpu / args.duration)
+        print(f"order {order}{' without ' + ', '.join(omit) if omit else ''}: etdrk4 1 ms, {np.median(costs):.3f} "
+              f"CPU s per simulated s (real-time factor {1 / np.median(costs):.2f}; runs "
+              f"{', '.join(f'{c:.3f}' for c in costs)})", flush=True)
+        if not omit:
+            print(f"  last run, {profile(sim, cpu, args.duration, checks, counts['steps'], counts['nfev'])}",
+                  flush=True)
 
+
+@njit(cache=True)
+def step_work(k, b, st, t, y, reps, evaluate, algebra):
+    """``reps`` times the work of a nominal step's four stages without its logic, compiled (no Python between the
+    kernels, as in the loop): with ``evaluate`` the derivative at (t, y), with ``algebra`` the remainder and the stage
+    product (exponential.remainder and exponential.stage_real on the stepper's arrays, as ExponentialStepper's step)."""
+    for _ in range(reps):
+        for j in range(4):
+            if evaluate:
+                derivative_of(k, t, y, b)
+            if algebra:
+                EX.remainder(st.F, y if j == 0 else st.S[j - 1], st.nonzero_components, st.L_other,
+                             st.other_components, st.copy_components, st.copied_components, st.y_lin, st.product,
+                             st.N[j])
+                n = st.stage_terms[j]
+                base = y if st.stage_base[j] < 0 else st.S[st.stage_base[j]]
+                EX.stage_real(st.Phi[j], st.Phi_copies, st.phi_at_zero, st.stage_functions[j, :n],
+                              st.stage_coefficients[j, :n], st.F, st.N, st.h, base, st.indices,
+                              st.dense_other_components, st.dense_copy_components, st.zero_components, st.is_linear,
+                              st.S[j], st.W[:n], st.w_stack, st.w_copies, st.product)
+
+
+def profile(sim, cpu, duration, checks, steps, nfev, reps=50, rounds=7):
+    """Where a nominal 1 ms step of the last timed run went, as a table (after the run, at its final state): the
+    derivative evaluations (how many per step, timed alone), the integrator's linear algebra (the four remainders and
+    four stage products; the matrix entries they read per step in units of m^2), what the two cost more when they
+    alternate as in a step (each evicts the other's data from the caches), all three from :func:`step_work`
+    (medians of ``rounds`` of ``reps`` steps), the checks of the linear part (counted and timed in the run) and the
+    rest (the models' updates, the log, the loop)."""
     integ = sim._integrator
-    steps = sim.counters["steps"]
-    y, t, f = integ.y.copy(), integ.t, np.asarray(integ.f, dtype=np.float64).copy()
-    Y = np.empty((4, y.size))
+    st = exponential_stepper(integ)
+    k, b = sim.plan.kernels, sim.plan.buffers
+    y = st.Y.copy()
 
-    def algebra():
-        integ._remainder(f, y, integ.N[0])
-        for k in range(4):
-            base_index, functions, coefficients = EX.STAGES[k]
-            W = integ.W[:functions.shape[0]]
-            EX.stage_real(integ.Phi_other[k], integ.Phi_copies, EX.PHI_AT_ZERO, functions, coefficients, f,
-                          integ.N, integ.h, y if base_index < 0 else Y[base_index], integ.part.indices,
-                          integ.part.dense_other_components, integ.part.dense_copy_components,
-                          integ.part.zero_components, integ.part.is_linear, Y[k],
-                          W, integ.w_stack, integ.w_copies, integ.product)
-            if k < 3:
-                integ._remainder(f, Y[k], integ.N[k + 1])
-
-    def check():
-        integ.linear_part_option(t, y.copy())
-
-    times = {}
-    for name, fn, n in (("algebra", algebra, reps), ("check", check, 3)):
-        fn()
+    def timed(evaluate, algebra):
+        step_work(k, b, st, integ.t, y, 1, evaluate, algebra)
         samples = []
         for _ in range(rounds):
             c0 = time.process_time()
-            for _ in range(n):
-                fn()
-            samples.append((time.process_time() - c0) / n)
-        times[name] = float(np.median(samples))
-    per_step = cpu / (duration / integ.h)
-    check_share = times["check"] / integ.max_check_interval
-    return (f"per 1 ms step {1e6 * per_step:.0f} us: linear algebra {1e6 * times['algebra']:.0f} us, check of the "
-            f"linear part {1e3 * times['check']:.1f} ms every {integ.max_check_interval} steps "
-            f"({1e6 * check_share:.0f} us), the rest {1e6 * (per_step - times['algebra'] - check_share):.0f} us "
-            f"(derivatives: {(sim.counters['nfev'] - integ.part.m - 1) / steps:.2f} per step; m = {integ.part.m})")
+            step_work(k, b, st, integ.t, y, reps, evaluate, algebra)
+            samples.append((time.process_time() - c0) / reps)
+        return float(np.median(samples))
+
+    per_step = cpu / steps
+    derivatives, kernels = timed(True, False), timed(False, True)
+    caches = timed(True, True) - derivatives - kernels
+    part = integ.part
+    # the copy columns are read for the terms on the slope F (stages 2 and 4), every other column once per term
+    read = (sum(P.size for P in integ.Phi_other) + 2 * integ.Phi_copies[0].size + 4 * part.L_other.size) / part.m ** 2
+    check = float(np.median(checks)) if checks else 0.0
+    rows = [("derivative evaluations", f"{nfev / steps:.2f} x {1e6 * derivatives / 4:.0f} us",
+             nfev / steps * derivatives / 4),
+            ("linear algebra (4 remainders, 4 stage products)", f"{read:.1f} m^2 entries read", kernels),
+            ("the two alternating, less each alone (caches)", "", caches),
+            ("checks of the linear part", f"{len(checks)} in {duration:g} s, {1e3 * check:.1f} ms each",
+             sum(checks) / steps)]
+    rows.append(("the rest (updates, log, loop)", "", per_step - sum(r[2] for r in rows)))
+    lines = [f"per 1 ms step {1e6 * per_step:.0f} us (m = {part.m}, load {os.getloadavg()[0]:.2f}):"]
+    lines += [f"    {name:48s} {what:30s} {1e6 * cost:6.0f} us {cost / per_step:6.1%}" for name, what, cost in rows]
+    return "\n".join(lines)
 
 
 def series(sim, duration):
@@ -278,6 +349,8 @@ def main():
     ap.add_argument("--reference-step", type=float, default=REFERENCE_STEP,
                     help="RK4 step of the accuracy reference (s; its Richardson check runs at twice it)")
     ap.add_argument("--accuracy-only", action="store_true", help="only the accuracy against the reference")
+    ap.add_argument("--profile-only", action="store_true",
+                    help="only the cost at orders 0, 1, 2 and where a step goes (the profile of the last run)")
     ap.add_argument("--nodes-only", action="store_true",
                     help="only the before/after of the node masks (every node computed, the nodes read in every "
                          "evaluation, the nodes read per evaluation kind)")
@@ -290,21 +363,13 @@ def main():
         if args.accuracy_only:
             accuracy(tmp, args.duration, args.reference_step)
             return
+        if args.profile_only:
+            order_costs(tmp, args, ((0, ()), (1, ()), (2, ())))
+            return
         node_mask(tmp, args)
         if args.nodes_only:
             return
-        for order, omit in ((0, ()), (1, ()), (2, ()), (1, ("G1",)), (2, ("G1", "F2", "G2"))):
-            costs = []
-            for r in range(args.repeat):
-                sim = build(tmp, scene("beam.h5", order, "etdrk4", 1e-3, args.duration + 0.01, omit=omit),
-                            f"o{order}.yaml")
-                cpu, _ = timed_run(sim, args.duration)
-                costs.append(cpu / args.duration)
-            print(f"order {order}{' without ' + ', '.join(omit) if omit else ''}: etdrk4 1 ms, {np.median(costs):.3f} "
-                  f"CPU s per simulated s (real-time factor {1 / np.median(costs):.2f}; runs "
-                  f"{', '.join(f'{c:.3f}' for c in costs)})", flush=True)
-            if not omit:
-                print(f"  last run, {breakdown(sim, cpu, args.duration)}", flush=True)
+        order_costs(tmp, args)
         costs = []
         for r in range(args.repeat):  # the sixteen nodes are the linearization's inputs; the run reads none of them
             sim = build(tmp, scene("beam.h5", 1, "etdrk4", 1e-3, args.duration + 0.01, thrusters=False), "o1n.yaml")

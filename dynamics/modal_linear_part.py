@@ -29,7 +29,7 @@ torque ``(lambda eta_dot) x h``, and through the node's rotational mode shapes `
 grows with every mode that rotates the node) that coupling is as stiff as the modes themselves (a 5 N m s
 wheel on the middle grid of the 196-mode tube of benchmarks/flexible_observatory.py: ``h rho(N) = 136`` at
 1 ms, against a stability limit of 2.8). ``L`` therefore takes the gyroscopic term at the rotors' current
-spin rates in the columns of the carrier's modal rates (:func:`rotor_gyroscopic_coupling`),
+spin rates in the columns of the carrier's modal rates (:func:`rotor_gyroscopic_factors`),
 and ``N`` keeps the slow rest (the coupling with the rigid rates, the change of the spin). Its
 eigenvalues are the system modes of the assembled structure at ``q0`` (the generalized eigenproblem
 ``K_aug phi = omega^2 M phi`` of :mod:`dynamics.modal_analysis`, with damping), plus zeros for the rigid DOFs.
@@ -60,12 +60,21 @@ When the configuration changes (refresh or not): ``L`` depends on ``q`` only thr
   functions when ``L`` has moved by more than 0.1 %; it also watches the stiffness of ``N`` on every step
   (and warns if it was given a fixed ``(indices, L)``). The observatory never triggers a rebuild.
 
-Cost: one mass matrix (composite-body algorithm) and one Cholesky solve with ``n_modes + 1`` right-hand
-sides, ``O(nu^3)``: 0.7 ms for the 60-mode observatory (a fifth of one derivative evaluation), negligible
-against the matrix functions computed from ``L``.
+Cost: one mass matrix (composite-body algorithm, of the copy with averaged rotors, kept between calls), its
+Cholesky factor, ``O(nu^3)``, and the columns of ``M_ff^-1`` that the right-hand sides need: ``K_aug`` and
+``D_aug`` are the flexible bodies' modal blocks, non-zero in the modal rows only, so ``M_ff^-1 [K_aug | D_aug] =
+M_ff^-1 [e_r] [K_aug | D_aug][rows]`` takes one solve per modal row (a diagonal block, as a body file's stiffness
+is, then scales those columns: the same numbers as the product), and the gyroscopic coupling of the rotors on one
+node has rank 3 (``-J' [h x] J_e``, :func:`rotor_gyroscopic_factors`), three solves per node: 199 right-hand sides
+for the 196-mode observatory of benchmarks/flexible_observatory.py instead of the 402 columns of ``[K_aug[f,
+modal] | D_aug[f, f] + C]``: the whole evaluation 5.1 -> 3.6 ms, with the kept copy (2026-12-07, interleaved in
+one process, medians of 9, load 3.4; of the 3.6 ms the mass matrix is about 1.3, the solve 0.9). The result
+equals the solve of those 402 columns to round-off (tests/flexible/test_modal_linear_part.py).
 """
 
 from __future__ import annotations
+
+import weakref
 
 import numpy as np
 import scipy.linalg
@@ -95,32 +104,46 @@ def spin_averaged_inertia(mass, com, inertia, point, axis):
     return mass, point + d_mean, 0.5 * (J_com + J_com.T)
 
 
+#: the spin-averaged copy of each system data seen (:func:`_rotors_averaged`), with the mass properties it was made
+#: from; weak, so a run's systems are not kept alive by it
+_AVERAGED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def _rotors_averaged(system):
     """``system`` itself, or a copy whose rotors (rigid bodies without children on revolute hinges) have their
-    spin-averaged inertia (:func:`spin_averaged_inertia`)."""
+    spin-averaged inertia (:func:`spin_averaged_inertia`). The copy is kept per system data while that data's mass
+    properties are the same objects (``set_mass_properties`` replaces the definitions, so a change makes a new copy):
+    the exponential integrator's checks evaluate the linear part every few hundred steps, and making the copy was 0.7
+    of their 5 ms on the observatory."""
     bodies = system.definitions[0]
     has_children = {p for p in system.parents if p >= 0}
     rotors = [i for i, b in enumerate(bodies)
               if b.flexible is None and b.hinge == "revolute" and i not in has_children]
     if not rotors:
         return system
+    data = system.data
+    kept = _AVERAGED.get(data)
+    if kept is not None and kept[0] is data.definitions and kept[1] is data.params and kept[2] is data.masses:
+        return kept[3]
     averaged = system.copy(mass_properties=True)
     for i in rotors:
         b = bodies[i]
         axis = b.outboard_rotation @ b.axes[0]  # hinge axis in the body frame (outboard frame M -> body)
         averaged.set_mass_properties(b.name, *spin_averaged_inertia(b.mass, b.com, b.inertia, b.outboard_position,
                                                                     axis))
+    _AVERAGED[data] = (data.definitions, data.params, data.masses, averaged)
     return averaged
 
 
-def rotor_gyroscopic_coupling(system, u):
-    """``C`` (nu x nu): ``d(bias)/d(eta_dot)`` of the spin momentum of every rotor hinged on a node of a flexible
-    body, ``-J' [h x] lambda`` in the carrier's rows and its modal-rate columns, with ``J = [S_rot, lambda]`` the
-    node's angular velocity per unit rate of the carrier's hinge (its motion subspace's rotational rows, body axes:
-    left in the workspace by the last kinematics pass of ``system`` at the configuration) and of its modes
-    (``lambda``, the node's rotational mode shapes), and ``h = J_a s a`` the rotor's spin momentum (axial moment
-    about its hinge point, spin rate, axis in the carrier's axes): the gyroscopic coupling of the node's elastic
-    rotation rates.
+def rotor_gyroscopic_factors(system, u):
+    """The gyroscopic coupling of the rotors hinged on nodes of flexible bodies, ``d(bias)/d(eta_dot)``, as factors
+    ``(rows, columns, J, h)`` per carrier node: the coupling is ``-J' [h x] J_e`` in the carrier's rows (``rows``,
+    its u-slice) and modal-rate columns (``columns``), with ``J = [S_rot, lambda]`` (3 x rows) the node's angular
+    velocity per unit rate of the carrier's hinge (its motion subspace's rotational rows, body axes: left in the
+    workspace by the last kinematics pass of ``system`` at the configuration) and of its modes (``lambda``, the
+    node's rotational mode shapes; ``J_e`` its modal columns), and ``h`` the sum over the node's rotors of their
+    spin momenta ``J_a s a`` (axial moment about the hinge point, spin rate, axis in the carrier's axes): the
+    gyroscopic coupling of the node's elastic rotation rates, of rank 3 per node (the rotors of one node share J).
     (The coupling of the rigid rates, of the carrier and its ancestors, is slow, as the rigid motion, and stays in
     ``N``; in ``L`` it would also couple the rigid velocities' zero eigenvalues into a defective matrix.)"""
     from dynamics.layout import MAT_S
@@ -128,26 +151,41 @@ def rotor_gyroscopic_coupling(system, u):
     bodies, nodes, _ = system.definitions
     has_children = {p for p in system.parents if p >= 0}
     node_index = {nd.name: k for k, nd in enumerate(nodes)}
-    C = np.zeros((system.nu, system.nu))
+    factors = {}
     for i, b in enumerate(bodies):
         carrier = system.parents[i]
         if (b.flexible is not None or b.hinge != "revolute" or i in has_children or carrier < 0
                 or bodies[carrier].flexible is None or b.parent_node is None):
             continue
         node = nodes[node_index[b.parent_node]]
-        span = system.u_slices[carrier]
-        n = system.n_modes[carrier]
-        nh = span.stop - span.start - n
-        J = np.concatenate([system.ws_mat[carrier, MAT_S, :3, :nh], np.asarray(node.shape, dtype=float)[:3]], axis=1)
+        if (carrier, b.parent_node) not in factors:
+            span = system.u_slices[carrier]
+            n = system.n_modes[carrier]
+            nh = span.stop - span.start - n
+            J = np.concatenate([system.ws_mat[carrier, MAT_S, :3, :nh], np.asarray(node.shape, dtype=float)[:3]],
+                               axis=1)
+            factors[carrier, b.parent_node] = [np.arange(span.start, span.stop), np.arange(span.stop - n, span.stop),
+                                               J, np.zeros(3)]
         a_rotor = b.outboard_rotation @ b.axes[0]
         d = b.com - b.outboard_position
         J_point = b.inertia + b.mass * (d @ d * np.eye(3) - np.outer(d, d))
         spin = u[system.u_slices[i].start]
-        h = (a_rotor @ J_point @ a_rotor) * spin * (node.rotation @ b.inboard_rotation @ b.axes[0])
-        skew = np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
-        modal = slice(span.stop - n, span.stop)
-        C[span, modal] -= J.T @ skew @ J[:, nh:]
-    return C
+        factors[carrier, b.parent_node][3] += ((a_rotor @ J_point @ a_rotor) * spin
+                                               * (node.rotation @ b.inboard_rotation @ b.axes[0]))
+    return [tuple(f) for f in factors.values()]
+
+
+def _skew(h):
+    return np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
+
+
+def _times(X, B):
+    """``X @ B``; a square ``B`` whose off-diagonal entries are all zero (a modal stiffness or damping block: the
+    body file's is diagonal) scales the columns of X instead, which gives the same numbers (the product's other
+    terms are exact zeros) in O(size of X)."""
+    if B.shape[0] == B.shape[1] and np.count_nonzero(B) == np.count_nonzero(np.diagonal(B)):
+        return X * np.diagonal(B)
+    return X @ B
 
 
 def modal_linear_part(system, q, u=None):
@@ -175,20 +213,32 @@ def modal_linear_part(system, q, u=None):
     eta_in_free = position_in_free[eta_u]
     averaged = _rotors_averaged(system)
     M_ff = averaged.mass_matrix(q)[np.ix_(free, free)]
-    K_aug = system.stiffness_matrix()
-    D_aug = system.damping_matrix()
     try:
         factor = scipy.linalg.cho_factor(M_ff)
     except np.linalg.LinAlgError:
         raise ValueError("modal_linear_part: the mass matrix of the free DOFs is not positive definite at this "
                          "configuration (a massless subtree or aligned hinge axes)") from None
-    if u is not None:
-        D_aug = D_aug + rotor_gyroscopic_coupling(averaged, np.asarray(u, dtype=np.float64))
-    rhs = np.concatenate([K_aug[np.ix_(free, eta_u)], D_aug[np.ix_(free, free)]], axis=1)
+    K_e = system.stiffness_matrix()[np.ix_(free, eta_u)]
+    D_ff = system.damping_matrix()[np.ix_(free, free)]
+    # M^-1 [K_e | D_ff + C] from the columns of M^-1 that their rows need (module docstring, "Cost")
+    rows = np.flatnonzero(K_e.any(axis=1) | D_ff.any(axis=1))
+    damped = np.flatnonzero(D_ff.any(axis=0))
+    gyroscopic = rotor_gyroscopic_factors(averaged, np.asarray(u, dtype=np.float64)) if u is not None else []
+    rhs = np.zeros((n_free, rows.size + 3 * len(gyroscopic)))
+    rhs[rows, np.arange(rows.size)] = 1.0
+    for g, (span, _, J, _) in enumerate(gyroscopic):
+        kept = position_in_free[span] >= 0  # a prescribed hinge DOF of the carrier is not a row of L
+        rhs[position_in_free[span[kept]], rows.size + 3 * g:rows.size + 3 * g + 3] = J.T[kept]
     solved = scipy.linalg.cho_solve(factor, rhs)
+    unit = solved[:, :rows.size]  # the columns of M_ff^-1 at rows
     L = np.zeros((n_eta + n_free, n_eta + n_free))
     L[np.arange(n_eta), n_eta + eta_in_free] = 1.0
-    L[n_eta:, :n_eta] = -solved[:, :n_eta]
-    L[n_eta:, n_eta:] = -solved[:, n_eta:]
+    L[n_eta:, :n_eta] = -_times(unit, K_e[rows])
+    if damped.size:
+        L[n_eta:, n_eta + damped] = -_times(unit, D_ff[np.ix_(rows, damped)])
+    for g, (_, columns, J, h) in enumerate(gyroscopic):
+        n = columns.size
+        L[n_eta:, n_eta + position_in_free[columns]] += solved[:, rows.size + 3 * g:rows.size + 3 * g + 3] @ (
+            _skew(h) @ J[:, J.shape[1] - n:])
     indices = np.concatenate([eta_q, system.nq + free]).astype(np.int64)
     return indices, L

@@ -91,19 +91,24 @@ observatory: 23 % error in the IMU rate at 1 ms). When the linear part is set, t
 m components are taken by forward differences (m evaluations of ``fun``); the rows outside it that depend on
 them join the linear part with their coupling ``C P`` to its oscillating modes (``P`` the spectral projector
 on the non-zero eigenvalues; the rigid-body directions are not stiff and would make the extended matrix
-defective) and zero columns, so their integrals of the modal motion are exact too (IMU rate error 9e-5).
+defective) and zero columns, so their integrals of the modal motion are exact too (IMU rate error 9e-5). The
+extended matrix's eigen-decomposition follows from L's (:meth:`LinearPart.extended`: its eigenvalues are L's and
+zeros), checked against expm like any other.
 
 Changing configuration: ``L`` is built at the configuration where the integrator starts. If hinged parts
 then rotate far enough to change the mass matrix, the difference ``(L(q) - L(q0)) y`` is a stiff term inside
 ``N`` that the explicit part integrates badly. With a callable ``linear_part(t, y)`` (what the shell passes)
-the integrator re-evaluates it after 2, 4, 8, ... steps while it does not move (the build is the first step's
-check: a check at that same state would find no drift), up to MAX_CHECK_INTERVAL steps
+the integrator re-evaluates it after 2, 8, 32, ... steps while it does not move (the build is the first step's
+check: a check at that same state would find no drift; the interval grows 4x after a check that found a drift
+below 1/64 of DRIFT_TOLERANCE, 2x below a quarter of it: :func:`check_growth`), up to MAX_CHECK_INTERVAL steps
 or MAX_CHECK_TIME of simulated time, whichever is longer (the configuration moves on the time scale of the
 scene, not of the step; a mass matrix and a Cholesky solve: ~0.7 ms for the 60-mode observatory, a fifth of one
 derivative, but 5-21 ms for the 196-mode general-mass one at order 1, about 15 derivatives: every 64 steps of
 1 ms that was 5-10 % of its run, every 250 steps it is 1-3 %; of one check ~6.3 ms are the callable's and
 0.04-0.05 ms the drift, :func:`frobenius_distance`, against 0.13-0.16 ms for numpy's norm of the m x m difference,
-0.56 ms when that difference lands on fresh pages) and rebuilds
+0.56 ms when that difference lands on fresh pages; since modal_linear_part solves for only the columns of the
+inverse mass matrix it needs and keeps its spin-averaged copy, one check is 3.4-3.9 ms, 2-3 % of an order-1 run
+over its first 2 s) and rebuilds
 the matrix functions and the driven rows when ``||L(y) - L||_F / ||L||_F > DRIFT_TOLERANCE``; the check starts
 again every step after a rebuild. Independently, each step estimates the stiffness of ``N`` from its two stages
 at c = 1/2 (``rho = ||N3 - N2|| / ||Y3 - Y2||``, the Rayleigh-quotient estimate of HNW I Sec. IV.2, skipped
@@ -158,6 +163,21 @@ STAGES = tuple(_table(s) for s in (_STAGE2, _STAGE3, _STAGE4, _FINAL))
 C_NODES = (0.5, 0.5, 1.0)  # times of stages 2, 3, 4
 
 
+def check_growth(drift):
+    """The factor the interval between two checks of a callable linear part grows by after a check that found it
+    within DRIFT_TOLERANCE (module docstring, "Changing configuration"): 4 below 1/64 of the tolerance, 2 below a
+    quarter of it, else 1. The intervals grow geometrically, so the time since the build grows by about the same
+    factor: a drift growing as the square of that time stays within the tolerance over the next interval in both
+    cases (4 / 64 and 4 / 4 of it), and one growing as its cube too after a factor of 4 (4^3 / 64). Measured on the
+    196-mode observatory of benchmarks/flexible_observatory.py at order 1: a drift of 9e-10 after the first 2 steps
+    and at most 6e-8 over 2 s with balanced wheels (the checks go 2, 8, 32, 128, 250 steps apart instead of 2, 4,
+    ..., 128, 250: 7 instead of 9 in the first second), 4e-6 after 2 steps and at most 3.3e-4 with an unbalanced
+    wheel (intervals 2, 4, 8, ...: as before; never rebuilt)."""
+    if drift <= DRIFT_TOLERANCE / 64.0:
+        return 4
+    return 2 if drift <= 0.25 * DRIFT_TOLERANCE else 1
+
+
 class StiffRemainderWarning(UserWarning):
     """The part of the dynamics outside the linear part has become stiff (the configuration moved away from
     the one the linear part was built at)."""
@@ -204,7 +224,9 @@ def phi_into(z, k_max, out):
 class LinearPart:
     """The linear part over ``indices`` of an n-state system and its eigen-decomposition (module docstring)."""
 
-    def __init__(self, indices, L, n, name):
+    def __init__(self, indices, L, n, name, decomposition=None):
+        """``decomposition``: ``(lam, V, Vinv)`` of L in its own axes, known (:meth:`extended`), instead of numpy's
+        eigen-decomposition of the balanced L (:meth:`check_exponential` checks either)."""
         indices = np.asarray(indices)
         if indices.ndim != 1 or (indices.size and not np.issubdtype(indices.dtype, np.integer)):
             raise ValueError(f"{name}: linear_part indices must be a 1-D integer array, got {indices!r}")
@@ -257,17 +279,53 @@ class LinearPart:
             import scipy.linalg  # here, not at module level: scipy.linalg costs ~0.3 s at every start
 
             balanced, (scale, _) = scipy.linalg.matrix_balance(L, permute=False, separate=True)
-            lam, V = np.linalg.eig(balanced)
+            if decomposition is None:
+                lam, V = np.linalg.eig(balanced)
+                Vinv = np.linalg.inv(V)
+            else:
+                lam, V, Vinv = decomposition
+                V, Vinv = V / scale[:, None], Vinv * scale[None, :]
             self.lam = lam
             self.scale = scale
             self.V_balanced = V
-            self.Vinv_balanced = np.linalg.inv(V)
+            self.Vinv_balanced = Vinv
             self.balanced = balanced
             self.V = np.ascontiguousarray(scale[:, None] * V)
             self.Vinv = np.ascontiguousarray(self.Vinv_balanced / scale[None, :])
         else:
             self.lam = np.zeros(0, dtype=np.complex128)
             self.V = self.Vinv = np.zeros((0, 0), dtype=np.complex128)
+
+    def moving(self):
+        """The eigenvalues that are not zero to working accuracy (the oscillating modes; the zero ones are the
+        rigid-body velocities)."""
+        return np.abs(self.lam) > 1e3 * EPS * np.abs(self.lam).max()
+
+    def extended(self, rows, coupling, n):
+        """The linear part over ``indices`` and the driven ``rows``, ``[[L, 0], [C, 0]]`` with ``C = J P`` (``P`` the
+        spectral projector on :meth:`moving`), with its eigen-decomposition from L's: ``C`` annihilates L's
+        eigenvectors of eigenvalue zero, so ``V' = [[V, 0], [C V diag(1/lambda), I]]`` (``1/lambda`` zero where
+        lambda is) holds eigenvectors of the extended matrix for ``(lambda, 0, ..., 0)``, and ``V'^-1 = [[V^-1, 0],
+        [-C V diag(1/lambda) V^-1, I]]``: no second eigen-decomposition (at m = 402 + 16, 0.16 s of a 0.69 s build),
+        the same check against expm."""
+        m, r = self.m, rows.size
+        L_ext = np.zeros((m + r, m + r))
+        L_ext[:m, :m] = self.L
+        L_ext[m:, :m] = coupling
+        moving = self.moving()
+        inverse = np.zeros(m, dtype=np.complex128)
+        inverse[moving] = 1.0 / self.lam[moving]
+        W = (coupling @ self.V) * inverse
+        V = np.zeros((m + r, m + r), dtype=np.complex128)
+        V[:m, :m] = self.V
+        V[m:, :m] = W
+        V[m:, m:] = np.eye(r)
+        Vinv = np.zeros_like(V)
+        Vinv[:m, :m] = self.Vinv
+        Vinv[m:, :m] = -W @ self.Vinv
+        Vinv[m:, m:] = np.eye(r)
+        lam = np.concatenate([self.lam, np.zeros(r, dtype=self.lam.dtype)])
+        return LinearPart(np.concatenate([self.indices, rows]), L_ext, n, self.name, (lam, V, Vinv))
 
     def check_exponential(self, h):
         """Refuse a decomposition whose exponential e^{hL} disagrees with scipy's expm (module docstring)."""
@@ -287,11 +345,15 @@ class LinearPart:
                 f"rk4 with a step below the stability limit, or radau5")
 
     def real_functions(self, h):
-        """The real matrices phi_k(c h L) of :data:`FUNCTIONS`, stacked (len(FUNCTIONS), m, m), original axes."""
+        """The real matrices phi_k(c h L) of :data:`FUNCTIONS`, stacked (len(FUNCTIONS), m, m), original axes: the
+        real part of ``(V diag(phi_k(c h lambda))) V^-1`` as two real products (a complex one is four: at m = 418 the
+        seven functions took 0.15 s of a 0.69 s build)."""
         out = np.empty((len(FUNCTIONS), self.m, self.m))
+        Vinv_real, Vinv_imag = np.ascontiguousarray(self.Vinv.real), np.ascontiguousarray(self.Vinv.imag)
         for f, (c, k) in enumerate(FUNCTIONS):
-            values = phi_functions(c * h * self.lam, k)[k]
-            out[f] = ((self.V * values) @ self.Vinv).real
+            scaled = self.V * phi_functions(c * h * self.lam, k)[k]
+            np.matmul(scaled.real, Vinv_real, out=out[f])
+            out[f] -= scaled.imag @ Vinv_imag
         return out
 
     def stage_matrices(self, h):
@@ -543,7 +605,8 @@ class ExponentialRK4(Integrator):
 
     Options: ``step`` (required), ``linear_part`` (required): ``(indices, L)`` over the state vector, or a
     callable ``linear_part(t, y) -> (indices, L)`` re-evaluated when the remainder becomes stiff.
-    Counters: ``njev`` evaluations of the linear part, ``nlu`` eigen-decompositions.
+    Counters: ``njev`` evaluations of the linear part, ``nlu`` eigen-decompositions (that of the part with its
+    driven rows derived from the part's, :meth:`LinearPart.extended`).
     """
 
     name = "etdrk4"
@@ -606,11 +669,7 @@ class ExponentialRK4(Integrator):
         else:
             rows, coupling = self._driven_coupling(t, y, part)
             if rows.size:
-                m, r = part.m, rows.size
-                L_ext = np.zeros((m + r, m + r))
-                L_ext[:m, :m] = part.L
-                L_ext[m:, :m] = coupling
-                part = LinearPart(np.concatenate([part.indices, rows]), L_ext, self.n, self.name)
+                part = part.extended(rows, coupling, self.n)
                 self.nlu += 1
         part.check_exponential(self.h)
         self.part = part
@@ -626,8 +685,8 @@ class ExponentialRK4(Integrator):
         self.phi_diag = None
 
     def _check_drift(self, t, y, force):
-        """Re-evaluate a callable linear part (every ``check_interval`` steps, doubling up to
-        MAX_CHECK_INTERVAL while it does not move, or now when ``force``) and rebuild the matrix functions when
+        """Re-evaluate a callable linear part (every ``check_interval`` steps, growing up to
+        MAX_CHECK_INTERVAL while it does not move: :func:`check_growth`, or now when ``force``) and rebuild the matrix functions when
         it moved by more than DRIFT_TOLERANCE. Returns True if it was rebuilt."""
         self.steps_since_check += 1
         if not force and self.steps_since_check < self.check_interval:
@@ -646,8 +705,7 @@ class ExponentialRK4(Integrator):
         same_shape = L.shape == self.base_L.shape and np.array_equal(np.asarray(indices), self.base_indices)
         drift = frobenius_distance(L, self.base_L) / scale if same_shape and scale > 0.0 else np.inf
         if drift <= DRIFT_TOLERANCE:
-            if drift <= 0.25 * DRIFT_TOLERANCE:
-                self.check_interval = min(2 * self.check_interval, self.max_check_interval)
+            self.check_interval = min(check_growth(drift) * self.check_interval, self.max_check_interval)
             return False
         self.check_interval = 1
         self._set_linear_part(t, y)
@@ -670,8 +728,7 @@ class ExponentialRK4(Integrator):
         rows = np.flatnonzero(~part.is_linear & np.any(J != 0.0, axis=1))
         # spectral projector on the non-zero eigenvalues: the zero ones (rigid-body velocities) are not stiff,
         # and coupling a driven row to them would make the extended matrix defective (a Jordan block)
-        moving = np.abs(part.lam) > 1e3 * EPS * np.abs(part.lam).max()
-        P = ((part.V * moving) @ part.Vinv).real
+        P = ((part.V * part.moving()) @ part.Vinv).real
         return rows, J[rows] @ P
 
     def _stage(self, k, h, nominal, out):

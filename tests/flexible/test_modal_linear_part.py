@@ -18,7 +18,8 @@ import pytest
 from dynamics import Multibody, SingularConfigurationError
 from dynamics.flex.body_file import read_body_file
 from dynamics.modal_analysis import system_modes
-from dynamics.modal_linear_part import modal_indices, modal_linear_part, spin_averaged_inertia
+from dynamics.modal_linear_part import (_rotors_averaged, _times, modal_indices, modal_linear_part,
+                                        rotor_gyroscopic_factors, spin_averaged_inertia)
 from dynamics.mode_selection import select_modes
 from dynamics.system import MODAL_DIAGONAL_TOLERANCE, _offdiagonal_ratio
 from shell.integrators import make_integrator
@@ -138,6 +139,104 @@ def test_a_spinning_rotor_on_a_deforming_node_is_in_the_linear_part(structure):
         J[:, k] = (system.forward_dynamics(q, plus) - system.forward_dynamics(q, minus))[free] / 2e-2
     assert np.abs(L[n_eta:, columns] - rest[n_eta:, columns]).max() > 1e-3 * np.abs(L[n_eta:, columns]).max()
     np.testing.assert_allclose(L[n_eta:, columns], J, rtol=0, atol=1e-9 * np.abs(J).max())
+
+
+def three_wheels(structure, inertia=np.diag([0.3, 0.2, 0.2])):
+    """The structure (file damping 1 %) on a free hinge, an arm on a revolute hinge at grid 101 (the tip), two wheels
+    spinning on the tip node (one with a product of inertia and its centre of mass off its axis) and one on grid 51,
+    with the first wheel's inertia ``inertia``."""
+    mb = Multibody()
+    mb.add_flexible_body("structure", None, modal=structure, hinge="free", modes=range(16), order=2)
+    mb.add_node("tip", "structure", grid=101, rotation=[np.cos(0.3), 0.0, 0.0, np.sin(0.3)])
+    mb.add_node("middle", "structure", grid=51)
+    mb.add_body("arm", "structure", mass=20.0, com=(0.3, 0.0, 0.0), inertia=np.diag([0.2, 1.0, 1.1]),
+                hinge="revolute", axis=(0.0, 0.0, 1.0), parent_node="tip")
+    mb.add_body("w1", "structure", mass=5.0, inertia=inertia, com=(0.05, 0.01, 0.0), hinge="revolute",
+                axis=(1.0, 0.0, 0.0), inboard_position=(0.2, 0.1, 0.0), parent_node="tip",
+                inboard_rotation=[np.cos(0.2), np.sin(0.2), 0.0, 0.0])
+    mb.add_body("w2", "structure", mass=4.0, inertia=np.diag([0.1, 0.25, 0.25]), hinge="revolute",
+                axis=(0.0, 1.0, 0.0), parent_node="tip")
+    mb.add_body("w3", "structure", mass=4.0, inertia=np.diag([0.2, 0.2, 0.12]), hinge="revolute",
+                axis=(0.0, 0.0, 1.0), parent_node="middle")
+    return mb.compile()
+
+
+def test_the_columns_of_the_inverse_mass_matrix_are_the_solve_of_every_column(structure):
+    """modal_linear_part solves M_ff only for the columns its right-hand sides need (the modal rows of the stiffness
+    and damping blocks, three per node carrying rotors: module docstring, "Cost"): L equals the definition
+    -M_ff^-1 [K_aug[f, modal] | D_aug[f, f] + C] solved for all its columns (numpy's LU here, an independent
+    factorization), C assembled densely, to round-off in each block (measured 1.6e-16 and 2.1e-16 of the stiffness
+    and damping blocks' largest entries; the bound 1e-13: M_ff's condition number is 1.5e4), with damping, an arm,
+    a deformed structure, two rotors on one node and one on another; the modal-rate columns are the engine's
+    Jacobian there (as in the one-wheel test)."""
+    system = three_wheels(structure)
+    q, u = system.neutral_configuration(), np.zeros(system.nu)
+    q[system.q_slices[1]] = 0.4  # the arm turned
+    q[7:7 + 16] = 1e-3 * np.sin(np.arange(16.0))  # deformed (order-2 modal integrals: M depends on eta)
+    for body, spin in (("w1", 300.0), ("w2", -200.0), ("w3", 150.0)):
+        u[system.u_slices[system.body_index(body)].start] = spin
+    indices, L = modal_linear_part(system, q, u)
+    averaged = _rotors_averaged(system)
+    eta_q, eta_u = modal_indices(system)
+    free = np.flatnonzero(~system.prescribed_dofs)
+    n_eta = eta_q.size
+    M = averaged.mass_matrix(q)
+    C = np.zeros((system.nu, system.nu))
+    factors = rotor_gyroscopic_factors(averaged, u)
+    assert len(factors) == 2  # the tip's two wheels share one factor
+    for rows, columns, J, h in factors:
+        skew = np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
+        C[np.ix_(rows, columns)] -= J.T @ skew @ J[:, J.shape[1] - columns.size:]
+    D = system.damping_matrix() + C
+    assert np.count_nonzero(system.damping_matrix())  # the file's 1 % damping: the damping columns are exercised
+    rhs = np.concatenate([system.stiffness_matrix()[np.ix_(free, eta_u)], D[np.ix_(free, free)]], axis=1)
+    solved = np.linalg.solve(M[np.ix_(free, free)], rhs)
+    for block in (np.s_[:, :n_eta], np.s_[:, n_eta:]):
+        assert np.abs(L[n_eta:][block] + solved[block]).max() <= 1e-13 * np.abs(solved[block]).max()
+    # the wheels' coupling against the engine, undeformed (where L is its Jacobian: velocity terms of order u eta
+    # stay in N): central differences in the modal rates, exact for the quadratic velocity terms
+    q[7:7 + 16] = 0.0
+    _, L = modal_linear_part(system, q, u)
+    _, still = modal_linear_part(system, q)
+    columns = n_eta + np.searchsorted(free, eta_u)
+    J = np.empty((free.size, eta_u.size))
+    for k, i in enumerate(eta_u):
+        plus, minus = u.copy(), u.copy()
+        plus[i] += 1e-2
+        minus[i] -= 1e-2
+        J[:, k] = (averaged.forward_dynamics(q, plus) - averaged.forward_dynamics(q, minus))[free] / 2e-2
+    np.testing.assert_allclose(L[n_eta:, columns], J, rtol=0, atol=1e-9 * np.abs(J).max())
+    assert np.abs(L[n_eta:, columns] - still[n_eta:, columns]).max() > 1e-3 * np.abs(L[n_eta:, columns]).max()
+
+
+def test_a_change_of_mass_properties_reaches_the_linear_part(structure):
+    """The spin-averaged copy of the system is kept between evaluations; set_mass_properties (mass depletion, a
+    dispersed wheel) must reach L: after a change of a wheel's inertia L is that of a system built with it (to
+    round-off), not the one before."""
+    system = three_wheels(structure)
+    q = system.neutral_configuration()
+    _, before = modal_linear_part(system, q)
+    inertia = np.array([[0.5, 0.02, 0.0], [0.02, 0.3, 0.0], [0.0, 0.0, 0.35]])
+    body = system.definitions[0][system.body_index("w1")]
+    system.set_mass_properties("w1", 7.0, body.com, inertia)
+    _, after = modal_linear_part(system, q)
+    built = three_wheels(structure, inertia)
+    built.set_mass_properties("w1", 7.0, body.com, inertia)
+    _, expected = modal_linear_part(built, q)
+    scale = np.abs(expected).max()
+    assert np.abs(after - before).max() > 1e-3 * scale
+    assert np.abs(after - expected).max() <= 1e-14 * scale
+
+
+def test_a_diagonal_block_scales_the_columns_bit_for_bit():
+    """_times' shortcut for a diagonal block gives the product's numbers exactly (its other terms are exact
+    zeros): the linear part is the same whichever way a body's modal stiffness is stored."""
+    rng = np.random.default_rng(4)
+    X = rng.standard_normal((30, 12))
+    B = np.diag(rng.uniform(1.0, 1e6, 12))
+    np.testing.assert_array_equal(_times(X, B), X @ B)
+    B[3, 5] = 1e-9  # not diagonal: the product
+    np.testing.assert_array_equal(_times(X, B), X @ B)
 
 
 def test_eigenvalues_are_the_system_modes(structure):

@@ -256,9 +256,30 @@ def test_a_linear_part_that_does_not_move_is_checked_ever_more_rarely():
 
     integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 10.0, 0.01, linear_part=linear_part)
     # 1000 steps: one evaluation at the start (the build, which is step 1's check: the same state), checks at steps
-    # 3, 7, ..., 127 (intervals 2, ..., 64), then every 64 steps up to step 959: 1 + 6 + 13
-    assert integ.njev == len(evaluations) == 20 and integ.nlu == 1
-    np.testing.assert_allclose(evaluations[:3], [0.0, 0.02, 0.06], rtol=1e-12)
+    # 3, 11, 43 (intervals 2, 8, 32: no drift, exponential.check_growth), then every 64 steps from 107 up to step
+    # 939: 1 + 3 + 14
+    assert integ.njev == len(evaluations) == 18 and integ.nlu == 1
+    np.testing.assert_allclose(evaluations[:4], [0.0, 0.02, 0.10, 0.42], rtol=1e-12)
+
+
+@pytest.mark.parametrize("drift, intervals", [(1e-5, [2, 8, 32, 64, 64]), (1e-4, [2, 4, 8, 16, 32, 64, 64]),
+                                              (5e-4, [2, 2, 2, 2])])
+def test_the_checks_are_spaced_by_the_drift_they_find(drift, intervals):
+    """A linear part that is ``drift`` (relative, Frobenius) away from the one the integrator was built with at every
+    check: the interval between checks grows 4x below 1/64 of the tolerance 1e-3, 2x below a quarter of it, and stays
+    above (exponential.check_growth; up to 64 steps at h = 0.01, MAX_CHECK_INTERVAL); no rebuild."""
+    omega = 300.0
+    L = np.array([[0.0, 1.0], [-omega ** 2, 0.0]])
+    evaluations = []
+
+    def linear_part(t, y):
+        evaluations.append(t)
+        return np.array([0, 1]), L * (1.0 + (drift if len(evaluations) > 1 else 0.0))
+
+    integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 5.0, 0.01, linear_part=linear_part)
+    steps = np.rint(np.diff(evaluations) / 0.01).astype(int)
+    np.testing.assert_array_equal(steps[:len(intervals)], intervals)
+    assert integ.nlu == 1
 
 
 def test_at_a_short_step_the_checks_are_spaced_in_time():
@@ -273,11 +294,11 @@ def test_at_a_short_step_the_checks_are_spaced_in_time():
         return np.array([0, 1]), L
 
     integ = run("etdrk4", lambda t, y: L @ y, np.array([1e-3, 0.0]), 2.0, 1e-3, linear_part=linear_part)
-    # 2000 steps: the start (step 1's check), checks at steps 3, 7, ..., 255 (intervals 2, ..., 128), then every 250
-    # steps (505, 755, ..., 1755): 1 + 7 + 6
+    # 2000 steps: the start (step 1's check), checks at steps 3, 11, 43, 171 (intervals 2, 8, 32, 128), then every
+    # 250 steps (421, 671, ..., 1921): 1 + 4 + 7
     assert integ.max_check_interval == 250
-    assert integ.njev == len(evaluations) == 14 and integ.nlu == 1
-    np.testing.assert_allclose(np.diff(evaluations)[-6:], 0.25, rtol=1e-9)
+    assert integ.njev == len(evaluations) == 12 and integ.nlu == 1
+    np.testing.assert_allclose(np.diff(evaluations)[-7:], 0.25, rtol=1e-9)
 
 
 # --- interface ----------------------------------------------------------------------------------------------
@@ -321,6 +342,40 @@ def test_refusals():
     with pytest.raises(ValueError, match="not diagonalizable to working accuracy"):
         make_integrator("etdrk4", lambda t, y: jordan @ y, 0.0, [1.0, 1.0], 1.0, step=0.1,
                         linear_part=(np.array([0, 1]), jordan))
+
+
+def test_the_driven_rows_are_decomposed_from_the_linear_part():
+    """LinearPart.extended: the linear part with driven rows ``[[L, 0], [J P, 0]]`` (P the spectral projector on L's
+    non-zero eigenvalues) decomposed from L's eigen-decomposition instead of numpy's of the whole matrix. The damped
+    chain with two rigid rates appended (zero columns of L, eigenvalue 0, as a free body's) and three driven rows:
+    its eigenvectors are eigenvectors (residual 1.2e-18 of ||L|| ||V||), V^-1 is the inverse (2.2e-13, that of L's own
+    V and V^-1), and its phi matrices are those of numpy's decomposition of the whole matrix (measured 3e-15 to 2e-14
+    of their largest entries at h = 1e-4 .. 1e-2) and of scipy's expm (phi_0, an independent algorithm: 1.3e-14)."""
+    A = damped_chain(6, seed=7)
+    m = A.shape[0] + 2
+    L = np.zeros((m, m))
+    L[:m - 2, :m - 2] = A
+    L[m - 2:, :6] = np.random.default_rng(2).standard_normal((2, 6)) * 1e3  # rigid rates driven by the springs
+    part = LinearPart(np.arange(m), L, m + 3, "test")
+    assert np.count_nonzero(~part.moving()) == 2
+    J = np.random.default_rng(5).standard_normal((3, m))
+    coupling = J @ ((part.V * part.moving()) @ part.Vinv).real
+    rows = np.array([m, m + 1, m + 2])
+    derived = part.extended(rows, coupling, m + 3)
+    L_ext = np.zeros((m + 3, m + 3))
+    L_ext[:m, :m] = L
+    L_ext[m:, :m] = coupling
+    whole = LinearPart(np.arange(m + 3), L_ext, m + 3, "test")
+    np.testing.assert_array_equal(derived.L, whole.L)
+    scale = np.abs(L_ext).max() * np.abs(derived.V).max()
+    assert np.abs(L_ext @ derived.V - derived.V * derived.lam).max() <= 1e-14 * scale
+    assert np.abs(derived.V @ derived.Vinv - np.eye(m + 3)).max() <= 1e-12
+    derived.check_exponential(1e-3)
+    for h in (1e-4, 1e-3, 1e-2):
+        ours, reference = derived.real_functions(h), whole.real_functions(h)
+        for f in range(len(FUNCTIONS)):
+            assert np.abs(ours[f] - reference[f]).max() <= 1e-12 * np.abs(reference[f]).max()
+        np.testing.assert_allclose(ours[3], scipy.linalg.expm(h * L_ext), rtol=0, atol=1e-11 * np.abs(ours[3]).max())
 
 
 def test_linear_part_decomposition_reproduces_expm():

@@ -193,10 +193,10 @@ def test_exponential_rk4_on_the_observatory_is_bit_identical(tmp_path, monkeypat
     assert len(a.events) >= 4 and a.events == b.events
     assert a.counters["updates"] >= 120 and a.counters["steps"] >= 60
     _assert_same_run(a, b, log_a, log_b)
-    # the check counters of the linear part moved the same way (1, 2, 4, ... steps between checks)
+    # the check counters of the linear part moved the same way (2, 8, 32 steps between checks: L stands still)
     assert (a._integrator.check_interval, a._integrator.steps_since_check, a._integrator.njev) == \
         (b._integrator.check_interval, b._integrator.steps_since_check, b._integrator.njev)
-    assert a._integrator.njev >= 6
+    assert a._integrator.njev >= 4
 
 
 MOVING_ARRAY = """
