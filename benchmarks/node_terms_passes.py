@@ -7,10 +7,11 @@ modes: G1, F2, G2 over the nodes, refined; C1 and J2 over the nodes at order 2) 
 formed and factored every evaluation), both through ``dynamics.flex.fem2modal``; the state is the tube
 benchmark's (static deflection of a lateral tip load, 1 cm at the tip, modal rates a tenth of the amplitude times
 each frequency, 0.05 rad/s about z). Rows: the whole kernel per call (``node_inertia_terms`` with its forces,
-``node_inertia_times``, ``node_inertia_modal_mass``, ``node_mass_terms``) and the passes it is made of
-(``shapes_times``: the stacked shapes times eta and the rates; the back products), in microseconds, medians of
-interleaved batches; the per-node algebra is the whole minus its passes. Run from the repository root:
-``python benchmarks/node_terms_passes.py [--rounds 15]``.
+``node_inertia_times``, ``node_inertia_modal_mass``, ``node_mass_terms``; both kernels of one evaluation, sharing
+their passes where their nodes are the same as on these decks, against ``--before``'s two apart) and the passes it
+is made of (``shapes_times``: the stacked shapes times eta and the rates; the back products), in microseconds,
+medians of interleaved batches; the per-node algebra is the whole minus its passes. Run from the repository root:
+``python benchmarks/node_terms_passes.py [--rounds 15] [--before REF]``.
 """
 
 from __future__ import annotations
@@ -59,17 +60,17 @@ def _case(body, n):
     sel = np.abs(body.node_inertia).reshape(len(body.node_mass), -1).max(axis=1) > 0.0
     inertia_params = np.concatenate([[0.0], NI.node_params(body.node_mass[sel], body.node_cm_offset[sel],
                                                            body.node_inertia[sel], shapes[sel])])
-    mass_params = np.concatenate([[0.0], NM.node_mass_params(body.node_mass, body.node_cm_offset, body.node_inertia,
-                                                             body.grid_positions, shapes)])
+    mass_args = (body.node_mass, body.node_cm_offset, body.node_inertia, body.grid_positions, shapes)
     return dict(n=n, N=int(sel.sum()), Nm=len(body.node_mass), eta=eta, e=e, V=V, ip=inertia_params,
-                mp=mass_params)
+                mass_args=mass_args, shared=bool(sel.all()))
 
 
 def _calls(c, bits, NI, NM):
     """name -> zero-argument call, for one case, of the kernels of the modules ``NI`` (node_inertia) and ``NM``
     (node_mass); the passes a module does not have are left out."""
     n, N, Nm = c["n"], c["N"], c["Nm"]
-    ip, mp, eta, e, V = c["ip"], c["mp"], c["eta"], c["e"], c["V"]
+    ip, eta, e, V = c["ip"], c["eta"], c["e"], c["V"]
+    mp = np.concatenate([[0.0], NM.node_mass_params(*c["mass_args"])])
     state = np.zeros(NI.NODE_STATE * N)
     Mre, br, bm, G = np.zeros((6, n)), np.zeros(6), np.zeros(n), np.zeros((n, n))
     x, out = np.random.default_rng(0).standard_normal(n), np.zeros(n)
@@ -95,9 +96,26 @@ def _calls(c, bits, NI, NM):
         "  shapes_times Lambda (x)": lambda: NI.shapes_times(ip, lam, n, width, x, x, th, th, False),
         "  _shapes_dot Lambda": lambda: NI._shapes_dot(ip, lam, n, width, A, out),
         "node_inertia_modal_mass": lambda: NI.node_inertia_modal_mass(ip, 1, N, n, bits, state, G),
-        "node_mass_terms C1 J2 (forces)": lambda: NM.node_mass_terms(mp, 1, Nm, n, mbits, eta, V, e, True, Mrr, Mre,
-                                                                     br, bm, mstate),
     }
+    if hasattr(NI, "node_inertia_pass"):  # C1, J2 after node_inertia_pass, sharing its nodes where they are the same
+        calls["node_mass_terms C1 J2 (forces)"] = lambda: NM.node_mass_terms(mp, 1, Nm, n, mbits, eta, V, e, True, Mrr,
+                                                                             Mre, br, bm, mstate, 1, bits, state)
+        if c["shared"]:
+            both = np.concatenate([ip, NM.node_mass_params(*c["mass_args"], shared=True)])
+
+            def shared():
+                NI.node_inertia_pass(both, 1, N, n, bits, eta, V, e, True, br, state, True)
+                NM.node_mass_terms(both, ip.size, Nm, n, mbits, eta, V, e, True, Mrr, Mre, br, bm, mstate, 1, bits,
+                                   state)
+            calls["node_inertia_terms + node_mass_terms (forces)"] = shared
+    else:
+        calls["node_mass_terms C1 J2 (forces)"] = lambda: NM.node_mass_terms(mp, 1, Nm, n, mbits, eta, V, e, True, Mrr,
+                                                                             Mre, br, bm, mstate)
+
+        def apart():
+            NI.node_inertia_terms(ip, 1, N, n, bits, eta, V, e, True, Mre, br, bm, state)
+            NM.node_mass_terms(mp, 1, Nm, n, mbits, eta, V, e, True, Mrr, Mre, br, bm, mstate)
+        calls["node_inertia_terms + node_mass_terms (forces)"] = apart
     return {k: fn for k, fn in calls.items() if ("sweep" not in k or hasattr(NI, "columns_times"))
             and ("single" not in k or hasattr(NI, "node_inertia_times_single"))}
 

@@ -423,20 +423,35 @@ def node_mass_from_nodes(mass, cg, inertia, positions, shapes, order):
                     shapes=np.ascontiguousarray(np.asarray(shapes, dtype=np.float64)[sel]), terms=terms)
 
 
-def node_mass_is_cheaper(n, nodes):
+def same_nodes(mass_nodes, node_inertia):
+    """Whether the C1/J2 nodes ``mass_nodes`` (a :class:`NodeMass`) are the G1/F2/G2 nodes ``node_inertia`` (a
+    :class:`NodeInertia`, or None) of the same body: same order, masses, offsets, inertias and shapes (every node
+    with mass has rotary inertia, as on the beams and shells of real decks). The engine then sums C1 and J2 with
+    the passes of the G1/F2/G2 terms over the same shapes (:mod:`dynamics.kernels.node_mass`)."""
+    if node_inertia is None or node_inertia.count != mass_nodes.count:
+        return False
+    return all(np.array_equal(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
+               for a, b in ((mass_nodes.mass, node_inertia.mass), (mass_nodes.cg, node_inertia.cg),
+                            (mass_nodes.inertia, node_inertia.inertia), (mass_nodes.shapes, node_inertia.shapes)))
+
+
+def node_mass_is_cheaper(n, nodes, node_inertia=None):
     """Whether the terms of ``nodes`` (a :class:`NodeMass`) cost less per evaluation summed over the nodes than as
     tables of a body of ``n`` modes, counted in multiply-adds. Tables: C1 three per entry (``3 n^2`` entries,
     ``6 n^2`` with CG offsets), J2 one (``9 n^2``); over the nodes: 6 per entry of the ``3N x n`` translation
     shapes (two passes: the shapes times eta and the rates, then C(eta) and the modal forces), as many of the
-    rotation shapes when nodes have rotary inertia, 3 more with CG offsets, and some 150 per node. Both are bound
-    by reading their data at a few hundred modes (the tables ``12 n^2`` numbers once, the shapes ``4 x 3N n``
-    numbers in two passes each): ``TABLE_WEIGHT`` is the measured ratio. On the 101-grid tube of
-    ``benchmarks/flexible_scaling.py --deck-only`` (rotary inertia on every grid) the node sums are cheaper from
-    about 150 modes at order 2 (C1 and J2) and 400 at order 1 (C1 only); this rule puts the switch at 170 and
-    340."""
+    rotation shapes when nodes have rotary inertia (none where they are the nodes of the terms G1, F2, G2,
+    ``node_inertia``: their passes serve both, :func:`same_nodes`), 3 more with CG offsets, and some 150 per node.
+    Both are bound by reading their data at a few hundred modes (the tables ``12 n^2`` numbers once, the shapes
+    ``4 x 3N n`` numbers in two passes each): ``TABLE_WEIGHT`` is the measured ratio. On the 101-grid tube of
+    ``benchmarks/flexible_scaling.py --deck-only`` (rotary inertia on every grid, the passes shared) the node sums
+    are cheaper from about 75 modes at order 2 (C1 and J2) and 190 at order 1 (C1 only); this rule puts the switch
+    at 92 and 177 (2026-12-07, ``node_mass_is_cheaper`` forced either way, interleaved: order 2 at 50, 100, 150,
+    196 modes 1.11x, 0.91x, 0.80x, 0.72x the tables' forward dynamics, order 1 1.22x, 1.15x, 1.09x, 0.98x)."""
     rows = 6 if np.any(nodes.cg) else 3
     table = 3.0 * rows * n * n * ("C1" in nodes.terms) + 9.0 * n * n * ("J2" in nodes.terms)
-    per_entry = 6.0 + (6.0 if nodes.rotary else 0.0) + (3.0 if np.any(nodes.cg) else 0.0)
+    rotary = nodes.rotary and not same_nodes(nodes, node_inertia)
+    per_entry = 6.0 + (6.0 if rotary else 0.0) + (3.0 if np.any(nodes.cg) else 0.0)
     nodal = 3.0 * nodes.count * n * per_entry + 150.0 * nodes.count
     return nodal < TABLE_WEIGHT * table
 
@@ -511,7 +526,7 @@ def flexible_body_from_modal_body(body, modes=None, order=None, damping_ratio=No
             count = len(body.node_mass)
             mass_nodes = node_mass_from_nodes(body.node_mass, np.zeros((count, 3)), np.zeros((count, 3, 3)),
                                               body.grid_positions, shapes, order)
-        if mass_nodes is not None and node_mass_is_cheaper(int(keep.size), mass_nodes):
+        if mass_nodes is not None and node_mass_is_cheaper(int(keep.size), mass_nodes, nodes):
             terms = dataclasses.replace(terms, C1=None, J2=None)
         else:
             mass_nodes = None

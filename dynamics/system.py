@@ -31,6 +31,7 @@ from dynamics import algorithms as A
 from dynamics import layout as L
 from dynamics.data import Data, frozen
 from dynamics.errors import ModelDefinitionError
+from dynamics.flexible_body import same_nodes
 from dynamics.hinges import HINGE_TYPES, HINGES
 from dynamics.kernels.node_inertia import NODE_STATE, node_params
 from dynamics.kernels.node_mass import MASS_NODE_STATE, node_mass_params
@@ -487,8 +488,10 @@ class MultibodySystem:
             bits = {"C1": L.MASS_C1, "J2": L.MASS_J2}
             fx[L.FX_MASS_NODE_COUNT] = mass_nodes.count
             fx[L.FX_MASS_NODE_TERMS] = sum(bits[t] for t in mass_nodes.terms)
+            # the node-inertia nodes again (every node with mass has rotary inertia): their shapes and passes shared
+            shared = same_nodes(mass_nodes, nodes)
             fx[L.FX_MASS_NODES] = params.push(node_mass_params(mass_nodes.mass, mass_nodes.cg, mass_nodes.inertia,
-                                                               mass_nodes.positions, shapes))
+                                                               mass_nodes.positions, shapes, shared))
             fx[L.FX_P_MASS_NODES] = pool.reserve(MASS_NODE_STATE * mass_nodes.count)
         varying = terms.G1 is not None or terms.G2 is not None
         quasi_static = has_quasi_static_modes(data)
@@ -633,7 +636,8 @@ class MultibodySystem:
                     terms.append(f"{'+'.join(nodal)} over {fx[L.FX_NODE_COUNT]} nodes")
                 if fx[L.FX_MASS_NODES] >= 0:
                     summed = [t for t, bit in (("C1", L.MASS_C1), ("J2", L.MASS_J2)) if fx[L.FX_MASS_NODE_TERMS] & bit]
-                    terms.append(f"{'+'.join(summed)} over {fx[L.FX_MASS_NODE_COUNT]} nodes")
+                    shared = " (the same nodes, shapes shared)" if self.params[fx[L.FX_MASS_NODES] + 2] else ""
+                    terms.append(f"{'+'.join(summed)} over {fx[L.FX_MASS_NODE_COUNT]} nodes{shared}")
                 kind = {L.GINV_DIAGONAL: "diagonal G0", L.GINV_DENSE: "G0^-1 precomputed",
                         L.GINV_FACTORED: "G(eta) factored per call"}[int(fx[L.FX_GINV_KIND])]
                 if fx[L.FX_REFINE]:

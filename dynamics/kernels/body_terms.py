@@ -1,9 +1,9 @@
 """Per-body inertia and forces for the recursions: the rigid bias ``V x* I V``, a flexible body's ``M(eta)``
 blocks and gyroscopic, Coriolis and elastic forces (:func:`dynamics.flexible_kernels.modal_mass_and_bias`,
 TM-2020-5008164 eqs. E.2.2-E.2.6, the terms of nodes with rotary inertia summed over the nodes by
-:mod:`dynamics.kernels.node_inertia`, C1 and J2 over every node by :mod:`dynamics.kernels.node_mass`), products
-with its modal mass, and the generalized forces of node forces ``[X'; Psi' X'] f`` (a force in node axes at the
-deformed node).
+:mod:`dynamics.kernels.node_inertia`, C1 and J2 over every node by :mod:`dynamics.kernels.node_mass`, with
+node_inertia's passes where their nodes are the same), products with its modal mass, and the generalized forces of
+node forces ``[X'; Psi' X'] f`` (a force in node axes at the deformed node).
 """
 
 from __future__ import annotations
@@ -11,7 +11,8 @@ from __future__ import annotations
 from numba import njit
 
 from dynamics import flexible_kernels as FK
-from dynamics.kernels.node_inertia import NODE_STATE, node_inertia_modal_mass, node_inertia_terms, node_inertia_times
+from dynamics.kernels.node_inertia import (NODE_STATE, node_inertia_modal_mass, node_inertia_pass, node_inertia_terms,
+                                           node_inertia_times)
 from dynamics.kernels.node_mass import MASS_NODE_STATE, node_mass_terms
 from dynamics.layout import (
     FLEX, FX_MASS_NODE_COUNT, FX_MASS_NODE_TERMS, FX_MASS_NODES, FX_NODES, FX_NODE_COUNT, FX_NODE_TERMS, FX_P_G,
@@ -67,18 +68,26 @@ def flexible_body_terms(i, topology, params, q, u, ws_vec, ws_mat, pool, with_bi
     bm = pool[pv + PV_FORCE * n:pv + (PV_FORCE + 1) * n]
     FK.modal_mass_and_bias(fx, params, n, q[qe:qe + n], ws_vec[i, VEC_V], u[ue:ue + n], with_bias, form_G, Mrr,
                            Mre, Gm, ws_vec[i, VEC_P], bm, ws_mat[i, MAT_IAP], view(pool, fx[FX_P_MDRE], 6, n))
-    if fx[FX_NODES] >= 0:
-        count = fx[FX_NODE_COUNT]
-        state = pool[fx[FX_P_NODES]:fx[FX_P_NODES] + NODE_STATE * count]
-        node_inertia_terms(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], q[qe:qe + n], ws_vec[i, VEC_V],
-                           u[ue:ue + n], with_bias, Mre, ws_vec[i, VEC_P], bm, state)
-        if form_G:
-            node_inertia_modal_mass(params, fx[FX_NODES], count, n, fx[FX_NODE_TERMS], state, Gm)
-    if fx[FX_MASS_NODES] >= 0:
-        count = fx[FX_MASS_NODE_COUNT]
-        node_mass_terms(params, fx[FX_MASS_NODES], count, n, fx[FX_MASS_NODE_TERMS], q[qe:qe + n], ws_vec[i, VEC_V],
+    nodes = fx[FX_NODES]
+    mass_nodes = fx[FX_MASS_NODES]
+    shared = mass_nodes >= 0 and params[mass_nodes + 2] != 0.0  # C1, J2 over the node-inertia nodes
+    count = fx[FX_NODE_COUNT]
+    state = pool[fx[FX_P_NODES]:fx[FX_P_NODES] + NODE_STATE * count]
+    if nodes >= 0:
+        if shared:  # its products back in node_mass_terms's sweeps
+            node_inertia_pass(params, nodes, count, n, fx[FX_NODE_TERMS], q[qe:qe + n], ws_vec[i, VEC_V],
+                              u[ue:ue + n], with_bias, ws_vec[i, VEC_P], state, True)
+        else:
+            node_inertia_terms(params, nodes, count, n, fx[FX_NODE_TERMS], q[qe:qe + n], ws_vec[i, VEC_V],
+                               u[ue:ue + n], with_bias, Mre, ws_vec[i, VEC_P], bm, state)
+    if mass_nodes >= 0:
+        mcount = fx[FX_MASS_NODE_COUNT]
+        node_mass_terms(params, mass_nodes, mcount, n, fx[FX_MASS_NODE_TERMS], q[qe:qe + n], ws_vec[i, VEC_V],
                         u[ue:ue + n], with_bias, Mrr, Mre, ws_vec[i, VEC_P], bm,
-                        pool[fx[FX_P_MASS_NODES]:fx[FX_P_MASS_NODES] + MASS_NODE_STATE * count])
+                        pool[fx[FX_P_MASS_NODES]:fx[FX_P_MASS_NODES] + MASS_NODE_STATE * mcount], nodes,
+                        fx[FX_NODE_TERMS], state)
+    if nodes >= 0 and form_G:  # last: its blocks of modes overwrite the pass coefficients node_mass_terms reads
+        node_inertia_modal_mass(params, nodes, count, n, fx[FX_NODE_TERMS], state, Gm)
 
 
 @njit(cache=True)

@@ -48,6 +48,16 @@ nodes (at order 2 from about 1.5 N modes, at order 1, C1 alone, from about 4 N o
 stiffening adds stiffness-derived parts to C1 and J2 that are not node sums: such a body keeps its tables.
 The result equals the tables' to round-off (``tests/flexible/test_node_mass.py``).
 
+Where the nodes are those of the terms G1, F2, G2 over the nodes (:mod:`dynamics.kernels.node_inertia`: every
+node with mass has rotary inertia, as on the beams and shells of real decks; :func:`dynamics.flexible_body.same_nodes`)
+the two kernels share their shapes and passes: the params hold ``Lambda`` and ``Gamma`` once (node_inertia's), the
+shapes times eta and the rates are :func:`dynamics.kernels.node_inertia.node_inertia_pass`'s (with ``u``), ``B_j``
+joins that pass's ``Q_j`` (the omega rows of ``M_re`` take ``sum_j (B_j + Q_j) lambda_j``) and the coefficients of
+``lambda'`` and ``gamma'`` in ``b_m`` add up, so one sweep back over each shape array serves both: of the eight
+sweeps over a ``3N x n`` array the two kernels made apart, four remain (the tube of
+``benchmarks/flexible_scaling.py`` at 196 modes: both kernels with their forces 0.69x-0.75x of apart, 2026-12-07,
+``benchmarks/node_terms_passes.py --before``; the choice between node sums and tables counts the shared passes).
+
 Data (:mod:`dynamics.layout`): ``FX_MASS_NODES`` points at what :func:`node_mass_params` packs for
 ``FX_MASS_NODE_COUNT`` nodes; ``FX_MASS_NODE_TERMS`` says which terms (``MASS_C1``, ``MASS_J2``);
 ``FX_P_MASS_NODES`` holds ``MASS_NODE_STATE`` numbers per node of scratch.
@@ -58,9 +68,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dynamics.kernels.node_inertia import (add_cross3, add_scaled3, columns_times, cross3, node_slot, node_vector,
-                                           node_vectors, shapes_times, store_node_vector)
-from dynamics.layout import MASS_C1, MASS_J2
+from dynamics.kernels.node_inertia import (S_W, add_cross3, add_scaled3, columns_times, cross3, node_slot, node_vector,
+                                           node_vectors, shapes_at, shapes_times, store_node_vector)
+from dynamics.layout import MASS_C1, MASS_J2, NODE_F2
 
 # where each node's numbers sit in the body's FX_P_MASS_NODES block, in units of the node count N (node-minor):
 # theta, u, their rates and the coefficients of lambda' and gamma' in b_m first, 3 N each, as in node_inertia
@@ -71,21 +81,25 @@ MASS_NODE_STATE = 45
 """Pool numbers per node (:data:`dynamics.layout.FX_P_MASS_NODES`)."""
 
 
-def node_mass_params(mass, cg, inertia, positions, shapes):
-    """The node data as :func:`node_mass_terms` reads them from params: ``[rotary, offset, m (N), l0 (3 N),
-    p (3 N), J (9 N), Gamma (n x 3 N), Lambda (n x 3 N) if rotary]``, node-minor; ``rotary``: any node has an
-    inertia or CG offset (else the rotation shapes are not needed), ``offset``: any has a CG offset. From the
-    masses (N), CG offsets (N, 3), inertias (N, 3, 3), positions (N, 3) and shapes ``[lambda; gamma]`` (N, 6, n)."""
+def node_mass_params(mass, cg, inertia, positions, shapes, shared=False):
+    """The node data as :func:`node_mass_terms` reads them from params: ``[rotary, offset, shared, m (N),
+    l0 (3 N), p (3 N), J (9 N), Gamma (n x 3 N), Lambda (n x 3 N) if rotary]``, node-minor; ``rotary``: any node
+    has an inertia or CG offset (else the rotation shapes are not needed), ``offset``: any has a CG offset. From
+    the masses (N), CG offsets (N, 3), inertias (N, 3, 3), positions (N, 3) and shapes ``[lambda; gamma]``
+    (N, 6, n). ``shared``: the nodes are those of the body's :mod:`dynamics.kernels.node_inertia` terms, in the
+    same order with the same data (:func:`dynamics.flexible_body.same_nodes`): the shapes are left out and read
+    from there (module docstring)."""
     count, _, n = shapes.shape
     cg = np.asarray(cg, dtype=np.float64)
     inertia = np.asarray(inertia, dtype=np.float64)
     offset = bool(np.any(cg != 0.0))
     rotary = offset or bool(np.any(inertia != 0.0))
-    parts = [[float(rotary), float(offset)], np.asarray(mass, dtype=np.float64),
-             np.asarray(positions, dtype=np.float64).T.ravel(), cg.T.ravel(), inertia.reshape(count, 9).T.ravel(),
-             np.transpose(shapes[:, 3:, :], (2, 1, 0)).reshape(n, 3 * count).ravel()]
-    if rotary:
-        parts.append(np.transpose(shapes[:, :3, :], (2, 1, 0)).reshape(n, 3 * count).ravel())
+    parts = [[float(rotary), float(offset), float(shared)], np.asarray(mass, dtype=np.float64),
+             np.asarray(positions, dtype=np.float64).T.ravel(), cg.T.ravel(), inertia.reshape(count, 9).T.ravel()]
+    if not shared:
+        parts.append(np.transpose(shapes[:, 3:, :], (2, 1, 0)).reshape(n, 3 * count).ravel())
+        if rotary:
+            parts.append(np.transpose(shapes[:, :3, :], (2, 1, 0)).reshape(n, 3 * count).ravel())
     return np.concatenate(parts)
 
 
@@ -104,30 +118,44 @@ def _store_skew(out, N, j, scale, x0, x1, x2):
 
 
 @njit(cache=True)
-def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, br, bm, state):
+def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, br, bm, state, inertia_o,
+                    inertia_terms, inertia_state):
     """Add the node terms C1 and J2 (module docstring; ``terms``: MASS_C1, MASS_J2 bits) to ``Mrr`` (6 x 6) and
     ``Mre`` (6 x n), and with ``with_bias`` to ``br`` (6) and ``bm`` (n), after
     :func:`dynamics.flexible_kernels.modal_mass_and_bias` has formed the rest. ``o``: params offset of the
     :func:`node_mass_params` of ``count`` nodes; ``V``, ``e``: body velocity and modal rates; ``state``:
-    ``MASS_NODE_STATE * count`` numbers of scratch."""
+    ``MASS_NODE_STATE * count`` numbers of scratch. Nodes shared with the node-inertia terms (``shared`` in the
+    params): ``inertia_o``, ``inertia_terms``, ``inertia_state`` are those terms' params offset, NODE_* bits and
+    scratch after :func:`dynamics.kernels.node_inertia.node_inertia_pass` (with ``u``), whose products back this
+    function's sweeps include; otherwise unread."""
     c1 = (terms & MASS_C1) != 0
     j2 = (terms & MASS_J2) != 0
     N = count
     width = 3 * N
     rotary = params[o] != 0.0
     offset = params[o + 1] != 0.0
-    ma = o + 2
+    shared = params[o + 2] != 0.0
+    ma = o + 3
     la = ma + N
     pa = la + 3 * N
     ja = pa + 3 * N
-    gam = ja + 9 * N
-    lam = gam + 3 * N * n
-    th, uu, thd, ud, A, Z = node_vectors(state, N)
     WG = node_slot(state, N, S_WG, 9)
     WL = node_slot(state, N, S_WL, 18)
-    shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
-    if rotary:
-        shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
+    if shared:
+        # theta, u, their rates and the coefficients of lambda', gamma' are the node-inertia pass's; B_j joins its Q_j
+        lam, gam = shapes_at(inertia_o, N, n)
+        th, uu, thd, ud, A, Z = node_vectors(inertia_state, N)
+        WB = node_slot(inertia_state, N, S_W, 9)
+        add_b = (inertia_terms & NODE_F2) != 0
+    else:
+        gam = ja + 9 * N
+        lam = gam + 3 * N * n
+        th, uu, thd, ud, A, Z = node_vectors(state, N)
+        WB = WL[:9 * N]
+        add_b = False
+        shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
+        if rotary:
+            shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
     w0, w1, w2 = V[0], V[1], V[2]
     v0, v1, v2 = V[3], V[4], V[5]
     # sums over the nodes: Q (3 x 3), C(eta) e and C(e) e (6 each), Qdot w (3)
@@ -159,7 +187,11 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                 l0, l1, l2 = params[la + j], params[la + N + j], params[la + 2 * N + j]
                 d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
                 f0, f1, f2 = cross3(s0, s1, s2, p0, p1, p2)
-        a0 = a1 = a2 = z0 = z1 = z2 = 0.0
+        if shared and with_bias:
+            a0, a1, a2 = node_vector(A, N, j)
+            z0, z1, z2 = node_vector(Z, N, j)
+        else:
+            a0 = a1 = a2 = z0 = z1 = z2 = 0.0
         B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
         if c1:
             _store_skew(WG, N, j, m, u0 + d0, u1 + d1, u2 + d2)
@@ -187,15 +219,26 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                     B21 -= m * (p2 * u1 + d2 * l1)
                     B22 -= m * (p2 * u2 - up + d2 * l2 - ld)
                     _store_skew(WL[9 * N:], N, j, -m, d0, d1, d2)
-                WL[j] = B00
-                WL[N + j] = B01
-                WL[2 * N + j] = B02
-                WL[3 * N + j] = B10
-                WL[4 * N + j] = B11
-                WL[5 * N + j] = B12
-                WL[6 * N + j] = B20
-                WL[7 * N + j] = B21
-                WL[8 * N + j] = B22
+                if add_b:  # B_j + Q_j: one product with lambda_j for C(eta) and F2
+                    WB[j] += B00
+                    WB[N + j] += B01
+                    WB[2 * N + j] += B02
+                    WB[3 * N + j] += B10
+                    WB[4 * N + j] += B11
+                    WB[5 * N + j] += B12
+                    WB[6 * N + j] += B20
+                    WB[7 * N + j] += B21
+                    WB[8 * N + j] += B22
+                else:
+                    WB[j] = B00
+                    WB[N + j] = B01
+                    WB[2 * N + j] = B02
+                    WB[3 * N + j] = B10
+                    WB[4 * N + j] = B11
+                    WB[5 * N + j] = B12
+                    WB[6 * N + j] = B20
+                    WB[7 * N + j] = B21
+                    WB[8 * N + j] = B22
             if with_bias:
                 # C(eta) e and C(e) e: m (u + d) x ud + B thd, -m d x thd (and with the rates)
                 x0, x1, x2 = cross3(u0 + d0, u1 + d1, u2 + d2, e0, e1, e2)
@@ -340,7 +383,7 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
         h2 += q02 * w0 + q12 * w1 + q22 * w2
     columns_times(params, gam, n, width, WG, Z, 0, c1, with_bias, Mre, bm)
     if rotary:
-        columns_times(params, lam, n, width, WL, A, 0, c1, with_bias, Mre, bm)
+        columns_times(params, lam, n, width, WB, A, 0, c1 or add_b, with_bias, Mre, bm)
         if offset and c1:
             columns_times(params, lam, n, width, WL[9 * N:], A, 3, True, False, Mre, bm)
     if not with_bias:

@@ -20,7 +20,7 @@ import dynamics.flexible_body as FB
 from dynamics import Multibody
 from dynamics import layout as L
 from dynamics.errors import ModelDefinitionError
-from dynamics.flexible_body import node_mass_from_nodes, node_mass_is_cheaper
+from dynamics.flexible_body import node_inertia_from_nodes, node_mass_from_nodes, node_mass_is_cheaper, same_nodes
 
 from .random_flexible import flexible_body_data, random_node_model
 from .test_brute_force import rel
@@ -51,16 +51,22 @@ def _hinged_state(system, rng):
 
 
 @pytest.mark.parametrize("order", [1, 2])
-@pytest.mark.parametrize("nodes", ["all", "none", "some", "point masses"])
+@pytest.mark.parametrize("nodes", ["all", "none", "some", "point masses", "one point mass"])
 @pytest.mark.parametrize("rotary_terms", ["tables", "nodes"])
 def test_node_sums_equal_the_tables(order, nodes, rotary_terms):
     """Every algorithm, on a body with rotary node inertia and CG offsets on all, none or every other node, or of
-    point masses (no rotation shapes read), with G1, F2, G2 as tables or summed over the nodes too, and a wheel on
-    one of its nodes: C1 and J2 over the nodes against the same body with them as tables."""
+    point masses (no rotation shapes read), or with one point mass among nodes with rotary inertia, with G1, F2, G2
+    as tables or summed over the nodes too, and a wheel on one of its nodes: C1 and J2 over the nodes against the
+    same body with them as tables. Where G1, F2, G2 are summed over the same nodes, C1 and J2 share their shapes and
+    passes (one sweep back over each shape array for both kernels); with a point mass the node sets differ and
+    each kernel keeps its own."""
     n = 6
     model = random_node_model(9, n, seed=70 + order, point_masses=nodes == "point masses")
     if nodes in ("none", "some"):
         model.cg[::1 if nodes == "none" else 2] = 0.0
+    if nodes == "one point mass":
+        model.cg[4] = 0.0
+        model.inertia[4] = 0.0
     base = flexible_body_data(model, order, nodal=rotary_terms == "nodes")
     tables = _system(base, wheel=True)
     summed = _system(_with_node_mass(base, model, order), wheel=True)
@@ -69,8 +75,11 @@ def test_node_sums_equal_the_tables(order, nodes, rotary_terms):
     assert fx[L.FX_MASS_NODE_TERMS] == (L.MASS_C1 if order == 1 else L.MASS_C1 | L.MASS_J2)
     summed_terms = "C1 over 9 nodes" if order == 1 else "C1+J2 over 9 nodes"
     assert summed_terms in summed.summary() and summed_terms not in tables.summary()  # what was compiled is said
-    rotary, offset = summed.params[fx[L.FX_MASS_NODES]:fx[L.FX_MASS_NODES] + 2]
-    assert (rotary, offset) == (float(nodes != "point masses"), float(nodes in ("all", "some")))
+    rotary, offset, shared = summed.params[fx[L.FX_MASS_NODES]:fx[L.FX_MASS_NODES] + 3]
+    assert (rotary, offset) == (float(nodes != "point masses"), float(nodes in ("all", "some", "one point mass")))
+    sharing = rotary_terms == "nodes" and nodes in ("all", "none", "some")
+    assert shared == float(sharing)
+    assert ("shapes shared" in summed.summary()) == sharing
     rng = np.random.default_rng(order)
     for _ in range(3):
         q, u, tau = _state(summed, n, rng)
@@ -101,6 +110,13 @@ def test_the_cheaper_form_is_chosen():
     assert node_mass_is_cheaper(200, nodes)
     few = node_mass_from_nodes(model.mass, model.cg, model.inertia, model.position, np.zeros((100, 6, 5)), 2)
     assert not node_mass_is_cheaper(5, few)
+    # where the nodes are those of G1, F2, G2 too, their rotation-shape passes serve both: node sums from fewer modes
+    at = node_mass_from_nodes(model.mass, model.cg, model.inertia, model.position, np.zeros((100, 6, 120)), 2)
+    same = node_inertia_from_nodes(model.mass, model.cg, model.inertia, at.shapes, 2)
+    other = node_inertia_from_nodes(model.mass, model.cg, model.inertia, at.shapes + 1.0, 2)
+    assert same_nodes(at, same) and not same_nodes(at, other) and not same_nodes(at, None)
+    assert node_mass_is_cheaper(120, at, same) and not node_mass_is_cheaper(120, at, other)
+    assert not node_mass_is_cheaper(120, at)
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +134,7 @@ def test_body_file_node_sums_equal_its_tables(fe_beam_body, integrals, order, mo
     (computed by the FEM pipeline): the same dynamics to 1e-12."""
     systems = []
     for nodal in (False, True):
-        monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes, nodal=nodal: nodal)
+        monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes, node_inertia, nodal=nodal: nodal)
         mb = Multibody()
         # point masses on a line have no inertia about it: a revolute hinge across the beam for those
         hinge = {"hinge": "free"} if integrals == "general" else {"hinge": "revolute", "axis": (0.0, 0.0, 1.0)}
@@ -146,7 +162,7 @@ def test_geometric_stiffening_keeps_the_tables(monkeypatch, tmp_path):
     deck = tmp_path / "beam.dat"
     deck.write_text(rotating_beam_deck(10))
     body = fem2modal(str(deck), Fem2ModalOptions(n_modes=4, modal_integrals=True, geometric_stiffness=True))
-    monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes: True)
+    monkeypatch.setattr(FB, "node_mass_is_cheaper", lambda n, nodes, node_inertia: True)
     stiffened = FB.flexible_body_from_modal_body(body, order=2)
     assert stiffened.geometric_stiffening and stiffened.mass_nodes is None
     assert stiffened.terms.C1 is not None and stiffened.terms.J2 is not None and stiffened.terms.P2 is not None
