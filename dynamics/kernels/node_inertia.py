@@ -235,14 +235,14 @@ def shapes_times(params, at, n, width, x, y, out_x, out_y, with_y):
                 out_y[r] += S[s, r] * ys
 
 
-@njit(cache=True, fastmath=FAST_SUMS)
-def _shapes_dot(params, at, n, width, a, out):
-    """``out += S a`` for the n x ``width`` shapes S at ``params[at:]``: the dot products of four rows at a time
-    with ``a`` (one load of ``a`` per four multiply-adds)."""
-    S = params[at:at + n * width].reshape((n, width))
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def _rows_dot(S, n, width, a, out, zero):
+    """``out += S a`` for the n x ``width`` shapes ``S``, summed in the type of ``zero`` (0.0, or np.float32(0.0)
+    for the float32 shapes of :func:`node_inertia_times_single`): the dot products of four rows at a time with ``a``
+    (one load of ``a`` per four multiply-adds)."""
     s = 0
     while s + 4 <= n:
-        c0 = c1 = c2 = c3 = 0.0
+        c0 = c1 = c2 = c3 = zero
         for r in range(width):
             z = a[r]
             c0 += S[s, r] * z
@@ -255,10 +255,16 @@ def _shapes_dot(params, at, n, width, a, out):
         out[s + 3] += c3
         s += 4
     for s in range(s, n):
-        acc = 0.0
+        acc = zero
         for r in range(width):
             acc += S[s, r] * a[r]
         out[s] += acc
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
+def _shapes_dot(params, at, n, width, a, out):
+    """``out += S a`` for the n x ``width`` shapes S at ``params[at:]`` (:func:`_rows_dot`)."""
+    _rows_dot(params[at:at + n * width].reshape((n, width)), n, width, a, out, 0.0)
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
@@ -558,26 +564,8 @@ def _single_shapes_times(S, n, width, x, prev, out):
 @njit(cache=True, fastmath=FAST_SUMS)
 def _single_shapes_dot(S, n, width, a, out):
     """``out += S a`` (``out`` double) summed in single precision, for the n x ``width`` float32 shapes ``S`` and
-    float32 ``a`` (four rows at a time, as :func:`_shapes_dot`)."""
-    s = 0
-    while s + 4 <= n:
-        c0 = c1 = c2 = c3 = np.float32(0.0)
-        for r in range(width):
-            z = a[r]
-            c0 += S[s, r] * z
-            c1 += S[s + 1, r] * z
-            c2 += S[s + 2, r] * z
-            c3 += S[s + 3, r] * z
-        out[s] += c0
-        out[s + 1] += c1
-        out[s + 2] += c2
-        out[s + 3] += c3
-        s += 4
-    for s in range(s, n):
-        acc = np.float32(0.0)
-        for r in range(width):
-            acc += S[s, r] * a[r]
-        out[s] += acc
+    float32 ``a`` (:func:`_rows_dot`)."""
+    _rows_dot(S, n, width, a, out, np.float32(0.0))
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
