@@ -53,7 +53,9 @@ sum into scalars (``Q``; ``C(eta) e``; ``C(e) e``; ``Qdot omega``), and that rea
 params (``params[ma:ma + N]``, ...): indexed ``params[ma + j]`` each load carries numba's wraparound select for a
 possibly negative index and the loops were not vectorized (measured 2026-12-07, 105 nodes with rotary inertia,
 20 modes, random data, interleaved against the one loop with a branch per term: 1.2x with forces split into loops
-but indexed, 0.77x with forces and 0.79x without through views).
+but indexed, 0.77x with forces and 0.79x without through views; ``benchmarks/node_terms_passes.py --before``,
+load 0.85: C1 and J2 with forces 0.93x on the 196-mode tube, 0.73x on the 20-mode hub beam, with node_inertia's
+shared pass 0.94x and 0.82x).
 The result equals the tables' to round-off (``tests/flexible/test_node_mass.py``).
 
 Where the nodes are those of the terms G1, F2, G2 over the nodes (:mod:`dynamics.kernels.node_inertia`: every
