@@ -46,6 +46,16 @@ at a time at 20 and 196 modes, 2026-12-07): 6 multiply-adds per entry of each 3N
 nodes (at order 2 from about 1.5 N modes, at order 1, C1 alone, from about 4 N on the tube of
 ``benchmarks/flexible_scaling.py``); :func:`dynamics.flexible_body.node_mass_is_cheaper` chooses per body. Geometric
 stiffening adds stiffness-derived parts to C1 and J2 that are not node sums: such a body keeps its tables.
+The per-node algebra runs as :mod:`dynamics.kernels.node_inertia`'s does: in loops over the nodes without branches
+(a CG offset's terms are zero without one, a term left out is a loop not run) that store at most three node-minor
+streams (a row of ``m (u + d)~``, of ``B_j``, of ``-m d~``; the C1 and the J2 parts of ``Lambda' a``; ``Z``) or only
+sum into scalars (``Q``; ``C(eta) e``; ``C(e) e``; ``Qdot omega``), and that read the node data through views of
+params (``params[ma:ma + N]``, ...): indexed ``params[ma + j]`` each load carries numba's wraparound select for a
+possibly negative index and the loops were not vectorized (measured 2026-12-07, 105 nodes with rotary inertia,
+20 modes, random data, interleaved against the one loop with a branch per term: 1.2x with forces split into loops
+but indexed, 0.77x with forces and 0.79x without through views; ``benchmarks/node_terms_passes.py --before``,
+load 0.85: C1 and J2 with forces 0.93x on the 196-mode tube, 0.73x on the 20-mode hub beam, with node_inertia's
+shared pass 0.94x and 0.82x).
 The result equals the tables' to round-off (``tests/flexible/test_node_mass.py``).
 
 Where the nodes are those of the terms G1, F2, G2 over the nodes (:mod:`dynamics.kernels.node_inertia`: every
@@ -68,8 +78,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dynamics.kernels.node_inertia import (S_W, add_cross3, add_scaled3, columns_times, cross3, node_slot, node_vector,
-                                           node_vectors, shapes_at, shapes_times, store_node_vector)
+from dynamics.flexible_kernels import FAST_SUMS
+from dynamics.kernels.node_inertia import (S_W, _inertia, _mat3, add_cross3, columns_times, cross3, node_slot,
+                                           node_vector, node_vectors, shapes_at, shapes_times, store_node_vector)
 from dynamics.layout import MASS_C1, MASS_J2, NODE_F2
 
 # where each node's numbers sit in the body's FX_P_MASS_NODES block, in units of the node count N (node-minor):
@@ -103,21 +114,52 @@ def node_mass_params(mass, cg, inertia, positions, shapes, shared=False):
     return np.concatenate(parts)
 
 
-@njit(cache=True, inline="always")
-def _store_skew(out, N, j, scale, x0, x1, x2):
-    """Node j's ``scale x~`` into ``out`` node-minor (entry (a, b) at ``out[(3 a + b) N + j]``)."""
-    out[j] = 0.0
-    out[N + j] = -scale * x2
-    out[2 * N + j] = scale * x1
-    out[3 * N + j] = scale * x2
-    out[4 * N + j] = 0.0
-    out[5 * N + j] = -scale * x0
-    out[6 * N + j] = -scale * x1
-    out[7 * N + j] = scale * x0
-    out[8 * N + j] = 0.0
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def _skew_rows(out, mv, pv, th, uu, N, ku, sign):
+    """``sign m (ku u + theta x p)~`` of every node into ``out`` node-minor (entry (a, b) at ``(3 a + b) N``), a
+    loop per row storing three streams (module docstring: LLVM vectorizes it)."""
+    for a in range(3):
+        a1 = (a + 1) % 3
+        a2 = (a + 2) % 3
+        Ra = out[3 * a * N:3 * (a + 1) * N]
+        for j in range(N):
+            m = sign * mv[j]
+            t0, t1, t2 = node_vector(th, N, j)
+            p0, p1, p2 = node_vector(pv, N, j)
+            d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
+            x0, x1, x2 = ku * uu[j] + d0, ku * uu[N + j] + d1, ku * uu[2 * N + j] + d2
+            xa1 = x1 if a1 == 1 else (x2 if a1 == 2 else x0)
+            xa2 = x2 if a2 == 2 else (x0 if a2 == 0 else x1)
+            Ra[a * N + j] = 0.0
+            Ra[a1 * N + j] = -m * xa2
+            Ra[a2 * N + j] = m * xa1
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def _b_row(mv, pv, lv, th, uu, Ja, J1, J2, N, j, a, a1, a2):
+    """Row a of node j's ``B = theta~ J - J theta~ - m u~ p~ - m l0~ d~``: ``t[a+1] J_(a+2) - t[a+2] J_(a+1)
+    - J_a x theta - m (p_a u + d_a l0) + m (u . p + l0 . d) e_a`` (``J_k`` the rows of J, ``Ja``, ``J1``, ``J2``
+    rows a, a + 1, a + 2 of every node's, node-minor; ``a~ b~ = b a' - (a . b) 1``)."""
+    m = mv[j]
+    t0, t1, t2 = node_vector(th, N, j)
+    u0, u1, u2 = node_vector(uu, N, j)
+    p0, p1, p2 = node_vector(pv, N, j)
+    l0, l1, l2 = node_vector(lv, N, j)
+    d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
+    ta1, ta2 = th[a1 * N + j], th[a2 * N + j]
+    x0, x1, x2 = node_vector(J1, N, j)
+    y0, y1, y2 = node_vector(J2, N, j)
+    r0, r1, r2 = node_vector(Ja, N, j)
+    P0, P1, P2 = cross3(r0, r1, r2, t0, t1, t2)
+    pa_ = p0 if a == 0 else (p1 if a == 1 else p2)
+    da_ = d0 if a == 0 else (d1 if a == 1 else d2)
+    s = u0 * p0 + u1 * p1 + u2 * p2 + l0 * d0 + l1 * d1 + l2 * d2
+    return (ta1 * y0 - ta2 * x0 - P0 - m * (pa_ * u0 + da_ * l0 - (s if a == 0 else 0.0)),
+            ta1 * y1 - ta2 * x1 - P1 - m * (pa_ * u1 + da_ * l1 - (s if a == 1 else 0.0)),
+            ta1 * y2 - ta2 * x2 - P2 - m * (pa_ * u2 + da_ * l2 - (s if a == 2 else 0.0)))
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
 def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, br, bm, state, inertia_o,
                     inertia_terms, inertia_state):
     """Add the node terms C1 and J2 (module docstring; ``terms``: MASS_C1, MASS_J2 bits) to ``Mrr`` (6 x 6) and
@@ -140,6 +182,10 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
     pa = la + 3 * N
     ja = pa + 3 * N
     WG = node_slot(state, N, S_WG, 9)
+    mv = params[ma:ma + N]  # views: their indices j + k N are not negative (no wraparound select per load)
+    pv = params[pa:pa + 3 * N]
+    lv = params[la:la + 3 * N]
+    jv = params[ja:ja + 9 * N]
     WL = node_slot(state, N, S_WL, 18)
     if shared:
         # theta, u, their rates and the coefficients of lambda', gamma' are the node-inertia pass's; B_j joins its Q_j
@@ -156,219 +202,66 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
         shapes_times(params, gam, n, width, eta, e, uu, ud, with_bias)
         if rotary:
             shapes_times(params, lam, n, width, eta, e, th, thd, with_bias)
+    if not rotary and not shared:  # point masses: theta and its rate zero for the loops below (no rotation shapes)
+        for r in range(width):
+            th[r] = 0.0
+            thd[r] = 0.0
     w0, w1, w2 = V[0], V[1], V[2]
     v0, v1, v2 = V[3], V[4], V[5]
-    # sums over the nodes: Q (3 x 3), C(eta) e and C(e) e (6 each), Qdot w (3)
-    q00 = q01 = q02 = q11 = q12 = q22 = 0.0
-    h0 = h1 = h2 = h3 = h4 = h5 = 0.0
-    k0 = k1 = k2 = k3 = k4 = k5 = 0.0
-    g0 = g1 = g2 = 0.0
-    for j in range(N):
-        m = params[ma + j]
-        u0, u1, u2 = node_vector(uu, N, j)
-        if with_bias:
-            e0, e1, e2 = node_vector(ud, N, j)
-        else:
-            e0 = e1 = e2 = 0.0
-        t0 = t1 = t2 = s0 = s1 = s2 = 0.0  # theta, theta_dot
-        d0 = d1 = d2 = f0 = f1 = f2 = 0.0  # d = theta x p, dd = theta_dot x p
-        p0 = p1 = p2 = 0.0
-        l0 = l1 = l2 = 0.0
-        J00 = J01 = J02 = J10 = J11 = J12 = J20 = J21 = J22 = 0.0
+    # the per-node algebra in loops over the nodes without branches (a CG offset's terms are zero without one) that
+    # store at most three node-minor streams each, or only sum into scalars: LLVM vectorizes these
+    # (:mod:`dynamics.kernels.node_inertia`'s forces, module docstring); the one loop with a branch per term did not
+    if c1:
+        _skew_rows(WG, mv, pv, th, uu, N, 1.0, 1.0)  # m (u + d)~
+        if offset:
+            _skew_rows(WL[9 * N:], mv, pv, th, uu, N, 0.0, -1.0)  # -m d~
         if rotary:
-            t0, t1, t2 = node_vector(th, N, j)
-            if with_bias:
-                s0, s1, s2 = node_vector(thd, N, j)
-            J00, J01, J02 = params[ja + j], params[ja + N + j], params[ja + 2 * N + j]
-            J10, J11, J12 = params[ja + 3 * N + j], params[ja + 4 * N + j], params[ja + 5 * N + j]
-            J20, J21, J22 = params[ja + 6 * N + j], params[ja + 7 * N + j], params[ja + 8 * N + j]
-            if offset:
-                p0, p1, p2 = params[pa + j], params[pa + N + j], params[pa + 2 * N + j]
-                l0, l1, l2 = params[la + j], params[la + N + j], params[la + 2 * N + j]
-                d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
-                f0, f1, f2 = cross3(s0, s1, s2, p0, p1, p2)
-        if shared and with_bias:
-            a0, a1, a2 = node_vector(A, N, j)
-            z0, z1, z2 = node_vector(Z, N, j)
-        else:
-            a0 = a1 = a2 = z0 = z1 = z2 = 0.0
-        B00 = B01 = B02 = B10 = B11 = B12 = B20 = B21 = B22 = 0.0
-        if c1:
-            _store_skew(WG, N, j, m, u0 + d0, u1 + d1, u2 + d2)
-            if rotary:
-                # B = theta~ J - J theta~ - m u~ p~ - m l0~ d~, with a~ b~ = b a' - (a . b) 1
-                B00 = t1 * J20 - t2 * J10 - (J01 * t2 - J02 * t1)
-                B01 = t1 * J21 - t2 * J11 - (J02 * t0 - J00 * t2)
-                B02 = t1 * J22 - t2 * J12 - (J00 * t1 - J01 * t0)
-                B10 = t2 * J00 - t0 * J20 - (J11 * t2 - J12 * t1)
-                B11 = t2 * J01 - t0 * J21 - (J12 * t0 - J10 * t2)
-                B12 = t2 * J02 - t0 * J22 - (J10 * t1 - J11 * t0)
-                B20 = t0 * J10 - t1 * J00 - (J21 * t2 - J22 * t1)
-                B21 = t0 * J11 - t1 * J01 - (J22 * t0 - J20 * t2)
-                B22 = t0 * J12 - t1 * J02 - (J20 * t1 - J21 * t0)
-                if offset:
-                    up = u0 * p0 + u1 * p1 + u2 * p2
-                    ld = l0 * d0 + l1 * d1 + l2 * d2
-                    B00 -= m * (p0 * u0 - up + d0 * l0 - ld)
-                    B01 -= m * (p0 * u1 + d0 * l1)
-                    B02 -= m * (p0 * u2 + d0 * l2)
-                    B10 -= m * (p1 * u0 + d1 * l0)
-                    B11 -= m * (p1 * u1 - up + d1 * l1 - ld)
-                    B12 -= m * (p1 * u2 + d1 * l2)
-                    B20 -= m * (p2 * u0 + d2 * l0)
-                    B21 -= m * (p2 * u1 + d2 * l1)
-                    B22 -= m * (p2 * u2 - up + d2 * l2 - ld)
-                    _store_skew(WL[9 * N:], N, j, -m, d0, d1, d2)
+            # B = theta~ J - J theta~ - m u~ p~ - m l0~ d~, row a: t[a+1] J_(a+2) - t[a+2] J_(a+1) - J_a x theta
+            # - m (p_a u + d_a l0) + m (u . p + l0 . d) e_a (J_k the rows of J; a~ b~ = b a' - (a . b) 1)
+            for a in range(3):
+                a1 = (a + 1) % 3
+                a2 = (a + 2) % 3
+                Ja = jv[3 * a * N:3 * (a + 1) * N]
+                J1 = jv[3 * a1 * N:3 * (a1 + 1) * N]
+                J2 = jv[3 * a2 * N:3 * (a2 + 1) * N]
+                Ba = WB[3 * a * N:3 * (a + 1) * N]
                 if add_b:  # B_j + Q_j: one product with lambda_j for C(eta) and F2
-                    WB[j] += B00
-                    WB[N + j] += B01
-                    WB[2 * N + j] += B02
-                    WB[3 * N + j] += B10
-                    WB[4 * N + j] += B11
-                    WB[5 * N + j] += B12
-                    WB[6 * N + j] += B20
-                    WB[7 * N + j] += B21
-                    WB[8 * N + j] += B22
+                    for j in range(N):
+                        b0, b1, b2 = _b_row(mv, pv, lv, th, uu, Ja, J1, J2, N, j, a, a1, a2)
+                        Ba[j] += b0
+                        Ba[N + j] += b1
+                        Ba[2 * N + j] += b2
                 else:
-                    WB[j] = B00
-                    WB[N + j] = B01
-                    WB[2 * N + j] = B02
-                    WB[3 * N + j] = B10
-                    WB[4 * N + j] = B11
-                    WB[5 * N + j] = B12
-                    WB[6 * N + j] = B20
-                    WB[7 * N + j] = B21
-                    WB[8 * N + j] = B22
-            if with_bias:
-                # C(eta) e and C(e) e: m (u + d) x ud + B thd, -m d x thd (and with the rates)
-                x0, x1, x2 = cross3(u0 + d0, u1 + d1, u2 + d2, e0, e1, e2)
-                y0, y1, y2 = cross3(e0 + f0, e1 + f1, e2 + f2, e0, e1, e2)
-                h0, h1, h2 = add_scaled3(h0, h1, h2, m, x0, x1, x2)
-                k0, k1, k2 = add_scaled3(k0, k1, k2, m, y0, y1, y2)
-                # w x (ud + dd) and the gradient in u: z = m w x (ud + dd) - m ud x w + m (p x thd) x w
-                x0, x1, x2 = cross3(w0, w1, w2, e0 + f0, e1 + f1, e2 + f2)
-                y0, y1, y2 = cross3(e0, e1, e2, w0, w1, w2)
-                z0 += m * (x0 - y0)
-                z1 += m * (x1 - y1)
-                z2 += m * (x2 - y2)
-                if rotary:
-                    h0 += B00 * s0 + B01 * s1 + B02 * s2
-                    h1 += B10 * s0 + B11 * s1 + B12 * s2
-                    h2 += B20 * s0 + B21 * s1 + B22 * s2
-                    # B(thd, ud) thd = thd x (J thd) - m ud x (p x thd) - m l0 x (dd x thd)
-                    js0 = J00 * s0 + J01 * s1 + J02 * s2
-                    js1 = J10 * s0 + J11 * s1 + J12 * s2
-                    js2 = J20 * s0 + J21 * s1 + J22 * s2
-                    k0, k1, k2 = add_cross3(k0, k1, k2, 1.0, s0, s1, s2, js0, js1, js2)
-                    jw0 = J00 * w0 + J01 * w1 + J02 * w2
-                    jw1 = J10 * w0 + J11 * w1 + J12 * w2
-                    jw2 = J20 * w0 + J21 * w1 + J22 * w2
-                    # a: -J (thd x w) + thd x (J w) [C(e)' V] - (J thd) x w + thd x (J w) [-d/dtheta]
-                    x0, x1, x2 = cross3(s0, s1, s2, w0, w1, w2)
-                    y0, y1, y2 = cross3(s0, s1, s2, jw0, jw1, jw2)
-                    c0, c1_, c2 = cross3(js0, js1, js2, w0, w1, w2)
-                    a0 += -(J00 * x0 + J01 * x1 + J02 * x2) + 2.0 * y0 - c0
-                    a1 += -(J10 * x0 + J11 * x1 + J12 * x2) + 2.0 * y1 - c1_
-                    a2 += -(J20 * x0 + J21 * x1 + J22 * x2) + 2.0 * y2 - c2
-                    if offset:
-                        h3 -= m * (d1 * s2 - d2 * s1)
-                        h4 -= m * (d2 * s0 - d0 * s2)
-                        h5 -= m * (d0 * s1 - d1 * s0)
-                        x0, x1, x2 = cross3(f0, f1, f2, s0, s1, s2)  # dd x thd
-                        k3 -= m * x0
-                        k4 -= m * x1
-                        k5 -= m * x2
-                        k0, k1, k2 = add_cross3(k0, k1, k2, -m, l0, l1, l2, x0, x1, x2)
-                        x0, x1, x2 = cross3(p0, p1, p2, s0, s1, s2)  # p x thd
-                        k0, k1, k2 = add_cross3(k0, k1, k2, -m, e0, e1, e2, x0, x1, x2)  # ud x (p x thd)
-                        z0, z1, z2 = add_cross3(z0, z1, z2, m, x0, x1, x2, w0, w1, w2)  # (p x thd) x w
-                        # a (C(e)' V): -m p x (ud x w) - m dd x (l0 x w) + m dd x v
-                        x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
-                        a0, a1, a2 = add_cross3(a0, a1, a2, -m, p0, p1, p2, x0, x1, x2)
-                        x0, x1, x2 = cross3(l0, l1, l2, w0, w1, w2)
-                        a0, a1, a2 = add_cross3(a0, a1, a2, -m, f0, f1, f2, x0, x1, x2)
-                        a0, a1, a2 = add_cross3(a0, a1, a2, m, f0, f1, f2, v0, v1, v2)
-                        # a (-d/dtheta through d): -p x g, g = m ud x w - m thd x (w x l0) - m thd x v
-                        x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
-                        y0, y1, y2 = cross3(w0, w1, w2, l0, l1, l2)
-                        c0, c1_, c2 = cross3(s0, s1, s2, y0 + v0, y1 + v1, y2 + v2)
-                        a0, a1, a2 = add_cross3(a0, a1, a2, -1.0, p0, p1, p2, m * (x0 - c0), m * (x1 - c1_),
-                                                m * (x2 - c2))
-        if j2:
-            # Q = -m u~ u~ - theta~ J theta~ - m (u~ d~ + d~ u~) (symmetric), a~ b~ = b a' - (a . b) 1
-            uu_ = u0 * u0 + u1 * u1 + u2 * u2
-            q00 += m * (uu_ - u0 * u0)
-            q01 -= m * u0 * u1
-            q02 -= m * u0 * u2
-            q11 += m * (uu_ - u1 * u1)
-            q12 -= m * u1 * u2
-            q22 += m * (uu_ - u2 * u2)
-            if with_bias:
-                # Qdot w = -m (ud x (u x w) + u x (ud x w)) - ...; gradient in u: -m w x (w x u) + m w x (d x w)
-                x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
-                g0, g1, g2 = add_cross3(g0, g1, g2, -m, e0, e1, e2, x0, x1, x2)
-                x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
-                g0, g1, g2 = add_cross3(g0, g1, g2, -m, u0, u1, u2, x0, x1, x2)
-                x0, x1, x2 = cross3(w0, w1, w2, u0, u1, u2)
-                z0, z1, z2 = add_cross3(z0, z1, z2, m, w0, w1, w2, x0, x1, x2)
-            if rotary:
-                # theta~ J theta~ = theta~ (J theta~): columns of J theta~ are J (theta x e_b)
-                X00 = t2 * J01 - t1 * J02
-                X01 = t0 * J02 - t2 * J00
-                X02 = t1 * J00 - t0 * J01
-                X10 = t2 * J11 - t1 * J12
-                X11 = t0 * J12 - t2 * J10
-                X12 = t1 * J10 - t0 * J11
-                X20 = t2 * J21 - t1 * J22
-                X21 = t0 * J22 - t2 * J20
-                X22 = t1 * J20 - t0 * J21
-                q00 -= t1 * X20 - t2 * X10
-                q01 -= t1 * X21 - t2 * X11
-                q02 -= t1 * X22 - t2 * X12
-                q11 -= t2 * X01 - t0 * X21
-                q12 -= t2 * X02 - t0 * X22
-                q22 -= t0 * X12 - t1 * X02
-                if offset:
-                    ud_ = u0 * d0 + u1 * d1 + u2 * d2
-                    q00 -= m * (2.0 * d0 * u0 - 2.0 * ud_)
-                    q01 -= m * (d0 * u1 + u0 * d1)
-                    q02 -= m * (d0 * u2 + u0 * d2)
-                    q11 -= m * (2.0 * d1 * u1 - 2.0 * ud_)
-                    q12 -= m * (d1 * u2 + u1 * d2)
-                    q22 -= m * (2.0 * d2 * u2 - 2.0 * ud_)
-                if with_bias:
-                    # Qdot w: -(thd x (J (theta x w)) + theta x (J (thd x w)))
-                    x0, x1, x2 = cross3(t0, t1, t2, w0, w1, w2)
-                    y0 = J00 * x0 + J01 * x1 + J02 * x2
-                    y1 = J10 * x0 + J11 * x1 + J12 * x2
-                    y2 = J20 * x0 + J21 * x1 + J22 * x2
-                    g0, g1, g2 = add_cross3(g0, g1, g2, -1.0, s0, s1, s2, y0, y1, y2)
-                    # gradient in theta: w x (J (theta x w))
-                    a0, a1, a2 = add_cross3(a0, a1, a2, -1.0, w0, w1, w2, y0, y1, y2)
-                    x0, x1, x2 = cross3(s0, s1, s2, w0, w1, w2)
-                    y0 = J00 * x0 + J01 * x1 + J02 * x2
-                    y1 = J10 * x0 + J11 * x1 + J12 * x2
-                    y2 = J20 * x0 + J21 * x1 + J22 * x2
-                    g0, g1, g2 = add_cross3(g0, g1, g2, -1.0, t0, t1, t2, y0, y1, y2)
-                    if offset:
-                        # Qdot w: -m (ud x (d x w) + u x (dd x w) + dd x (u x w) + d x (ud x w))
-                        x0, x1, x2 = cross3(d0, d1, d2, w0, w1, w2)
-                        g0, g1, g2 = add_cross3(g0, g1, g2, -m, e0, e1, e2, x0, x1, x2)
-                        # gradient in u: m w x (d x w)
-                        z0, z1, z2 = add_cross3(z0, z1, z2, -m, w0, w1, w2, x0, x1, x2)
-                        x0, x1, x2 = cross3(f0, f1, f2, w0, w1, w2)
-                        g0, g1, g2 = add_cross3(g0, g1, g2, -m, u0, u1, u2, x0, x1, x2)
-                        x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
-                        g0, g1, g2 = add_cross3(g0, g1, g2, -m, f0, f1, f2, x0, x1, x2)
-                        # gradient in theta through d: m p x (w x (u x w))
-                        y0, y1, y2 = cross3(w0, w1, w2, x0, x1, x2)
-                        a0, a1, a2 = add_cross3(a0, a1, a2, -m, p0, p1, p2, y0, y1, y2)
-                        x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
-                        g0, g1, g2 = add_cross3(g0, g1, g2, -m, d0, d1, d2, x0, x1, x2)
-        if with_bias:
-            store_node_vector(A, N, j, a0, a1, a2)
-            store_node_vector(Z, N, j, z0, z1, z2)
+                    for j in range(N):
+                        b0, b1, b2 = _b_row(mv, pv, lv, th, uu, Ja, J1, J2, N, j, a, a1, a2)
+                        store_node_vector(Ba, N, j, b0, b1, b2)
+    # Q = sum_j -m u~ u~ - theta~ J theta~ - m (u~ d~ + d~ u~) (symmetric), a~ b~ = b a' - (a . b) 1
+    q00 = q01 = q02 = q11 = q12 = q22 = 0.0
     if j2:
+        for j in range(N):
+            m = mv[j]
+            u0, u1, u2 = node_vector(uu, N, j)
+            t0, t1, t2 = node_vector(th, N, j)
+            p0, p1, p2 = node_vector(pv, N, j)
+            d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
+            J00, J01, J02, J10, J11, J12, J20, J21, J22 = _inertia(jv, 0, N, j)
+            uu_ = u0 * u0 + u1 * u1 + u2 * u2
+            ud_ = u0 * d0 + u1 * d1 + u2 * d2
+            # theta~ J theta~ = theta~ (J theta~): columns of J theta~ are J (theta x e_b)
+            X01 = t0 * J02 - t2 * J00
+            X02 = t1 * J00 - t0 * J01
+            X10 = t2 * J11 - t1 * J12
+            X12 = t1 * J10 - t0 * J11
+            X20 = t2 * J21 - t1 * J22
+            X21 = t0 * J22 - t2 * J20
+            X11 = t0 * J12 - t2 * J10
+            X22 = t1 * J20 - t0 * J21
+            q00 += m * (uu_ - u0 * u0) - (t1 * X20 - t2 * X10) - m * (2.0 * d0 * u0 - 2.0 * ud_)
+            q01 += -m * u0 * u1 - (t1 * X21 - t2 * X11) - m * (d0 * u1 + u0 * d1)
+            q02 += -m * u0 * u2 - (t1 * X22 - t2 * X12) - m * (d0 * u2 + u0 * d2)
+            q11 += m * (uu_ - u1 * u1) - (t2 * X01 - t0 * X21) - m * (2.0 * d1 * u1 - 2.0 * ud_)
+            q12 += -m * u1 * u2 - (t2 * X02 - t0 * X22) - m * (d1 * u2 + u1 * d2)
+            q22 += m * (uu_ - u2 * u2) - (t0 * X12 - t1 * X02) - m * (2.0 * d2 * u2 - 2.0 * ud_)
         Mrr[0, 0] += q00
         Mrr[0, 1] += q01
         Mrr[0, 2] += q02
@@ -378,9 +271,161 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
         Mrr[2, 0] += q02
         Mrr[2, 1] += q12
         Mrr[2, 2] += q22
-        h0 += q00 * w0 + q01 * w1 + q02 * w2
-        h1 += q01 * w0 + q11 * w1 + q12 * w2
-        h2 += q02 * w0 + q12 * w1 + q22 * w2
+    if with_bias:
+        if not shared:  # the coefficients of lambda' and gamma' are this kernel's alone; else added to the pass's
+            for r in range(width):
+                A[r] = 0.0
+                Z[r] = 0.0
+        kc = 1.0 if c1 else 0.0
+        kj = 1.0 if j2 else 0.0
+        h0 = h1 = h2 = h3 = h4 = h5 = 0.0  # C(eta) e
+        k0 = k1 = k2 = k3 = k4 = k5 = 0.0  # C(e) e
+        g0 = g1 = g2 = 0.0  # Qdot w
+        if c1:
+            for j in range(N):
+                # m (u + d) x ud + B thd, B thd = theta x (J thd) - J (theta x thd) - m u x (p x thd)
+                # - m l0 x (d x thd); rows 3-5: -m d x thd
+                m = mv[j]
+                u0, u1, u2 = node_vector(uu, N, j)
+                e0, e1, e2 = node_vector(ud, N, j)
+                t0, t1, t2 = node_vector(th, N, j)
+                s0, s1, s2 = node_vector(thd, N, j)
+                p0, p1, p2 = node_vector(pv, N, j)
+                l0, l1, l2 = node_vector(lv, N, j)
+                J = _inertia(jv, 0, N, j)
+                d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
+                h0, h1, h2 = add_cross3(h0, h1, h2, m, u0 + d0, u1 + d1, u2 + d2, e0, e1, e2)
+                js0, js1, js2 = _mat3(J, s0, s1, s2)
+                h0, h1, h2 = add_cross3(h0, h1, h2, 1.0, t0, t1, t2, js0, js1, js2)
+                x0, x1, x2 = cross3(t0, t1, t2, s0, s1, s2)
+                y0, y1, y2 = _mat3(J, x0, x1, x2)
+                x0, x1, x2 = cross3(p0, p1, p2, s0, s1, s2)
+                h0, h1, h2 = add_cross3(h0 - y0, h1 - y1, h2 - y2, -m, u0, u1, u2, x0, x1, x2)
+                x0, x1, x2 = cross3(d0, d1, d2, s0, s1, s2)
+                h0, h1, h2 = add_cross3(h0, h1, h2, -m, l0, l1, l2, x0, x1, x2)
+                h3 -= m * x0
+                h4 -= m * x1
+                h5 -= m * x2
+            for j in range(N):
+                # m (ud + dd) x ud + thd x (J thd) - m l0 x (dd x thd) - m ud x (p x thd); rows 3-5: -m dd x thd
+                m = mv[j]
+                e0, e1, e2 = node_vector(ud, N, j)
+                s0, s1, s2 = node_vector(thd, N, j)
+                p0, p1, p2 = node_vector(pv, N, j)
+                l0, l1, l2 = node_vector(lv, N, j)
+                J = _inertia(jv, 0, N, j)
+                f0, f1, f2 = cross3(s0, s1, s2, p0, p1, p2)
+                k0, k1, k2 = add_cross3(k0, k1, k2, m, e0 + f0, e1 + f1, e2 + f2, e0, e1, e2)
+                js0, js1, js2 = _mat3(J, s0, s1, s2)
+                k0, k1, k2 = add_cross3(k0, k1, k2, 1.0, s0, s1, s2, js0, js1, js2)
+                x0, x1, x2 = cross3(f0, f1, f2, s0, s1, s2)
+                k3 -= m * x0
+                k4 -= m * x1
+                k5 -= m * x2
+                k0, k1, k2 = add_cross3(k0, k1, k2, -m, l0, l1, l2, x0, x1, x2)
+                x0, x1, x2 = cross3(p0, p1, p2, s0, s1, s2)
+                k0, k1, k2 = add_cross3(k0, k1, k2, -m, e0, e1, e2, x0, x1, x2)
+        if j2:
+            for j in range(N):
+                # -m (ud x (u x w) + u x (ud x w)) - thd x (J (theta x w)) - theta x (J (thd x w))
+                # - m (ud x (d x w) + u x (dd x w) + dd x (u x w) + d x (ud x w))
+                m = mv[j]
+                u0, u1, u2 = node_vector(uu, N, j)
+                e0, e1, e2 = node_vector(ud, N, j)
+                t0, t1, t2 = node_vector(th, N, j)
+                s0, s1, s2 = node_vector(thd, N, j)
+                p0, p1, p2 = node_vector(pv, N, j)
+                J = _inertia(jv, 0, N, j)
+                d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
+                f0, f1, f2 = cross3(s0, s1, s2, p0, p1, p2)
+                x0, x1, x2 = cross3(u0 + d0, u1 + d1, u2 + d2, w0, w1, w2)
+                g0, g1, g2 = add_cross3(g0, g1, g2, -m, e0, e1, e2, x0, x1, x2)
+                x0, x1, x2 = cross3(e0 + f0, e1 + f1, e2 + f2, w0, w1, w2)
+                g0, g1, g2 = add_cross3(g0, g1, g2, -m, u0, u1, u2, x0, x1, x2)
+                x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
+                g0, g1, g2 = add_cross3(g0, g1, g2, -m, f0, f1, f2, x0, x1, x2)
+                x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
+                g0, g1, g2 = add_cross3(g0, g1, g2, -m, d0, d1, d2, x0, x1, x2)
+                x0, x1, x2 = cross3(t0, t1, t2, w0, w1, w2)
+                y0, y1, y2 = _mat3(J, x0, x1, x2)
+                g0, g1, g2 = add_cross3(g0, g1, g2, -1.0, s0, s1, s2, y0, y1, y2)
+                x0, x1, x2 = cross3(s0, s1, s2, w0, w1, w2)
+                y0, y1, y2 = _mat3(J, x0, x1, x2)
+                g0, g1, g2 = add_cross3(g0, g1, g2, -1.0, t0, t1, t2, y0, y1, y2)
+        for j in range(N):
+            # z: m w x (ud + dd) - m ud x w + m (p x thd) x w [C1], m w x (w x u) - m w x (d x w) [J2]
+            m = mv[j]
+            u0, u1, u2 = node_vector(uu, N, j)
+            e0, e1, e2 = node_vector(ud, N, j)
+            t0, t1, t2 = node_vector(th, N, j)
+            s0, s1, s2 = node_vector(thd, N, j)
+            p0, p1, p2 = node_vector(pv, N, j)
+            d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
+            f0, f1, f2 = cross3(s0, s1, s2, p0, p1, p2)
+            x0, x1, x2 = cross3(w0, w1, w2, e0 + f0, e1 + f1, e2 + f2)
+            y0, y1, y2 = cross3(e0, e1, e2, w0, w1, w2)
+            c0, c1_, c2 = cross3(p0, p1, p2, s0, s1, s2)
+            z0, z1, z2 = add_cross3(x0 - y0, x1 - y1, x2 - y2, 1.0, c0, c1_, c2, w0, w1, w2)
+            x0, x1, x2 = cross3(w0, w1, w2, u0 + d0, u1 + d1, u2 + d2)  # -w x (d x w) = w x (w x d)
+            r0, r1, r2 = add_cross3(0.0, 0.0, 0.0, 1.0, w0, w1, w2, x0, x1, x2)
+            mc = m * kc
+            mj = m * kj
+            Z[j] += mc * z0 + mj * r0
+            Z[N + j] += mc * z1 + mj * r1
+            Z[2 * N + j] += mc * z2 + mj * r2
+        if rotary and c1:
+            for j in range(N):
+                # a: -J (thd x w) + 2 thd x (J w) - (J thd) x w
+                s0, s1, s2 = node_vector(thd, N, j)
+                J = _inertia(jv, 0, N, j)
+                x0, x1, x2 = cross3(s0, s1, s2, w0, w1, w2)
+                y0, y1, y2 = _mat3(J, x0, x1, x2)
+                jw0, jw1, jw2 = _mat3(J, w0, w1, w2)
+                js0, js1, js2 = _mat3(J, s0, s1, s2)
+                b0, b1, b2 = add_cross3(-y0, -y1, -y2, 2.0, s0, s1, s2, jw0, jw1, jw2)
+                b0, b1, b2 = add_cross3(b0, b1, b2, -1.0, js0, js1, js2, w0, w1, w2)
+                A[j] += b0
+                A[N + j] += b1
+                A[2 * N + j] += b2
+        if offset and c1:
+            for j in range(N):
+                # a: - m p x (ud x w) - m dd x (l0 x w) + m dd x v - p x (m ud x w - m thd x (w x l0 + v))
+                m = mv[j]
+                e0, e1, e2 = node_vector(ud, N, j)
+                s0, s1, s2 = node_vector(thd, N, j)
+                p0, p1, p2 = node_vector(pv, N, j)
+                l0, l1, l2 = node_vector(lv, N, j)
+                f0, f1, f2 = cross3(s0, s1, s2, p0, p1, p2)
+                x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)  # ud x w (twice: C(e)' V and -d/dtheta)
+                b0, b1, b2 = cross3(p0, p1, p2, x0, x1, x2)
+                y0, y1, y2 = cross3(l0, l1, l2, w0, w1, w2)
+                b0, b1, b2 = add_cross3(-2.0 * b0, -2.0 * b1, -2.0 * b2, 1.0, f0, f1, f2, v0 - y0, v1 - y1, v2 - y2)
+                c0, c1_, c2 = cross3(s0, s1, s2, v0 - y0, v1 - y1, v2 - y2)  # thd x (w x l0 + v)
+                b0, b1, b2 = add_cross3(b0, b1, b2, 1.0, p0, p1, p2, c0, c1_, c2)
+                A[j] += m * b0
+                A[N + j] += m * b1
+                A[2 * N + j] += m * b2
+        if rotary and j2:
+            for j in range(N):
+                # a: -w x (J (theta x w)) - m p x (w x (u x w))
+                m = mv[j]
+                u0, u1, u2 = node_vector(uu, N, j)
+                t0, t1, t2 = node_vector(th, N, j)
+                p0, p1, p2 = node_vector(pv, N, j)
+                J = _inertia(jv, 0, N, j)
+                x0, x1, x2 = cross3(t0, t1, t2, w0, w1, w2)
+                y0, y1, y2 = _mat3(J, x0, x1, x2)
+                r0, r1, r2 = cross3(y0, y1, y2, w0, w1, w2)
+                x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
+                y0, y1, y2 = cross3(w0, w1, w2, x0, x1, x2)
+                r0, r1, r2 = add_cross3(r0, r1, r2, -m, p0, p1, p2, y0, y1, y2)
+                A[j] += r0
+                A[N + j] += r1
+                A[2 * N + j] += r2
+        if j2:
+            h0 += q00 * w0 + q01 * w1 + q02 * w2
+            h1 += q01 * w0 + q11 * w1 + q12 * w2
+            h2 += q02 * w0 + q12 * w1 + q22 * w2
     columns_times(params, gam, n, width, WG, Z, 0, c1, with_bias, Mre, bm)
     if rotary:
         columns_times(params, lam, n, width, WB, A, 0, c1 or add_b, with_bias, Mre, bm)
