@@ -159,7 +159,7 @@ def node_slot(state, N, start, size):
 
 
 @njit(cache=True, inline="always")
-def _inertia(params, at, N, j):
+def node_inertia3(params, at, N, j):
     """Node j's inertia J (entry (a, b) at ``params[at + (3 a + b) N + j]``), row major."""
     return (params[at + j], params[at + N + j], params[at + 2 * N + j],
             params[at + 3 * N + j], params[at + 4 * N + j], params[at + 5 * N + j],
@@ -167,7 +167,7 @@ def _inertia(params, at, N, j):
 
 
 @njit(cache=True, inline="always")
-def _mat3(M, x0, x1, x2):
+def mat3_times(M, x0, x1, x2):
     """M x for the row-major 3 x 3 ``M``."""
     return (M[0] * x0 + M[1] * x1 + M[2] * x2, M[3] * x0 + M[4] * x1 + M[5] * x2,
             M[6] * x0 + M[7] * x1 + M[8] * x2)
@@ -413,11 +413,11 @@ def node_inertia_pass(params, o, count, n, terms, eta, V, e, with_bias, br, stat
         v0, v1, v2 = node_vector(ud, N, j)
         c0, c1, c2 = cross3(t0, t1, t2, p0, p1, p2)  # theta x p
         h0, h1, h2 = cross3(d0, d1, d2, p0, p1, p2)  # thd x p
-        J = _inertia(params, jb, N, j)
+        J = node_inertia3(params, jb, N, j)
         P = _times_cross(J, t0, t1, t2)
         # coefficients of lambda' and gamma' in b_m; G1: 2 thd x (J thd), offsets m ((thd x p) x ud - p x (ud x
         # thd)) and m thd x (thd x p)
-        j0, j1, j2 = _mat3(J, d0, d1, d2)
+        j0, j1, j2 = mat3_times(J, d0, d1, d2)
         x0, x1, x2 = cross3(d0, d1, d2, j0, j1, j2)
         a0, a1, a2 = 2.0 * k1 * x0, 2.0 * k1 * x1, 2.0 * k1 * x2
         x0, x1, x2 = cross3(h0, h1, h2, v0, v1, v2)
@@ -428,7 +428,7 @@ def node_inertia_pass(params, o, count, n, terms, eta, V, e, with_bias, br, stat
         a1 += mk * (x1 - yy1)
         a2 += mk * (x2 - yy2)
         # G2: -2 thd x J (theta x thd)
-        jw0, jw1, jw2 = _mat3(P, d0, d1, d2)  # J (theta x thd)
+        jw0, jw1, jw2 = mat3_times(P, d0, d1, d2)  # J (theta x thd)
         x0, x1, x2 = cross3(d0, d1, d2, jw0, jw1, jw2)  # thd x J (theta x thd)
         a0, a1, a2 = add_scaled3(a0, a1, a2, -2.0 * k2, x0, x1, x2)
         # F2: b_r += dQ/dt thd + omega x (Q thd), Q thd = -theta x (J (theta x thd)) - m u x ((theta x p) x thd)
@@ -439,9 +439,9 @@ def node_inertia_pass(params, o, count, n, terms, eta, V, e, with_bias, br, stat
         x0, x1, x2 = cross3(d0, d1, d2, jw0, jw1, jw2)  # thd x J (theta x thd) again
         g0, g1_, g2_ = r0 - x0, r1 - x1, r2 - x2
         # b_m (lambda'): dQ/dt' omega - dT/dtheta
-        ja0, ja1, ja2 = _mat3(P, w0, w1, w2)  # J (theta x omega)
+        ja0, ja1, ja2 = mat3_times(P, w0, w1, w2)  # J (theta x omega)
         y0, y1, y2 = cross3(d0, d1, d2, w0, w1, w2)  # thd x omega
-        jc0, jc1, jc2 = _mat3(J, y0, y1, y2)
+        jc0, jc1, jc2 = mat3_times(J, y0, y1, y2)
         x0, x1, x2 = cross3(d0, d1, d2, ja0, ja1, ja2)
         y0, y1, y2 = cross3(t0, t1, t2, jc0, jc1, jc2)
         s0, s1, s2 = cross3(w0, w1, w2, jw0, jw1, jw2)

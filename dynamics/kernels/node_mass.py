@@ -79,7 +79,7 @@ import numpy as np
 from numba import njit
 
 from dynamics.flexible_kernels import FAST_SUMS
-from dynamics.kernels.node_inertia import (S_W, _inertia, _mat3, add_cross3, columns_times, cross3, node_slot,
+from dynamics.kernels.node_inertia import (S_W, add_cross3, columns_times, cross3, mat3_times, node_inertia3, node_slot,
                                            node_vector, node_vectors, shapes_at, shapes_times, store_node_vector)
 from dynamics.layout import MASS_C1, MASS_J2, NODE_F2
 
@@ -244,7 +244,7 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
             t0, t1, t2 = node_vector(th, N, j)
             p0, p1, p2 = node_vector(pv, N, j)
             d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
-            J00, J01, J02, J10, J11, J12, J20, J21, J22 = _inertia(jv, 0, N, j)
+            J00, J01, J02, J10, J11, J12, J20, J21, J22 = node_inertia3(jv, 0, N, j)
             uu_ = u0 * u0 + u1 * u1 + u2 * u2
             ud_ = u0 * d0 + u1 * d1 + u2 * d2
             # theta~ J theta~ = theta~ (J theta~): columns of J theta~ are J (theta x e_b)
@@ -292,13 +292,13 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                 s0, s1, s2 = node_vector(thd, N, j)
                 p0, p1, p2 = node_vector(pv, N, j)
                 l0, l1, l2 = node_vector(lv, N, j)
-                J = _inertia(jv, 0, N, j)
+                J = node_inertia3(jv, 0, N, j)
                 d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
                 h0, h1, h2 = add_cross3(h0, h1, h2, m, u0 + d0, u1 + d1, u2 + d2, e0, e1, e2)
-                js0, js1, js2 = _mat3(J, s0, s1, s2)
+                js0, js1, js2 = mat3_times(J, s0, s1, s2)
                 h0, h1, h2 = add_cross3(h0, h1, h2, 1.0, t0, t1, t2, js0, js1, js2)
                 x0, x1, x2 = cross3(t0, t1, t2, s0, s1, s2)
-                y0, y1, y2 = _mat3(J, x0, x1, x2)
+                y0, y1, y2 = mat3_times(J, x0, x1, x2)
                 x0, x1, x2 = cross3(p0, p1, p2, s0, s1, s2)
                 h0, h1, h2 = add_cross3(h0 - y0, h1 - y1, h2 - y2, -m, u0, u1, u2, x0, x1, x2)
                 x0, x1, x2 = cross3(d0, d1, d2, s0, s1, s2)
@@ -313,10 +313,10 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                 s0, s1, s2 = node_vector(thd, N, j)
                 p0, p1, p2 = node_vector(pv, N, j)
                 l0, l1, l2 = node_vector(lv, N, j)
-                J = _inertia(jv, 0, N, j)
+                J = node_inertia3(jv, 0, N, j)
                 f0, f1, f2 = cross3(s0, s1, s2, p0, p1, p2)
                 k0, k1, k2 = add_cross3(k0, k1, k2, m, e0 + f0, e1 + f1, e2 + f2, e0, e1, e2)
-                js0, js1, js2 = _mat3(J, s0, s1, s2)
+                js0, js1, js2 = mat3_times(J, s0, s1, s2)
                 k0, k1, k2 = add_cross3(k0, k1, k2, 1.0, s0, s1, s2, js0, js1, js2)
                 x0, x1, x2 = cross3(f0, f1, f2, s0, s1, s2)
                 k3 -= m * x0
@@ -335,7 +335,7 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                 t0, t1, t2 = node_vector(th, N, j)
                 s0, s1, s2 = node_vector(thd, N, j)
                 p0, p1, p2 = node_vector(pv, N, j)
-                J = _inertia(jv, 0, N, j)
+                J = node_inertia3(jv, 0, N, j)
                 d0, d1, d2 = cross3(t0, t1, t2, p0, p1, p2)
                 f0, f1, f2 = cross3(s0, s1, s2, p0, p1, p2)
                 x0, x1, x2 = cross3(u0 + d0, u1 + d1, u2 + d2, w0, w1, w2)
@@ -347,10 +347,10 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                 x0, x1, x2 = cross3(e0, e1, e2, w0, w1, w2)
                 g0, g1, g2 = add_cross3(g0, g1, g2, -m, d0, d1, d2, x0, x1, x2)
                 x0, x1, x2 = cross3(t0, t1, t2, w0, w1, w2)
-                y0, y1, y2 = _mat3(J, x0, x1, x2)
+                y0, y1, y2 = mat3_times(J, x0, x1, x2)
                 g0, g1, g2 = add_cross3(g0, g1, g2, -1.0, s0, s1, s2, y0, y1, y2)
                 x0, x1, x2 = cross3(s0, s1, s2, w0, w1, w2)
-                y0, y1, y2 = _mat3(J, x0, x1, x2)
+                y0, y1, y2 = mat3_times(J, x0, x1, x2)
                 g0, g1, g2 = add_cross3(g0, g1, g2, -1.0, t0, t1, t2, y0, y1, y2)
         for j in range(N):
             # z: m w x (ud + dd) - m ud x w + m (p x thd) x w [C1], m w x (w x u) - m w x (d x w) [J2]
@@ -377,11 +377,11 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
             for j in range(N):
                 # a: -J (thd x w) + 2 thd x (J w) - (J thd) x w
                 s0, s1, s2 = node_vector(thd, N, j)
-                J = _inertia(jv, 0, N, j)
+                J = node_inertia3(jv, 0, N, j)
                 x0, x1, x2 = cross3(s0, s1, s2, w0, w1, w2)
-                y0, y1, y2 = _mat3(J, x0, x1, x2)
-                jw0, jw1, jw2 = _mat3(J, w0, w1, w2)
-                js0, js1, js2 = _mat3(J, s0, s1, s2)
+                y0, y1, y2 = mat3_times(J, x0, x1, x2)
+                jw0, jw1, jw2 = mat3_times(J, w0, w1, w2)
+                js0, js1, js2 = mat3_times(J, s0, s1, s2)
                 b0, b1, b2 = add_cross3(-y0, -y1, -y2, 2.0, s0, s1, s2, jw0, jw1, jw2)
                 b0, b1, b2 = add_cross3(b0, b1, b2, -1.0, js0, js1, js2, w0, w1, w2)
                 A[j] += b0
@@ -412,9 +412,9 @@ def node_mass_terms(params, o, count, n, terms, eta, V, e, with_bias, Mrr, Mre, 
                 u0, u1, u2 = node_vector(uu, N, j)
                 t0, t1, t2 = node_vector(th, N, j)
                 p0, p1, p2 = node_vector(pv, N, j)
-                J = _inertia(jv, 0, N, j)
+                J = node_inertia3(jv, 0, N, j)
                 x0, x1, x2 = cross3(t0, t1, t2, w0, w1, w2)
-                y0, y1, y2 = _mat3(J, x0, x1, x2)
+                y0, y1, y2 = mat3_times(J, x0, x1, x2)
                 r0, r1, r2 = cross3(y0, y1, y2, w0, w1, w2)
                 x0, x1, x2 = cross3(u0, u1, u2, w0, w1, w2)
                 y0, y1, y2 = cross3(w0, w1, w2, x0, x1, x2)

@@ -28,7 +28,7 @@ def test_no_import_circle():
 
 
 def test_no_module_imports_another_modules_private_name():
-    found = [f"{p.module}:{p.line} takes {p.name} from {p.source}" for p in sorted(_graph()[1])]
+    found = [f"{p.module}:{p.line} takes {p.name} from {p.source}" for p in sorted(_graph()[1], key=lambda p: (p.module, p.line, p.name))]
     assert not found, "private names imported across modules (make them public, or move the code):\n" + "\n".join(found)
 
 
