@@ -361,9 +361,10 @@ class MultibodySystem:
             q0 += nq + n_modes[i]
             u0 += nu + n_modes[i]
         ginv = {}
+        dropped = []  # (body, "stiffness" | "damping", ratio) applied as their diagonal (MODAL_DIAGONAL_TOLERANCE)
         for i, b in enumerate(bodies):
             if b.flexible is not None:
-                ginv[i] = cls._flexible_layout(i, b, topology[i], params, pool, len(child_nodes[i]))
+                ginv[i] = cls._flexible_layout(i, b, topology[i], params, pool, len(child_nodes[i]), dropped)
         for k, nd in enumerate(nodes):
             i = index[nd.body]
             table[k, L.NODE_BODY] = i
@@ -386,13 +387,9 @@ class MultibodySystem:
         flat = params.array()
         flat[6:6 + 36 * nb] = inertia.ravel()
         notes = [f"body '{b.name}': {b.flexible.note}" for b in bodies if b.flexible is not None and b.flexible.note]
-        for b in bodies:
-            for name in ("stiffness", "damping") if b.flexible is not None else ():
-                _, _, dropped = _modal_diagonal(np.asarray(getattr(b.flexible, name), dtype=np.float64))
-                if dropped > 0.0:
-                    notes.append(f"body '{b.name}': modal {name} applied as its diagonal (largest off-diagonal entry "
-                                 f"{dropped:.1e} of the geometric mean of its diagonal entries: round-off, within "
-                                 f"{MODAL_DIAGONAL_TOLERANCE:.0e})")
+        notes.extend(f"body '{b.name}': modal {name} applied as its diagonal (largest off-diagonal entry {ratio:.1e} of "
+                     f"the geometric mean of its diagonal entries: round-off, within {MODAL_DIAGONAL_TOLERANCE:.0e})"
+                     for b, name, ratio in dropped)
         for i, b in enumerate(bodies):
             t = topology[i]
             if t[L.FLEXIBLE] and t[L.N_MODES] > 40:
@@ -432,9 +429,10 @@ class MultibodySystem:
         return cls(model)
 
     @staticmethod
-    def _flexible_layout(i, body, t, params, pool, n_child_nodes):
+    def _flexible_layout(i, body, t, params, pool, n_child_nodes, dropped):
         """Modal data of flexible body ``i`` into ``params``, its workspace into ``pool``, their offsets into
-        its topology row ``t``; returns how G^-1 is applied and the precomputed inverse."""
+        its topology row ``t``; returns how G^-1 is applied and the precomputed inverse. A modal stiffness or damping
+        applied as its diagonal is added to ``dropped`` as ``(body, name, ratio)``."""
         data = body.flexible
         where = f"body '{body.name}' ({data.source})"
         n = int(data.n_modes)
@@ -466,7 +464,9 @@ class MultibodySystem:
             if a.shape != (n, n) or not np.all(np.isfinite(a)):
                 raise ModelDefinitionError(f"{where}: the modal {name} must be a finite {n} x {n} matrix, got "
                                            f"shape {a.shape}")
-            a, fx[diag_col], _ = _modal_diagonal(a)
+            a, fx[diag_col], ratio = _modal_diagonal(a)
+            if ratio > 0.0:
+                dropped.append((body, name, ratio))
             fx[col] = params.push(a)
         nodes = data.node_inertia
         node_terms = 0
