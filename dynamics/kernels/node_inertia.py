@@ -96,18 +96,39 @@ NODE_STATE = 36
 """Pool numbers per node (:data:`dynamics.layout.FX_P_NODES`)."""
 
 
+NODE_MAJOR_MODES = 160
+"""From this many modes (and at most ``S_D - S_A`` = 15 per node, the pass scratch holding ``x - prev`` and the sum
+in float32) the single-precision shapes of :func:`node_params` are node-major and :func:`node_inertia_times_single`
+sweeps them once (module docstring); below, mode-major and swept twice."""
+
+
+@njit(cache=True, inline="always")
+def single_node_major(count, n):
+    """Whether the single-precision shapes of ``count`` nodes and ``n`` modes are node-major
+    (:data:`NODE_MAJOR_MODES`)."""
+    return NODE_MAJOR_MODES <= n <= (S_D - S_A) * count
+
+
 def node_params(mass, cg, inertia, shapes):
     """The node data as :mod:`dynamics.kernels.node_inertia` reads them from params: ``[any CG offset, m (N),
-    p (3 N), J (9 N), Lambda (n x 3 N), Gamma (n x 3 N), Lambda and Gamma in single precision (n x 3 N numbers:
-    2 n 3 N float32)]``, node-minor (module docstring), from the masses (N), CG offsets (N, 3), inertias (N, 3, 3)
-    and shapes ``[lambda; gamma]`` (N, 6, n)."""
+    p (3 N), J (9 N), Lambda (n x 3 N), Gamma (n x 3 N), the shapes in single precision]``, node-minor (module
+    docstring), from the masses (N), CG offsets (N, 3), inertias (N, 3, 3) and shapes ``[lambda; gamma]``
+    (N, 6, n). The single-precision shapes (float32, padded to a whole number of doubles) are those
+    :func:`node_inertia_times_single` reads: ``Lambda`` and, when any node has a CG offset, ``Gamma``, mode-major
+    (n x 3 N each, as the double ones) or, where :func:`single_node_major`, node-major (per node j its rows
+    ``lambda_j`` and with offsets ``gamma_j``: N x 3 x n or N x 6 x n)."""
     count, _, n = shapes.shape
+    offset = bool(np.any(np.asarray(cg) != 0.0))
     rotations = np.transpose(shapes[:, :3, :], (2, 1, 0)).reshape(n, 3 * count)
     translations = np.transpose(shapes[:, 3:, :], (2, 1, 0)).reshape(n, 3 * count)
-    single = np.concatenate([rotations.ravel(), translations.ravel()]).astype(np.float32).view(np.float64)
-    return np.concatenate([[float(np.any(cg != 0.0))], mass, np.asarray(cg).T.ravel(),
+    if single_node_major(count, n):
+        single = shapes[:, :6 if offset else 3, :].ravel()
+    else:
+        single = np.concatenate([rotations.ravel(), translations.ravel() if offset else []])
+    single = np.concatenate([single, np.zeros(single.size % 2)]).astype(np.float32)
+    return np.concatenate([[float(offset)], mass, np.asarray(cg).T.ravel(),
                            np.asarray(inertia).reshape(count, 9).T.ravel(), rotations.ravel(), translations.ravel(),
-                           single])
+                           single.view(np.float64)])
 
 
 @njit(cache=True, inline="always")
@@ -568,12 +589,43 @@ def _single_shapes_dot(S, n, width, a, out):
     _rows_dot(S, n, width, a, out, np.float32(0.0))
 
 
+@njit(cache=True, inline="always")
+def _single_shapes(params, o, N, n):
+    """The float32 numbers of the single-precision shapes of :func:`node_params` (``rows`` = 6 with CG offsets, else
+    3, times N n) and ``rows``."""
+    rows = 6 if params[o] != 0.0 else 3
+    size = rows * N * n
+    start = _layout(o, N, n)[4] + 3 * N * n
+    return params[start:start + (size + 1) // 2].view(np.float32)[:size], rows
+
+
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def _single_node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2, be0, be1, be2):
+    """Node j's ``a = dJ alpha + m (theta x p) x beta`` and ``z = m alpha x (theta x p)`` (double precision, from
+    the float32 ``alpha = lambda_j x``, ``beta = gamma_j x``), rounded to float32 for the products back."""
+    a0, a1, a2 = _node_matrix_times(D, N, j, al0, al1, al2)
+    z0 = z1 = z2 = 0.0
+    if offset:
+        m = params[ma + j]
+        t0, t1, t2 = node_vector(th, N, j)
+        c0, c1, c2 = cross3(t0, t1, t2, params[pa + j], params[pa + N + j], params[pa + 2 * N + j])
+        x0, x1, x2 = cross3(c0, c1, c2, be0, be1, be2)
+        a0, a1, a2 = add_scaled3(a0, a1, a2, m, x0, x1, x2)
+        z0, z1, z2 = cross3(al0, al1, al2, c0, c1, c2)
+        z0, z1, z2 = m * z0, m * z1, m * z2
+    return (np.float32(a0), np.float32(a1), np.float32(a2), np.float32(z0), np.float32(z1), np.float32(z2))
+
+
 @njit(cache=True, fastmath=FAST_SUMS)
 def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
-    """``out += (G(eta) - G0 - tabled terms) (x - prev)`` as :func:`node_inertia_times` does for ``x``, its two
-    sweeps over the shapes in single precision (the float32 copies of :func:`node_params`: half the bytes of
-    sweeps that the cache's bandwidth bounds, and eight products per vector instruction instead of four) and the
-    per-node algebra in double. Error about 1e-8 of the summands' size ``|Lambda|' |dJ| |Lambda| |x - prev|``
+    """``out += (G(eta) - G0 - tabled terms) (x - prev)`` as :func:`node_inertia_times` does for ``x``, over the
+    float32 copy of the shapes (:func:`node_params`), the per-node algebra in double. Mode-major (fewer than
+    :data:`NODE_MAJOR_MODES` modes): its two sweeps as :func:`node_inertia_times`'s, summed in float32 (half the
+    bytes of sweeps that the cache's bandwidth bounds, and eight products per vector instruction instead of four).
+    Node-major: one sweep, per node j ``alpha = lambda_j (x - prev)`` (and ``beta = gamma_j (x - prev)`` with CG
+    offsets) as dot products of its rows, its ``a``, ``z`` (:func:`_node_products`'s algebra), and ``acc +=
+    lambda_j' a + gamma_j' z`` while the node's rows are in L1, ``x - prev`` and ``acc`` kept in float32 in the pass
+    scratch (module docstring). Error about 1e-8 of the summands' size ``|Lambda|' |dJ| |Lambda| |x - prev|``
     (float32's 6e-8 over sums of the modes and the nodes; ``tests/flexible/test_node_inertia.py``), which where the
     sum cancels is a larger part of the product itself (4e-4 on the late corrections of the 196-mode tube): for the
     refinement's late corrections only, where ``x - prev`` is a small fraction of ``x``
@@ -583,18 +635,59 @@ def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
         return
     N = count
     width = 3 * N
-    single = params[gam + n * width:gam + 2 * n * width].view(np.float32)
-    A = node_slot(state, N, S_A, 3).view(np.float32)[:width]
-    Z = node_slot(state, N, S_Z, 3).view(np.float32)[:width]
-    L32 = single[:n * width].reshape((n, width))
-    G32 = single[n * width:].reshape((n, width))
-    _single_shapes_times(L32, n, width, x, prev, A)
+    single, rows = _single_shapes(params, o, N, n)
+    if not single_node_major(N, n):
+        A = node_slot(state, N, S_A, 3).view(np.float32)[:width]
+        Z = node_slot(state, N, S_Z, 3).view(np.float32)[:width]
+        L32 = single[:n * width].reshape((n, width))
+        _single_shapes_times(L32, n, width, x, prev, A)
+        if offset:
+            G32 = single[n * width:].reshape((n, width))
+            _single_shapes_times(G32, n, width, x, prev, Z)
+        _node_products(params, ma, pa, N, offset, th, D, A, Z)
+        _single_shapes_dot(L32, n, width, A, out)
+        if offset:
+            _single_shapes_dot(G32, n, width, Z, out)
+        return
+    S = single.reshape((N, rows, n))
+    scratch = state[S_A * N:S_D * N].view(np.float32)
+    dx = scratch[:n]
+    acc = scratch[n:2 * n]
+    zero = np.float32(0.0)
+    for k in range(n):
+        dx[k] = np.float32(x[k] - prev[k])
+        acc[k] = zero
     if offset:
-        _single_shapes_times(G32, n, width, x, prev, Z)
-    _node_products(params, ma, pa, N, offset, th, D, A, Z)
-    _single_shapes_dot(L32, n, width, A, out)
-    if offset:
-        _single_shapes_dot(G32, n, width, Z, out)
+        for j in range(N):
+            r0, r1, r2, g0, g1, g2 = S[j, 0], S[j, 1], S[j, 2], S[j, 3], S[j, 4], S[j, 5]
+            t0 = t1 = t2 = u0 = u1 = u2 = zero
+            for k in range(n):
+                d = dx[k]
+                t0 += r0[k] * d
+                t1 += r1[k] * d
+                t2 += r2[k] * d
+                u0 += g0[k] * d
+                u1 += g1[k] * d
+                u2 += g2[k] * d
+            a0, a1, a2, z0, z1, z2 = _single_node_coefficients(params, ma, pa, N, j, True, th, D, t0, t1, t2, u0, u1,
+                                                               u2)
+            for k in range(n):
+                acc[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k] + z0 * g0[k] + z1 * g1[k] + z2 * g2[k]
+    else:
+        for j in range(N):
+            r0, r1, r2 = S[j, 0], S[j, 1], S[j, 2]
+            t0 = t1 = t2 = zero
+            for k in range(n):
+                d = dx[k]
+                t0 += r0[k] * d
+                t1 += r1[k] * d
+                t2 += r2[k] * d
+            a0, a1, a2, _, _, _ = _single_node_coefficients(params, ma, pa, N, j, False, th, D, t0, t1, t2, zero,
+                                                            zero, zero)
+            for k in range(n):
+                acc[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k]
+    for k in range(n):
+        out[k] += acc[k]
 
 
 TILE = 4
