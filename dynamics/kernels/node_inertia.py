@@ -103,7 +103,7 @@ sweeps them once (module docstring); below, mode-major and swept twice."""
 
 
 @njit(cache=True, inline="always")
-def single_node_major(count, n):
+def node_major(count, n):
     """Whether the single-precision shapes of ``count`` nodes and ``n`` modes are node-major
     (:data:`NODE_MAJOR_MODES`)."""
     return NODE_MAJOR_MODES <= n <= (S_D - S_A) * count
@@ -115,20 +115,21 @@ def node_params(mass, cg, inertia, shapes):
     docstring), from the masses (N), CG offsets (N, 3), inertias (N, 3, 3) and shapes ``[lambda; gamma]``
     (N, 6, n). The single-precision shapes (float32, padded to a whole number of doubles) are those
     :func:`node_inertia_times_single` reads: ``Lambda`` and, when any node has a CG offset, ``Gamma``, mode-major
-    (n x 3 N each, as the double ones) or, where :func:`single_node_major`, node-major (per node j its rows
+    (n x 3 N each, as the double ones) or, where :func:`node_major`, node-major (per node j its rows
     ``lambda_j`` and with offsets ``gamma_j``: N x 3 x n or N x 6 x n)."""
     count, _, n = shapes.shape
     offset = bool(np.any(np.asarray(cg) != 0.0))
     rotations = np.transpose(shapes[:, :3, :], (2, 1, 0)).reshape(n, 3 * count)
     translations = np.transpose(shapes[:, 3:, :], (2, 1, 0)).reshape(n, 3 * count)
-    if single_node_major(count, n):
-        single = shapes[:, :6 if offset else 3, :].ravel()
+    major = shapes[:, :6 if offset else 3, :].ravel() if node_major(count, n) else np.zeros(0)
+    if major.size:
+        single = major
     else:
         single = np.concatenate([rotations.ravel(), translations.ravel() if offset else []])
     single = np.concatenate([single, np.zeros(single.size % 2)]).astype(np.float32)
     return np.concatenate([[float(offset)], mass, np.asarray(cg).T.ravel(),
                            np.asarray(inertia).reshape(count, 9).T.ravel(), rotations.ravel(), translations.ravel(),
-                           single.view(np.float64)])
+                           major, single.view(np.float64)])
 
 
 @njit(cache=True, inline="always")
@@ -545,6 +546,59 @@ def _node_products(params, ma, pa, N, offset, th, D, A, Z):
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
+def _node_major_times(params, o, N, n, offset, ma, pa, th, D, x, out):
+    """:func:`node_inertia_times` over the node-major double shapes in one sweep: per node ``alpha = lambda_j x``
+    (and ``beta = gamma_j x``) as dot products of its rows, its ``a``, ``z`` (:func:`_node_coefficients`), and ``out
+    += lambda_j' a + gamma_j' z`` while its rows are in L1; two nodes at a time without CG offsets (one load of
+    ``x`` and of ``out`` per six rows)."""
+    S, _ = _node_major_shapes(params, o, N, n)
+    if offset:
+        for j in range(N):
+            r0, r1, r2, g0, g1, g2 = S[j, 0], S[j, 1], S[j, 2], S[j, 3], S[j, 4], S[j, 5]
+            t0 = t1 = t2 = u0 = u1 = u2 = 0.0
+            for k in range(n):
+                d = x[k]
+                t0 += r0[k] * d
+                t1 += r1[k] * d
+                t2 += r2[k] * d
+                u0 += g0[k] * d
+                u1 += g1[k] * d
+                u2 += g2[k] * d
+            a0, a1, a2, z0, z1, z2 = _node_coefficients(params, ma, pa, N, j, True, th, D, t0, t1, t2, u0, u1, u2)
+            for k in range(n):
+                out[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k] + z0 * g0[k] + z1 * g1[k] + z2 * g2[k]
+        return
+    j = 0
+    while j + 2 <= N:
+        r0, r1, r2, q0, q1, q2 = S[j, 0], S[j, 1], S[j, 2], S[j + 1, 0], S[j + 1, 1], S[j + 1, 2]
+        t0 = t1 = t2 = u0 = u1 = u2 = 0.0
+        for k in range(n):
+            d = x[k]
+            t0 += r0[k] * d
+            t1 += r1[k] * d
+            t2 += r2[k] * d
+            u0 += q0[k] * d
+            u1 += q1[k] * d
+            u2 += q2[k] * d
+        a0, a1, a2 = _node_matrix_times(D, N, j, t0, t1, t2)
+        b0, b1, b2 = _node_matrix_times(D, N, j + 1, u0, u1, u2)
+        for k in range(n):
+            out[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k] + b0 * q0[k] + b1 * q1[k] + b2 * q2[k]
+        j += 2
+    if j < N:
+        r0, r1, r2 = S[j, 0], S[j, 1], S[j, 2]
+        t0 = t1 = t2 = 0.0
+        for k in range(n):
+            d = x[k]
+            t0 += r0[k] * d
+            t1 += r1[k] * d
+            t2 += r2[k] * d
+        a0, a1, a2 = _node_matrix_times(D, N, j, t0, t1, t2)
+        for k in range(n):
+            out[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k]
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
 def node_inertia_times(params, o, count, n, terms, state, x, out):
     """``out += (G(eta) - G0 - tabled terms) x``: the node terms of the modal mass times ``x`` (n), with the
     ``theta`` and ``u`` that :func:`node_inertia_terms` kept in ``state``. O(count n)."""
@@ -553,6 +607,9 @@ def node_inertia_times(params, o, count, n, terms, state, x, out):
         return
     N = count
     width = 3 * N
+    if node_major(N, n):
+        _node_major_times(params, o, N, n, offset, ma, pa, th, D, x, out)
+        return
     A, Z = node_vectors(state, N)[4:]
     shapes_times(params, lam, n, width, x, x, A, A, False)  # alpha = lambda x
     if offset:
@@ -590,19 +647,28 @@ def _single_shapes_dot(S, n, width, a, out):
 
 
 @njit(cache=True, inline="always")
+def _node_major_shapes(params, o, N, n):
+    """The node-major double-precision shapes of :func:`node_params` (N x rows x n: per node its rows ``lambda_j``
+    and, with CG offsets (rows = 6), ``gamma_j``; present where :func:`node_major`) and ``rows``."""
+    rows = 6 if params[o] != 0.0 else 3
+    start = _layout(o, N, n)[4] + 3 * N * n
+    return params[start:start + rows * N * n].reshape((N, rows, n)), rows
+
+
+@njit(cache=True, inline="always")
 def _single_shapes(params, o, N, n):
     """The float32 numbers of the single-precision shapes of :func:`node_params` (``rows`` = 6 with CG offsets, else
     3, times N n) and ``rows``."""
     rows = 6 if params[o] != 0.0 else 3
     size = rows * N * n
-    start = _layout(o, N, n)[4] + 3 * N * n
+    start = _layout(o, N, n)[4] + 3 * N * n + (size if node_major(N, n) else 0)
     return params[start:start + (size + 1) // 2].view(np.float32)[:size], rows
 
 
 @njit(cache=True, fastmath=FAST_SUMS, inline="always")
-def _single_node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2, be0, be1, be2):
-    """Node j's ``a = dJ alpha + m (theta x p) x beta`` and ``z = m alpha x (theta x p)`` (double precision, from
-    the float32 ``alpha = lambda_j x``, ``beta = gamma_j x``), rounded to float32 for the products back."""
+def _node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2, be0, be1, be2):
+    """Node j's ``a = dJ alpha + m (theta x p) x beta`` and ``z = m alpha x (theta x p)`` (:func:`_node_products`
+    for one node, from ``alpha = lambda_j x``, ``beta = gamma_j x``), in double precision."""
     a0, a1, a2 = _node_matrix_times(D, N, j, al0, al1, al2)
     z0 = z1 = z2 = 0.0
     if offset:
@@ -613,6 +679,13 @@ def _single_node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2
         a0, a1, a2 = add_scaled3(a0, a1, a2, m, x0, x1, x2)
         z0, z1, z2 = cross3(al0, al1, al2, c0, c1, c2)
         z0, z1, z2 = m * z0, m * z1, m * z2
+    return a0, a1, a2, z0, z1, z2
+
+
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def _single_node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2, be0, be1, be2):
+    """:func:`_node_coefficients` rounded to float32 for the single-precision products back."""
+    a0, a1, a2, z0, z1, z2 = _node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2, be0, be1, be2)
     return (np.float32(a0), np.float32(a1), np.float32(a2), np.float32(z0), np.float32(z1), np.float32(z2))
 
 
@@ -636,7 +709,7 @@ def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
     N = count
     width = 3 * N
     single, rows = _single_shapes(params, o, N, n)
-    if not single_node_major(N, n):
+    if not node_major(N, n):
         A = node_slot(state, N, S_A, 3).view(np.float32)[:width]
         Z = node_slot(state, N, S_Z, 3).view(np.float32)[:width]
         L32 = single[:n * width].reshape((n, width))

@@ -113,14 +113,15 @@ def _skew(v):
 
 @pytest.mark.parametrize("terms", ["G1", "G2", "G1 G2 F2"])
 @pytest.mark.parametrize("offsets", [False, True])
-@pytest.mark.parametrize("n", [1, 3, 4, 5, 8, 11])
-def test_formed_modal_mass_equals_the_node_sum(terms, offsets, n):
+@pytest.mark.parametrize("count, n", [(7, 1), (7, 3), (7, 4), (7, 5), (7, 8), (7, 11), (11, 160), (12, 161)])
+def test_formed_modal_mass_equals_the_node_sum(terms, offsets, count, n):
     """``node_inertia_modal_mass`` (formed by blocks of TILE modes, two rows at a time, lower triangle mirrored)
     against the node sum of its docstring written out here with NumPy, node by node: ``lambda_j' dJ_j lambda_j``
     with ``dJ = theta~ J - J theta~`` [G1] ``- theta~ J theta~`` [G2] and, with G1, the offsets'
     ``m (lambda_j' dP gamma_j + gamma_j' dP' lambda_j)``, ``dP = (theta x p)~``; mode counts below, at and past
     the tile's four (every remainder of the blocks and of the row pairs). Also ``node_inertia_times`` against the
-    formed matrix. Tolerance 1e-13 of the sum of the summands' sizes (``|lambda|' |dJ| |lambda|``; the sum itself
+    formed matrix: over the mode-major shapes (few modes) and over the node-major copy (from NODE_MAJOR_MODES = 160
+    modes, two nodes at a time: 11 nodes leave one over, 12 none). Tolerance 1e-13 of the sum of the summands' sizes (``|lambda|' |dJ| |lambda|``; the sum itself
     cancels to zero at one mode, plus the 2 that ``G`` holds on entry): the same ~30 N products summed in another
     order."""
     from dynamics.kernels.node_inertia import (
@@ -128,10 +129,9 @@ def test_formed_modal_mass_equals_the_node_sum(terms, offsets, n):
     from dynamics.layout import NODE_F2, NODE_G1, NODE_G2
 
     bits = sum({"G1": NODE_G1, "G2": NODE_G2, "F2": NODE_F2}[t] for t in terms.split())
-    model = random_node_model(7, n, seed=90 + n)
+    model = random_node_model(count, n, seed=90 + n)
     if not offsets:
         model.cg[:] = 0.0
-    count = len(model.mass)
     rng = np.random.default_rng(n)
     eta, e, V = 0.3 * rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(6)
     params = np.concatenate([[7.0, 8.0], node_params(model.mass, model.cg, model.inertia, model.shapes)])
@@ -204,7 +204,7 @@ def test_single_precision_product_equals_the_double_one(terms, offsets, count, n
     from the double result past one mode (observed >= 2.2e-9): it is computed in single precision."""
     from dynamics.kernels.node_inertia import (
         NODE_MAJOR_MODES, NODE_STATE, node_inertia_terms, node_inertia_times, node_inertia_times_single, node_params,
-        single_node_major)
+        node_major)
     from dynamics.layout import NODE_F2, NODE_G1, NODE_G2
 
     bits = sum({"G1": NODE_G1, "G2": NODE_G2, "F2": NODE_F2}[t] for t in terms.split())
@@ -217,15 +217,18 @@ def test_single_precision_product_equals_the_double_one(terms, offsets, count, n
     params = np.concatenate([[7.0, 8.0], packed, [9.0]])
     rows = 6 if offsets else 3
     size = count * rows * n
-    single = packed[1 + 13 * count + 6 * count * n:].view(np.float32)
-    assert single.size == size + size % 2
-    major = single_node_major(count, n)
+    major = node_major(count, n)
     assert major == (n >= NODE_MAJOR_MODES and n <= 15 * count)
-    if major:
+    start = 1 + 13 * count + 6 * count * n
+    if major:  # the node-major double copy, then the float32 one
         copy = model.shapes[:, :rows, :].ravel()
+        assert np.array_equal(packed[start:start + size], copy)
+        start += size
     else:
         copy = np.concatenate([np.transpose(model.shapes[:, :3, :], (2, 1, 0)).ravel(),
                                np.transpose(model.shapes[:, 3:, :], (2, 1, 0)).ravel() if offsets else []])
+    single = packed[start:].view(np.float32)
+    assert single.size == size + size % 2
     assert np.array_equal(single[:size], copy.astype(np.float32))
     state = np.full(NODE_STATE * count, np.nan)
     node_inertia_terms(params, 2, count, n, bits, eta, V, e, True, np.zeros((6, n)), np.zeros(6), np.zeros(n), state)
