@@ -690,39 +690,11 @@ def _single_node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
-def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
-    """``out += (G(eta) - G0 - tabled terms) (x - prev)`` as :func:`node_inertia_times` does for ``x``, over the
-    float32 copy of the shapes (:func:`node_params`), the per-node algebra in double. Mode-major (fewer than
-    :data:`NODE_MAJOR_MODES` modes): its two sweeps as :func:`node_inertia_times`'s, summed in float32 (half the
-    bytes of sweeps that the cache's bandwidth bounds, and eight products per vector instruction instead of four).
-    Node-major: one sweep, per node j ``alpha = lambda_j (x - prev)`` (and ``beta = gamma_j (x - prev)`` with CG
-    offsets) as dot products of its rows, its ``a``, ``z`` (:func:`_node_products`'s algebra), and ``acc +=
-    lambda_j' a + gamma_j' z`` while the node's rows are in L1, ``x - prev`` and ``acc`` kept in float32 in the pass
-    scratch (module docstring). Error about 1e-8 of the summands' size ``|Lambda|' |dJ| |Lambda| |x - prev|``
-    (float32's 6e-8 over sums of the modes and the nodes; ``tests/flexible/test_node_inertia.py``), which where the
-    sum cancels is a larger part of the product itself (4e-4 on the late corrections of the 196-mode tube): for the
-    refinement's late corrections only, where ``x - prev`` is a small fraction of ``x``
-    (:mod:`dynamics.kernels.articulated_body`)."""
-    varies, offset, ma, pa, lam, gam, th, D = _modal_mass_data(params, o, count, n, terms, state)
-    if not varies:
-        return
-    N = count
-    width = 3 * N
-    single, rows = _single_shapes(params, o, N, n)
-    if not node_major(N, n):
-        A = node_slot(state, N, S_A, 3).view(np.float32)[:width]
-        Z = node_slot(state, N, S_Z, 3).view(np.float32)[:width]
-        L32 = single[:n * width].reshape((n, width))
-        _single_shapes_times(L32, n, width, x, prev, A)
-        if offset:
-            G32 = single[n * width:].reshape((n, width))
-            _single_shapes_times(G32, n, width, x, prev, Z)
-        _node_products(params, ma, pa, N, offset, th, D, A, Z)
-        _single_shapes_dot(L32, n, width, A, out)
-        if offset:
-            _single_shapes_dot(G32, n, width, Z, out)
-        return
-    S = single.reshape((N, rows, n))
+def _node_major_times_single(S, params, N, n, offset, ma, pa, th, D, state, x, prev, out):
+    """:func:`node_inertia_times_single` over the node-major float32 shapes ``S`` (N x rows x n) in one sweep: per
+    node ``alpha = lambda_j (x - prev)`` (and ``beta = gamma_j (x - prev)``) as dot products of its rows, its ``a``,
+    ``z`` in double, and ``acc += lambda_j' a + gamma_j' z`` while its rows are in L1; ``x - prev`` and ``acc`` in
+    float32 in the pass scratch (``S_A`` to ``S_D``: 30 N float32, :func:`node_major` allows n <= 15 N)."""
     scratch = state[S_A * N:S_D * N].view(np.float32)
     dx = scratch[:n]
     acc = scratch[n:2 * n]
@@ -761,6 +733,42 @@ def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
                 acc[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k]
     for k in range(n):
         out[k] += acc[k]
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
+def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
+    """``out += (G(eta) - G0 - tabled terms) (x - prev)`` as :func:`node_inertia_times` does for ``x``, over the
+    float32 copy of the shapes (:func:`node_params`), the per-node algebra in double. Mode-major (fewer than
+    :data:`NODE_MAJOR_MODES` modes): its two sweeps as :func:`node_inertia_times`'s, summed in float32 (half the
+    bytes of sweeps that the cache's bandwidth bounds, and eight products per vector instruction instead of four).
+    Node-major: one sweep, per node j ``alpha = lambda_j (x - prev)`` (and ``beta = gamma_j (x - prev)`` with CG
+    offsets) as dot products of its rows, its ``a``, ``z`` (:func:`_node_products`'s algebra), and ``acc +=
+    lambda_j' a + gamma_j' z`` while the node's rows are in L1, ``x - prev`` and ``acc`` kept in float32 in the pass
+    scratch (module docstring). Error about 1e-8 of the summands' size ``|Lambda|' |dJ| |Lambda| |x - prev|``
+    (float32's 6e-8 over sums of the modes and the nodes; ``tests/flexible/test_node_inertia.py``), which where the
+    sum cancels is a larger part of the product itself (4e-4 on the late corrections of the 196-mode tube): for the
+    refinement's late corrections only, where ``x - prev`` is a small fraction of ``x``
+    (:mod:`dynamics.kernels.articulated_body`)."""
+    varies, offset, ma, pa, lam, gam, th, D = _modal_mass_data(params, o, count, n, terms, state)
+    if not varies:
+        return
+    N = count
+    width = 3 * N
+    single, rows = _single_shapes(params, o, N, n)
+    if not node_major(N, n):
+        A = node_slot(state, N, S_A, 3).view(np.float32)[:width]
+        Z = node_slot(state, N, S_Z, 3).view(np.float32)[:width]
+        L32 = single[:n * width].reshape((n, width))
+        _single_shapes_times(L32, n, width, x, prev, A)
+        if offset:
+            G32 = single[n * width:].reshape((n, width))
+            _single_shapes_times(G32, n, width, x, prev, Z)
+        _node_products(params, ma, pa, N, offset, th, D, A, Z)
+        _single_shapes_dot(L32, n, width, A, out)
+        if offset:
+            _single_shapes_dot(G32, n, width, Z, out)
+        return
+    _node_major_times_single(single.reshape((N, rows, n)), params, N, n, offset, ma, pa, th, D, state, x, prev, out)
 
 
 TILE = 4
