@@ -46,16 +46,39 @@ beam's terms 0.82x with forces and 0.77x without (main, interleaved, load 3).
 The result equals the tables' to round-off (``tests/flexible/test_node_inertia.py``).
 
 A refinement's late products (:func:`node_inertia_times_single`, for corrections below 1e-7 of the accelerations:
-:mod:`dynamics.kernels.articulated_body`) sweep single-precision copies of ``Lambda`` and ``Gamma`` that
-:func:`node_params` appends: the two sweeps of a product are bound by the cache's bandwidth (``Lambda`` of the 196-mode
-tube, 475 KB, about this EPYC's 512 KB L2: 2.5 doubles per cycle), and in float32 they move half the bytes and
-do eight products per vector instruction: 0.46x of the double product there, 0.70x at 20 modes (2026-12-07).
-Fusing the two double sweeps instead (by blocks of 2 to 24 nodes: a block's ``alpha``, its ``a``, its columns back
-while they are in cache) measured 2-4x slower (196 and 20 modes, 2026-12-07): a block's three component ranges are
-short pieces of each mode's row, which LLVM vectorized over the modes with emulated gathers rather than along the
-rows (numba has no ``noalias`` or loop pragmas), and a block's lines cannot stay in L1 anyway (196 modes x 3
-ranges, each one or two 64-byte lines, exceed 32 KB at any width); with the rows in L2 at best the two sweeps would
-gain about 18 % (the same sweeps on 230 KB of shapes run 0.82x per entry of 464 KB).
+:mod:`dynamics.kernels.articulated_body`) sweep a single-precision copy of ``Lambda`` (and ``Gamma`` with CG
+offsets) that :func:`node_params` appends: the sweeps of a product are bound by the cache's bandwidth (``Lambda`` of
+the 196-mode tube, 475 KB, about this EPYC's 512 KB L2), and in float32 they move half the bytes and do eight
+products per vector instruction: 0.46x of the double product there, 0.70x at 20 modes (2026-12-07). From
+:data:`NODE_MAJOR_MODES` = 160 modes (:func:`node_major`) the copies are node-major (per node j its rows
+``lambda_j`` and with offsets ``gamma_j``, n numbers each) and a product is one sweep instead of two: per node the
+dot products of its rows with ``x`` (``alpha``), its ``a`` in double, and ``out += lambda_j' a`` while its rows
+(4.7 KB at 196 modes in double) are in L1; the double product too (:func:`node_inertia_times`, two nodes at a time:
+one load of ``x`` and of ``out`` per six rows), over a node-major double copy that :func:`node_params` then adds.
+Measured 2026-12-07 (``benchmarks/node_terms_passes.py`` data, interleaved medians against the two mode-major
+sweeps, load 1.4-1.8 on 2 cores: another session ran): on the 196-mode tube the double product 0.90-0.95x and the
+single 0.88-0.99x (0.95x at 51 rounds); on random data of the tube's size the single 0.85-0.9x at 196 modes and
+0.78-0.80x at 400 (the mode-major copy then exceeds the L2), the double 0.86x and 0.78x. Below 160 modes the
+sweeps stay mode-major: node-major, the per-node reductions (three per node and product, against one per mode)
+cost more than the second read saves (single 1.43-1.48x at the hub beam's 20 modes, 1.2x at 50, about even at
+128-150; double 1.1-1.2x at 20). The node-major double copy is the price: ``3 N n`` (``6 N n`` with offsets) more
+doubles where :func:`node_major` (475 KB on the tube), the float32 copy without offsets half of what it was.
+
+Tried for the node terms' passes and dropped (2026-12-07, random data of the tube's size, 101 nodes, 196 modes,
+interleaved medians, load 0.9-1.8): the same node-major fusion, one read of ``Lambda`` and ``Gamma`` per evaluation
+instead of two (per node the 12 dot products of its 6 rows with eta and the rates, the algebra, then ``M_re``'s 3
+rows and ``b_m`` from the same rows): 55 against 48 us for the passes alone, without the algebra (node-major
+apart: forward 26 against 22, back 35 against 31); blocks of 8 to 51 nodes stored mode-major within the block
+(forward and back of a block while it is in L2): 56-77 against 49-53 us; four nodes to a vector lane (one block of
+4 nodes' 12 numbers per mode, no reductions per node): LLVM vectorized neither the loops nor their lanes (scalar
+code, 26 against 15 us for a product); the ``Gamma`` back sweep using the zero diagonal of the skew
+``m (u + d)~`` (6 instead of 8 multiply-adds per entry and row pair): 1.03x; six or eight rows of the shapes per
+forward sweep instead of four: 1.0-1.05x (1.2x at 20 modes). At 196 modes the four mode-major sweeps of a shared
+evaluation run near the machine's floor (~36 us of multiply-adds at two 4-wide per cycle, measured 48).
+Fusing the two double sweeps by blocks of nodes over the mode-major layout (a block's ``alpha``, its ``a``, its
+columns back while they are in cache) measured 2-4x slower (196 and 20 modes, 2026-12-07): a block's three
+component ranges are short pieces of each mode's row, which LLVM vectorized over the modes with emulated gathers
+rather than along the rows (numba has no ``noalias`` or loop pragmas).
 
 Where the modal mass is formed rather than refined (:func:`node_inertia_modal_mass`: the factored modal mass of a
 body with few modes, ``dynamics.system.refinement_budget``, and the composite-inertia mass matrix),
@@ -69,7 +92,8 @@ share one sweep over ``Lambda`` the same way.
 
 Data (:mod:`dynamics.layout`): ``FX_NODES`` points at what :func:`node_params` packs for ``FX_NODE_COUNT``
 nodes (whether any node has a CG offset; the masses, offsets and inertias node-minor; the rotation shapes
-``Lambda`` and translation shapes ``Gamma``, n x 3N each, row s holding mode s's components node-minor);
+``Lambda`` and translation shapes ``Gamma``, n x 3N each, row s holding mode s's components node-minor; where
+:func:`node_major`, the shapes node-major in double; the shapes in single precision);
 ``FX_NODE_TERMS`` says which terms; ``FX_P_NODES`` holds ``NODE_STATE`` numbers per node: each node's
 ``theta`` and ``u`` for the products with the modal mass of the same evaluation (:func:`node_inertia_times`,
 :func:`node_inertia_modal_mass`) and the per-node coefficients and scratch of the passes.
@@ -97,26 +121,28 @@ NODE_STATE = 36
 
 
 NODE_MAJOR_MODES = 160
-"""From this many modes (and at most ``S_D - S_A`` = 15 per node, the pass scratch holding ``x - prev`` and the sum
-in float32) the single-precision shapes of :func:`node_params` are node-major and :func:`node_inertia_times_single`
-sweeps them once (module docstring); below, mode-major and swept twice."""
+"""From this many modes (and at most ``S_D - S_A`` = 15 per node: the pass scratch holds the single-precision
+product's ``x - prev`` and sum in float32) :func:`node_params` adds node-major copies of the shapes, in double and
+in single precision, and the products with the modal mass (:func:`node_inertia_times`,
+:func:`node_inertia_times_single`) sweep them once; below, they sweep the mode-major ones twice (module
+docstring)."""
 
 
 @njit(cache=True, inline="always")
 def node_major(count, n):
-    """Whether the single-precision shapes of ``count`` nodes and ``n`` modes are node-major
-    (:data:`NODE_MAJOR_MODES`)."""
+    """Whether the products with the modal mass of ``count`` nodes and ``n`` modes sweep node-major copies of the
+    shapes (:data:`NODE_MAJOR_MODES`)."""
     return NODE_MAJOR_MODES <= n <= (S_D - S_A) * count
 
 
 def node_params(mass, cg, inertia, shapes):
     """The node data as :mod:`dynamics.kernels.node_inertia` reads them from params: ``[any CG offset, m (N),
-    p (3 N), J (9 N), Lambda (n x 3 N), Gamma (n x 3 N), the shapes in single precision]``, node-minor (module
-    docstring), from the masses (N), CG offsets (N, 3), inertias (N, 3, 3) and shapes ``[lambda; gamma]``
-    (N, 6, n). The single-precision shapes (float32, padded to a whole number of doubles) are those
-    :func:`node_inertia_times_single` reads: ``Lambda`` and, when any node has a CG offset, ``Gamma``, mode-major
-    (n x 3 N each, as the double ones) or, where :func:`node_major`, node-major (per node j its rows
-    ``lambda_j`` and with offsets ``gamma_j``: N x 3 x n or N x 6 x n)."""
+    p (3 N), J (9 N), Lambda (n x 3 N), Gamma (n x 3 N), the shapes node-major where :func:`node_major`, the
+    shapes in single precision]``, node-minor (module docstring), from the masses (N), CG offsets (N, 3), inertias
+    (N, 3, 3) and shapes ``[lambda; gamma]`` (N, 6, n). Node-major: per node j its rows ``lambda_j`` and, when any
+    node has a CG offset, ``gamma_j`` (N x 3 x n or N x 6 x n). In single precision (float32, padded to a whole
+    number of doubles): the same node-major where :func:`node_major`, else ``Lambda`` and, with a CG offset,
+    ``Gamma`` mode-major (n x 3 N each, as the double ones)."""
     count, _, n = shapes.shape
     offset = bool(np.any(np.asarray(cg) != 0.0))
     rotations = np.transpose(shapes[:, :3, :], (2, 1, 0)).reshape(n, 3 * count)
