@@ -50,19 +50,24 @@ A refinement's late products (:func:`node_inertia_times_single`, for corrections
 offsets) that :func:`node_params` appends: the sweeps of a product are bound by the cache's bandwidth (``Lambda`` of
 the 196-mode tube, 475 KB, about this EPYC's 512 KB L2), and in float32 they move half the bytes and do eight
 products per vector instruction: 0.46x of the double product there, 0.70x at 20 modes (2026-12-07). From
-:data:`NODE_MAJOR_MODES` = 160 modes (:func:`node_major`) the copies are node-major (per node j its rows
+:data:`NODE_MAJOR_MODES` = 96 modes (:func:`node_major`) the copies are node-major (per node j its rows
 ``lambda_j`` and with offsets ``gamma_j``, n numbers each) and a product is one sweep instead of two: per node the
 dot products of its rows with ``x`` (``alpha``), its ``a`` in double, and ``out += lambda_j' a`` while its rows
 (4.7 KB at 196 modes in double) are in L1; the double product too (:func:`node_inertia_times`, two nodes at a time:
 one load of ``x`` and of ``out`` per six rows), over a node-major double copy that :func:`node_params` then adds.
-Measured 2026-12-07 (``benchmarks/node_terms_passes.py`` data, interleaved medians against the two mode-major
-sweeps, load 1.4-1.8 on 2 cores: another session ran): on the 196-mode tube the double product 0.90-0.95x and the
-single 0.88-0.99x (0.95x at 51 rounds); on random data of the tube's size the single 0.85-0.9x at 196 modes and
-0.78-0.80x at 400 (the mode-major copy then exceeds the L2), the double 0.86x and 0.78x. Below 160 modes the
-sweeps stay mode-major: node-major, the per-node reductions (three per node and product, against one per mode)
-cost more than the second read saves (single 1.43-1.48x at the hub beam's 20 modes, 1.2x at 50, about even at
-128-150; double 1.1-1.2x at 20). The node-major double copy is the price: ``3 N n`` (``6 N n`` with offsets) more
-doubles where :func:`node_major` (475 KB on the tube), the float32 copy without offsets half of what it was.
+Measured 2026-12-07 against the two mode-major sweeps. The kernels alone, called in a loop on data that stay in
+cache (``benchmarks/node_terms_passes.py``, interleaved medians, load 0.7-1.8 on 2 cores): on the 196-mode tube the
+double product 0.90-0.95x and the single 0.88-0.99x; on random data of the tube's size the single 0.85-0.9x at 196
+modes and 0.78-0.80x at 400 (the mode-major copy then exceeds the L2), about even at 128-150, 1.1x at 100, 1.2x at
+50, 1.43-1.48x at the hub beam's 20 modes (the per-node reductions, three per node and product against one per
+mode, cost more than the second read saves); the double 0.86x at 196, 0.78x at 400, 1.1-1.2x at 20. In the
+forward dynamics, where other passes evict the shapes between products (``benchmarks/flexible_scaling.py
+--deck-only``, runs of ``main`` and this code alternated, medians, load 1-3): the tube's order 2 at 196 modes
+0.94x (167 against 178 us; 4.70-4.83x order 0 against 4.93-5.10x), order 1 0.94x (4.61-4.71x against 4.92-4.93x),
+at 400 modes 0.94-0.95x and 0.91-0.96x, with the threshold at 96 modes order 2 0.97-0.98x at 100 modes and 0.96x
+at 128 (order 1 0.98x and 0.95x). Below 96 modes the sweeps stay mode-major. The node-major double copy is the
+price: ``3 N n`` (``6 N n`` with offsets) more doubles where :func:`node_major` (475 KB on the tube at 196 modes),
+the float32 copy without offsets half of what it was.
 
 Tried for the node terms' passes and dropped (2026-12-07, random data of the tube's size, 101 nodes, 196 modes,
 interleaved medians, load 0.9-1.8): the same node-major fusion, one read of ``Lambda`` and ``Gamma`` per evaluation
@@ -120,7 +125,7 @@ NODE_STATE = 36
 """Pool numbers per node (:data:`dynamics.layout.FX_P_NODES`)."""
 
 
-NODE_MAJOR_MODES = 160
+NODE_MAJOR_MODES = 96
 """From this many modes (and at most ``S_D - S_A`` = 15 per node: the pass scratch holds the single-precision
 product's ``x - prev`` and sum in float32) :func:`node_params` adds node-major copies of the shapes, in double and
 in single precision, and the products with the modal mass (:func:`node_inertia_times`,

@@ -120,7 +120,7 @@ def test_formed_modal_mass_equals_the_node_sum(terms, offsets, count, n):
     with ``dJ = theta~ J - J theta~`` [G1] ``- theta~ J theta~`` [G2] and, with G1, the offsets'
     ``m (lambda_j' dP gamma_j + gamma_j' dP' lambda_j)``, ``dP = (theta x p)~``; mode counts below, at and past
     the tile's four (every remainder of the blocks and of the row pairs). Also ``node_inertia_times`` against the
-    formed matrix: over the mode-major shapes (few modes) and over the node-major copy (from NODE_MAJOR_MODES = 160
+    formed matrix: over the mode-major shapes (few modes) and over the node-major copy (from NODE_MAJOR_MODES = 96
     modes, two nodes at a time: 11 nodes leave one over, 12 none). Tolerance 1e-13 of the sum of the summands' sizes (``|lambda|' |dJ| |lambda|``; the sum itself
     cancels to zero at one mode, plus the 2 that ``G`` holds on entry): the same ~30 N products summed in another
     order."""
