@@ -46,27 +46,28 @@ from dynamics.kernels import body_terms as BT  # noqa: E402
 from dynamics.kernels import modal_condensation as MC  # noqa: E402
 from dynamics.kernels import node_inertia as NI  # noqa: E402
 from dynamics.kernels.kinematics import general_kinematics  # noqa: E402
+from dynamics.layout import view  # noqa: E402
 
 
-@njit
+@njit(cache=True)
 def _forward(R, a):
     for _ in range(R):
         AB.forward_dynamics(*a)
 
 
-@njit
+@njit(cache=True)
 def _kinematics(R, a):
     for _ in range(R):
         general_kinematics(0, a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[12], a[13], a[14], a[15], True)
 
 
-@njit
+@njit(cache=True)
 def _pass1(R, a):
     for _ in range(R):
         AB._flexible_inertia_and_bias(0, a[0], a[4], a[5], a[6], a[9], False, a[13], a[14], a[15])
 
 
-@njit
+@njit(cache=True)
 def _tables(R, a):
     top, params, q, u, wv, wm, pool = a[0], a[4], a[5], a[6], a[13], a[14], a[15]
     n = top[0, L.N_MODES]
@@ -76,13 +77,13 @@ def _tables(R, a):
     pv = fx[L.FX_P_VEC]
     for _ in range(R):
         FK.modal_mass_and_bias(fx, params, n, q[qe:qe + n], wv[0, L.VEC_V], u[ue:ue + n], True, True,
-                               L.view(pool, fx[L.FX_P_MRR], 6, 6), L.view(pool, fx[L.FX_P_MRE], 6, n),
-                               L.view(pool, fx[L.FX_P_G], n, n), wv[0, L.VEC_P],
+                               view(pool, fx[L.FX_P_MRR], 6, 6), view(pool, fx[L.FX_P_MRE], 6, n),
+                               view(pool, fx[L.FX_P_G], n, n), wv[0, L.VEC_P],
                                pool[pv + L.PV_FORCE * n:pv + (L.PV_FORCE + 1) * n], wm[0, L.MAT_IAP],
-                               L.view(pool, fx[L.FX_P_MDRE], 6, n))
+                               view(pool, fx[L.FX_P_MDRE], 6, n))
 
 
-@njit
+@njit(cache=True)
 def _node_terms(R, a):
     top, params, q, u, wv, pool = a[0], a[4], a[5], a[6], a[13], a[15]
     n = top[0, L.N_MODES]
@@ -93,12 +94,12 @@ def _node_terms(R, a):
     count = fx[L.FX_NODE_COUNT]
     for _ in range(R):
         NI.node_inertia_terms(params, fx[L.FX_NODES], count, n, fx[L.FX_NODE_TERMS], q[qe:qe + n], wv[0, L.VEC_V],
-                              u[ue:ue + n], True, L.view(pool, fx[L.FX_P_MRE], 6, n), wv[0, L.VEC_P],
+                              u[ue:ue + n], True, view(pool, fx[L.FX_P_MRE], 6, n), wv[0, L.VEC_P],
                               pool[pv + L.PV_FORCE * n:pv + (L.PV_FORCE + 1) * n],
                               pool[fx[L.FX_P_NODES]:fx[L.FX_P_NODES] + NI.NODE_STATE * count])
 
 
-@njit
+@njit(cache=True)
 def _node_modal_mass(R, a):
     top, params, pool = a[0], a[4], a[15]
     n = top[0, L.N_MODES]
@@ -107,16 +108,16 @@ def _node_modal_mass(R, a):
     for _ in range(R):
         NI.node_inertia_modal_mass(params, fx[L.FX_NODES], count, n, fx[L.FX_NODE_TERMS],
                                    pool[fx[L.FX_P_NODES]:fx[L.FX_P_NODES] + NI.NODE_STATE * count],
-                                   L.view(pool, fx[L.FX_P_G], n, n))
+                                   view(pool, fx[L.FX_P_G], n, n))
 
 
-@njit
+@njit(cache=True)
 def _node_forces(R, a):
     for _ in range(R):
         BT.apply_node_forces(a[0], a[1], a[4], a[5], a[8], a[13], a[15], -1.0)
 
 
-@njit
+@njit(cache=True)
 def _restore(a, G, IA):
     top, wm, pool = a[0], a[14], a[15]
     o = top[0, L.FLEX + L.FX_P_G]
@@ -125,46 +126,46 @@ def _restore(a, G, IA):
     wm[0, L.MAT_IA] = IA
 
 
-@njit
+@njit(cache=True)
 def _restore_only(R, a, G, IA):
     for _ in range(R):
         _restore(a, G, IA)
 
 
-@njit
+@njit(cache=True)
 def _condense_inertia(R, a, G, IA):
     for _ in range(R):
         _restore(a, G, IA)
         MC.condense_inertia(0, a[0], a[1], a[4], False, a[14], a[15])
 
 
-@njit
+@njit(cache=True)
 def _condense_bias(R, a):
     for _ in range(R):
         MC.condense_bias(0, a[0], a[1], a[4], a[7], False, a[13], a[15])
 
 
-@njit
+@njit(cache=True)
 def _hinge(R, a):
     for _ in range(R):
         AB._hinge_inertia(0, a[0], a[14])
         AB._hinge_bias(0, a[0], a[7], a[14], a[13])
 
 
-@njit
+@njit(cache=True)
 def _accelerations(R, a, stop):
     ground = a[4][L.GROUND_ACCEL:L.GROUND_ACCEL + 6]
     for _ in range(R):
         AB._acceleration_pass(a[0], a[1], ground, a[7], a[10], a[11], a[12], a[13], a[14], a[15], 0, stop)
 
 
-@njit
+@njit(cache=True)
 def _bias_pass(R, a):
     for _ in range(R):
         AB._bias_pass(a[0], a[1], a[4], a[7], False, a[12], a[13], a[14], a[15])
 
 
-@njit
+@njit(cache=True)
 def _change(R, a):
     total = 0.0
     for _ in range(R):
@@ -172,7 +173,7 @@ def _change(R, a):
     return total
 
 
-@njit
+@njit(cache=True)
 def _products(R, a, single):
     for _ in range(R):
         AB._refinement_products(a[0], a[4], a[10], a[15], single)
