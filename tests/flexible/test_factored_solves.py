@@ -1,10 +1,11 @@
 """The small solves of the articulated-body recursion against numpy's LAPACK: the factored modal mass applied to
 rows (:func:`dynamics.flexible_kernels.modal_mass_solve_rows`, six rows per sweep since 2026-12-07) and the hinge's
-``D^-1`` (:func:`dynamics.kernels.small_linalg.spd_inverse`, with the pivots' reciprocals).
+``D^-1`` (:func:`dynamics.kernels.small_linalg.spd_inverse`, with the pivots' reciprocals) and the solve with a Cholesky
+factor of the dense solver (:func:`dynamics.flexible_kernels.cholesky_solve`).
 
 References and tolerances: ``numpy.linalg.solve`` and ``numpy.linalg.inv`` of the same matrices, which are well
 conditioned here (condition numbers below 1e3): both sides are then good to a few eps times the condition number,
-so 1e-12 relative to the largest entry leaves a margin of about 10 over what either side can lose; a wrong index,
+so 1e-12 relative to the largest entry leaves a margin of 5 or more over what either side can lose; a wrong index,
 a row skipped or solved twice with the wrong right-hand side, or a reciprocal applied twice gives an error of order
 one. The forward dynamics through these solves (children on nodes: Woodbury ranks 12 and 24, taken six rows per
 sweep) is checked against the dense solve in ``tests/flexible/test_modal_condensation.py``.
@@ -57,3 +58,15 @@ def test_spd_inverse_refuses_a_singular_block():
     D[:, 5] = D[:, 0]
     D[5, :] = D[0, :]  # row and column 5 repeat row and column 0: positive semidefinite, singular
     assert not spd_inverse(D, 6, 1e-14 * np.trace(D), np.zeros((6, 6)), np.zeros((6, 6)))
+
+
+@pytest.mark.parametrize("n", [1, 3, 50, 200])
+def test_cholesky_solve_equals_lapack(n):
+    # the dense solver's and the constraints' solve (dynamics.kernels.dense_forward, dynamics.constraint_kernels)
+    G = spd(n, seed=7 * n)
+    factor = G.copy()
+    assert FK.cholesky_in_place(factor, n) < 0
+    y = np.random.default_rng(n).standard_normal(n)
+    reference = np.linalg.solve(G, y)
+    FK.cholesky_solve(factor, n, y)
+    assert np.abs(y - reference).max() <= 1e-12 * np.abs(reference).max()
