@@ -632,17 +632,19 @@ def cholesky_in_place(G, n):
 @njit(cache=True)
 def cholesky_solve(L, n, y):
     """``y <- (L L')^-1 y`` in place for the lower Cholesky factor in ``L[:n, :n]`` (:func:`cholesky_in_place`):
-    forward, then backward substitution."""
+    forward, then backward substitution, both reading rows of L (the latter as updates of the entries above by
+    each solved one, as :func:`modal_mass_solve_rows`: a column's entries are n apart; 0.62x of the sums down the
+    columns at n = 30, 0.51x at n = 200, 2026-12-07)."""
     for s in range(n):
         t = y[s]
         for j in range(s):
             t -= L[s, j] * y[j]
         y[s] = t / L[s, s]
     for s in range(n - 1, -1, -1):
-        t = y[s]
-        for j in range(s + 1, n):
-            t -= L[j, s] * y[j]
-        y[s] = t / L[s, s]
+        z = y[s] / L[s, s]
+        y[s] = z
+        for j in range(s):
+            y[j] -= L[s, j] * z
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
@@ -669,15 +671,68 @@ def modal_mass_solve_rows(fx, kind, params, n, L, X, rows, out):
                 for l in range(n):
                     out[a, l] += x * params[base + l]
         return
-    for a in range(rows):
-        # L L' z = x: forward, then back substitution
+    if rows == 1:
+        # L L' z = x: forward substitution by dot products with the rows of L (reassociated: vectorized), back
+        # substitution as updates of the entries above by each solved one (row s of L again, not column s: a
+        # column's entries are n apart); 2026-12-07: 0.40 against 0.54 us at n = 20, 8.2 against 36 us at n = 196
+        # (both sweeps as dot products); both as updates 0.42 and 26 us
+        o = out[0]
         for s in range(n):
-            t = X[a, s]
+            t = X[0, s]
             for k in range(s):
-                t -= L[s, k] * out[a, k]
-            out[a, s] = t / L[s, s]
+                t -= L[s, k] * o[k]
+            o[s] = t / L[s, s]
         for s in range(n - 1, -1, -1):
-            t = out[a, s]
-            for k in range(s + 1, n):
-                t -= L[k, s] * out[a, k]
-            out[a, s] = t / L[s, s]
+            z = o[s] / L[s, s]
+            o[s] = z
+            for k in range(s):
+                o[k] -= L[s, k] * z
+        return
+    for b in range(0, rows, 6):
+        _factored_solve_six(L, n, X, out, b, rows)
+
+
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def _factored_solve_six(L, n, X, out, b, rows):
+    """``out[i] = X[i] (L L')^-1`` for the six rows ``i = b .. b + 5`` (past ``rows - 1``: the last row again, the
+    same numbers written twice) at once: one load of each ``L[s, k]`` per six multiply-adds, six independent sums
+    (one row at a time waits on each sum's additions and loads ``L`` six times: 3.3 against 0.75 us for the
+    six rows of ``M_re`` at 20 modes, 2026-12-07). The back substitution reads column s of ``L``; as updates by
+    row s instead (as the one-row solve) it measured 1.2x at 20 modes and 0.54x at 196 (where the modal mass is
+    factored only when its refinement does not converge), 2026-12-07."""
+    i0, i1, i2 = b, min(b + 1, rows - 1), min(b + 2, rows - 1)
+    i3, i4, i5 = min(b + 3, rows - 1), min(b + 4, rows - 1), min(b + 5, rows - 1)
+    for s in range(n):
+        t0, t1, t2, t3, t4, t5 = X[i0, s], X[i1, s], X[i2, s], X[i3, s], X[i4, s], X[i5, s]
+        for k in range(s):
+            c = L[s, k]
+            t0 -= c * out[i0, k]
+            t1 -= c * out[i1, k]
+            t2 -= c * out[i2, k]
+            t3 -= c * out[i3, k]
+            t4 -= c * out[i4, k]
+            t5 -= c * out[i5, k]
+        d = 1.0 / L[s, s]  # one division per step, not six
+        out[i0, s] = t0 * d
+        out[i1, s] = t1 * d
+        out[i2, s] = t2 * d
+        out[i3, s] = t3 * d
+        out[i4, s] = t4 * d
+        out[i5, s] = t5 * d
+    for s in range(n - 1, -1, -1):
+        t0, t1, t2, t3, t4, t5 = out[i0, s], out[i1, s], out[i2, s], out[i3, s], out[i4, s], out[i5, s]
+        for k in range(s + 1, n):
+            c = L[k, s]
+            t0 -= c * out[i0, k]
+            t1 -= c * out[i1, k]
+            t2 -= c * out[i2, k]
+            t3 -= c * out[i3, k]
+            t4 -= c * out[i4, k]
+            t5 -= c * out[i5, k]
+        d = 1.0 / L[s, s]  # one division per step, not six
+        out[i0, s] = t0 * d
+        out[i1, s] = t1 * d
+        out[i2, s] = t2 * d
+        out[i3, s] = t3 * d
+        out[i4, s] = t4 * d
+        out[i5, s] = t5 * d

@@ -36,6 +36,25 @@ formed and factored (O(N_r n^2 + n^3)), the result being the same to round-off e
 is below ``dynamics.system.MIN_REFINEMENT_BUDGET`` (few modes for its nodes: the formation, a tiled matrix product,
 costs less than the four or five refinements deformations of 1e-4..1e-3 rad take) is not refined at all: its
 ``G(eta)`` is formed and factored on every evaluation.
+
+Where an evaluation's time goes (``benchmarks/derivative_profile.py``, each step timed alone in compiled loops,
+2026-12-07, load 1.4-2 on 2 cores: compare rows, not runs). The hub beam of ``benchmarks/flexible_vs_exudyn.py --case
+beam`` (105 nodes with rotary inertia, 20 modes, order 2, ``G(eta)`` formed and factored), 24-34 us in all:
+node_inertia_terms (G1, F2, G2 with their forces) 28 %, node_inertia_modal_mass (``G(eta)`` formed) 26 %, the
+tables' terms (modal_mass_and_bias: R1, C1, J2 and the copy of G0) 13 %, the modal elimination's inertia part
+(Cholesky of ``G(eta)``, ``M_re G^-1``, the 6 x 6 Schur complement) 9 %, its bias part 3 %, the hinge step 3 %,
+kinematics, node forces and the acceleration pass 2 % each. ``M_re G^-1`` took 3.3 us (six rows solved one at a
+time) before its rows were solved six at a time (0.75 us, :func:`dynamics.flexible_kernels.modal_mass_solve_rows`).
+Refining this body's modal mass instead of factoring it measured 1.2x the factored evaluation at a 3 cm tip
+deflection (five passes) and 1.35x at 0.3 m (two passes, then the fall-back): the budget's choice stands.
+A refinement pass of the 196-mode tube with a wheel (``benchmarks/flexible_scaling.py --deck-only``) costs about
+2.5 us besides its product with ``dG`` (15 us in double, 7 in single precision): the bias pass 1.6 (of which the
+modal elimination's bias part 1.4, its Woodbury and ``B'`` rows taken six per sweep: 0.87x of a sweep per row), the
+acceleration pass 0.6, the convergence check 0.2. What a pass recomputes unchanged is small and was left: the
+modal right-hand side without ``dG`` and the children's slot terms (a third of the bias part's multiply-adds with
+one child node: about 0.4 us a pass, 1 % of the evaluation, for a split of :func:`condense_bias` into a fixed and a
+per-pass part that holds only when no refined body hangs below another), the bias steps of the bodies after the
+last refined one (the wheel's: 0.13 us).
 """
 
 from __future__ import annotations
