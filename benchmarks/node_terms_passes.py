@@ -58,10 +58,9 @@ def _case(body, n):
     e = 0.1 * omega * eta
     V = np.array([0.0, 0.0, 0.05, 0.0, 0.0, 0.0])
     sel = np.abs(body.node_inertia).reshape(len(body.node_mass), -1).max(axis=1) > 0.0
-    inertia_params = np.concatenate([[0.0], NI.node_params(body.node_mass[sel], body.node_cm_offset[sel],
-                                                           body.node_inertia[sel], shapes[sel])])
+    inertia_args = (body.node_mass[sel], body.node_cm_offset[sel], body.node_inertia[sel], shapes[sel])
     mass_args = (body.node_mass, body.node_cm_offset, body.node_inertia, body.grid_positions, shapes)
-    return dict(n=n, N=int(sel.sum()), Nm=len(body.node_mass), eta=eta, e=e, V=V, ip=inertia_params,
+    return dict(n=n, N=int(sel.sum()), Nm=len(body.node_mass), eta=eta, e=e, V=V, inertia_args=inertia_args,
                 mass_args=mass_args, shared=bool(sel.all()))
 
 
@@ -69,7 +68,8 @@ def _calls(c, bits, NI, NM):
     """name -> zero-argument call, for one case, of the kernels of the modules ``NI`` (node_inertia) and ``NM``
     (node_mass); the passes a module does not have are left out."""
     n, N, Nm = c["n"], c["N"], c["Nm"]
-    ip, eta, e, V = c["ip"], c["eta"], c["e"], c["V"]
+    eta, e, V = c["eta"], c["e"], c["V"]
+    ip = np.concatenate([[0.0], NI.node_params(*c["inertia_args"])])  # each version's own packing
     mp = np.concatenate([[0.0], NM.node_mass_params(*c["mass_args"])])
     state = np.zeros(NI.NODE_STATE * N)
     Mre, br, bm, G = np.zeros((6, n)), np.zeros(6), np.zeros(n), np.zeros((n, n))

@@ -46,16 +46,44 @@ beam's terms 0.82x with forces and 0.77x without (main, interleaved, load 3).
 The result equals the tables' to round-off (``tests/flexible/test_node_inertia.py``).
 
 A refinement's late products (:func:`node_inertia_times_single`, for corrections below 1e-7 of the accelerations:
-:mod:`dynamics.kernels.articulated_body`) sweep single-precision copies of ``Lambda`` and ``Gamma`` that
-:func:`node_params` appends: the two sweeps of a product are bound by the cache's bandwidth (``Lambda`` of the 196-mode
-tube, 475 KB, about this EPYC's 512 KB L2: 2.5 doubles per cycle), and in float32 they move half the bytes and
-do eight products per vector instruction: 0.46x of the double product there, 0.70x at 20 modes (2026-12-07).
-Fusing the two double sweeps instead (by blocks of 2 to 24 nodes: a block's ``alpha``, its ``a``, its columns back
-while they are in cache) measured 2-4x slower (196 and 20 modes, 2026-12-07): a block's three component ranges are
-short pieces of each mode's row, which LLVM vectorized over the modes with emulated gathers rather than along the
-rows (numba has no ``noalias`` or loop pragmas), and a block's lines cannot stay in L1 anyway (196 modes x 3
-ranges, each one or two 64-byte lines, exceed 32 KB at any width); with the rows in L2 at best the two sweeps would
-gain about 18 % (the same sweeps on 230 KB of shapes run 0.82x per entry of 464 KB).
+:mod:`dynamics.kernels.articulated_body`) sweep a single-precision copy of ``Lambda`` (and ``Gamma`` with CG
+offsets) that :func:`node_params` appends: the sweeps of a product are bound by the cache's bandwidth (``Lambda`` of
+the 196-mode tube, 475 KB, about this EPYC's 512 KB L2), and in float32 they move half the bytes and do eight
+products per vector instruction: 0.46x of the double product there, 0.70x at 20 modes (2026-12-07). From
+:data:`NODE_MAJOR_MODES` = 96 modes (:func:`node_major`) the copies are node-major (per node j its rows
+``lambda_j`` and with offsets ``gamma_j``, n numbers each) and a product is one sweep instead of two: per node the
+dot products of its rows with ``x`` (``alpha``), its ``a`` in double, and ``out += lambda_j' a`` while its rows
+(4.7 KB at 196 modes in double) are in L1; the double product too (:func:`node_inertia_times`, two nodes at a time:
+one load of ``x`` and of ``out`` per six rows), over a node-major double copy that :func:`node_params` then adds.
+Measured 2026-12-07 against the two mode-major sweeps. The kernels alone, called in a loop on data that stay in
+cache (``benchmarks/node_terms_passes.py``, interleaved medians, load 0.7-1.8 on 2 cores): on the 196-mode tube the
+double product 0.90-0.95x and the single 0.88-0.99x; on random data of the tube's size the single 0.85-0.9x at 196
+modes and 0.78-0.80x at 400 (the mode-major copy then exceeds the L2), about even at 128-150, 1.1x at 100, 1.2x at
+50, 1.43-1.48x at the hub beam's 20 modes (the per-node reductions, three per node and product against one per
+mode, cost more than the second read saves); the double 0.86x at 196, 0.78x at 400, 1.1-1.2x at 20. In the
+forward dynamics, where other passes evict the shapes between products (``benchmarks/flexible_scaling.py
+--deck-only``, runs of ``main`` and this code alternated, medians, load 1-3): the tube's order 2 at 196 modes
+0.94x (167 against 178 us; 4.70-4.83x order 0 against 4.93-5.10x), order 1 0.94x (4.61-4.71x against 4.92-4.93x),
+at 400 modes 0.94-0.95x and 0.91-0.96x, with the threshold at 96 modes order 2 0.97-0.98x at 100 modes and 0.96x
+at 128 (order 1 0.98x and 0.95x). Below 96 modes the sweeps stay mode-major. The node-major double copy is the
+price: ``3 N n`` (``6 N n`` with offsets) more doubles where :func:`node_major` (475 KB on the tube at 196 modes),
+the float32 copy without offsets half of what it was.
+
+Tried for the node terms' passes and dropped (2026-12-07, random data of the tube's size, 101 nodes, 196 modes,
+interleaved medians, load 0.9-1.8): the same node-major fusion, one read of ``Lambda`` and ``Gamma`` per evaluation
+instead of two (per node the 12 dot products of its 6 rows with eta and the rates, the algebra, then ``M_re``'s 3
+rows and ``b_m`` from the same rows): 55 against 48 us for the passes alone, without the algebra (node-major
+apart: forward 26 against 22, back 35 against 31); blocks of 8 to 51 nodes stored mode-major within the block
+(forward and back of a block while it is in L2): 56-77 against 49-53 us; four nodes to a vector lane (one block of
+4 nodes' 12 numbers per mode, no reductions per node): LLVM vectorized neither the loops nor their lanes (scalar
+code, 26 against 15 us for a product); the ``Gamma`` back sweep using the zero diagonal of the skew
+``m (u + d)~`` (6 instead of 8 multiply-adds per entry and row pair): 1.03x; six or eight rows of the shapes per
+forward sweep instead of four: 1.0-1.05x (1.2x at 20 modes). At 196 modes the four mode-major sweeps of a shared
+evaluation run near the machine's floor (~36 us of multiply-adds at two 4-wide per cycle, measured 48).
+Fusing the two double sweeps by blocks of nodes over the mode-major layout (a block's ``alpha``, its ``a``, its
+columns back while they are in cache) measured 2-4x slower (196 and 20 modes, 2026-12-07): a block's three
+component ranges are short pieces of each mode's row, which LLVM vectorized over the modes with emulated gathers
+rather than along the rows (numba has no ``noalias`` or loop pragmas).
 
 Where the modal mass is formed rather than refined (:func:`node_inertia_modal_mass`: the factored modal mass of a
 body with few modes, ``dynamics.system.refinement_budget``, and the composite-inertia mass matrix),
@@ -69,7 +97,8 @@ share one sweep over ``Lambda`` the same way.
 
 Data (:mod:`dynamics.layout`): ``FX_NODES`` points at what :func:`node_params` packs for ``FX_NODE_COUNT``
 nodes (whether any node has a CG offset; the masses, offsets and inertias node-minor; the rotation shapes
-``Lambda`` and translation shapes ``Gamma``, n x 3N each, row s holding mode s's components node-minor);
+``Lambda`` and translation shapes ``Gamma``, n x 3N each, row s holding mode s's components node-minor; where
+:func:`node_major`, the shapes node-major in double; the shapes in single precision);
 ``FX_NODE_TERMS`` says which terms; ``FX_P_NODES`` holds ``NODE_STATE`` numbers per node: each node's
 ``theta`` and ``u`` for the products with the modal mass of the same evaluation (:func:`node_inertia_times`,
 :func:`node_inertia_modal_mass`) and the per-node coefficients and scratch of the passes.
@@ -96,18 +125,42 @@ NODE_STATE = 36
 """Pool numbers per node (:data:`dynamics.layout.FX_P_NODES`)."""
 
 
+NODE_MAJOR_MODES = 96
+"""From this many modes (and at most ``S_D - S_A`` = 15 per node: the pass scratch holds the single-precision
+product's ``x - prev`` and sum in float32) :func:`node_params` adds node-major copies of the shapes, in double and
+in single precision, and the products with the modal mass (:func:`node_inertia_times`,
+:func:`node_inertia_times_single`) sweep them once; below, they sweep the mode-major ones twice (module
+docstring)."""
+
+
+@njit(cache=True, inline="always")
+def node_major(count, n):
+    """Whether the products with the modal mass of ``count`` nodes and ``n`` modes sweep node-major copies of the
+    shapes (:data:`NODE_MAJOR_MODES`)."""
+    return NODE_MAJOR_MODES <= n <= (S_D - S_A) * count
+
+
 def node_params(mass, cg, inertia, shapes):
     """The node data as :mod:`dynamics.kernels.node_inertia` reads them from params: ``[any CG offset, m (N),
-    p (3 N), J (9 N), Lambda (n x 3 N), Gamma (n x 3 N), Lambda and Gamma in single precision (n x 3 N numbers:
-    2 n 3 N float32)]``, node-minor (module docstring), from the masses (N), CG offsets (N, 3), inertias (N, 3, 3)
-    and shapes ``[lambda; gamma]`` (N, 6, n)."""
+    p (3 N), J (9 N), Lambda (n x 3 N), Gamma (n x 3 N), the shapes node-major where :func:`node_major`, the
+    shapes in single precision]``, node-minor (module docstring), from the masses (N), CG offsets (N, 3), inertias
+    (N, 3, 3) and shapes ``[lambda; gamma]`` (N, 6, n). Node-major: per node j its rows ``lambda_j`` and, when any
+    node has a CG offset, ``gamma_j`` (N x 3 x n or N x 6 x n). In single precision (float32, padded to a whole
+    number of doubles): the same node-major where :func:`node_major`, else ``Lambda`` and, with a CG offset,
+    ``Gamma`` mode-major (n x 3 N each, as the double ones)."""
     count, _, n = shapes.shape
+    offset = bool(np.any(np.asarray(cg) != 0.0))
     rotations = np.transpose(shapes[:, :3, :], (2, 1, 0)).reshape(n, 3 * count)
     translations = np.transpose(shapes[:, 3:, :], (2, 1, 0)).reshape(n, 3 * count)
-    single = np.concatenate([rotations.ravel(), translations.ravel()]).astype(np.float32).view(np.float64)
-    return np.concatenate([[float(np.any(cg != 0.0))], mass, np.asarray(cg).T.ravel(),
+    major = shapes[:, :6 if offset else 3, :].ravel() if node_major(count, n) else np.zeros(0)
+    if major.size:
+        single = major
+    else:
+        single = np.concatenate([rotations.ravel(), translations.ravel() if offset else []])
+    single = np.concatenate([single, np.zeros(single.size % 2)]).astype(np.float32)
+    return np.concatenate([[float(offset)], mass, np.asarray(cg).T.ravel(),
                            np.asarray(inertia).reshape(count, 9).T.ravel(), rotations.ravel(), translations.ravel(),
-                           single])
+                           major, single.view(np.float64)])
 
 
 @njit(cache=True, inline="always")
@@ -524,6 +577,59 @@ def _node_products(params, ma, pa, N, offset, th, D, A, Z):
 
 
 @njit(cache=True, fastmath=FAST_SUMS)
+def _node_major_times(params, o, N, n, offset, ma, pa, th, D, x, out):
+    """:func:`node_inertia_times` over the node-major double shapes in one sweep: per node ``alpha = lambda_j x``
+    (and ``beta = gamma_j x``) as dot products of its rows, its ``a``, ``z`` (:func:`_node_coefficients`), and ``out
+    += lambda_j' a + gamma_j' z`` while its rows are in L1; two nodes at a time without CG offsets (one load of
+    ``x`` and of ``out`` per six rows)."""
+    S, _ = _node_major_shapes(params, o, N, n)
+    if offset:
+        for j in range(N):
+            r0, r1, r2, g0, g1, g2 = S[j, 0], S[j, 1], S[j, 2], S[j, 3], S[j, 4], S[j, 5]
+            t0 = t1 = t2 = u0 = u1 = u2 = 0.0
+            for k in range(n):
+                d = x[k]
+                t0 += r0[k] * d
+                t1 += r1[k] * d
+                t2 += r2[k] * d
+                u0 += g0[k] * d
+                u1 += g1[k] * d
+                u2 += g2[k] * d
+            a0, a1, a2, z0, z1, z2 = _node_coefficients(params, ma, pa, N, j, True, th, D, t0, t1, t2, u0, u1, u2)
+            for k in range(n):
+                out[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k] + z0 * g0[k] + z1 * g1[k] + z2 * g2[k]
+        return
+    j = 0
+    while j + 2 <= N:
+        r0, r1, r2, q0, q1, q2 = S[j, 0], S[j, 1], S[j, 2], S[j + 1, 0], S[j + 1, 1], S[j + 1, 2]
+        t0 = t1 = t2 = u0 = u1 = u2 = 0.0
+        for k in range(n):
+            d = x[k]
+            t0 += r0[k] * d
+            t1 += r1[k] * d
+            t2 += r2[k] * d
+            u0 += q0[k] * d
+            u1 += q1[k] * d
+            u2 += q2[k] * d
+        a0, a1, a2 = _node_matrix_times(D, N, j, t0, t1, t2)
+        b0, b1, b2 = _node_matrix_times(D, N, j + 1, u0, u1, u2)
+        for k in range(n):
+            out[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k] + b0 * q0[k] + b1 * q1[k] + b2 * q2[k]
+        j += 2
+    if j < N:
+        r0, r1, r2 = S[j, 0], S[j, 1], S[j, 2]
+        t0 = t1 = t2 = 0.0
+        for k in range(n):
+            d = x[k]
+            t0 += r0[k] * d
+            t1 += r1[k] * d
+            t2 += r2[k] * d
+        a0, a1, a2 = _node_matrix_times(D, N, j, t0, t1, t2)
+        for k in range(n):
+            out[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k]
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
 def node_inertia_times(params, o, count, n, terms, state, x, out):
     """``out += (G(eta) - G0 - tabled terms) x``: the node terms of the modal mass times ``x`` (n), with the
     ``theta`` and ``u`` that :func:`node_inertia_terms` kept in ``state``. O(count n)."""
@@ -532,6 +638,9 @@ def node_inertia_times(params, o, count, n, terms, state, x, out):
         return
     N = count
     width = 3 * N
+    if node_major(N, n):
+        _node_major_times(params, o, N, n, offset, ma, pa, th, D, x, out)
+        return
     A, Z = node_vectors(state, N)[4:]
     shapes_times(params, lam, n, width, x, x, A, A, False)  # alpha = lambda x
     if offset:
@@ -568,12 +677,105 @@ def _single_shapes_dot(S, n, width, a, out):
     _rows_dot(S, n, width, a, out, np.float32(0.0))
 
 
+@njit(cache=True, inline="always")
+def _node_major_shapes(params, o, N, n):
+    """The node-major double-precision shapes of :func:`node_params` (N x rows x n: per node its rows ``lambda_j``
+    and, with CG offsets (rows = 6), ``gamma_j``; present where :func:`node_major`) and ``rows``."""
+    rows = 6 if params[o] != 0.0 else 3
+    start = _layout(o, N, n)[4] + 3 * N * n
+    return params[start:start + rows * N * n].reshape((N, rows, n)), rows
+
+
+@njit(cache=True, inline="always")
+def _single_shapes(params, o, N, n):
+    """The float32 numbers of the single-precision shapes of :func:`node_params` (``rows`` = 6 with CG offsets, else
+    3, times N n) and ``rows``."""
+    rows = 6 if params[o] != 0.0 else 3
+    size = rows * N * n
+    start = _layout(o, N, n)[4] + 3 * N * n + (size if node_major(N, n) else 0)
+    return params[start:start + (size + 1) // 2].view(np.float32)[:size], rows
+
+
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def _node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2, be0, be1, be2):
+    """Node j's ``a = dJ alpha + m (theta x p) x beta`` and ``z = m alpha x (theta x p)`` (:func:`_node_products`
+    for one node, from ``alpha = lambda_j x``, ``beta = gamma_j x``), in double precision."""
+    a0, a1, a2 = _node_matrix_times(D, N, j, al0, al1, al2)
+    z0 = z1 = z2 = 0.0
+    if offset:
+        m = params[ma + j]
+        t0, t1, t2 = node_vector(th, N, j)
+        c0, c1, c2 = cross3(t0, t1, t2, params[pa + j], params[pa + N + j], params[pa + 2 * N + j])
+        x0, x1, x2 = cross3(c0, c1, c2, be0, be1, be2)
+        a0, a1, a2 = add_scaled3(a0, a1, a2, m, x0, x1, x2)
+        z0, z1, z2 = cross3(al0, al1, al2, c0, c1, c2)
+        z0, z1, z2 = m * z0, m * z1, m * z2
+    return a0, a1, a2, z0, z1, z2
+
+
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def _single_node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2, be0, be1, be2):
+    """:func:`_node_coefficients` rounded to float32 for the single-precision products back."""
+    a0, a1, a2, z0, z1, z2 = _node_coefficients(params, ma, pa, N, j, offset, th, D, al0, al1, al2, be0, be1, be2)
+    return (np.float32(a0), np.float32(a1), np.float32(a2), np.float32(z0), np.float32(z1), np.float32(z2))
+
+
+@njit(cache=True, fastmath=FAST_SUMS)
+def _node_major_times_single(S, params, N, n, offset, ma, pa, th, D, state, x, prev, out):
+    """:func:`node_inertia_times_single` over the node-major float32 shapes ``S`` (N x rows x n) in one sweep: per
+    node ``alpha = lambda_j (x - prev)`` (and ``beta = gamma_j (x - prev)``) as dot products of its rows, its ``a``,
+    ``z`` in double, and ``acc += lambda_j' a + gamma_j' z`` while its rows are in L1; ``x - prev`` and ``acc`` in
+    float32 in the pass scratch (``S_A`` to ``S_D``: 30 N float32, :func:`node_major` allows n <= 15 N)."""
+    scratch = state[S_A * N:S_D * N].view(np.float32)
+    dx = scratch[:n]
+    acc = scratch[n:2 * n]
+    zero = np.float32(0.0)
+    for k in range(n):
+        dx[k] = np.float32(x[k] - prev[k])
+        acc[k] = zero
+    if offset:
+        for j in range(N):
+            r0, r1, r2, g0, g1, g2 = S[j, 0], S[j, 1], S[j, 2], S[j, 3], S[j, 4], S[j, 5]
+            t0 = t1 = t2 = u0 = u1 = u2 = zero
+            for k in range(n):
+                d = dx[k]
+                t0 += r0[k] * d
+                t1 += r1[k] * d
+                t2 += r2[k] * d
+                u0 += g0[k] * d
+                u1 += g1[k] * d
+                u2 += g2[k] * d
+            a0, a1, a2, z0, z1, z2 = _single_node_coefficients(params, ma, pa, N, j, True, th, D, t0, t1, t2, u0, u1,
+                                                               u2)
+            for k in range(n):
+                acc[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k] + z0 * g0[k] + z1 * g1[k] + z2 * g2[k]
+    else:
+        for j in range(N):
+            r0, r1, r2 = S[j, 0], S[j, 1], S[j, 2]
+            t0 = t1 = t2 = zero
+            for k in range(n):
+                d = dx[k]
+                t0 += r0[k] * d
+                t1 += r1[k] * d
+                t2 += r2[k] * d
+            a0, a1, a2, _, _, _ = _single_node_coefficients(params, ma, pa, N, j, False, th, D, t0, t1, t2, zero,
+                                                            zero, zero)
+            for k in range(n):
+                acc[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k]
+    for k in range(n):
+        out[k] += acc[k]
+
+
 @njit(cache=True, fastmath=FAST_SUMS)
 def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
-    """``out += (G(eta) - G0 - tabled terms) (x - prev)`` as :func:`node_inertia_times` does for ``x``, its two
-    sweeps over the shapes in single precision (the float32 copies of :func:`node_params`: half the bytes of
-    sweeps that the cache's bandwidth bounds, and eight products per vector instruction instead of four) and the
-    per-node algebra in double. Error about 1e-8 of the summands' size ``|Lambda|' |dJ| |Lambda| |x - prev|``
+    """``out += (G(eta) - G0 - tabled terms) (x - prev)`` as :func:`node_inertia_times` does for ``x``, over the
+    float32 copy of the shapes (:func:`node_params`), the per-node algebra in double. Mode-major (fewer than
+    :data:`NODE_MAJOR_MODES` modes): its two sweeps as :func:`node_inertia_times`'s, summed in float32 (half the
+    bytes of sweeps that the cache's bandwidth bounds, and eight products per vector instruction instead of four).
+    Node-major: one sweep, per node j ``alpha = lambda_j (x - prev)`` (and ``beta = gamma_j (x - prev)`` with CG
+    offsets) as dot products of its rows, its ``a``, ``z`` (:func:`_node_products`'s algebra), and ``acc +=
+    lambda_j' a + gamma_j' z`` while the node's rows are in L1, ``x - prev`` and ``acc`` kept in float32 in the pass
+    scratch (module docstring). Error about 1e-8 of the summands' size ``|Lambda|' |dJ| |Lambda| |x - prev|``
     (float32's 6e-8 over sums of the modes and the nodes; ``tests/flexible/test_node_inertia.py``), which where the
     sum cancels is a larger part of the product itself (4e-4 on the late corrections of the 196-mode tube): for the
     refinement's late corrections only, where ``x - prev`` is a small fraction of ``x``
@@ -583,18 +785,21 @@ def node_inertia_times_single(params, o, count, n, terms, state, x, prev, out):
         return
     N = count
     width = 3 * N
-    single = params[gam + n * width:gam + 2 * n * width].view(np.float32)
-    A = node_slot(state, N, S_A, 3).view(np.float32)[:width]
-    Z = node_slot(state, N, S_Z, 3).view(np.float32)[:width]
-    L32 = single[:n * width].reshape((n, width))
-    G32 = single[n * width:].reshape((n, width))
-    _single_shapes_times(L32, n, width, x, prev, A)
-    if offset:
-        _single_shapes_times(G32, n, width, x, prev, Z)
-    _node_products(params, ma, pa, N, offset, th, D, A, Z)
-    _single_shapes_dot(L32, n, width, A, out)
-    if offset:
-        _single_shapes_dot(G32, n, width, Z, out)
+    single, rows = _single_shapes(params, o, N, n)
+    if not node_major(N, n):
+        A = node_slot(state, N, S_A, 3).view(np.float32)[:width]
+        Z = node_slot(state, N, S_Z, 3).view(np.float32)[:width]
+        L32 = single[:n * width].reshape((n, width))
+        _single_shapes_times(L32, n, width, x, prev, A)
+        if offset:
+            G32 = single[n * width:].reshape((n, width))
+            _single_shapes_times(G32, n, width, x, prev, Z)
+        _node_products(params, ma, pa, N, offset, th, D, A, Z)
+        _single_shapes_dot(L32, n, width, A, out)
+        if offset:
+            _single_shapes_dot(G32, n, width, Z, out)
+        return
+    _node_major_times_single(single.reshape((N, rows, n)), params, N, n, offset, ma, pa, th, D, state, x, prev, out)
 
 
 TILE = 4

@@ -21,12 +21,12 @@ from .random_flexible import flexible_body_data, random_node_model
 from .test_brute_force import rel
 
 
-def _tree(budget, solver="aba", monkeypatch=None):
+def _tree(budget, solver="aba", monkeypatch=None, nodes=9, modes=6):
     """A rigid bus (free) with, in body order: a rigid arm, the flexible panel (revolute on the bus, its modal mass
     refined or factored per ``budget``), a wheel on a node of the panel, a rigid boom on the bus with a prescribed
     hinge, and a tip mass on the wheel: bodies before the panel, after it and hanging from it."""
     monkeypatch.setattr(dynamics.system, "refinement_budget", lambda n, count: budget)
-    model = random_node_model(9, 6, seed=81)
+    model = random_node_model(nodes, modes, seed=81)
     mb = Multibody()
     mb.add_body("bus", None, mass=50.0, inertia=[4.0, 5.0, 6.0], com=(0.02, 0.01, 0.0), hinge="free")
     mb.add_body("arm", "bus", mass=3.0, inertia=[0.1, 0.2, 0.2], com=(0.3, 0.0, 0.0), hinge="revolute",
@@ -142,8 +142,8 @@ def test_choice_prices_what_the_body_does():
     assert dense - aba > formed  # the second formation (and node pass) of the dense path
 
 
-@pytest.mark.parametrize("size", [1e-3, 1e-2, 3e-2])
-def test_single_precision_corrections(size, monkeypatch):
+@pytest.mark.parametrize("size, nodes, modes", [(1e-3, 9, 6), (1e-2, 9, 6), (3e-2, 9, 6), (1e-4, 40, 160)])
+def test_single_precision_corrections(size, nodes, modes, monkeypatch):
     """The late refinements take their product with ``dG`` as the correction ``dG (x_k - x_(k-1))`` in single
     precision (dynamics.kernels.articulated_body.SINGLE_BELOW); the result still equals the factored modal mass's to
     1e-12 (module docstring). That they were taken so: the product the refinement kept (``PV_DG``) differs from the
@@ -151,21 +151,24 @@ def test_single_precision_corrections(size, monkeypatch):
     double-precision products alone would equal it exactly (the same kernel on the same numbers); and by no more
     than 1e-10 of it (the corrections are below SINGLE_BELOW = 1e-7 of the accelerations and their float32
     products within a few 1e-7 of themselves: a few 1e-14 of ``|dG| |x|``; observed <= 4.5e-16 of the product, with
-    3, 4 and 5 refinements at the three sizes)."""
-    from dynamics.kernels.node_inertia import NODE_STATE, node_inertia_times
+    3, 4 and 5 refinements at the three sizes of the 6-mode panel). At 160 modes on 40 nodes the single-precision
+    shapes are node-major (``dynamics.kernels.node_inertia.node_major``: one sweep per product)."""
+    from dynamics.kernels.node_inertia import NODE_STATE, node_inertia_times, node_major
     from dynamics.layout import (FX_NODE_COUNT, FX_NODE_TERMS, FX_NODES, FX_P_NODES, FX_P_VEC, N_FX, PV_DG,
                                  PV_PREV)
 
-    refined = _tree(60, monkeypatch=monkeypatch)
-    factored = _tree(0, monkeypatch=monkeypatch)
+    refined = _tree(60, monkeypatch=monkeypatch, nodes=nodes, modes=modes)
+    factored = _tree(0, monkeypatch=monkeypatch, nodes=nodes, modes=modes)
     panel = refined.body_index("panel")
     n = refined.n_modes[panel]
+    assert node_major(nodes, n) == (modes == 160)
     rng = np.random.default_rng(11)
     q = refined.neutral_configuration()
     q[9:9 + n] = size * rng.standard_normal(n)
     u, tau = rng.standard_normal(refined.nu), rng.standard_normal(refined.nu)
     udot = refined.forward_dynamics(q, u, tau)
     assert rel(udot, factored.forward_dynamics(q, u, tau)) < 1e-12
+    assert refined.pool[P_REFINEMENTS] >= 3  # the third pass on takes the single-precision corrections
     fx = refined.topology[panel, FLEX:FLEX + N_FX]
     pool, count = refined.pool, fx[FX_NODE_COUNT]
     kept = pool[fx[FX_P_VEC] + PV_DG * n:fx[FX_P_VEC] + (PV_DG + 1) * n]
