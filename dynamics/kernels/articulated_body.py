@@ -22,7 +22,8 @@ lowers ``rho`` by 10 % (measured 2026-12-07 on the 196-mode tube of ``benchmarks
 an iterate changes by less than ``SINGLE_BELOW`` = 1e-7 of the modal accelerations, a pass's product is the
 correction ``dG (x_k - x_(k-1))`` added to the last product, its sweeps over the nodes' shapes in single precision
 (:func:`dynamics.kernels.node_inertia.node_inertia_times_single`: 0.46x of the double product on the 196-mode tube of
-``benchmarks/flexible_scaling.py``, 7.5 against 14-17 us; its five products 54 against 71 us, 2026-12-07): its
+``benchmarks/flexible_scaling.py``, 7.5 against 14-17 us, its five products 54 against 71 us, over mode-major
+copies; from 96 modes both products sweep node-major copies once, 6.9 and 13.7 us there, 2026-12-07): its
 error, about 1e-8 of the summands' size of a correction below 1e-7 of the accelerations, is below the round-off
 of the accelerations (on that tube, where ``rho`` is about 0.01 and the third to fifth passes' products are so
 taken: the kept product differs from the double one by 3e-17 of the modal accelerations, and the result from the
@@ -48,7 +49,8 @@ time) before its rows were solved six at a time (0.75 us, :func:`dynamics.flexib
 Refining this body's modal mass instead of factoring it measured 1.2x the factored evaluation at a 3 cm tip
 deflection (five passes) and 1.35x at 0.3 m (two passes, then the fall-back): the budget's choice stands.
 A refinement pass of the 196-mode tube with a wheel (``benchmarks/flexible_scaling.py --deck-only``) costs about
-2.5 us besides its product with ``dG`` (15 us in double, 7 in single precision): the bias pass 1.6 (of which the
+2.5 us besides its product with ``dG`` (15 us in double, 7 in single precision over the mode-major copies; 13.7
+and 6.9 over the node-major ones): the bias pass 1.6 (of which the
 modal elimination's bias part 1.4, its Woodbury and ``B'`` rows taken six per sweep: 0.87x of a sweep per row), the
 acceleration pass 0.6, the convergence check 0.2. What a pass recomputes unchanged is small and was left: the
 modal right-hand side without ``dG`` and the children's slot terms (a third of the bias part's multiply-adds with
