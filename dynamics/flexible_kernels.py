@@ -77,6 +77,24 @@ def _skew_apply(p, x, out):
     out[2] = p[0] * x[1] - p[1] * x[0]
 
 
+@njit(cache=True, fastmath=FAST_SUMS, inline="always")
+def dots6(r0, r1, r2, r3, r4, r5, x, n):
+    """The six dot products ``r_i . x`` over the first ``n`` entries in one sweep over ``x`` (one load of ``x`` per six
+    multiply-adds; vectorized over the entries): the register tile that the modal elimination's six rows
+    (:mod:`dynamics.kernels.modal_condensation`) and the node-major products of two nodes' or one node's six rows
+    (:mod:`dynamics.kernels.node_inertia`) share."""
+    c0 = c1 = c2 = c3 = c4 = c5 = 0.0
+    for s in range(n):
+        xs = x[s]
+        c0 += r0[s] * xs
+        c1 += r1[s] * xs
+        c2 += r2[s] * xs
+        c3 += r3[s] * xs
+        c4 += r4[s] * xs
+        c5 += r5[s] * xs
+    return c0, c1, c2, c3, c4, c5
+
+
 @njit(cache=True, fastmath=FAST_SUMS)
 def _shape_sums(shape, n, x, rotation, translation):
     """``rotation = lambda x``, ``translation = gamma x`` (``shape`` = Pi = [lambda; gamma], 6 x >=n): six sums over

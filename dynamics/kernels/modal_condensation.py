@@ -252,17 +252,7 @@ def _rows_times_add(R, x0, x1, x2, x3, x4, x5, sign, out, n):
 @njit(cache=True, fastmath=FAST_SUMS, inline="always")
 def _rows_dot6(R, x, n):
     """``R x`` for the 6 x n rows ``R``: the six dot products in one sweep over ``x`` (vectorized over the modes)."""
-    r0, r1, r2, r3, r4, r5 = R[0], R[1], R[2], R[3], R[4], R[5]
-    c0 = c1 = c2 = c3 = c4 = c5 = 0.0
-    for s in range(n):
-        xs = x[s]
-        c0 += r0[s] * xs
-        c1 += r1[s] * xs
-        c2 += r2[s] * xs
-        c3 += r3[s] * xs
-        c4 += r4[s] * xs
-        c5 += r5[s] * xs
-    return c0, c1, c2, c3, c4, c5
+    return FK.dots6(R[0], R[1], R[2], R[3], R[4], R[5], x, n)
 
 
 @njit(cache=True, fastmath=FAST_SUMS)

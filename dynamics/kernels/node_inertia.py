@@ -109,7 +109,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dynamics.flexible_kernels import FAST_SUMS
+from dynamics.flexible_kernels import FAST_SUMS, dots6
 from dynamics.layout import NODE_F2, NODE_G1, NODE_G2
 
 # where each node's numbers sit in the body's FX_P_NODES block, in units of the node count N (node-minor):
@@ -586,15 +586,7 @@ def _node_major_times(params, o, N, n, offset, ma, pa, th, D, x, out):
     if offset:
         for j in range(N):
             r0, r1, r2, g0, g1, g2 = S[j, 0], S[j, 1], S[j, 2], S[j, 3], S[j, 4], S[j, 5]
-            t0 = t1 = t2 = u0 = u1 = u2 = 0.0
-            for k in range(n):
-                d = x[k]
-                t0 += r0[k] * d
-                t1 += r1[k] * d
-                t2 += r2[k] * d
-                u0 += g0[k] * d
-                u1 += g1[k] * d
-                u2 += g2[k] * d
+            t0, t1, t2, u0, u1, u2 = dots6(r0, r1, r2, g0, g1, g2, x, n)
             a0, a1, a2, z0, z1, z2 = _node_coefficients(params, ma, pa, N, j, True, th, D, t0, t1, t2, u0, u1, u2)
             for k in range(n):
                 out[k] += a0 * r0[k] + a1 * r1[k] + a2 * r2[k] + z0 * g0[k] + z1 * g1[k] + z2 * g2[k]
@@ -602,15 +594,7 @@ def _node_major_times(params, o, N, n, offset, ma, pa, th, D, x, out):
     j = 0
     while j + 2 <= N:
         r0, r1, r2, q0, q1, q2 = S[j, 0], S[j, 1], S[j, 2], S[j + 1, 0], S[j + 1, 1], S[j + 1, 2]
-        t0 = t1 = t2 = u0 = u1 = u2 = 0.0
-        for k in range(n):
-            d = x[k]
-            t0 += r0[k] * d
-            t1 += r1[k] * d
-            t2 += r2[k] * d
-            u0 += q0[k] * d
-            u1 += q1[k] * d
-            u2 += q2[k] * d
+        t0, t1, t2, u0, u1, u2 = dots6(r0, r1, r2, q0, q1, q2, x, n)
         a0, a1, a2 = _node_matrix_times(D, N, j, t0, t1, t2)
         b0, b1, b2 = _node_matrix_times(D, N, j + 1, u0, u1, u2)
         for k in range(n):
