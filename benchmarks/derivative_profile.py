@@ -187,6 +187,7 @@ def _arguments(system, q, u, node_forces):
 
 
 def hub_case():
+    from benchmarks.flexible_scaling import deflected_state
     from benchmarks.flexible_vs_exudyn import BEAM, beam_hub_deck
     from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
 
@@ -199,13 +200,7 @@ def hub_case():
     mb.add_flexible_body("boom", None, modal=body, hinge="free", order=2)
     mb.add_node("hub", "boom", grid=1)
     system = mb.compile()
-    q, u = system.neutral_configuration(), np.zeros(system.nu)
-    tip = body.translation_shapes[-1][:, :n]
-    omega = 2 * np.pi * np.asarray(body.frequencies_hz[:n])
-    eta = (tip[1] + tip[2]) / omega ** 2
-    q[7:7 + n] = 0.3 * eta / np.abs(tip @ eta).max()
-    u[2] = 1.0
-    u[6:6 + n] = 0.1 * omega * q[7:7 + n]
+    q, u = deflected_state(system, body, n, tip_deflection=0.3, rate=1.0)
     forces = np.zeros((system.nnodes, 6))
     forces[0, 2] = 50.0
     a = _arguments(system, q, u, forces)
@@ -233,7 +228,7 @@ def hub_case():
 
 
 def tube_case():
-    from benchmarks.flexible_scaling import beam_deck
+    from benchmarks.flexible_scaling import beam_deck, deflected_state
     from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
 
     n = 196
@@ -247,13 +242,7 @@ def tube_case():
     mb.add_body("wheel", "tube", mass=5.0, inertia=[0.1, 0.06, 0.06], hinge="revolute", axis=(1.0, 0.0, 0.0),
                 parent_node="mount")
     system = mb.compile(solver="aba")
-    q, u = system.neutral_configuration(), np.zeros(system.nu)
-    tip = body.translation_shapes[-1][:, :n]
-    omega = 2 * np.pi * np.asarray(body.frequencies_hz[:n])
-    eta = (tip[1] + tip[2]) / omega ** 2
-    q[7:7 + n] = 0.01 * eta / np.abs(tip @ eta).max()
-    u[2] = 0.05
-    u[6:6 + n] = 0.1 * omega * q[7:7 + n]
+    q, u = deflected_state(system, body, n, tip_deflection=0.01, rate=0.05)
     u[-1] = 50.0
     a = _arguments(system, q, u, np.zeros((system.nnodes, 6)))
     _forward(1, a)

@@ -93,6 +93,21 @@ def beam_deck(n_elements=100, length=9.0):
     return "\n".join(lines + ["ENDDATA"]) + "\n"
 
 
+def deflected_state(system, body, n, tip_deflection, rate):
+    """A vibrating state of a flexible body on a free hinge (the first of ``system``'s bodies; ``q = [quaternion,
+    position, eta, ...]``, ``u = [omega, v, eta_dot, ...]``): the static deflection under a lateral tip load
+    (``eta_r = gamma_tip,r F / k_r``) scaled to ``tip_deflection`` m at the tip, modal rates of a tenth of that
+    amplitude times each mode's frequency, and ``rate`` rad/s about z. Shared with ``benchmarks/derivative_profile.py``."""
+    q, u = system.neutral_configuration(), np.zeros(system.nu)
+    tip = body.translation_shapes[-1][:, :n]
+    omega = 2 * np.pi * np.asarray(body.frequencies_hz[:n])
+    eta = (tip[1] + tip[2]) / omega ** 2
+    q[7:7 + n] = tip_deflection * eta / np.abs(tip @ eta).max()
+    u[2] = rate
+    u[6:6 + n] = 0.1 * omega * q[7:7 + n]
+    return q, u
+
+
 def deck_table(sizes):
     """Part 0 (module docstring)."""
     import tempfile
@@ -121,15 +136,7 @@ def deck_table(sizes):
             mb.add_body("wheel", "tube", mass=5.0, inertia=[0.1, 0.06, 0.06], hinge="revolute", axis=(1.0, 0.0, 0.0),
                         parent_node="mount")
             system = mb.compile(solver="aba")
-            q, u = system.neutral_configuration(), np.zeros(system.nu)
-            # the static deflection under a lateral tip load (eta_r = gamma_tip,r F / k_r), 1 cm at the tip, and
-            # modal rates of a tenth of that amplitude times each mode's frequency: a vibrating structure
-            tip = body.translation_shapes[-1][:, :n]
-            omega = 2 * np.pi * np.asarray(body.frequencies_hz[:n])
-            eta = (tip[1] + tip[2]) / omega ** 2
-            q[7:7 + n] = 0.01 * eta / np.abs(tip @ eta).max()
-            u[:3] = [0.0, 0.0, 0.05]
-            u[6:6 + n] = 0.1 * omega * q[7:7 + n]
+            q, u = deflected_state(system, body, n, tip_deflection=0.01, rate=0.05)
             u[-1] = 50.0
             tau = np.zeros(system.nu)
             got = system.forward_dynamics(q, u, tau)
