@@ -228,7 +228,7 @@ def hub_case():
 
 
 def tube_case():
-    from benchmarks.flexible_scaling import beam_deck, deflected_state
+    from benchmarks.flexible_scaling import beam_deck, deflected_state, tube_with_wheel
     from dynamics.flex.pipeline import Fem2ModalOptions, fem2modal
 
     n = 196
@@ -236,12 +236,7 @@ def tube_case():
         path = os.path.join(tmp, "tube.dat")
         Path(path).write_text(beam_deck())
         body = fem2modal(path, Fem2ModalOptions(n_modes=n, modal_integrals=True))
-    mb = Multibody()
-    mb.add_flexible_body("tube", None, modal=body, hinge="free", modes=range(n), order=2)
-    mb.add_node("mount", "tube", grid=51)
-    mb.add_body("wheel", "tube", mass=5.0, inertia=[0.1, 0.06, 0.06], hinge="revolute", axis=(1.0, 0.0, 0.0),
-                parent_node="mount")
-    system = mb.compile(solver="aba")
+    system = tube_with_wheel(body, n, 2)
     q, u = deflected_state(system, body, n, tip_deflection=0.01, rate=0.05)
     u[-1] = 50.0
     a = _arguments(system, q, u, np.zeros((system.nnodes, 6)))

@@ -93,6 +93,18 @@ def beam_deck(n_elements=100, length=9.0):
     return "\n".join(lines + ["ENDDATA"]) + "\n"
 
 
+def tube_with_wheel(body, n, order, omit=()):
+    """Part 0's system: the tube's first ``n`` modes at ``order`` (``omit`` the terms left out) on a free hinge, a
+    5 kg wheel on a revolute hinge at its grid 51, articulated-body solver. Shared with
+    ``benchmarks/derivative_profile.py``."""
+    mb = Multibody()
+    mb.add_flexible_body("tube", None, modal=body, hinge="free", modes=range(n), order=order, omit_terms=omit)
+    mb.add_node("mount", "tube", grid=51)
+    mb.add_body("wheel", "tube", mass=5.0, inertia=[0.1, 0.06, 0.06], hinge="revolute", axis=(1.0, 0.0, 0.0),
+                parent_node="mount")
+    return mb.compile(solver="aba")
+
+
 def deflected_state(system, body, n, tip_deflection, rate):
     """A vibrating state of a flexible body on a free hinge (the first of ``system``'s bodies; ``q = [quaternion,
     position, eta, ...]``, ``u = [omega, v, eta_dot, ...]``): the static deflection under a lateral tip load
@@ -130,12 +142,7 @@ def deck_table(sizes):
     for n in sizes:
         calls = []
         for order, omit in cases:
-            mb = Multibody()
-            mb.add_flexible_body("tube", None, modal=body, hinge="free", modes=range(n), order=order, omit_terms=omit)
-            mb.add_node("mount", "tube", grid=51)
-            mb.add_body("wheel", "tube", mass=5.0, inertia=[0.1, 0.06, 0.06], hinge="revolute", axis=(1.0, 0.0, 0.0),
-                        parent_node="mount")
-            system = mb.compile(solver="aba")
+            system = tube_with_wheel(body, n, order, omit)
             q, u = deflected_state(system, body, n, tip_deflection=0.01, rate=0.05)
             u[-1] = 50.0
             tau = np.zeros(system.nu)

@@ -78,12 +78,13 @@ def _skew_apply(p, x, out):
 
 
 @njit(cache=True, fastmath=FAST_SUMS, inline="always")
-def dots6(r0, r1, r2, r3, r4, r5, x, n):
+def dots6(r0, r1, r2, r3, r4, r5, x, n, zero=0.0):
     """The six dot products ``r_i . x`` over the first ``n`` entries in one sweep over ``x`` (one load of ``x`` per six
-    multiply-adds; vectorized over the entries): the register tile that the modal elimination's six rows
+    multiply-adds; vectorized over the entries), summed in the type of ``zero`` (``np.float32(0.0)`` for the
+    single-precision products): the register tile that the modal elimination's six rows
     (:mod:`dynamics.kernels.modal_condensation`) and the node-major products of two nodes' or one node's six rows
     (:mod:`dynamics.kernels.node_inertia`) share."""
-    c0 = c1 = c2 = c3 = c4 = c5 = 0.0
+    c0 = c1 = c2 = c3 = c4 = c5 = zero
     for s in range(n):
         xs = x[s]
         c0 += r0[s] * xs

@@ -720,15 +720,7 @@ def _node_major_times_single(S, params, N, n, offset, ma, pa, th, D, state, x, p
     if offset:
         for j in range(N):
             r0, r1, r2, g0, g1, g2 = S[j, 0], S[j, 1], S[j, 2], S[j, 3], S[j, 4], S[j, 5]
-            t0 = t1 = t2 = u0 = u1 = u2 = zero
-            for k in range(n):
-                d = dx[k]
-                t0 += r0[k] * d
-                t1 += r1[k] * d
-                t2 += r2[k] * d
-                u0 += g0[k] * d
-                u1 += g1[k] * d
-                u2 += g2[k] * d
+            t0, t1, t2, u0, u1, u2 = dots6(r0, r1, r2, g0, g1, g2, dx, n, zero)
             a0, a1, a2, z0, z1, z2 = _single_node_coefficients(params, ma, pa, N, j, True, th, D, t0, t1, t2, u0, u1,
                                                                u2)
             for k in range(n):
