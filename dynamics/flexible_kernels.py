@@ -651,9 +651,16 @@ def cholesky_in_place(G, n):
 @njit(cache=True)
 def cholesky_solve(L, n, y):
     """``y <- (L L')^-1 y`` in place for the lower Cholesky factor in ``L[:n, :n]`` (:func:`cholesky_in_place`):
-    forward, then backward substitution, both reading rows of L (the latter as updates of the entries above by
-    each solved one, as :func:`modal_mass_solve_rows`: a column's entries are n apart; 0.62x of the sums down the
-    columns at n = 30, 0.51x at n = 200, 2026-12-07)."""
+    :func:`cholesky_substitutions` without reassociated sums (the dense solver's and the constraints' solves)."""
+    cholesky_substitutions(L, n, y)
+
+
+@njit(cache=True, inline="always")
+def cholesky_substitutions(L, n, y):
+    """``y <- (L L')^-1 y`` in place: forward, then backward substitution, both reading rows of L (the latter as
+    updates of the entries above by each solved one: a column's entries are n apart; 0.62x of the sums down the
+    columns at n = 30, 0.51x at n = 200, 2026-12-07). Inlined, so that it sums as its caller's flags say
+    (:func:`cholesky_solve` exactly, the one-row modal-mass solve of :func:`modal_mass_solve_rows` reassociated)."""
     for s in range(n):
         t = y[s]
         for j in range(s):
@@ -695,17 +702,12 @@ def modal_mass_solve_rows(fx, kind, params, n, L, X, rows, out):
         # substitution as updates of the entries above by each solved one (row s of L again, not column s: a
         # column's entries are n apart); 2026-12-07: 0.40 against 0.54 us at n = 20, 8.2 against 36 us at n = 196
         # (both sweeps as dot products); both as updates 0.42 and 26 us
+        # L L' z = x by rows of L (2026-12-07: 0.40 against 0.54 us at n = 20, 8.2 against 36 us at n = 196 with both
+        # sweeps as dot products; both as updates 0.42 and 26 us)
         o = out[0]
         for s in range(n):
-            t = X[0, s]
-            for k in range(s):
-                t -= L[s, k] * o[k]
-            o[s] = t / L[s, s]
-        for s in range(n - 1, -1, -1):
-            z = o[s] / L[s, s]
-            o[s] = z
-            for k in range(s):
-                o[k] -= L[s, k] * z
+            o[s] = X[0, s]
+        cholesky_substitutions(L, n, o)
         return
     for b in range(0, rows, 6):
         _factored_solve_six(L, n, X, out, b, rows)
